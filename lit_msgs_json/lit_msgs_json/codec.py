@@ -1,0 +1,107 @@
+"""Load the shipped JSON Schemas and validate, encode and decode documents against them.
+
+Schemas live in ``lit_msgs_json/schemas/<Name>.schema.json`` and are found with
+``importlib.resources``, so they work from a source tree, a wheel or a ROS install alike.
+Validation uses JSON Schema draft 2020-12 and additionally rejects non-finite numbers, which JSON
+cannot carry and which numeric bounds do not catch (every comparison with NaN is false).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator
+from functools import cache
+from importlib.resources import files
+from typing import Any
+
+from jsonschema import Draft202012Validator
+from jsonschema.exceptions import best_match
+
+from lit_msgs_json.errors import SchemaError, UnknownSchemaError
+
+SCHEMA_SUFFIX = ".schema.json"
+"""File-name suffix of every schema."""
+
+
+def schema_names() -> list[str]:
+    """Names of all shipped schemas, sorted (``TensorSidecar``, ...)."""
+    directory = files("lit_msgs_json") / "schemas"
+    return sorted(
+        entry.name.removesuffix(SCHEMA_SUFFIX)
+        for entry in directory.iterdir()
+        if entry.name.endswith(SCHEMA_SUFFIX)
+    )
+
+
+def load_schema(name: str) -> dict[str, Any]:
+    """The schema called ``name`` (``TensorSidecar`` or ``lit_msgs_json/TensorSidecar``) as a dict.
+
+    Raises:
+        UnknownSchemaError: no schema of that name ships with the package.
+    """
+    return _validator(name.removeprefix("lit_msgs_json/")).schema  # type: ignore[no-any-return]
+
+
+def validate(name: str, obj: object) -> None:
+    """Check ``obj`` against schema ``name``.
+
+    Raises:
+        SchemaError: the most relevant violation, naming its JSON path and the broken rule.
+        UnknownSchemaError: no schema of that name ships with the package.
+    """
+    short = name.removeprefix("lit_msgs_json/")
+    validator = _validator(short)
+    for json_path, value in _non_finite_numbers(obj, "$"):
+        raise SchemaError(short, json_path, "finite", f"{value!r} is not a finite number")
+    error = best_match(validator.iter_errors(obj))
+    if error is not None:
+        raise SchemaError(short, error.json_path, str(error.validator), error.message)
+
+
+def dumps(name: str, obj: object, **kwargs: Any) -> str:
+    """Validate ``obj`` against schema ``name`` and serialise it as strict JSON (no NaN)."""
+    validate(name, obj)
+    return json.dumps(obj, allow_nan=False, **kwargs)
+
+
+def loads(name: str, text: str | bytes) -> Any:
+    """Parse strict JSON (``NaN``/``Infinity`` rejected) and validate it against schema ``name``.
+
+    Raises:
+        SchemaError: the text is not JSON (rule ``json``) or violates the schema.
+    """
+    try:
+        obj = json.loads(text, parse_constant=_reject_constant)
+    except (ValueError, TypeError) as exc:  # JSONDecodeError and UnicodeDecodeError are ValueErrors
+        raise SchemaError(
+            name.removeprefix("lit_msgs_json/"), "$", "json", f"not valid JSON: {exc}"
+        ) from exc
+    validate(name, obj)
+    return obj
+
+
+@cache
+def _validator(name: str) -> Draft202012Validator:
+    resource = files("lit_msgs_json") / "schemas" / f"{name}{SCHEMA_SUFFIX}"
+    if "/" in name or not resource.is_file():
+        raise UnknownSchemaError(name, schema_names())
+    schema = json.loads(resource.read_text(encoding="utf-8"))
+    Draft202012Validator.check_schema(schema)
+    return Draft202012Validator(schema)
+
+
+def _non_finite_numbers(obj: object, path: str) -> Iterator[tuple[str, float]]:
+    """JSON paths (in jsonschema's ``json_path`` spelling) of NaN and infinite floats in ``obj``."""
+    if isinstance(obj, float) and not math.isfinite(obj):
+        yield path, obj
+    elif isinstance(obj, dict):
+        for key, value in obj.items():
+            yield from _non_finite_numbers(value, f"{path}.{key}")
+    elif isinstance(obj, (list, tuple)):
+        for index, value in enumerate(obj):
+            yield from _non_finite_numbers(value, f"{path}[{index}]")
+
+
+def _reject_constant(constant: str) -> float:
+    raise ValueError(f"{constant} is not allowed in JSON")

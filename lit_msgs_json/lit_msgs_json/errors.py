@@ -1,0 +1,26 @@
+"""Exceptions raised by ``lit_msgs_json``."""
+
+from __future__ import annotations
+
+
+class SchemaError(ValueError):
+    """A document does not satisfy its JSON Schema.
+
+    The message names the schema, the JSON path of the offending field and the rule it broke.
+    """
+
+    def __init__(self, schema: str, json_path: str, rule: str, detail: str) -> None:
+        super().__init__(f"{schema}: {json_path}: {detail} (rule: {rule})")
+        self.schema = schema
+        """Name of the schema, e.g. ``TensorSidecar``."""
+        self.json_path = json_path
+        """JSON path of the offending field, e.g. ``$.axes[1].size``."""
+        self.rule = rule
+        """Broken rule: a JSON Schema keyword such as ``enum``, or ``finite`` or ``json``."""
+
+
+class UnknownSchemaError(SchemaError, LookupError):
+    """No schema of that name ships with ``lit_msgs_json``."""
+
+    def __init__(self, schema: str, known: list[str]) -> None:
+        super().__init__(schema, "$", "known-schema", f"no such schema; known: {', '.join(known)}")

@@ -1,0 +1,87 @@
+#pragma once
+/** \file BoxWorld.h
+ *  \brief Hyperrectangle worlds in R^n and a validity checker that counts its calls. */
+
+#include <ompl/base/SpaceInformation.h>
+#include <ompl/base/ProblemDefinition.h>
+#include <ompl/base/StateValidityChecker.h>
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace lit
+{
+    /** \brief An axis-aligned, closed box obstacle: a point collides iff lower <= x <= upper on every axis. */
+    struct Box
+    {
+        std::vector<double> lower;
+        std::vector<double> upper;
+    };
+
+    /** \brief A world: the space bounds and the obstacles. */
+    struct BoxWorld
+    {
+        /** \brief Lower corner of the state space. */
+        std::vector<double> lower;
+        /** \brief Upper corner of the state space. */
+        std::vector<double> upper;
+        /** \brief The obstacles. */
+        std::vector<Box> boxes;
+
+        /** \brief Dimension of the world; throws std::invalid_argument if the description is inconsistent. */
+        unsigned int validatedDimension() const;
+    };
+
+    /** \brief Validity checker for a BoxWorld. Counts every call (thread-safe, relaxed). */
+    class BoxWorldValidityChecker : public ompl::base::StateValidityChecker
+    {
+    public:
+        /** \brief Checker for \e world on \e si (an R^n space of the world's dimension). */
+        BoxWorldValidityChecker(const ompl::base::SpaceInformationPtr &si, const BoxWorld &world);
+
+        /** \brief True iff the state lies inside the bounds and outside every box. */
+        bool isValid(const ompl::base::State *state) const override;
+
+        /** \brief The same test on raw coordinates, without counting. */
+        bool isValidPoint(const double *x) const;
+
+        /** \brief Number of isValid calls since construction or the last reset. */
+        std::uint64_t calls() const
+        {
+            return calls_.load(std::memory_order_relaxed);
+        }
+
+        /** \brief Sets the call counter to zero. */
+        void resetCalls()
+        {
+            calls_.store(0, std::memory_order_relaxed);
+        }
+
+    private:
+        /** \brief Dimension. */
+        unsigned int dim_{0u};
+        /** \brief Bounds, flattened. */
+        std::vector<double> lower_, upper_;
+        /** \brief Box corners, flattened box-major: boxLower_[b * dim_ + i]. */
+        std::vector<double> boxLower_, boxUpper_;
+        /** \brief Call counter. */
+        mutable std::atomic<std::uint64_t> calls_{0u};
+    };
+
+    /** \brief Everything a planning query on a BoxWorld needs: space, checker, problem definition. */
+    struct BoxProblem
+    {
+        ompl::base::SpaceInformationPtr si;
+        ompl::base::ProblemDefinitionPtr pdef;
+        std::shared_ptr<BoxWorldValidityChecker> checker;
+        BoxWorld world;
+    };
+
+    /** \brief Builds an R^n problem with path-length objective. \e resolution is OMPL's
+     *  state-validity-checking resolution (a fraction of the space's maximum extent). Start and goal are
+     *  not validated here: the planners report invalid ones with a status. */
+    BoxProblem makeBoxProblem(const BoxWorld &world, const std::vector<double> &start,
+                              const std::vector<double> &goal, double resolution);
+}  // namespace lit

@@ -1,0 +1,210 @@
+#pragma once
+/** \file LITstar.h
+ *  \brief LIT* (Learning-based Informed Trees): an EIT*-class asymmetric bidirectional search whose batch size
+ *  B and neighbour factor psi_K come from a ParameterPolicy fed with obstacle features. */
+
+#include "lit/ParameterPolicy.h"
+#include "lit/PlannerListener.h"
+#include "lit/litstar/ForwardQueue.h"
+#include "lit/litstar/RandomGeometricGraph.h"
+
+#include <ompl/base/Planner.h>
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <queue>
+#include <string>
+#include <vector>
+
+namespace lit
+{
+    /** \brief Counters of one planning problem. */
+    struct LITstarCounters
+    {
+        std::size_t iterations{0u};
+        std::size_t batches{0u};
+        std::size_t validSamples{0u};
+        std::size_t invalidSamples{0u};
+        std::size_t prunedSamples{0u};
+        /** \brief States checked by the planner (samples and edge points). */
+        std::size_t collisionChecks{0u};
+        /** \brief Edges fully collision-checked by the forward search. */
+        std::size_t edgesEvaluated{0u};
+        /** \brief Sparse checks by the reverse search, and edges found invalid (either search). */
+        std::size_t edgesSparselyChecked{0u};
+        std::size_t edgesInvalid{0u};
+        std::size_t reverseSteps{0u};
+        std::size_t forwardSteps{0u};
+        std::size_t reverseRestarts{0u};
+        std::size_t expansions{0u};
+        std::size_t batchDecisions{0u};
+        std::size_t neighbourDecisions{0u};
+    };
+
+    class LITstar : public ompl::base::Planner
+    {
+    public:
+        explicit LITstar(const ompl::base::SpaceInformationPtr &si);
+        ~LITstar() override;
+
+        void setup() override;
+        void clear() override;
+        ompl::base::PlannerStatus solve(const ompl::base::PlannerTerminationCondition &ptc) override;
+        void getPlannerData(ompl::base::PlannerData &data) const override;
+
+        /** \brief Batch size of the fixed policy (EIT*'s B). */
+        void setBatchSize(unsigned int batchSize);
+        unsigned int getBatchSize() const;
+        /** \brief Rewire factor eta of the k-nearest RGG and of the feature radius. */
+        void setRewireFactor(double factor);
+        double getRewireFactor() const;
+        /** \brief psi_K is decided every \e interval expansions (1: at every expansion). */
+        void setDecisionInterval(unsigned int interval);
+        unsigned int getDecisionInterval() const;
+        /** \brief Policy by name: "fixed" or "fit" (tensor and external policies: setPolicy()). */
+        void setPolicyName(const std::string &name);
+        std::string getPolicyName() const;
+        void setPolicy(ParameterPolicyPtr policy);
+        const ParameterPolicyPtr &getPolicy() const;
+        /** \brief Seed of the planner's own sampler RNG. */
+        void setSeed(unsigned int seed);
+        unsigned int getSeed() const;
+        /** \brief Stop after this many iterations / batches in total (0: no limit). */
+        void setMaxIterations(unsigned int iterations);
+        unsigned int getMaxIterations() const;
+        void setMaxBatches(unsigned int batches);
+        unsigned int getMaxBatches() const;
+        /** \brief Stop after this much planner time (s, external-policy time excluded; 0: no limit). */
+        void setTimeBudget(double seconds);
+        double getTimeBudget() const;
+
+        /** \brief Receives solution, decision and batch events. */
+        void addListener(std::shared_ptr<PlannerListener> listener);
+
+        const LITstarCounters &counters() const
+        {
+            return counters_;
+        }
+        /** \brief Planner time (s) spent in solve so far, external-policy time excluded. */
+        double planningTime() const;
+        /** \brief Best cost (infinite without a solution) and the best path's coordinates. */
+        double bestCost() const
+        {
+            return bestCost_;
+        }
+        std::vector<std::vector<double>> bestPath() const;
+        /** \brief Features at \e centre (nullptr: the start) in the current search state. */
+        Features computeFeatures(const ompl::base::State *centre = nullptr) const;
+        /** \brief Why the last solve returned what it did (empty when it planned normally). */
+        const std::string &statusMessage() const
+        {
+            return statusMessage_;
+        }
+        /** \brief Current B and psi_K. */
+        unsigned int currentBatchSize() const
+        {
+            return batchSize_;
+        }
+        double currentNeighbourFactor() const
+        {
+            return neighbourFactor_;
+        }
+        /** \brief The sample sets (read-only, for tests and introspection). */
+        const litstar::RandomGeometricGraph &graph() const
+        {
+            return *graph_;
+        }
+
+    private:
+        /** \brief Sets up the problem on the first call of solve; returns a status other than UNKNOWN on failure. */
+        ompl::base::PlannerStatus initializeProblem();
+        void iterate();
+        bool continueReverseSearch() const;
+        bool continueForwardSearch() const;
+        void reverseStep();
+        void forwardStep();
+        /** \brief Prune, sample a batch of B valid states, restart the reverse search, re-seed the forward queue. */
+        void improveApproximation();
+        void restartReverseSearch();
+        void expandReverse(litstar::State *state);
+        void expandForward(litstar::State *state);
+        /** \brief Edge checks: sparse to a bisection depth, or full; both reuse earlier checks. */
+        bool checkEdge(litstar::State *a, litstar::State *b, unsigned int depth);
+        unsigned int &checkedDepth(litstar::State *a, litstar::State *b);
+        double remainingChecks(const litstar::State *a, const litstar::State *b) const;
+        bool isWhitelisted(const litstar::State *a, const litstar::State *b) const;
+        bool isBlacklisted(const litstar::State *a, const litstar::State *b) const;
+        void whitelist(litstar::State *a, litstar::State *b);
+        void blacklist(litstar::State *a, litstar::State *b);
+        void computeKeys(litstar::Edge &edge) const;
+        void rewire(litstar::State *parent, litstar::State *child, double edgeCost);
+        void propagateCostToCome(litstar::State *state);
+        void detachFromForwardTree(litstar::State *state);
+        void checkForImprovedSolution();
+        void registerSolution(litstar::State *goal);
+        /** \brief Neighbours for either search: k nearest plus tree relatives. */
+        void collectNeighbours(litstar::State *state, std::vector<litstar::State *> &out);
+        /** \brief Algorithm 1's decisions. */
+        void adaptiveBatchsize();
+        std::size_t adaptiveNeighborSize(litstar::State *centre);
+        double getMeasure() const;
+        double decide(DecisionContext &context);
+        DecisionContext makeContext(DecisionKind kind) const;
+        std::size_t neighbourCount(double neighbourFactor) const;
+        void pauseClock();
+        void resumeClock();
+
+        // Parameters.
+        unsigned int fixedBatchSize_{100u};
+        double rewireFactor_{1.001};
+        unsigned int decisionInterval_{1u};
+        unsigned int seed_{1u};
+        unsigned int maxIterations_{0u};
+        unsigned int maxBatches_{0u};
+        double timeBudget_{0.0};
+        ParameterPolicyPtr policy_;
+        std::vector<std::shared_ptr<PlannerListener>> listeners_;
+
+        // Search state.
+        std::unique_ptr<litstar::RandomGeometricGraph> graph_;
+        std::unique_ptr<litstar::ForwardQueue> forwardQueue_;
+        struct ReverseEdge
+        {
+            double key;
+            double cost;
+            litstar::State *source;
+            litstar::State *target;
+            bool operator>(const ReverseEdge &other) const
+            {
+                return key != other.key ? key > other.key : cost > other.cost;
+            }
+        };
+        std::priority_queue<ReverseEdge, std::vector<ReverseEdge>, std::greater<>> reverseQueue_;
+        unsigned int reverseTag_{1u};
+        /** \brief Bisection depth of the reverse search's sparse checks (d = 2^depth - 1 checks). */
+        unsigned int sparseDepth_{1u};
+        bool problemInitialized_{false};
+        bool batchLimitReached_{false};
+        std::string statusMessage_;
+        unsigned int dimension_{0u};
+        double spaceMeasure_{0.0};
+        double bestCost_{std::numeric_limits<double>::infinity()};
+        std::vector<litstar::State *> bestPathStates_;
+        std::vector<ompl::base::State *> bestPathCopies_;
+        double rhoLocalB_{0.0};
+        unsigned int batchSize_{100u};
+        double neighbourFactor_{M_E};
+        std::size_t currentK_{1u};
+        std::size_t improvements_{0u};
+        LITstarCounters counters_;
+        ompl::base::State *interpolated_{nullptr};
+        std::vector<litstar::State *> scratch_;
+
+        // Planner clock: wall time in solve minus external-policy time.
+        using Clock = std::chrono::steady_clock;
+        double accumulatedTime_{0.0};
+        Clock::time_point runningSince_;
+        bool clockRunning_{false};
+    };
+}  // namespace lit

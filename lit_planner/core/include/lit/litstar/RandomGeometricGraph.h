@@ -1,0 +1,122 @@
+#pragma once
+/** \file litstar/RandomGeometricGraph.h
+ *  \brief LIT*'s sample sets: valid samples (the k-nearest RGG), invalid samples (kept for the features),
+ *  informed batch sampling, pruning, and the observation features. */
+
+#include "lit/litstar/InformedSampler.h"
+#include "lit/litstar/State.h"
+
+#include <ompl/base/SpaceInformation.h>
+#include <ompl/datastructures/NearestNeighborsGNATNoThreadSafety.h>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <utility>
+#include <vector>
+
+namespace lit::litstar
+{
+    class RandomGeometricGraph
+    {
+    public:
+        RandomGeometricGraph(const ompl::base::SpaceInformationPtr &si, std::uint_fast32_t seed);
+        ~RandomGeometricGraph();
+        RandomGeometricGraph(const RandomGeometricGraph &) = delete;
+        RandomGeometricGraph &operator=(const RandomGeometricGraph &) = delete;
+
+        /** \brief Removes every sample. */
+        void clear();
+
+        /** \brief Adds the start and the goals (valid states, copied) and sets the sampler's foci. */
+        void setTerminals(const ompl::base::State *start, const std::vector<const ompl::base::State *> &goals);
+
+        /** \brief Draws samples from the informed set of \e maxCost until \e batchSize valid ones were added;
+         *  invalid draws are kept in X_invalid. Returns the number of valid samples added. */
+        std::size_t addBatch(std::size_t batchSize, double maxCost);
+
+        /** \brief Adds a valid sample at \e x (no validity check; for tests and hand-built graphs). */
+        State *addValidSample(const std::vector<double> &x);
+
+        /** \brief Adds an invalid sample at \e x (no validity check; for tests and hand-built graphs). */
+        void addInvalidSample(const std::vector<double> &x);
+
+        /** \brief Removes samples that cannot improve a solution of cost \e maxCost (heuristic > maxCost).
+         *  \e beforeRemove runs on each valid state first. Returns the number of samples removed. */
+        std::size_t prune(double maxCost, const std::function<void(State *)> &beforeRemove);
+
+        /** \brief The k nearest valid samples of \e state (itself excluded), cached per (graph version, k). */
+        const std::vector<State *> &neighbours(State *state, std::size_t k);
+
+        /** \brief rho = |X_invalid| / (|X_valid| + |X_invalid|) (Eq. 4 of the paper); 0 without samples. */
+        double ratioCalc() const;
+
+        /** \brief Invalid ratio among all samples within \e radius of \e centre; negative when there are none. */
+        double localRatio(const ompl::base::State *centre, double radius) const;
+
+        /** \brief Algorithm 2: (rho_local,B, rho_local,K): the mean local ratio over \e pathStates (rho_global
+         *  when empty) and the local ratio at \e centre (rho_global when its neighbourhood is empty or it is null). */
+        std::pair<double, double> localRatioCalc(const std::vector<const ompl::base::State *> &pathStates,
+                                                 const ompl::base::State *centre, double radius) const;
+
+        /** \brief The RGG radius r = eta (2 (1 + 1/n) (lambda(X_f) / zeta_n) (ln q / q))^(1/n), q = |X_valid|. */
+        double radius(double rewireFactor, double informedMeasure) const;
+
+        std::size_t numValid() const
+        {
+            return states_.size();
+        }
+        std::size_t numInvalid() const
+        {
+            return invalid_.size();
+        }
+        /** \brief Draws rejected by the validity checker since the last clear (kept or later pruned). */
+        std::size_t invalidDraws() const
+        {
+            return invalidDraws_;
+        }
+        std::size_t validDraws() const
+        {
+            return validDraws_;
+        }
+        std::size_t version() const
+        {
+            return version_;
+        }
+        State *start() const
+        {
+            return start_;
+        }
+        const std::vector<State *> &goals() const
+        {
+            return goals_;
+        }
+        const std::vector<std::unique_ptr<State>> &states() const
+        {
+            return states_;
+        }
+        const InformedSampler &sampler() const
+        {
+            return sampler_;
+        }
+
+    private:
+        State *createState(ompl::base::State *raw);
+        void computeLowerBounds(State *state) const;
+
+        ompl::base::SpaceInformationPtr si_;
+        InformedSampler sampler_;
+        std::vector<std::unique_ptr<State>> states_;
+        std::vector<ompl::base::State *> invalid_;
+        ompl::NearestNeighborsGNATNoThreadSafety<State *> validNN_;
+        ompl::NearestNeighborsGNATNoThreadSafety<ompl::base::State *> invalidNN_;
+        State *start_{nullptr};
+        std::vector<State *> goals_;
+        std::size_t nextId_{0u};
+        std::size_t version_{0u};
+        std::size_t invalidDraws_{0u};
+        std::size_t validDraws_{0u};
+        /** \brief Query wrapper for radius searches around arbitrary states. */
+        mutable State query_{std::numeric_limits<std::size_t>::max(), nullptr};
+    };
+}  // namespace lit::litstar

@@ -1,0 +1,92 @@
+#pragma once
+/** \file litstar/State.h
+ *  \brief A valid sample of LIT*'s random geometric graph, with its search data. */
+
+#include "lit/litstar/Edge.h"
+
+#include <ompl/base/State.h>
+#include <ompl/datastructures/BinaryHeap.h>
+
+#include <cstddef>
+#include <limits>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+namespace lit::litstar
+{
+    /** \brief Heap element handle of the forward queue. */
+    using ForwardQueueElement = ompl::BinaryHeap<Edge *, EdgeOrder>::Element;
+
+    /** \brief A valid sample: state, heuristics, reverse-search values, forward-tree links, edge knowledge. */
+    class State
+    {
+    public:
+        static constexpr double infinity = std::numeric_limits<double>::infinity();
+
+        State(std::size_t id, ompl::base::State *raw) : id_(id), raw_(raw)
+        {
+        }
+
+        /** \brief Unique id within the graph. */
+        std::size_t id_;
+        /** \brief The OMPL state (owned by the graph). */
+        ompl::base::State *raw_;
+
+        /** \brief Admissible cost from the start (straight line), \hat g_lb. */
+        double costToComeLowerBound_{infinity};
+        /** \brief Admissible cost to the goal (straight line), \hat h_lb. */
+        double costToGoLowerBound_{infinity};
+        bool isStart_{false};
+        bool isGoal_{false};
+
+        /** \brief Reverse search: values are valid only while reverseTag_ equals the graph's current tag,
+         *  so restarting the reverse search is O(1). */
+        unsigned int reverseTag_{0u};
+        /** \brief Admissible cost-to-go \hat h over sparsely checked edges (\bar h equals it for path length). */
+        double reverseCost_{infinity};
+        /** \brief Estimated remaining collision checks to the goal, \bar e. */
+        double reverseEffort_{infinity};
+        /** \brief Parent towards the goal in the reverse tree. */
+        State *reverseParent_{nullptr};
+
+        /** \brief Forward tree: cost-to-come g, parent, children, and the cost of the parent edge. */
+        double costToCome_{infinity};
+        State *forwardParent_{nullptr};
+        std::vector<State *> forwardChildren_;
+        double parentEdgeCost_{0.0};
+
+        /** \brief Edges proven valid / invalid, by neighbour id. */
+        std::unordered_set<std::size_t> whitelist_;
+        std::unordered_set<std::size_t> blacklist_;
+        /** \brief Bisection depth already checked on the edge to a neighbour (kept on the smaller id). */
+        std::unordered_map<std::size_t, unsigned int> checkedDepth_;
+
+        /** \brief k-nearest cache, valid for (graph version, K). */
+        std::vector<State *> neighbours_;
+        std::size_t neighboursVersion_{std::numeric_limits<std::size_t>::max()};
+        std::size_t neighboursK_{0u};
+
+        /** \brief Forward-queue edges leaving / entering this state (for re-keying). */
+        std::vector<ForwardQueueElement *> outgoing_;
+        std::vector<ForwardQueueElement *> incoming_;
+
+        /** \brief Current reverse cost, infinite when the state is not in the current reverse tree. */
+        double reverseCost(unsigned int tag) const
+        {
+            return reverseTag_ == tag ? reverseCost_ : infinity;
+        }
+        double reverseEffort(unsigned int tag) const
+        {
+            return reverseTag_ == tag ? reverseEffort_ : infinity;
+        }
+        State *reverseParent(unsigned int tag) const
+        {
+            return reverseTag_ == tag ? reverseParent_ : nullptr;
+        }
+        bool isInForwardTree() const
+        {
+            return isStart_ || forwardParent_ != nullptr;
+        }
+    };
+}  // namespace lit::litstar

@@ -1,0 +1,489 @@
+// Python bindings of the LIT* core: worlds, LIT* with every policy, and OMPL 1.5.2's baselines on the same
+// problem and validity checker. solve() releases the GIL; Python callables re-acquire it.
+#include "lit/BoxWorld.h"
+#include "lit/InformedMeasure.h"
+#include "lit/LITstar.h"
+#include "lit/LookupTensor.h"
+#include "lit/ParameterPolicy.h"
+
+#include <ompl/base/PlannerTerminationCondition.h>
+#include <ompl/base/spaces/RealVectorStateSpace.h>
+#include <ompl/geometric/PathGeometric.h>
+#include <ompl/geometric/planners/informedtrees/ABITstar.h>
+#include <ompl/geometric/planners/informedtrees/AITstar.h>
+#include <ompl/geometric/planners/informedtrees/BITstar.h>
+#include <ompl/geometric/planners/rrt/InformedRRTstar.h>
+#include <ompl/geometric/planners/rrt/RRTConnect.h>
+#include <ompl/util/Console.h>
+#include <ompl/util/RandomNumbers.h>
+
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <algorithm>
+#include <atomic>
+#include <mutex>
+#include <thread>
+
+namespace py = pybind11;
+using namespace lit;
+
+namespace
+{
+    /** \brief A query as data; every solve builds its own space, checker and problem definition. */
+    struct Query
+    {
+        BoxWorld world;
+        std::vector<double> start;
+        std::vector<double> goal;
+        double resolution{5e-6};
+    };
+
+    const std::vector<std::string> &plannerNames()
+    {
+        static const std::vector<std::string> names{"litstar", "aitstar", "bitstar", "abitstar", "irrtstar", "rrtconnect"};
+        return names;
+    }
+
+    ompl::base::PlannerPtr makeOmplPlanner(const std::string &name, const ompl::base::SpaceInformationPtr &si)
+    {
+        if (name == "aitstar")
+            return std::make_shared<ompl::geometric::AITstar>(si);
+        if (name == "bitstar")
+            return std::make_shared<ompl::geometric::BITstar>(si);
+        if (name == "abitstar")
+            return std::make_shared<ompl::geometric::ABITstar>(si);
+        if (name == "irrtstar")
+            return std::make_shared<ompl::geometric::InformedRRTstar>(si);
+        if (name == "rrtconnect")
+            return std::make_shared<ompl::geometric::RRTConnect>(si);
+        throw py::value_error("unknown planner '" + name + "' (known: litstar, aitstar, bitstar, abitstar, irrtstar, rrtconnect)");
+    }
+
+    std::string statusName(ompl::base::PlannerStatus status)
+    {
+        switch (status.operator ompl::base::PlannerStatus::StatusType())
+        {
+            case ompl::base::PlannerStatus::EXACT_SOLUTION: return "exact_solution";
+            case ompl::base::PlannerStatus::APPROXIMATE_SOLUTION: return "approximate_solution";
+            case ompl::base::PlannerStatus::TIMEOUT: return "timeout";
+            case ompl::base::PlannerStatus::INVALID_START: return "invalid_start";
+            case ompl::base::PlannerStatus::INVALID_GOAL: return "invalid_goal";
+            case ompl::base::PlannerStatus::UNRECOGNIZED_GOAL_TYPE: return "unrecognized_goal_type";
+            case ompl::base::PlannerStatus::CRASH: return "crash";
+            case ompl::base::PlannerStatus::ABORT: return "abort";
+            default: return "unknown";
+        }
+    }
+
+    /** \brief Records LIT*'s events, and forwards them to an optional Python listener. */
+    class RecordingListener : public PlannerListener
+    {
+    public:
+        explicit RecordingListener(py::object listener) : listener_(std::move(listener))
+        {
+        }
+        void onSolution(const SolutionEvent &event) override
+        {
+            solutions.push_back(event);
+            forward("on_solution", [&] { return py::cast(event); });
+        }
+        void onDecision(const DecisionEvent &event) override
+        {
+            decisions.push_back(event);
+            forward("on_decision", [&] { return py::cast(event); });
+        }
+        void onBatch(const BatchEvent &event) override
+        {
+            batches.push_back(event);
+            forward("on_batch", [&] { return py::cast(event); });
+        }
+        std::vector<SolutionEvent> solutions;
+        std::vector<DecisionEvent> decisions;
+        std::vector<BatchEvent> batches;
+
+    private:
+        template <typename Make>
+        void forward(const char *method, Make make)
+        {
+            if (!hasListener_)
+                return;
+            py::gil_scoped_acquire gil;
+            if (py::hasattr(listener_, method))
+                listener_.attr(method)(make());
+        }
+        py::object listener_;
+        bool hasListener_{!listener_.is_none()};
+    };
+
+    py::dict decisionDict(const DecisionEvent &event)
+    {
+        py::dict d;
+        d["kind"] = toString(event.kind);
+        d["value"] = event.value;
+        d["neighbours"] = event.neighbours;
+        d["policy"] = event.policy;
+        d["time"] = event.time;
+        d["iteration"] = event.iteration;
+        d["rho_global"] = event.features.rhoGlobal;
+        d["rho_local_b"] = event.features.rhoLocalB;
+        d["rho_local_k"] = event.features.rhoLocalK;
+        d["measure"] = event.features.measure;
+        return d;
+    }
+
+    /** \brief Start or goal problems that every planner should report the same way, without planning. */
+    std::string checkTerminal(const char *what, const std::vector<double> &x, const BoxProblem &problem)
+    {
+        for (double v : x)
+            if (!std::isfinite(v))
+                return std::string(what) + " has a non-finite coordinate";
+        ompl::base::ScopedState<> state(problem.si);
+        for (std::size_t i = 0; i < x.size(); ++i)
+            state[i] = x[i];
+        if (!problem.si->satisfiesBounds(state.get()))
+            return std::string(what) + " is out of bounds";
+        if (!problem.checker->isValidPoint(x.data()))
+            return std::string(what) + " is in collision";
+        return "";
+    }
+
+    py::dict solveQuery(const Query &query, const std::string &plannerName, double time, ParameterPolicyPtr policy,
+                        unsigned int seed, unsigned int maxIterations, unsigned int maxBatches,
+                        const std::map<std::string, std::string> &params, py::object listenerObject)
+    {
+        BoxProblem problem = makeBoxProblem(query.world, query.start, query.goal, query.resolution);
+        if (!(time > 0.0) && maxIterations == 0u && maxBatches == 0u)
+            throw py::value_error("solve needs a positive time, max_iterations or max_batches");
+
+        py::dict result;
+        result["planner"] = plannerName;
+        result["seed"] = seed;
+        std::string message = checkTerminal("start", query.start, problem);
+        std::string status;
+        if (message.empty())
+        {
+            message = checkTerminal("goal", query.goal, problem);
+            if (!message.empty())
+                status = "invalid_goal";
+        }
+        else
+            status = "invalid_start";
+
+        ompl::base::PlannerPtr planner;
+        std::shared_ptr<LITstar> litstar;
+        auto recorder = std::make_shared<RecordingListener>(listenerObject);
+        std::vector<std::pair<double, double>> improvements;
+        double elapsed = 0.0;
+        if (status.empty())
+        {
+            if (plannerName == "litstar")
+            {
+                litstar = std::make_shared<LITstar>(problem.si);
+                litstar->setSeed(seed);
+                if (policy)
+                    litstar->setPolicy(policy);
+                litstar->setMaxIterations(maxIterations);
+                litstar->setMaxBatches(maxBatches);
+                litstar->setTimeBudget(time > 0.0 ? time : 0.0);
+                litstar->addListener(recorder);
+                planner = litstar;
+            }
+            else
+            {
+                if (policy)
+                    throw py::value_error("policies apply to litstar only, not to " + plannerName);
+                if (maxIterations != 0u || maxBatches != 0u || !(time > 0.0))
+                    throw py::value_error(plannerName + " stops on time only: give a positive time");
+                planner = makeOmplPlanner(plannerName, problem.si);
+            }
+            for (const auto &[key, value] : params)
+                if (!planner->params().setParam(key, value))
+                    throw py::value_error("planner " + plannerName + " has no parameter '" + key +
+                                          "' or rejected the value '" + value + "'");
+            planner->setProblemDefinition(problem.pdef);
+
+            const auto startTime = std::chrono::steady_clock::now();
+            if (!litstar)
+                problem.pdef->setIntermediateSolutionCallback(
+                    [&](const ompl::base::Planner *, const std::vector<const ompl::base::State *> &,
+                        const ompl::base::Cost cost) {
+                        const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - startTime).count();
+                        if (improvements.empty() || cost.value() < improvements.back().second)
+                            improvements.emplace_back(t, cost.value());
+                    });
+            ompl::base::PlannerStatus plannerStatus;
+            {
+                py::gil_scoped_release release;
+                planner->setup();
+                if (litstar)
+                    plannerStatus = planner->solve(ompl::base::plannerNonTerminatingCondition());
+                else
+                {
+                    // Not every OMPL 1.5.2 planner calls the intermediate-solution callback (AIT* does not), so a
+                    // watcher thread also polls the problem definition's solutions every 50 microseconds.
+                    std::atomic<bool> done{false};
+                    std::mutex mutex;
+                    std::vector<std::pair<double, double>> polled;
+                    std::thread watcher([&] {
+                        std::size_t seen = 0u;
+                        while (!done.load())
+                        {
+                            const std::size_t count = problem.pdef->getSolutionCount();
+                            if (count != seen)
+                            {
+                                seen = count;
+                                const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - startTime).count();
+                                double c = std::numeric_limits<double>::infinity();
+                                for (const auto &solution : problem.pdef->getSolutions())
+                                    if (!solution.approximate_)
+                                        c = std::min(c, solution.path_->as<ompl::geometric::PathGeometric>()->length());
+                                if (std::isfinite(c))
+                                {
+                                    std::lock_guard<std::mutex> lock(mutex);
+                                    polled.emplace_back(t, c);
+                                }
+                            }
+                            std::this_thread::sleep_for(std::chrono::microseconds(50));
+                        }
+                    });
+                    plannerStatus = planner->solve(ompl::base::timedPlannerTerminationCondition(time));
+                    done.store(true);
+                    watcher.join();
+                    std::lock_guard<std::mutex> lock(mutex);
+                    // Merge callback and polled events into one non-increasing cost curve.
+                    polled.insert(polled.end(), improvements.begin(), improvements.end());
+                    std::sort(polled.begin(), polled.end());
+                    improvements.clear();
+                    for (const auto &event : polled)
+                        if (improvements.empty() || event.second < improvements.back().second - 1e-12)
+                            improvements.push_back(event);
+                }
+            }
+            elapsed = litstar ? litstar->planningTime() :
+                                std::chrono::duration<double>(std::chrono::steady_clock::now() - startTime).count();
+            status = statusName(plannerStatus);
+            if (litstar)
+            {
+                message = litstar->statusMessage();
+                for (const auto &event : recorder->solutions)
+                    improvements.emplace_back(event.time, event.cost);
+            }
+        }
+
+        const bool solved = status == "exact_solution" && problem.pdef->hasExactSolution();
+        double cost = std::numeric_limits<double>::infinity();
+        py::list path;
+        if (solved)
+        {
+            auto solution = problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>();
+            cost = solution->length();
+            for (std::size_t i = 0; i < solution->getStateCount(); ++i)
+            {
+                std::vector<double> x;
+                problem.si->getStateSpace()->copyToReals(x, solution->getState(i));
+                path.append(py::cast(x));
+            }
+            // Planners that do not report intermediate solutions (RRT-Connect) still have a first solution.
+            if (improvements.empty() || cost < improvements.back().second - 1e-12)
+                improvements.emplace_back(elapsed, cost);
+        }
+        py::list improvementList;
+        for (const auto &[t, c] : improvements)
+            improvementList.append(py::make_tuple(t, c));
+
+        result["status"] = status;
+        result["solved"] = solved;
+        result["message"] = message;
+        result["cost"] = cost;
+        result["t_init"] = improvements.empty() ? py::cast(std::numeric_limits<double>::infinity()) : py::cast(improvements.front().first);
+        result["c_init"] = improvements.empty() ? py::cast(std::numeric_limits<double>::infinity()) : py::cast(improvements.front().second);
+        result["improvements"] = improvementList;
+        result["path"] = path;
+        result["time"] = elapsed;
+
+        py::dict counters;
+        counters["validity_checks"] = problem.checker->calls();
+        if (litstar)
+        {
+            const LITstarCounters &c = litstar->counters();
+            counters["iterations"] = c.iterations;
+            counters["batches"] = c.batches;
+            counters["valid_samples"] = c.validSamples;
+            counters["invalid_samples"] = c.invalidSamples;
+            counters["pruned_samples"] = c.prunedSamples;
+            counters["collision_checks"] = c.collisionChecks;
+            counters["edges_evaluated"] = c.edgesEvaluated;
+            counters["edges_sparsely_checked"] = c.edgesSparselyChecked;
+            counters["edges_invalid"] = c.edgesInvalid;
+            counters["forward_steps"] = c.forwardSteps;
+            counters["reverse_steps"] = c.reverseSteps;
+            counters["reverse_restarts"] = c.reverseRestarts;
+            counters["expansions"] = c.expansions;
+            counters["batch_decisions"] = c.batchDecisions;
+            counters["neighbour_decisions"] = c.neighbourDecisions;
+            result["policy"] = litstar->getPolicyName();
+        }
+        result["counters"] = counters;
+        py::list decisions;
+        for (const auto &event : recorder->decisions)
+            decisions.append(decisionDict(event));
+        result["decisions"] = decisions;
+        return result;
+    }
+}  // namespace
+
+PYBIND11_MODULE(lit_core, m)
+{
+    m.doc() = "LIT* core (C++17 on OMPL 1.5.2): box worlds, the LITstar planner, parameter policies, OMPL baselines";
+    py::register_exception<TensorError>(m, "TensorError", PyExc_ValueError);
+
+    m.def("set_log_level", [](const std::string &level) {
+        static const std::map<std::string, ompl::msg::LogLevel> levels{{"debug", ompl::msg::LOG_DEBUG},
+            {"info", ompl::msg::LOG_INFO}, {"warn", ompl::msg::LOG_WARN}, {"error", ompl::msg::LOG_ERROR},
+            {"none", ompl::msg::LOG_NONE}};
+        auto it = levels.find(level);
+        if (it == levels.end())
+            throw py::value_error("log level must be one of debug, info, warn, error, none");
+        ompl::msg::setLogLevel(it->second);
+    }, py::arg("level"), "Sets OMPL's console log level.");
+    m.def("set_global_seed", [](unsigned int seed) { ompl::RNG::setSeed(seed); }, py::arg("seed"),
+          "Seeds OMPL's global RNG (OMPL baselines). Effective once per process, before any planner runs.");
+    m.def("planner_names", &plannerNames);
+
+    m.def("unit_ball_measure", &unitBallMeasure, py::arg("n"));
+    m.def("informed_measure", &informedMeasure, py::arg("n"), py::arg("cost"), py::arg("cmin"), py::arg("space_measure"));
+    m.def("measure_feature", &measureFeature, py::arg("n"), py::arg("informed"), py::arg("space_measure"));
+    m.def("fit_batch_size", [](double xi, unsigned int n) { return FitPolicy::batchSize(xi, n); }, py::arg("xi"), py::arg("n"),
+          "FIT*'s sigmoid-log batch rule (m_min = 1, m_max = 199), unrounded.");
+
+    py::class_<Query>(m, "Query", "A planning query in a box world (axis-aligned, closed box obstacles).")
+        .def(py::init([](std::vector<double> lower, std::vector<double> upper, std::vector<std::vector<double>> boxLower,
+                         std::vector<std::vector<double>> boxUpper, std::vector<double> start, std::vector<double> goal,
+                         double resolution) {
+                 if (boxLower.size() != boxUpper.size())
+                     throw py::value_error("box_lower and box_upper must list the same number of boxes");
+                 Query q;
+                 q.world.lower = std::move(lower);
+                 q.world.upper = std::move(upper);
+                 for (std::size_t b = 0; b < boxLower.size(); ++b)
+                     q.world.boxes.push_back(Box{boxLower[b], boxUpper[b]});
+                 const unsigned int dim = q.world.validatedDimension();
+                 if (start.size() != dim || goal.size() != dim)
+                     throw py::value_error("start and goal must have dimension " + std::to_string(dim));
+                 if (!(resolution > 0.0 && resolution < 1.0))
+                     throw py::value_error("resolution must be in (0, 1)");
+                 q.start = std::move(start);
+                 q.goal = std::move(goal);
+                 q.resolution = resolution;
+                 return q;
+             }),
+             py::arg("lower"), py::arg("upper"), py::arg("box_lower"), py::arg("box_upper"), py::arg("start"),
+             py::arg("goal"), py::arg("resolution"))
+        .def_property_readonly("dimension", [](const Query &q) { return q.world.lower.size(); })
+        .def_readonly("start", &Query::start)
+        .def_readonly("goal", &Query::goal)
+        .def_readonly("resolution", &Query::resolution)
+        .def("is_valid", [](const Query &q, std::vector<double> x) {
+                 if (x.size() != q.world.lower.size())
+                     throw py::value_error("point has the wrong dimension");
+                 BoxProblem p = makeBoxProblem(q.world, q.start, q.goal, q.resolution);
+                 return p.checker->isValidPoint(x.data());
+             }, py::arg("x"), "The C++ checker's verdict on one point.");
+
+    py::class_<Features>(m, "Features")
+        .def_readonly("rho_global", &Features::rhoGlobal)
+        .def_readonly("rho_local_b", &Features::rhoLocalB)
+        .def_readonly("rho_local_k", &Features::rhoLocalK)
+        .def_readonly("measure", &Features::measure);
+
+    py::class_<DecisionContext>(m, "DecisionContext", "What a policy sees at a decision.")
+        .def_property_readonly("kind", [](const DecisionContext &c) { return toString(c.kind); })
+        .def_readonly("features", &DecisionContext::features)
+        .def_property_readonly("rho_global", [](const DecisionContext &c) { return c.features.rhoGlobal; })
+        .def_property_readonly("rho_local", [](const DecisionContext &c) {
+            return c.kind == DecisionKind::BatchSize ? c.features.rhoLocalB : c.features.rhoLocalK; })
+        .def_property_readonly("measure", [](const DecisionContext &c) { return c.features.measure; })
+        .def_readonly("dimension", &DecisionContext::dimension)
+        .def_readonly("has_solution", &DecisionContext::hasSolution)
+        .def_readonly("cost", &DecisionContext::cost)
+        .def_readonly("improvements", &DecisionContext::improvements)
+        .def_readonly("path_states", &DecisionContext::pathStates)
+        .def_readonly("planning_time", &DecisionContext::planningTime)
+        .def_readonly("informed_measure", &DecisionContext::informedMeasure)
+        .def_readonly("space_measure", &DecisionContext::spaceMeasure)
+        .def_readonly("minimum_cost", &DecisionContext::minimumCost)
+        .def_readonly("expansions", &DecisionContext::expansions)
+        .def_readonly("batches", &DecisionContext::batches);
+
+    py::class_<SolutionEvent>(m, "SolutionEvent")
+        .def_readonly("time", &SolutionEvent::time)
+        .def_readonly("cost", &SolutionEvent::cost)
+        .def_readonly("path_states", &SolutionEvent::pathStates)
+        .def_readonly("improvement", &SolutionEvent::improvement)
+        .def_readonly("iteration", &SolutionEvent::iteration);
+    py::class_<DecisionEvent>(m, "DecisionEvent")
+        .def_property_readonly("kind", [](const DecisionEvent &e) { return toString(e.kind); })
+        .def_readonly("features", &DecisionEvent::features)
+        .def_readonly("value", &DecisionEvent::value)
+        .def_readonly("neighbours", &DecisionEvent::neighbours)
+        .def_readonly("policy", &DecisionEvent::policy)
+        .def_readonly("time", &DecisionEvent::time)
+        .def_readonly("iteration", &DecisionEvent::iteration);
+    py::class_<BatchEvent>(m, "BatchEvent")
+        .def_readonly("batch", &BatchEvent::batch)
+        .def_readonly("batch_size", &BatchEvent::batchSize)
+        .def_readonly("valid_samples", &BatchEvent::validSamples)
+        .def_readonly("invalid_samples", &BatchEvent::invalidSamples)
+        .def_readonly("pruned_samples", &BatchEvent::prunedSamples)
+        .def_readonly("time", &BatchEvent::time);
+
+    py::enum_<Interpolation>(m, "Interpolation")
+        .value("nearest", Interpolation::Nearest)
+        .value("trilinear", Interpolation::Trilinear);
+
+    py::class_<LookupTensor, std::shared_ptr<LookupTensor>>(m, "LookupTensor", "A validated 3-D lookup tensor.")
+        .def_static("load", [](const std::string &path, std::array<std::size_t, 3> shape, double minValue, double maxValue) {
+                return std::make_shared<LookupTensor>(LookupTensor::load(path, TensorSpec{shape, minValue, maxValue}));
+            }, py::arg("path"), py::arg("shape"), py::arg("min_value"), py::arg("max_value"),
+            "Loads an NPY v1.0 '<f4' tensor and checks it against the sidecar's shape and range; raises TensorError.")
+        .def("nearest", &LookupTensor::nearest)
+        .def("trilinear", &LookupTensor::trilinear)
+        .def("at", &LookupTensor::at)
+        .def_property_readonly("shape", &LookupTensor::shape);
+
+    py::class_<ParameterPolicy, std::shared_ptr<ParameterPolicy>>(m, "ParameterPolicy")
+        .def_property_readonly("name", &ParameterPolicy::name);
+    py::class_<FixedPolicy, ParameterPolicy, std::shared_ptr<FixedPolicy>>(m, "FixedPolicy")
+        .def(py::init<int, double>(), py::arg("batch_size") = 100, py::arg("neighbour_factor") = M_E);
+    py::class_<FitPolicy, ParameterPolicy, std::shared_ptr<FitPolicy>>(m, "FitPolicy").def(py::init<>());
+    py::class_<TensorPolicy, ParameterPolicy, std::shared_ptr<TensorPolicy>>(m, "TensorPolicy")
+        .def(py::init<std::shared_ptr<const LookupTensor>, std::shared_ptr<const LookupTensor>, Interpolation>(),
+             py::arg("batch_tensor"), py::arg("neighbour_tensor"), py::arg("interpolation") = Interpolation::Trilinear);
+    py::class_<ExternalPolicy, ParameterPolicy, std::shared_ptr<ExternalPolicy>>(m, "ExternalPolicy")
+        .def(py::init([](py::function callback, bool decidesNeighbourFactor) {
+                 auto holder = std::make_shared<py::function>(std::move(callback));
+                 ExternalPolicy::Callback call = [holder](const DecisionContext &context) {
+                     py::gil_scoped_acquire gil;
+                     return (*holder)(context).cast<double>();
+                 };
+                 // The py::function must be released with the GIL held.
+                 return std::make_shared<ExternalPolicy>(std::move(call), decidesNeighbourFactor);
+             }),
+             py::arg("callback"), py::arg("decides_neighbour_factor") = true,
+             "callback(context: DecisionContext) -> float is asked for B and psi_K; the planner's clock is paused meanwhile.")
+        .def_property_readonly("failures", &ExternalPolicy::failures);
+
+    m.def("solve", &solveQuery, py::arg("query"), py::arg("planner"), py::arg("time") = 0.0,
+          py::arg("policy") = nullptr, py::arg("seed") = 1u, py::arg("max_iterations") = 0u,
+          py::arg("max_batches") = 0u, py::arg("params") = std::map<std::string, std::string>{},
+          py::arg("listener") = py::none(),
+          "Plans \e query with \e planner. LIT* stops on its own clock (time), iterations or batches; OMPL planners on "
+          "wall time. Returns a dict: status, solved, message, cost, t_init, c_init, improvements, path, time, "
+          "counters, decisions.");
+}

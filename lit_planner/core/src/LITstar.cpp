@@ -1,0 +1,827 @@
+#include "lit/LITstar.h"
+
+#include "lit/InformedMeasure.h"
+
+#include <ompl/base/PlannerData.h>
+#include <ompl/base/goals/GoalSampleableRegion.h>
+#include <ompl/base/objectives/PathLengthOptimizationObjective.h>
+#include <ompl/base/spaces/RealVectorStateSpace.h>
+#include <ompl/geometric/PathGeometric.h>
+#include <ompl/util/Exception.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace lit
+{
+    using litstar::State;
+    namespace
+    {
+        constexpr unsigned int fullCheck = std::numeric_limits<unsigned int>::max();
+        constexpr double infinity = std::numeric_limits<double>::infinity();
+    }  // namespace
+
+    LITstar::LITstar(const ompl::base::SpaceInformationPtr &si)
+      : ompl::base::Planner(si, "LITstar"), policy_(std::make_shared<FixedPolicy>())
+    {
+        specs_.recognizedGoal = ompl::base::GOAL_SAMPLEABLE_REGION;
+        specs_.multithreaded = false;
+        specs_.approximateSolutions = false;
+        specs_.optimizingPaths = true;
+        specs_.directed = true;
+        specs_.provingSolutionNonExistence = false;
+        specs_.canReportIntermediateSolutions = true;
+
+        declareParam<unsigned int>("batch_size", this, &LITstar::setBatchSize, &LITstar::getBatchSize, "1:1:10000");
+        declareParam<double>("rewire_factor", this, &LITstar::setRewireFactor, &LITstar::getRewireFactor,
+                             "1.0:0.001:3.0");
+        declareParam<unsigned int>("decision_interval", this, &LITstar::setDecisionInterval,
+                                   &LITstar::getDecisionInterval, "1:1:10000");
+        declareParam<std::string>("policy", this, &LITstar::setPolicyName, &LITstar::getPolicyName);
+        declareParam<unsigned int>("seed", this, &LITstar::setSeed, &LITstar::getSeed);
+        declareParam<unsigned int>("max_iterations", this, &LITstar::setMaxIterations, &LITstar::getMaxIterations);
+        declareParam<unsigned int>("max_batches", this, &LITstar::setMaxBatches, &LITstar::getMaxBatches);
+        declareParam<double>("time_budget", this, &LITstar::setTimeBudget, &LITstar::getTimeBudget);
+    }
+
+    LITstar::~LITstar()
+    {
+        if (forwardQueue_)
+            forwardQueue_->clear();
+        if (interpolated_ != nullptr)
+            si_->freeState(interpolated_);
+    }
+
+    // ---------------------------------------------------------------------------------------------- parameters
+    void LITstar::setBatchSize(unsigned int batchSize)
+    {
+        if (batchSize == 0u)
+            throw ompl::Exception("LITstar: the batch size must be positive");
+        fixedBatchSize_ = batchSize;
+        if (policy_ && policy_->name() == "fixed")
+            policy_ = std::make_shared<FixedPolicy>(static_cast<int>(fixedBatchSize_));
+    }
+    unsigned int LITstar::getBatchSize() const
+    {
+        return fixedBatchSize_;
+    }
+    void LITstar::setRewireFactor(double factor)
+    {
+        rewireFactor_ = factor;
+    }
+    double LITstar::getRewireFactor() const
+    {
+        return rewireFactor_;
+    }
+    void LITstar::setDecisionInterval(unsigned int interval)
+    {
+        decisionInterval_ = std::max(1u, interval);
+    }
+    unsigned int LITstar::getDecisionInterval() const
+    {
+        return decisionInterval_;
+    }
+    void LITstar::setPolicyName(const std::string &name)
+    {
+        if (name == "fixed")
+            policy_ = std::make_shared<FixedPolicy>(static_cast<int>(fixedBatchSize_));
+        else if (name == "fit")
+            policy_ = std::make_shared<FitPolicy>();
+        else
+            throw ompl::Exception("LITstar: policy '" + name +
+                                  "' cannot be set by name (use 'fixed' or 'fit'; tensor and external policies "
+                                  "are objects: setPolicy())");
+    }
+    std::string LITstar::getPolicyName() const
+    {
+        return policy_ ? policy_->name() : "";
+    }
+    void LITstar::setPolicy(ParameterPolicyPtr policy)
+    {
+        if (!policy)
+            throw ompl::Exception("LITstar: the policy must not be null");
+        policy_ = std::move(policy);
+    }
+    const ParameterPolicyPtr &LITstar::getPolicy() const
+    {
+        return policy_;
+    }
+    void LITstar::setSeed(unsigned int seed)
+    {
+        seed_ = seed;
+    }
+    unsigned int LITstar::getSeed() const
+    {
+        return seed_;
+    }
+    void LITstar::setMaxIterations(unsigned int iterations)
+    {
+        maxIterations_ = iterations;
+    }
+    unsigned int LITstar::getMaxIterations() const
+    {
+        return maxIterations_;
+    }
+    void LITstar::setMaxBatches(unsigned int batches)
+    {
+        maxBatches_ = batches;
+    }
+    unsigned int LITstar::getMaxBatches() const
+    {
+        return maxBatches_;
+    }
+    void LITstar::setTimeBudget(double seconds)
+    {
+        timeBudget_ = std::max(0.0, seconds);
+    }
+    double LITstar::getTimeBudget() const
+    {
+        return timeBudget_;
+    }
+    void LITstar::addListener(std::shared_ptr<PlannerListener> listener)
+    {
+        if (listener)
+            listeners_.push_back(std::move(listener));
+    }
+
+    // ------------------------------------------------------------------------------------------------- clock
+    double LITstar::planningTime() const
+    {
+        double total = accumulatedTime_;
+        if (clockRunning_)
+            total += std::chrono::duration<double>(Clock::now() - runningSince_).count();
+        return total;
+    }
+    void LITstar::pauseClock()
+    {
+        if (clockRunning_)
+        {
+            accumulatedTime_ += std::chrono::duration<double>(Clock::now() - runningSince_).count();
+            clockRunning_ = false;
+        }
+    }
+    void LITstar::resumeClock()
+    {
+        if (!clockRunning_)
+        {
+            runningSince_ = Clock::now();
+            clockRunning_ = true;
+        }
+    }
+
+    // ------------------------------------------------------------------------------------------ setup, clear
+    void LITstar::setup()
+    {
+        Planner::setup();
+        if (si_->getStateSpace()->getType() != ompl::base::STATE_SPACE_REAL_VECTOR)
+            throw ompl::Exception("LITstar: needs a RealVectorStateSpace (its informed sampler and features are R^n)");
+        if (pdef_)
+        {
+            if (!pdef_->hasOptimizationObjective())
+                pdef_->setOptimizationObjective(std::make_shared<ompl::base::PathLengthOptimizationObjective>(si_));
+            else if (!std::dynamic_pointer_cast<ompl::base::PathLengthOptimizationObjective>(
+                         pdef_->getOptimizationObjective()))
+                throw ompl::Exception("LITstar: supports the path-length objective only");
+        }
+    }
+
+    void LITstar::clear()
+    {
+        Planner::clear();
+        if (forwardQueue_)
+            forwardQueue_->clear();
+        forwardQueue_.reset();
+        graph_.reset();
+        reverseQueue_ = {};
+        problemInitialized_ = false;
+        batchLimitReached_ = false;
+        bestCost_ = infinity;
+        bestPathStates_.clear();
+        improvements_ = 0u;
+        counters_ = LITstarCounters{};
+        accumulatedTime_ = 0.0;
+        clockRunning_ = false;
+        statusMessage_.clear();
+        if (policy_)
+            policy_->reset();
+    }
+
+    ompl::base::PlannerStatus LITstar::initializeProblem()
+    {
+        statusMessage_.clear();
+        const ompl::base::GoalPtr &goal = pdef_->getGoal();
+        if (!goal || !goal->hasType(ompl::base::GOAL_SAMPLEABLE_REGION))
+        {
+            statusMessage_ = "the goal is missing or not a sampleable goal region";
+            return ompl::base::PlannerStatus::UNRECOGNIZED_GOAL_TYPE;
+        }
+        const ompl::base::State *start = pis_.nextStart();
+        if (start == nullptr)
+        {
+            statusMessage_ = "the start state is missing, out of bounds or in collision";
+            return ompl::base::PlannerStatus::INVALID_START;
+        }
+        std::vector<const ompl::base::State *> goals;
+        while (const ompl::base::State *g = pis_.nextGoal())
+            goals.push_back(g);
+        if (goals.empty())
+        {
+            statusMessage_ = "the goal state is missing, out of bounds or in collision";
+            return ompl::base::PlannerStatus::INVALID_GOAL;
+        }
+
+        dimension_ = si_->getStateDimension();
+        spaceMeasure_ = si_->getSpaceMeasure();
+        if (interpolated_ == nullptr)
+            interpolated_ = si_->allocState();
+        graph_ = std::make_unique<litstar::RandomGeometricGraph>(si_, seed_);
+        forwardQueue_ = std::make_unique<litstar::ForwardQueue>([this](litstar::Edge &edge) { computeKeys(edge); });
+        graph_->setTerminals(start, goals);
+        graph_->start()->costToCome_ = 0.0;
+        policy_->reset();
+        batchSize_ = static_cast<unsigned int>(std::max(1, policy_->initialBatchSize()));
+        neighbourFactor_ = M_E;
+        problemInitialized_ = true;
+        return ompl::base::PlannerStatus::UNKNOWN;
+    }
+
+    // ------------------------------------------------------------------------------------------------- solve
+    ompl::base::PlannerStatus LITstar::solve(const ompl::base::PlannerTerminationCondition &ptc)
+    {
+        if (!isSetup())
+            setup();
+        if (!pdef_)
+        {
+            statusMessage_ = "no problem definition is set";
+            return ompl::base::PlannerStatus::ABORT;
+        }
+        if (!problemInitialized_)
+        {
+            const ompl::base::PlannerStatus status = initializeProblem();
+            if (status != ompl::base::PlannerStatus::UNKNOWN)
+            {
+                OMPL_ERROR("%s: %s", getName().c_str(), statusMessage_.c_str());
+                return status;
+            }
+        }
+        batchLimitReached_ = false;
+        resumeClock();
+        while (!ptc && !batchLimitReached_ && (maxIterations_ == 0u || counters_.iterations < maxIterations_) &&
+               (timeBudget_ <= 0.0 || planningTime() < timeBudget_))
+        {
+            ++counters_.iterations;
+            iterate();
+        }
+        pauseClock();
+        return std::isfinite(bestCost_) ? ompl::base::PlannerStatus::EXACT_SOLUTION :
+                                          ompl::base::PlannerStatus::TIMEOUT;
+    }
+
+    void LITstar::iterate()
+    {
+        if (counters_.batches == 0u)
+            improveApproximation();
+        else if (continueReverseSearch())
+            reverseStep();
+        else if (continueForwardSearch())
+            forwardStep();
+        else if (maxBatches_ != 0u && counters_.batches >= maxBatches_)
+            batchLimitReached_ = true;
+        else
+            improveApproximation();
+    }
+
+    bool LITstar::continueReverseSearch() const
+    {
+        if (reverseQueue_.empty())
+            return false;
+        const double reverseKey = reverseQueue_.top().key;
+        if (reverseKey >= bestCost_)
+            return false;
+        const litstar::Edge *front = forwardQueue_->top();
+        if (front == nullptr)
+            return false;
+        // The front edge's target has its final cost-to-go once the reverse search's key reaches the edge's
+        // lower bound (A* from the goal with the consistent heuristic g_lb).
+        return reverseKey < front->lowerBoundKey;
+    }
+
+    bool LITstar::continueForwardSearch() const
+    {
+        const litstar::Edge *front = forwardQueue_->top();
+        if (front == nullptr)
+            return false;
+        if (forwardQueue_->isEffortFirst())
+            return std::isfinite(front->effortKey);
+        return front->lowerBoundKey < bestCost_;
+    }
+
+    // -------------------------------------------------------------------------------------------- edge checks
+    unsigned int &LITstar::checkedDepth(State *a, State *b)
+    {
+        return a->id_ < b->id_ ? a->checkedDepth_[b->id_] : b->checkedDepth_[a->id_];
+    }
+
+    bool LITstar::isWhitelisted(const State *a, const State *b) const
+    {
+        return a->whitelist_.count(b->id_) > 0u;
+    }
+    bool LITstar::isBlacklisted(const State *a, const State *b) const
+    {
+        return a->blacklist_.count(b->id_) > 0u;
+    }
+    void LITstar::whitelist(State *a, State *b)
+    {
+        a->whitelist_.insert(b->id_);
+        b->whitelist_.insert(a->id_);
+    }
+    void LITstar::blacklist(State *a, State *b)
+    {
+        a->blacklist_.insert(b->id_);
+        b->blacklist_.insert(a->id_);
+        ++counters_.edgesInvalid;
+    }
+
+    double LITstar::remainingChecks(const State *a, const State *b) const
+    {
+        if (isWhitelisted(a, b))
+            return 0.0;
+        const double interior =
+            std::max(0.0, static_cast<double>(si_->getStateSpace()->validSegmentCount(a->raw_, b->raw_)) - 1.0);
+        const State *from = a->id_ < b->id_ ? a : b;
+        const State *to = a->id_ < b->id_ ? b : a;
+        const auto it = from->checkedDepth_.find(to->id_);
+        const unsigned int depth = it == from->checkedDepth_.end() ? 0u : it->second;
+        const double done = depth >= 63u ? interior : std::ldexp(1.0, static_cast<int>(depth)) - 1.0;
+        return std::max(0.0, interior - done);
+    }
+
+    bool LITstar::checkEdge(State *a, State *b, unsigned int depth)
+    {
+        // Points are i/n along the canonical direction (smaller id first), visited level by level in bisection
+        // order, so a sparse check of depth D is exactly the first 2^D - 1 points of the full check.
+        State *from = a->id_ < b->id_ ? a : b;
+        State *to = a->id_ < b->id_ ? b : a;
+        unsigned int &done = checkedDepth(from, to);
+        const unsigned int segments = si_->getStateSpace()->validSegmentCount(from->raw_, to->raw_);
+        std::vector<std::pair<unsigned int, unsigned int>> intervals{{0u, segments}}, next;
+        unsigned int level = 0u;
+        while (!intervals.empty() && level < depth)
+        {
+            ++level;
+            next.clear();
+            for (const auto &[lo, hi] : intervals)
+            {
+                if (hi - lo < 2u)
+                    continue;
+                const unsigned int mid = lo + (hi - lo) / 2u;
+                if (level > done)
+                {
+                    si_->getStateSpace()->interpolate(from->raw_, to->raw_,
+                                                      static_cast<double>(mid) / static_cast<double>(segments),
+                                                      interpolated_);
+                    ++counters_.collisionChecks;
+                    if (!si_->isValid(interpolated_))
+                        return false;
+                }
+                next.emplace_back(lo, mid);
+                next.emplace_back(mid, hi);
+            }
+            intervals.swap(next);
+        }
+        if (intervals.empty())
+        {
+            done = fullCheck;
+            whitelist(from, to);
+        }
+        else
+            done = std::max(done, level);
+        return true;
+    }
+
+    // ----------------------------------------------------------------------------------------------- searches
+    void LITstar::computeKeys(litstar::Edge &edge) const
+    {
+        const double toGo = edge.target->reverseCost(reverseTag_);
+        const double effort = edge.target->reverseEffort(reverseTag_);
+        const double cost = si_->distance(edge.source->raw_, edge.target->raw_);
+        edge.lowerBoundKey = edge.source->costToCome_ + cost + toGo;
+        if (!std::isfinite(effort))
+            edge.effortKey = infinity;
+        else
+        {
+            // The remaining checks on the edge itself, estimated from its length and sparse-check progress.
+            edge.effortKey = effort + remainingChecks(edge.source, edge.target);
+        }
+    }
+
+    void LITstar::collectNeighbours(State *state, std::vector<State *> &out)
+    {
+        const auto &nearest = graph_->neighbours(state, currentK_);
+        out.assign(nearest.begin(), nearest.end());
+        auto addUnique = [&out](State *other) {
+            if (other != nullptr && std::find(out.begin(), out.end(), other) == out.end())
+                out.push_back(other);
+        };
+        addUnique(state->forwardParent_);
+        for (State *child : state->forwardChildren_)
+            addUnique(child);
+        addUnique(state->reverseParent(reverseTag_));
+    }
+
+    void LITstar::restartReverseSearch()
+    {
+        ++reverseTag_;
+        ++counters_.reverseRestarts;
+        reverseQueue_ = {};
+        for (State *goal : graph_->goals())
+        {
+            goal->reverseTag_ = reverseTag_;
+            goal->reverseCost_ = 0.0;
+            goal->reverseEffort_ = 0.0;
+            goal->reverseParent_ = nullptr;
+        }
+        for (State *goal : graph_->goals())
+            expandReverse(goal);
+        forwardQueue_->updateAll();
+    }
+
+    void LITstar::expandReverse(State *state)
+    {
+        if (state->isStart_)
+            return;  // the reverse search only has to reach the start
+        std::vector<State *> neighbours;
+        collectNeighbours(state, neighbours);
+        const double costToGo = state->reverseCost_;
+        for (State *other : neighbours)
+        {
+            if (other == state->reverseParent_ || other->isGoal_ || isBlacklisted(state, other))
+                continue;
+            const double cost = costToGo + si_->distance(state->raw_, other->raw_);
+            if (cost >= other->reverseCost(reverseTag_))
+                continue;
+            const double key = cost + other->costToComeLowerBound_;
+            if (key >= bestCost_)
+                continue;
+            reverseQueue_.push(ReverseEdge{key, cost, state, other});
+        }
+    }
+
+    void LITstar::reverseStep()
+    {
+        ++counters_.reverseSteps;
+        const ReverseEdge edge = reverseQueue_.top();
+        reverseQueue_.pop();
+        State *source = edge.source;
+        State *target = edge.target;
+        const double cost = source->reverseCost(reverseTag_) + si_->distance(source->raw_, target->raw_);
+        if (cost >= target->reverseCost(reverseTag_) || cost + target->costToComeLowerBound_ >= bestCost_ ||
+            isBlacklisted(source, target))
+            return;
+        if (!isWhitelisted(source, target))
+        {
+            ++counters_.edgesSparselyChecked;
+            if (!checkEdge(source, target, sparseDepth_))
+            {
+                blacklist(source, target);
+                return;
+            }
+        }
+        target->reverseTag_ = reverseTag_;
+        target->reverseCost_ = cost;
+        target->reverseEffort_ = source->reverseEffort_ + remainingChecks(source, target);
+        target->reverseParent_ = source;
+        forwardQueue_->updateIncoming(target);
+        expandReverse(target);
+    }
+
+    void LITstar::expandForward(State *state)
+    {
+        if (state->isGoal_)
+            return;  // a path through a goal never improves a solution
+        ++counters_.expansions;
+        currentK_ = adaptiveNeighborSize(state);
+        std::vector<State *> neighbours;
+        collectNeighbours(state, neighbours);
+        for (State *other : neighbours)
+        {
+            if (other == state->forwardParent_ || other->isStart_ || isBlacklisted(state, other))
+                continue;
+            if (other->forwardParent_ == state)
+            {
+                forwardQueue_->insert(state, other);  // re-traverses the kept forward tree
+                continue;
+            }
+            const double costToCome = state->costToCome_ + si_->distance(state->raw_, other->raw_);
+            if (costToCome >= other->costToCome_ || costToCome + other->costToGoLowerBound_ >= bestCost_)
+                continue;
+            forwardQueue_->insert(state, other);
+        }
+    }
+
+    void LITstar::forwardStep()
+    {
+        ++counters_.forwardSteps;
+        const litstar::Edge edge = forwardQueue_->pop();
+        State *source = edge.source;
+        State *target = edge.target;
+        if (target->forwardParent_ == source)
+        {
+            expandForward(target);
+            return;
+        }
+        const double edgeCost = si_->distance(source->raw_, target->raw_);
+        const double costToCome = source->costToCome_ + edgeCost;
+        if (costToCome >= target->costToCome_ || costToCome + target->costToGoLowerBound_ >= bestCost_)
+            return;
+        if (!isWhitelisted(source, target))
+        {
+            ++counters_.edgesEvaluated;
+            if (!checkEdge(source, target, fullCheck))
+            {
+                blacklist(source, target);
+                if (source->reverseParent(reverseTag_) == target)
+                {
+                    // The reverse search was too optimistic here: check its edges more densely (d <- 2d + 1).
+                    ++sparseDepth_;
+                    restartReverseSearch();
+                }
+                return;
+            }
+        }
+        rewire(source, target, edgeCost);
+        checkForImprovedSolution();
+        expandForward(target);
+    }
+
+    void LITstar::rewire(State *parent, State *child, double edgeCost)
+    {
+        if (child->forwardParent_ != nullptr)
+        {
+            auto &siblings = child->forwardParent_->forwardChildren_;
+            siblings.erase(std::remove(siblings.begin(), siblings.end(), child), siblings.end());
+        }
+        child->forwardParent_ = parent;
+        child->parentEdgeCost_ = edgeCost;
+        parent->forwardChildren_.push_back(child);
+        propagateCostToCome(child);
+    }
+
+    void LITstar::propagateCostToCome(State *state)
+    {
+        std::vector<State *> stack{state};
+        while (!stack.empty())
+        {
+            State *current = stack.back();
+            stack.pop_back();
+            current->costToCome_ = current->forwardParent_->costToCome_ + current->parentEdgeCost_;
+            forwardQueue_->updateOutgoing(current);
+            stack.insert(stack.end(), current->forwardChildren_.begin(), current->forwardChildren_.end());
+        }
+    }
+
+    void LITstar::detachFromForwardTree(State *state)
+    {
+        forwardQueue_->removeEdgesOf(state);
+        if (state->forwardParent_ != nullptr)
+        {
+            auto &siblings = state->forwardParent_->forwardChildren_;
+            siblings.erase(std::remove(siblings.begin(), siblings.end(), state), siblings.end());
+            state->forwardParent_ = nullptr;
+        }
+        std::vector<State *> stack(state->forwardChildren_.begin(), state->forwardChildren_.end());
+        state->forwardChildren_.clear();
+        state->costToCome_ = infinity;
+        while (!stack.empty())
+        {
+            State *current = stack.back();
+            stack.pop_back();
+            stack.insert(stack.end(), current->forwardChildren_.begin(), current->forwardChildren_.end());
+            current->forwardChildren_.clear();
+            current->forwardParent_ = nullptr;
+            current->costToCome_ = infinity;
+        }
+    }
+
+    void LITstar::checkForImprovedSolution()
+    {
+        State *best = nullptr;
+        for (State *goal : graph_->goals())
+            if (goal->costToCome_ < bestCost_ && (best == nullptr || goal->costToCome_ < best->costToCome_))
+                best = goal;
+        if (best != nullptr)
+            registerSolution(best);
+    }
+
+    void LITstar::registerSolution(State *goal)
+    {
+        const bool first = !std::isfinite(bestCost_);
+        bestCost_ = goal->costToCome_;
+        ++improvements_;
+        bestPathStates_.clear();
+        for (State *s = goal; s != nullptr; s = s->forwardParent_)
+            bestPathStates_.push_back(s);
+        std::reverse(bestPathStates_.begin(), bestPathStates_.end());
+
+        auto path = std::make_shared<ompl::geometric::PathGeometric>(si_);
+        std::vector<const ompl::base::State *> states;
+        for (State *s : bestPathStates_)
+        {
+            path->append(s->raw_);
+            states.push_back(s->raw_);
+        }
+        pdef_->addSolutionPath(path, false, 0.0, getName());
+        if (const auto &callback = pdef_->getIntermediateSolutionCallback())
+            callback(this, states, ompl::base::Cost(bestCost_));
+        if (first)
+            forwardQueue_->setEffortFirst(false);  // epsilon: infinity -> 1
+
+        SolutionEvent event;
+        event.time = planningTime();
+        event.cost = bestCost_;
+        event.pathStates = bestPathStates_.size();
+        event.improvement = improvements_;
+        event.iteration = counters_.iterations;
+        for (auto &listener : listeners_)
+            listener->onSolution(event);
+        adaptiveBatchsize();
+    }
+
+    void LITstar::improveApproximation()
+    {
+        forwardQueue_->clear();
+        reverseQueue_ = {};
+        std::size_t pruned = 0u;
+        if (std::isfinite(bestCost_))
+            pruned = graph_->prune(bestCost_, [this](State *state) { detachFromForwardTree(state); });
+        counters_.prunedSamples += pruned;
+        const std::size_t invalidBefore = graph_->invalidDraws();
+        const std::size_t checksBefore = graph_->validDraws() + graph_->invalidDraws();
+        graph_->addBatch(batchSize_, bestCost_);
+        counters_.collisionChecks += graph_->validDraws() + graph_->invalidDraws() - checksBefore;
+        counters_.validSamples = graph_->validDraws();
+        counters_.invalidSamples = graph_->invalidDraws();
+        ++counters_.batches;
+        sparseDepth_ = 1u;
+        currentK_ = neighbourCount(neighbourFactor_);
+        if (policy_->needsFeatures() && !bestPathStates_.empty())
+            rhoLocalB_ = computeFeatures().rhoLocalB;
+        restartReverseSearch();
+        expandForward(graph_->start());
+
+        BatchEvent event;
+        event.batch = counters_.batches;
+        event.batchSize = batchSize_;
+        event.validSamples = graph_->numValid();
+        event.invalidSamples = graph_->numInvalid();
+        event.prunedSamples = pruned;
+        event.time = planningTime();
+        (void)invalidBefore;
+        for (auto &listener : listeners_)
+            listener->onBatch(event);
+    }
+
+    // ----------------------------------------------------------------------------------- LIT* decisions
+    double LITstar::getMeasure() const
+    {
+        return informedMeasure(dimension_, bestCost_, graph_->sampler().minimumCost(), spaceMeasure_);
+    }
+
+    std::size_t LITstar::neighbourCount(double neighbourFactor) const
+    {
+        const double n = static_cast<double>(dimension_);
+        const double q = std::max(static_cast<double>(graph_->numValid()), 2.0);
+        const double k = std::ceil(rewireFactor_ * neighbourFactor * (1.0 + 1.0 / n) * std::log(q));
+        return static_cast<std::size_t>(std::max(1.0, k));
+    }
+
+    Features LITstar::computeFeatures(const ompl::base::State *centre) const
+    {
+        Features features;
+        if (!graph_)
+            return features;
+        features.rhoGlobal = graph_->ratioCalc();
+        const double informed = getMeasure();
+        features.measure = std::isfinite(bestCost_) ? measureFeature(dimension_, informed, spaceMeasure_) : 1.0;
+        std::vector<const ompl::base::State *> path;
+        for (const State *s : bestPathStates_)
+            path.push_back(s->raw_);
+        const double radius = graph_->radius(rewireFactor_, informed);
+        const auto [localB, localK] = graph_->localRatioCalc(path, centre ? centre : graph_->start()->raw_, radius);
+        features.rhoLocalB = localB;
+        features.rhoLocalK = localK;
+        return features;
+    }
+
+    DecisionContext LITstar::makeContext(DecisionKind kind) const
+    {
+        DecisionContext context;
+        context.kind = kind;
+        context.dimension = dimension_;
+        context.hasSolution = std::isfinite(bestCost_);
+        context.cost = bestCost_;
+        context.improvements = improvements_;
+        context.pathStates = bestPathStates_.size();
+        context.planningTime = planningTime();
+        context.informedMeasure = getMeasure();
+        context.spaceMeasure = spaceMeasure_;
+        context.minimumCost = graph_->sampler().minimumCost();
+        context.expansions = counters_.expansions;
+        context.batches = counters_.batches;
+        context.features.rhoGlobal = graph_->ratioCalc();
+        context.features.measure =
+            context.hasSolution ? measureFeature(dimension_, context.informedMeasure, spaceMeasure_) : 1.0;
+        context.features.rhoLocalB = bestPathStates_.empty() ? context.features.rhoGlobal : rhoLocalB_;
+        context.features.rhoLocalK = context.features.rhoGlobal;
+        return context;
+    }
+
+    double LITstar::decide(DecisionContext &context)
+    {
+        const bool pause = policy_->pausesClock();
+        if (pause)
+            pauseClock();
+        const double value = policy_->decide(context);
+        if (pause)
+            resumeClock();
+        return value;
+    }
+
+    void LITstar::adaptiveBatchsize()
+    {
+        DecisionContext context = makeContext(DecisionKind::BatchSize);
+        const Features features = computeFeatures();
+        rhoLocalB_ = features.rhoLocalB;
+        context.features.rhoLocalB = features.rhoLocalB;
+        const double value = decide(context);
+        batchSize_ = static_cast<unsigned int>(std::max(1L, std::lround(value)));
+        ++counters_.batchDecisions;
+        DecisionEvent event;
+        event.kind = DecisionKind::BatchSize;
+        event.features = context.features;
+        event.value = static_cast<double>(batchSize_);
+        event.policy = policy_->name();
+        event.time = planningTime();
+        event.iteration = counters_.iterations;
+        for (auto &listener : listeners_)
+            listener->onDecision(event);
+    }
+
+    std::size_t LITstar::adaptiveNeighborSize(State *centre)
+    {
+        if (policy_->decidesNeighbourFactor() && (counters_.expansions - 1u) % decisionInterval_ == 0u)
+        {
+            DecisionContext context = makeContext(DecisionKind::NeighbourFactor);
+            if (policy_->needsFeatures())
+            {
+                const double informed = context.informedMeasure;
+                const double ratio = graph_->localRatio(centre->raw_, graph_->radius(rewireFactor_, informed));
+                context.features.rhoLocalK = ratio >= 0.0 ? ratio : context.features.rhoGlobal;
+            }
+            neighbourFactor_ = decide(context);
+            ++counters_.neighbourDecisions;
+            const std::size_t k = neighbourCount(neighbourFactor_);
+            DecisionEvent event;
+            event.kind = DecisionKind::NeighbourFactor;
+            event.features = context.features;
+            event.value = neighbourFactor_;
+            event.neighbours = k;
+            event.policy = policy_->name();
+            event.time = planningTime();
+            event.iteration = counters_.iterations;
+            for (auto &listener : listeners_)
+                listener->onDecision(event);
+            return k;
+        }
+        return neighbourCount(neighbourFactor_);
+    }
+
+    // ------------------------------------------------------------------------------------------- reporting
+    std::vector<std::vector<double>> LITstar::bestPath() const
+    {
+        std::vector<std::vector<double>> path;
+        for (const State *s : bestPathStates_)
+        {
+            std::vector<double> x;
+            si_->getStateSpace()->copyToReals(x, s->raw_);
+            path.push_back(std::move(x));
+        }
+        return path;
+    }
+
+    void LITstar::getPlannerData(ompl::base::PlannerData &data) const
+    {
+        Planner::getPlannerData(data);
+        if (!graph_)
+            return;
+        data.addStartVertex(ompl::base::PlannerDataVertex(graph_->start()->raw_, static_cast<int>(graph_->start()->id_)));
+        for (const State *goal : graph_->goals())
+            data.addGoalVertex(ompl::base::PlannerDataVertex(goal->raw_, static_cast<int>(goal->id_)));
+        for (const auto &state : graph_->states())
+            if (state->forwardParent_ != nullptr)
+                data.addEdge(ompl::base::PlannerDataVertex(state->forwardParent_->raw_,
+                                                           static_cast<int>(state->forwardParent_->id_)),
+                             ompl::base::PlannerDataVertex(state->raw_, static_cast<int>(state->id_)));
+    }
+}  // namespace lit

@@ -1,0 +1,136 @@
+#include "lit/LookupTensor.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <regex>
+#include <sstream>
+
+namespace lit
+{
+    namespace
+    {
+        [[noreturn]] void fail(const std::string &path, const std::string &problem)
+        {
+            throw TensorError("tensor file '" + path + "': " + problem);
+        }
+
+        /** \brief Index and weight of x in [0, 1] on a node-centred grid of n points. */
+        void gridPosition(double x, std::size_t n, std::size_t &lower, double &weight)
+        {
+            const double scaled = std::clamp(std::isfinite(x) ? x : 0.0, 0.0, 1.0) * static_cast<double>(n - 1u);
+            lower = std::min(static_cast<std::size_t>(scaled), n >= 2u ? n - 2u : 0u);
+            weight = n >= 2u ? scaled - static_cast<double>(lower) : 0.0;
+        }
+
+        std::size_t nearestIndex(double x, std::size_t n)
+        {
+            const double scaled = std::clamp(std::isfinite(x) ? x : 0.0, 0.0, 1.0) * static_cast<double>(n - 1u);
+            return std::min(static_cast<std::size_t>(std::floor(scaled + 0.5)), n - 1u);
+        }
+    }  // namespace
+
+    LookupTensor::LookupTensor(std::array<std::size_t, 3> shape, std::vector<float> values)
+      : shape_(shape), values_(std::move(values))
+    {
+        if (shape_[0] == 0u || shape_[1] == 0u || shape_[2] == 0u ||
+            values_.size() != shape_[0] * shape_[1] * shape_[2])
+            throw TensorError("tensor: value count does not match the shape");
+    }
+
+    LookupTensor LookupTensor::load(const std::string &path, const TensorSpec &spec)
+    {
+        std::ifstream in(path, std::ios::binary);
+        if (!in)
+            fail(path, "cannot be opened");
+        const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+
+        static const char magic[] = "\x93NUMPY";
+        if (bytes.size() < 10u || bytes.compare(0, 6, magic, 6) != 0)
+            fail(path, "bad magic: not an NPY file");
+        const auto major = static_cast<unsigned char>(bytes[6]);
+        const auto minor = static_cast<unsigned char>(bytes[7]);
+        if (major != 1u || minor != 0u)
+            fail(path, "unsupported NPY version " + std::to_string(major) + "." + std::to_string(minor) +
+                           " (expected 1.0)");
+        const std::size_t headerLength =
+            static_cast<unsigned char>(bytes[8]) | (static_cast<std::size_t>(static_cast<unsigned char>(bytes[9])) << 8);
+        if (bytes.size() < 10u + headerLength)
+            fail(path, "truncated header");
+        const std::string header = bytes.substr(10u, headerLength);
+
+        std::smatch match;
+        if (!std::regex_search(header, match, std::regex("'descr'\\s*:\\s*'([^']*)'")))
+            fail(path, "header has no dtype ('descr')");
+        if (match[1].str() != "<f4")
+            fail(path, "dtype is '" + match[1].str() + "', expected '<f4' (little-endian float32)");
+        if (!std::regex_search(header, match, std::regex("'fortran_order'\\s*:\\s*(True|False)")))
+            fail(path, "header has no 'fortran_order'");
+        if (match[1].str() != "False")
+            fail(path, "Fortran order is not supported (expected C order)");
+        if (!std::regex_search(header, match, std::regex("'shape'\\s*:\\s*\\(([^)]*)\\)")))
+            fail(path, "header has no shape");
+
+        std::vector<std::size_t> shape;
+        {
+            std::stringstream dims(match[1].str());
+            std::string item;
+            while (std::getline(dims, item, ','))
+            {
+                item.erase(std::remove_if(item.begin(), item.end(), ::isspace), item.end());
+                if (!item.empty())
+                    shape.push_back(static_cast<std::size_t>(std::stoull(item)));
+            }
+        }
+        auto shapeText = [](const auto &s) {
+            std::string text = "(";
+            for (std::size_t i = 0; i < s.size(); ++i)
+                text += (i ? ", " : "") + std::to_string(s[i]);
+            return text + ")";
+        };
+        if (shape.size() != 3u || shape[0] != spec.shape[0] || shape[1] != spec.shape[1] || shape[2] != spec.shape[2])
+            fail(path, "shape " + shapeText(shape) + " does not match the sidecar's " + shapeText(spec.shape));
+
+        const std::size_t count = shape[0] * shape[1] * shape[2];
+        const std::size_t dataOffset = 10u + headerLength;
+        if (bytes.size() - dataOffset != count * sizeof(float))
+            fail(path, "data holds " + std::to_string(bytes.size() - dataOffset) + " bytes, expected " +
+                           std::to_string(count * sizeof(float)));
+
+        std::vector<float> values(count);
+        std::memcpy(values.data(), bytes.data() + dataOffset, count * sizeof(float));  // x86-64: little-endian
+        for (std::size_t i = 0; i < count; ++i)
+        {
+            if (!std::isfinite(values[i]))
+                fail(path, "value " + std::to_string(i) + " is not finite (NaN or inf)");
+            if (values[i] < spec.minValue - 1e-4 || values[i] > spec.maxValue + 1e-4)
+                fail(path, "value " + std::to_string(i) + " = " + std::to_string(values[i]) + " is out of range [" +
+                               std::to_string(spec.minValue) + ", " + std::to_string(spec.maxValue) + "]");
+        }
+        return LookupTensor({shape[0], shape[1], shape[2]}, std::move(values));
+    }
+
+    double LookupTensor::nearest(double x, double y, double z) const
+    {
+        return at(nearestIndex(x, shape_[0]), nearestIndex(y, shape_[1]), nearestIndex(z, shape_[2]));
+    }
+
+    double LookupTensor::trilinear(double x, double y, double z) const
+    {
+        std::size_t i, j, k;
+        double u, v, w;
+        gridPosition(x, shape_[0], i, u);
+        gridPosition(y, shape_[1], j, v);
+        gridPosition(z, shape_[2], k, w);
+        const std::size_t i1 = std::min(i + 1u, shape_[0] - 1u), j1 = std::min(j + 1u, shape_[1] - 1u),
+                          k1 = std::min(k + 1u, shape_[2] - 1u);
+        const double c00 = at(i, j, k) * (1 - w) + at(i, j, k1) * w;
+        const double c01 = at(i, j1, k) * (1 - w) + at(i, j1, k1) * w;
+        const double c10 = at(i1, j, k) * (1 - w) + at(i1, j, k1) * w;
+        const double c11 = at(i1, j1, k) * (1 - w) + at(i1, j1, k1) * w;
+        return (c00 * (1 - v) + c01 * v) * (1 - u) + (c10 * (1 - v) + c11 * v) * u;
+    }
+}  // namespace lit

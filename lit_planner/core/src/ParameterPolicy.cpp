@@ -1,0 +1,103 @@
+#include "lit/ParameterPolicy.h"
+
+#include <ompl/util/Console.h>
+
+#include <algorithm>
+#include <cmath>
+#include <exception>
+
+namespace lit
+{
+    const char *toString(DecisionKind kind)
+    {
+        return kind == DecisionKind::BatchSize ? "B" : "psi_K";
+    }
+
+    std::optional<int> clampBatchSize(double value)
+    {
+        if (!std::isfinite(value))
+            return std::nullopt;
+        const double rounded = std::round(value);  // half away from zero
+        return static_cast<int>(std::clamp(rounded, static_cast<double>(ParameterLimits::minBatchSize),
+                                           static_cast<double>(ParameterLimits::maxBatchSize)));
+    }
+
+    std::optional<double> clampNeighbourFactor(double value)
+    {
+        if (!std::isfinite(value))
+            return std::nullopt;
+        return std::clamp(value, ParameterLimits::minNeighbourFactor, ParameterLimits::maxNeighbourFactor);
+    }
+
+    double FixedPolicy::decide(const DecisionContext &context)
+    {
+        return context.kind == DecisionKind::BatchSize ? static_cast<double>(batchSize_) : neighbourFactor_;
+    }
+
+    double FitPolicy::batchSize(double xi, unsigned int n, double minBatch, double maxBatch)
+    {
+        const double sigmoid = 1.0 / (1.0 + std::exp(-10.0 * (xi - 0.5)));
+        const double lambda = (maxBatch + minBatch) / static_cast<double>(n);
+        const double psi = std::log1p(lambda * sigmoid) / std::log1p(lambda);
+        return minBatch + (maxBatch - minBatch) * psi;
+    }
+
+    double FitPolicy::decide(const DecisionContext &context)
+    {
+        if (context.kind == DecisionKind::NeighbourFactor)
+            return M_E;
+        if (!context.hasSolution)
+            return maxBatch_;
+        if (!(referenceMeasure_ > 0.0))
+            referenceMeasure_ = context.informedMeasure;  // first solution of this problem
+        const double xi = referenceMeasure_ > 0.0 ? context.informedMeasure / referenceMeasure_ : 1.0;
+        return std::round(batchSize(xi, context.dimension, minBatch_, maxBatch_));
+    }
+
+    TensorPolicy::TensorPolicy(std::shared_ptr<const LookupTensor> batchTensor,
+                               std::shared_ptr<const LookupTensor> neighbourTensor, Interpolation interpolation)
+      : batchTensor_(std::move(batchTensor)), neighbourTensor_(std::move(neighbourTensor)), interpolation_(interpolation)
+    {
+    }
+
+    double TensorPolicy::decide(const DecisionContext &context)
+    {
+        const Features &f = context.features;
+        if (context.kind == DecisionKind::BatchSize)
+        {
+            if (!batchTensor_)
+                return 100.0;
+            return *clampBatchSize(batchTensor_->lookup(f.rhoGlobal, f.rhoLocalB, f.measure, interpolation_));
+        }
+        if (!neighbourTensor_)
+            return M_E;
+        return *clampNeighbourFactor(neighbourTensor_->lookup(f.rhoGlobal, f.rhoLocalK, f.measure, interpolation_));
+    }
+
+    double ExternalPolicy::decide(const DecisionContext &context)
+    {
+        const double fallback = context.kind == DecisionKind::BatchSize ? 100.0 : M_E;
+        double answer = fallback;
+        try
+        {
+            answer = callback_(context);
+        }
+        catch (const std::exception &e)
+        {
+            ++failures_;
+            OMPL_WARN("LITstar: external policy raised '%s'; using the fixed value for %s", e.what(),
+                      toString(context.kind));
+            return fallback;
+        }
+        if (context.kind == DecisionKind::BatchSize)
+        {
+            if (auto b = clampBatchSize(answer))
+                return *b;
+        }
+        else if (auto psi = clampNeighbourFactor(answer))
+            return *psi;
+        ++failures_;
+        OMPL_WARN("LITstar: external policy answered NaN/inf for %s; using the fixed value", toString(context.kind));
+        return fallback;
+    }
+}  // namespace lit

@@ -1,0 +1,1 @@
+"""LIT* planner: Python side of the planner (bindings, node, CLI, scenario registry)."""

@@ -1,0 +1,79 @@
+"""The ``lit`` command: one entry point whose subcommands live in their own modules.
+
+Each subcommand is a row of :data:`COMMANDS`. Its module is imported only when that subcommand is
+chosen, so ``lit --help`` and ``lit test`` never pay for torch, rclpy or the C++ core. A subcommand
+module provides ``add_arguments(parser)`` and a run function taking the parsed
+:class:`argparse.Namespace` and returning an exit code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Command:
+    """One ``lit`` subcommand."""
+
+    module: str
+    """Module that implements it (imported lazily)."""
+    help: str
+    """One line for ``lit --help``."""
+    run: str = "run"
+    """Name of the module's ``(args) -> int`` function."""
+
+
+COMMANDS: dict[str, Command] = {
+    "demo": Command(
+        "lit_planner.demo",
+        "run learner and planner as two processes on the default scenario, record a bag, "
+        "print the summary table",
+    ),
+    "plan": Command("lit_planner.plan_cli", "plan one query or a benchmark with the C++ core"),
+    "test": Command(
+        "lit_planner.testing", "run all tests: C++ (ctest) and Python (pytest)", run="main"
+    ),
+}
+
+
+def _load(name: str) -> object:
+    module_name = COMMANDS[name].module
+    try:
+        return importlib.import_module(module_name)
+    except ModuleNotFoundError as error:
+        if error.name != module_name:
+            raise  # a real missing dependency inside the module: show the traceback
+        raise SystemExit(f"lit {name}: {module_name} is not available in this checkout") from None
+
+
+def build_parser(selected: str | None) -> tuple[argparse.ArgumentParser, object | None]:
+    """Build the parser; only the ``selected`` subcommand's module is imported."""
+    parser = argparse.ArgumentParser(
+        prog="lit", description="LIT* (Learning-based Informed Trees) over ROS 2."
+    )
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    module = None
+    for name, command in COMMANDS.items():
+        subparser = subparsers.add_parser(name, help=command.help, description=command.help)
+        if name == selected:
+            module = _load(name)
+            module.add_arguments(subparser)  # type: ignore[attr-defined]
+    return parser, module
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Parse ``argv`` (default: ``sys.argv[1:]``) and run the chosen subcommand."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    selected = next((arg for arg in argv if not arg.startswith("-")), None)
+    parser, module = build_parser(selected if selected in COMMANDS else None)
+    args = parser.parse_args(argv)
+    run = getattr(module, COMMANDS[args.command].run)
+    return int(run(args) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,520 @@
+"""Scenario registry: the single source of truth for every planning problem of the project.
+
+Scenarios follow the Planner Developer Tools (PDT) conventions: the state space is the unit cube
+[-0.5, 0.5]^n, the objective is path length, and obstacles are axis-aligned CLOSED boxes (a point
+is in collision iff ``lo <= x <= hi`` on every axis). The families and their constants are data in
+:data:`FAMILIES`; everything else (boxes, optima, budgets, descriptions) is derived from that table.
+
+Names are ``<family><dim>`` (``np8``, ``wg4``, ``rr16``, ``rrd8``) with an optional instance suffix
+(``rrd8/3``). Decisions beyond the design brief, each documented where it is made:
+
+- **Seeds** of the random families: ``zlib.crc32(SEED_FORMAT.format(family, dim, instance))``, fed
+  to ``np.random.Generator(np.random.PCG64(seed))``. Never Python's ``hash()`` (salted per process).
+- **Box draws**: per box, the side lengths (one per axis) and then the centre (one per axis) are
+  drawn; the whole box is redrawn while it contains the start or the goal.
+- **RRD side ranges** for a dimension the brief does not list: those of the nearest listed
+  dimension (4, 8 or 16), ties going to the smaller one.
+- **Time budgets**: the paper's values at n = 4, 8, 16, piecewise-linear in n between them and flat
+  beyond the ends. WG uses NP's budgets.
+- **Optima** of the wall families are exact infima of the path length (the free passages are open
+  sets, so the optimal route touches obstacle boundaries); random families have no known optimum.
+
+Random instances may be unsolvable (start and goal in disconnected free space), most often for the
+dense family in low dimensions. Start and goal are always valid.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import zlib
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Literal, cast
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from lit_planner.errors import ScenarioError
+
+Family = Literal["np", "wg", "rr", "rrd"]
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+SPACE_LOWER = -0.5
+"""Lower bound of every axis."""
+SPACE_UPPER = 0.5
+"""Upper bound of every axis."""
+MIN_DIM = 2
+"""Smallest supported dimension."""
+MAX_DIM = 32
+"""Largest supported dimension."""
+LISTED_DIMS = range(2, 17)
+"""Dimensions that :func:`names` lists."""
+PDT_RESOLUTION = 5e-6
+"""PDT's collision-checking resolution, a fraction of the space's maximum extent."""
+ENDPOINT_TOLERANCE = 1e-9
+"""Euclidean distance within which a path counts as starting at the start / ending at the goal."""
+CHECK_REFINEMENT = 4
+""":func:`check_path` samples edges this many times finer than the scenario's resolution."""
+MAX_REDRAWS = 10_000
+"""Draws per box before giving up (guards against a family that cannot avoid start and goal)."""
+SEED_FORMAT = "lit_planner.scenarios/{family}/{dim}/{instance}"
+"""String whose ``zlib.crc32`` is the seed of a random instance."""
+DEFAULT_SCENARIO = "np8"
+"""The scenario that the main job and examples run when none is given."""
+
+PAPER_NP_BUDGETS: tuple[tuple[int, float], ...] = ((4, 0.12), (8, 0.4), (16, 0.6))
+"""The paper's time budgets (dimension, seconds) for narrow passages."""
+PAPER_RR_BUDGETS: tuple[tuple[int, float], ...] = ((4, 0.15), (8, 0.3), (16, 2.0))
+"""The paper's time budgets (dimension, seconds) for random rectangles."""
+
+_CHUNK_ELEMENTS = 1 << 22  # bounds the temporaries of is_valid to a few MiB
+_CHUNK_POINTS = 1 << 16  # interpolated points generated at once by check_path
+_NAME_PATTERN = re.compile(r"(?P<family>[a-z]+)(?P<dim>\d+)(?:/(?P<instance>\d+))?")
+
+
+@dataclass(frozen=True)
+class WallLayout:
+    """A wall across ``x0`` spanning every axis but ``x1``, solid over the closed ``x1`` blocks."""
+
+    x0: tuple[float, float]
+    """Closed interval of ``x0`` that the wall occupies."""
+    x1_blocks: tuple[tuple[float, float], ...]
+    """Closed ``x1`` intervals where the wall is solid; the rest of ``x1`` is free."""
+
+    def boxes(self, dim: int) -> FloatArray:
+        """One box per block, spanning the whole space along every axis but ``x0`` and ``x1``."""
+        boxes = np.empty((len(self.x1_blocks), 2, dim))
+        boxes[:, 0, :], boxes[:, 1, :] = SPACE_LOWER, SPACE_UPPER
+        boxes[:, 0, 0], boxes[:, 1, 0] = self.x0
+        boxes[:, :, 1] = self.x1_blocks
+        return boxes
+
+    def free_x1_intervals(self) -> list[tuple[float, float]]:
+        """The open ``x1`` intervals through which a path can cross the wall."""
+        free, edge = [], SPACE_LOWER
+        for lo, hi in sorted(self.x1_blocks):
+            if lo > edge:
+                free.append((edge, lo))
+            edge = max(edge, hi)
+        if edge < SPACE_UPPER:
+            free.append((edge, SPACE_UPPER))
+        return free
+
+    def describe(self, dim: int) -> str:
+        """The layout in words."""
+        blocks = " and ".join(f"[{lo:g}, {hi:g}]" for lo, hi in self.x1_blocks)
+        return f"wall x0 in [{self.x0[0]:g}, {self.x0[1]:g}] solid over x1 in {blocks}"
+
+
+@dataclass(frozen=True)
+class RandomBoxes:
+    """Axis-aligned boxes with uniform centres and uniform side lengths per axis."""
+
+    count: int
+    """Number of boxes."""
+    side_ranges: tuple[tuple[int, float, float], ...]
+    """(reference dimension, smallest side, largest side); a dimension uses its nearest entry."""
+
+    def side_range(self, dim: int) -> tuple[float, float]:
+        """Side range in ``dim`` dimensions: the nearest listed dimension's, ties to the smaller."""
+        _, lo, hi = min(self.side_ranges, key=lambda entry: (abs(entry[0] - dim), entry[0]))
+        return lo, hi
+
+    def boxes(self, dim: int, seed: int, start: FloatArray, goal: FloatArray) -> FloatArray:
+        """Draw the boxes reproducibly from ``seed``, redrawing any box containing start or goal."""
+        rng = np.random.Generator(np.random.PCG64(seed))
+        side_lo, side_hi = self.side_range(dim)
+        boxes = np.empty((self.count, 2, dim))
+        for index in range(self.count):
+            for _ in range(MAX_REDRAWS):
+                sides = rng.uniform(side_lo, side_hi, dim)
+                centre = rng.uniform(SPACE_LOWER, SPACE_UPPER, dim)
+                lo, hi = centre - sides / 2, centre + sides / 2
+                if not any(np.all((lo <= p) & (p <= hi)) for p in (start, goal)):
+                    boxes[index] = lo, hi
+                    break
+            else:
+                raise ScenarioError(
+                    f"box {index} of seed {seed} still contains start or goal "
+                    f"after {MAX_REDRAWS} draws"
+                )
+        return boxes
+
+    def describe(self, dim: int) -> str:
+        """The layout in words."""
+        lo, hi = self.side_range(dim)
+        return f"{self.count} random boxes with sides U({lo:g}, {hi:g})"
+
+
+@dataclass(frozen=True)
+class FamilySpec:
+    """Everything that defines a scenario family; :func:`get` derives instances from it."""
+
+    family: Family
+    """Short name, the prefix of scenario names."""
+    title: str
+    """Human-readable name."""
+    start: tuple[float, float]
+    """Start as (x0, every other coordinate)."""
+    goal: tuple[float, float]
+    """Goal as (x0, every other coordinate)."""
+    obstacles: WallLayout | RandomBoxes
+    """Obstacle layout."""
+    time_budgets: tuple[tuple[int, float], ...]
+    """(dimension, seconds) support points of the time budget."""
+    resolution: float = PDT_RESOLUTION
+    """Collision-checking resolution as a fraction of the space's maximum extent."""
+
+    @property
+    def randomised(self) -> bool:
+        """Whether instances are random draws (several instances) or fixed (instance 0 only)."""
+        return isinstance(self.obstacles, RandomBoxes)
+
+    def time_budget(self, dim: int) -> float:
+        """Budget in seconds: piecewise-linear in ``dim`` between support points, flat beyond."""
+        dims, seconds = zip(*self.time_budgets, strict=True)
+        return float(np.interp(dim, dims, seconds))
+
+    def point(self, coordinates: tuple[float, float], dim: int) -> tuple[float, ...]:
+        """Expand (x0, every other coordinate) to a ``dim``-dimensional point."""
+        return (coordinates[0],) + (coordinates[1],) * (dim - 1)
+
+
+FAMILIES: dict[str, FamilySpec] = {
+    "np": FamilySpec(
+        family="np",
+        title="Narrow passage",
+        start=(-0.2, 0.0),
+        goal=(0.2, 0.0),
+        obstacles=WallLayout(x0=(-0.1, 0.1), x1_blocks=((SPACE_LOWER, 0.05), (0.15, SPACE_UPPER))),
+        time_budgets=PAPER_NP_BUDGETS,
+    ),
+    "wg": FamilySpec(
+        family="wg",
+        title="Wall gap",
+        start=(-0.3, 0.0),
+        goal=(0.3, 0.0),
+        obstacles=WallLayout(x0=(-0.1, 0.1), x1_blocks=((SPACE_LOWER, 0.08), (0.12, 0.30))),
+        time_budgets=PAPER_NP_BUDGETS,
+    ),
+    "rr": FamilySpec(
+        family="rr",
+        title="Random rectangles",
+        start=(-0.1, -0.1),
+        goal=(0.4, 0.4),
+        obstacles=RandomBoxes(count=35, side_ranges=((4, 0.1, 0.2),)),
+        time_budgets=PAPER_RR_BUDGETS,
+    ),
+    "rrd": FamilySpec(
+        family="rrd",
+        title="Dense random rectangles",
+        start=(-0.1, -0.1),
+        goal=(0.4, 0.4),
+        obstacles=RandomBoxes(count=30, side_ranges=((4, 0.1, 1.0), (8, 0.1, 2.0), (16, 0.5, 1.5))),
+        time_budgets=PAPER_RR_BUDGETS,
+    ),
+}
+"""The family table: the only place where scenario constants are written down."""
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    """One planning problem: bounds, start, goal, closed obstacle boxes and benchmark settings.
+
+    Compares by identity (it holds an array); compare :meth:`to_dict` results for equality.
+    """
+
+    name: str
+    """Canonical ``<family><dim>`` name, e.g. ``rrd8``."""
+    family: Family
+    """Family short name, a key of :data:`FAMILIES`."""
+    dim: int
+    """Dimension n of the state space."""
+    lower: tuple[float, ...]
+    """Lower bounds of the state space."""
+    upper: tuple[float, ...]
+    """Upper bounds of the state space."""
+    start: tuple[float, ...]
+    """Start state."""
+    goal: tuple[float, ...]
+    """Goal state."""
+    boxes: FloatArray = field(repr=False)
+    """Read-only (m, 2, dim) array of closed boxes: ``[:, 0]`` lower, ``[:, 1]`` upper corners."""
+    time_budget: float
+    """Planning time budget in seconds."""
+    resolution: float
+    """Collision-checking resolution as a fraction of :attr:`max_extent` (OMPL's convention)."""
+    optimal_cost: float | None
+    """Infimum of the path length, or None where unknown."""
+    instance: int
+    """Instance number (always 0 for the fixed families)."""
+    seed: int | None
+    """Seed of the box draw, or None for the fixed families."""
+    description: str
+    """One line in words."""
+
+    @property
+    def key(self) -> str:
+        """Name that :func:`get` maps back to this scenario: ``np8`` or ``rrd8/3``."""
+        return f"{self.name}/{self.instance}" if self.family_spec.randomised else self.name
+
+    @property
+    def family_spec(self) -> FamilySpec:
+        """The family table entry this scenario was derived from."""
+        return FAMILIES[self.family]
+
+    @property
+    def max_extent(self) -> float:
+        """OMPL's ``getMaximumExtent`` of the space: the length of its diagonal."""
+        return math.dist(self.lower, self.upper)
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-able dictionary of every field (boxes as nested lists) plus :attr:`key`."""
+        return {
+            "name": self.name,
+            "key": self.key,
+            "family": self.family,
+            "dim": self.dim,
+            "instance": self.instance,
+            "seed": self.seed,
+            "lower": list(self.lower),
+            "upper": list(self.upper),
+            "start": list(self.start),
+            "goal": list(self.goal),
+            "boxes": self.boxes.tolist(),
+            "time_budget": self.time_budget,
+            "resolution": self.resolution,
+            "optimal_cost": self.optimal_cost,
+            "description": self.description,
+        }
+
+
+@dataclass(frozen=True)
+class PathCheck:
+    """Result of :func:`check_path`."""
+
+    ok: bool
+    """Valid, starts at the start and ends at the goal."""
+    valid: bool
+    """Every checked point lies inside the bounds and outside every box."""
+    starts_at_start: bool
+    """The first waypoint is within :data:`ENDPOINT_TOLERANCE` of the start."""
+    ends_at_goal: bool
+    """The last waypoint is within :data:`ENDPOINT_TOLERANCE` of the goal."""
+    first_invalid_index: int | None
+    """Index i of the segment ``path[i] -> path[i + 1]`` holding the first invalid point."""
+    first_invalid_point: tuple[float, ...] | None
+    """The first invalid point along the path."""
+    points_checked: int
+    """Number of points tested (the check stops at the first invalid one's chunk)."""
+    cost: float
+    """Path length: the sum of the Euclidean segment lengths."""
+    spacing: float
+    """Largest distance between consecutive checked points on a segment."""
+
+
+def seed_for(family: str, dim: int, instance: int) -> int:
+    """Seed of a random instance: CRC-32 of :data:`SEED_FORMAT` filled in (stable across runs)."""
+    text = SEED_FORMAT.format(family=family, dim=dim, instance=instance)
+    return zlib.crc32(text.encode("ascii"))
+
+
+def names() -> list[str]:
+    """Canonical names of every family in every dimension of :data:`LISTED_DIMS`."""
+    return [f"{family}{dim}" for family in FAMILIES for dim in LISTED_DIMS]
+
+
+def get(name: str, instance: int | None = None) -> Scenario:
+    """The scenario called ``name`` (``np8``, ``rrd8``, ``rrd8/3``); instance defaults to 0.
+
+    Raises:
+        ScenarioError: unknown family, malformed name, dimension outside ``MIN_DIM..MAX_DIM``, an
+            instance other than 0 for a fixed family, or a suffix contradicting ``instance``.
+    """
+    match = _NAME_PATTERN.fullmatch(name)
+    if match is None or match["family"] not in FAMILIES:
+        raise ScenarioError(
+            f"unknown scenario {name!r}: expected <family><dim>[/<instance>] with family one of "
+            f"{sorted(FAMILIES)}, e.g. {DEFAULT_SCENARIO!r} or 'rrd8/3'"
+        )
+    family, dim = match["family"], int(match["dim"])
+    if not MIN_DIM <= dim <= MAX_DIM:
+        raise ScenarioError(f"scenario {name!r}: dimension {dim} outside {MIN_DIM}..{MAX_DIM}")
+    suffix = None if match["instance"] is None else int(match["instance"])
+    if suffix is not None and instance is not None and suffix != instance:
+        raise ScenarioError(
+            f"scenario {name!r} names instance {suffix} but instance={instance} was given"
+        )
+    chosen = next((i for i in (suffix, instance) if i is not None), 0)
+    if chosen < 0:
+        raise ScenarioError(f"scenario {name!r}: instance {chosen} is negative")
+    if chosen != 0 and not FAMILIES[family].randomised:
+        raise ScenarioError(
+            f"scenario {name!r}: family {family!r} has only instance 0, not {chosen}"
+        )
+    return _build(family, dim, chosen)
+
+
+@lru_cache(maxsize=256)
+def _build(family: str, dim: int, instance: int) -> Scenario:
+    spec = FAMILIES[family]
+    start, goal = spec.point(spec.start, dim), spec.point(spec.goal, dim)
+    layout = spec.obstacles
+    seed: int | None = None
+    optimal_cost: float | None = None
+    if isinstance(layout, RandomBoxes):
+        seed = seed_for(family, dim, instance)
+        boxes = layout.boxes(dim, seed, np.array(start), np.array(goal))
+        label = f"{spec.title} ({family}) in R^{dim}, instance {instance} (seed {seed})"
+    else:
+        boxes = layout.boxes(dim)
+        optimal_cost = min(_polyline_length(route) for route in _wall_routes(spec, dim))
+        label = f"{spec.title} ({family}) in R^{dim}"
+    boxes.flags.writeable = False
+    return Scenario(
+        name=f"{family}{dim}",
+        family=cast(Family, family),
+        dim=dim,
+        lower=(SPACE_LOWER,) * dim,
+        upper=(SPACE_UPPER,) * dim,
+        start=start,
+        goal=goal,
+        boxes=boxes,
+        time_budget=spec.time_budget(dim),
+        resolution=spec.resolution,
+        optimal_cost=optimal_cost,
+        instance=instance,
+        seed=seed,
+        description=f"{label}: {layout.describe(dim)}; start {_short(spec.start)}, "
+        f"goal {_short(spec.goal)}"
+        + ("" if optimal_cost is None else f"; optimal cost {optimal_cost:.4f}"),
+    )
+
+
+def _wall_routes(spec: FamilySpec, dim: int) -> list[FloatArray]:
+    """The shortest route through each free x1 interval (start and goal differ only in x0).
+
+    Each route bends at the wall's two x0 faces at the x1 closest to the start's; any path through
+    that interval is at least as long, so the shortest route gives the optimum (an infimum: it
+    touches the closed blocks).
+    """
+    layout = cast(WallLayout, spec.obstacles)
+    start, goal = np.array(spec.point(spec.start, dim)), np.array(spec.point(spec.goal, dim))
+    routes = []
+    for lo, hi in layout.free_x1_intervals():
+        corners = np.array([start, goal])
+        corners[:, 0] = layout.x0
+        corners[:, 1] = min(max(start[1], lo), hi)
+        routes.append(np.vstack([start, corners, goal]))
+    return routes
+
+
+def _short(coordinates: tuple[float, float]) -> str:
+    return f"({coordinates[0]:g}, {coordinates[1]:g}, ...)"
+
+
+def _polyline_length(path: FloatArray) -> float:
+    return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+
+
+def is_valid(scenario: Scenario, points: ArrayLike) -> BoolArray:
+    """Which points lie inside the (closed) bounds and outside every (closed) box.
+
+    Args:
+        scenario: the scenario to check against.
+        points: array of shape (..., dim); NaN coordinates count as invalid.
+
+    Returns:
+        Boolean array of shape ``points.shape[:-1]``.
+
+    Raises:
+        ScenarioError: the last axis of ``points`` is not ``scenario.dim`` long.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim == 0 or pts.shape[-1] != scenario.dim:
+        raise ScenarioError(
+            f"points of shape {pts.shape} do not fit scenario {scenario.key!r}: "
+            f"the last axis must have length {scenario.dim}"
+        )
+    flat = pts.reshape(-1, scenario.dim)
+    lower, upper = np.array(scenario.lower), np.array(scenario.upper)
+    box_lo, box_hi = scenario.boxes[None, :, 0, :], scenario.boxes[None, :, 1, :]
+    chunk = max(1, _CHUNK_ELEMENTS // (max(1, len(scenario.boxes)) * scenario.dim))
+    result = np.empty(len(flat), dtype=bool)
+    for begin in range(0, len(flat), chunk):
+        p = flat[begin : begin + chunk]
+        inside = np.all((lower <= p) & (p <= upper), axis=1)
+        q = p[:, None, :]
+        hit = np.any(np.all((box_lo <= q) & (q <= box_hi), axis=2), axis=1)
+        result[begin : begin + chunk] = inside & ~hit
+    return result.reshape(pts.shape[:-1])
+
+
+def check_path(scenario: Scenario, path: ArrayLike, resolution: float | None = None) -> PathCheck:
+    """Independent dense re-check of a path, in numpy only.
+
+    Every segment is sampled at ``resolution * max_extent / CHECK_REFINEMENT`` or finer, both
+    endpoints included, and each sample is tested with :func:`is_valid`. The check stops at the
+    first invalid sample.
+
+    Args:
+        scenario: the scenario the path claims to solve.
+        path: waypoints, shape (k, dim) with k >= 1.
+        resolution: fraction of the maximum extent; the scenario's own resolution when None.
+
+    Raises:
+        ScenarioError: malformed path (shape, non-finite waypoint) or resolution.
+    """
+    waypoints = np.asarray(path, dtype=np.float64)
+    if waypoints.ndim != 2 or waypoints.shape[1] != scenario.dim or len(waypoints) == 0:
+        raise ScenarioError(
+            f"path of shape {waypoints.shape} does not fit scenario {scenario.key!r}: "
+            f"expected (k >= 1, {scenario.dim})"
+        )
+    non_finite = np.flatnonzero(~np.all(np.isfinite(waypoints), axis=1))
+    if len(non_finite):
+        raise ScenarioError(
+            f"path waypoint {non_finite[0]} is not finite: {waypoints[non_finite[0]]}"
+        )
+    fraction = scenario.resolution if resolution is None else resolution
+    if not (math.isfinite(fraction) and fraction > 0):
+        raise ScenarioError(f"resolution must be a positive finite fraction, got {fraction!r}")
+    spacing = fraction * scenario.max_extent / CHECK_REFINEMENT
+    lengths = np.linalg.norm(np.diff(waypoints, axis=0), axis=1)
+    starts = bool(np.linalg.norm(waypoints[0] - scenario.start) <= ENDPOINT_TOLERANCE)
+    ends = bool(np.linalg.norm(waypoints[-1] - scenario.goal) <= ENDPOINT_TOLERANCE)
+
+    def result(
+        checked: int, index: int | None = None, point: FloatArray | None = None
+    ) -> PathCheck:
+        valid = index is None
+        return PathCheck(
+            ok=valid and starts and ends,
+            valid=valid,
+            starts_at_start=starts,
+            ends_at_goal=ends,
+            first_invalid_index=index,
+            first_invalid_point=None if point is None else tuple(float(x) for x in point),
+            points_checked=checked,
+            cost=float(lengths.sum()),
+            spacing=spacing,
+        )
+
+    if not is_valid(scenario, waypoints[0]):
+        return result(1, 0, waypoints[0])
+    checked = 1
+    for index, (a, b, length) in enumerate(
+        zip(waypoints[:-1], waypoints[1:], lengths, strict=True)
+    ):
+        steps = max(1, math.ceil(length / spacing))
+        for begin in range(1, steps + 1, _CHUNK_POINTS):  # sample 0 is the previous segment's end
+            j = np.arange(begin, min(begin + _CHUNK_POINTS, steps + 1))
+            samples = a + (j / steps)[:, None] * (b - a)
+            samples[j == steps] = b  # the endpoint exactly, not a rounded interpolation
+            valid = is_valid(scenario, samples)
+            checked += len(samples)
+            if not valid.all():
+                return result(checked, index, samples[np.argmin(valid)])
+    return result(checked)

@@ -1,0 +1,445 @@
+"""Lookup-tensor files: ``<name>.npy`` (NPY v1.0, little-endian float32, C order) + ``<name>.json``.
+
+The tensor holds the policy output z* on a node-centred grid with :data:`GRID_SIZE` points per
+axis over [0, 1]: ``value[i, j, k] = z*(i / 100, j / 100, k / 100)`` with axes
+(rho_global, rho_local, measure), before rounding. The sidecar follows the ``TensorSidecar`` schema
+of ``lit_msgs_json``; its ``data_sha256`` is the SHA-256 of the data bytes (the .npy file after its
+header).
+
+:func:`lookup` is the Python reference of the lookup that the C++ reader must reproduce:
+
+- inputs are clamped to [0, 1] (non-finite inputs are rejected) and scaled to ``f = x * 100.0`` in
+  double precision;
+- ``nearest`` takes node ``floor(f + 0.5)`` (half up);
+- ``trilinear`` takes the cell ``i0 = min(floor(f), 99)``, ``t = f - i0`` and blends its 8 nodes
+  with weights ``prod(t or 1 - t)``, in double precision from the float32 node values.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+import lit_msgs_json
+from lit_planner.errors import TensorFileError, TensorLookupError
+
+Interpolation = Literal["nearest", "trilinear"]
+Rounding = Literal["half_away_from_zero", "none"]
+
+GRID_SIZE = 101
+"""Nodes per axis; node i sits at i / (GRID_SIZE - 1)."""
+AXIS_NAMES = ("rho_global", "rho_local", "measure")
+"""Axis names in C order."""
+TENSOR_SHAPE = (GRID_SIZE,) * len(AXIS_NAMES)
+"""Shape of every lookup tensor."""
+TENSOR_DTYPE = np.dtype("<f4")
+"""On-disk dtype: little-endian float32."""
+SIDECAR_SCHEMA = "lit_msgs_json/TensorSidecar"
+"""Schema name written into and required of every sidecar."""
+SIDECAR_VERSION = 1
+"""Sidecar schema version this module writes and reads."""
+INTERPOLATIONS: tuple[Interpolation, ...] = ("nearest", "trilinear")
+"""Supported lookup modes."""
+DEFAULT_FUZZY_CENTRES = (0.0, 0.5, 1.0)
+"""Membership centres of the learner's fuzzification (LEARNER.md)."""
+DEFAULT_FUZZY_SIGMA = 0.2123
+"""Membership width of the learner's fuzzification (LEARNER.md)."""
+AFFINE_TEST_COEFFICIENTS = (20.0, 100.0, 50.0, 25.0)
+"""(a, b, c, d) of the shared test tensor: every node is a multiple of 1/4 (exact in float32)
+and the values span 20..195, inside B's range."""
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    """A tensor output: its TSK consequents (whose extremes are its range) and rounding rule."""
+
+    name: str
+    """``B`` or ``psi_K``."""
+    consequents: tuple[float, float, float]
+    """Default zero-order TSK consequents f (LEARNER.md)."""
+    rounding: Rounding
+    """Rounding applied to a looked-up value before clamping it to the range."""
+
+
+OUTPUTS: dict[str, OutputSpec] = {
+    "B": OutputSpec("B", (20.0, 110.0, 200.0), "half_away_from_zero"),
+    "psi_K": OutputSpec("psi_K", (3.0, 9.0, 15.0), "none"),
+}
+"""The two outputs a lookup tensor can hold."""
+
+
+@dataclass(frozen=True)
+class AxisSpec:
+    """One tensor axis as the sidecar describes it."""
+
+    name: str
+    """Feature name: ``rho_global``, ``rho_local`` or ``measure``."""
+    range: tuple[float, float]
+    """Feature range covered by the nodes: (0, 1)."""
+    size: int
+    """Number of nodes."""
+    transform: str
+    """Feature transform before indexing: ``identity``."""
+
+
+@dataclass(frozen=True)
+class TensorSidecar:
+    """The parsed, validated sidecar of a lookup tensor."""
+
+    output: str
+    """``B`` or ``psi_K``."""
+    value_range: tuple[float, float]
+    """[min, max] of the values (the consequents' extremes); executed values are clamped to it."""
+    rounding: Rounding
+    """Rounding of a looked-up value before clamping."""
+    axes: tuple[AxisSpec, ...]
+    """The three axes in C order."""
+    interpolation: Interpolation
+    """Default lookup mode."""
+    fuzzy_centres: tuple[float, ...]
+    """Gaussian membership centres the policy was trained with."""
+    fuzzy_sigma: float
+    """Gaussian membership width the policy was trained with."""
+    tsk_consequents: tuple[float, ...]
+    """Zero-order TSK consequents f."""
+    reward: Mapping[str, Any]
+    """Reward configuration of the training."""
+    training: Mapping[str, Any]
+    """Training configuration."""
+    policy_version: int
+    """Version of the policy that was exported."""
+    data_sha256: str
+    """SHA-256 of the .npy data bytes."""
+    checkpoint_sha256: str | None
+    """SHA-256 of the source checkpoint; None for synthetic tensors."""
+    dtype: str
+    """On-disk dtype, ``<f4``."""
+    shape: tuple[int, ...]
+    """Tensor shape."""
+    created: str
+    """Export time, ISO 8601."""
+    provenance: Mapping[str, Any]
+    """Free-form provenance."""
+    path: Path | None = field(default=None, compare=False)
+    """Sidecar file this was read from or written to."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The sidecar document (what :func:`from_dict` reads)."""
+        return {
+            "schema": SIDECAR_SCHEMA,
+            "version": SIDECAR_VERSION,
+            "output": {
+                "name": self.output,
+                "range": list(self.value_range),
+                "rounding": self.rounding,
+            },
+            "axes": [
+                {"name": a.name, "range": list(a.range), "size": a.size, "transform": a.transform}
+                for a in self.axes
+            ],
+            "interpolation": self.interpolation,
+            "fuzzification": {"centres": list(self.fuzzy_centres), "sigma": self.fuzzy_sigma},
+            "tsk": {"consequents": list(self.tsk_consequents)},
+            "reward": dict(self.reward),
+            "training": dict(self.training),
+            "policy_version": self.policy_version,
+            "data_sha256": self.data_sha256,
+            "checkpoint_sha256": self.checkpoint_sha256,
+            "dtype": self.dtype,
+            "shape": list(self.shape),
+            "created": self.created,
+            "provenance": dict(self.provenance),
+        }
+
+    @classmethod
+    def from_dict(cls, doc: Mapping[str, Any], path: Path | None = None) -> TensorSidecar:
+        """Build from a document that already passed schema validation."""
+        return cls(
+            output=doc["output"]["name"],
+            value_range=_pair(doc["output"]["range"]),
+            rounding=doc["output"]["rounding"],
+            axes=tuple(
+                AxisSpec(a["name"], _pair(a["range"]), a["size"], a["transform"])
+                for a in doc["axes"]
+            ),
+            interpolation=doc["interpolation"],
+            fuzzy_centres=tuple(float(c) for c in doc["fuzzification"]["centres"]),
+            fuzzy_sigma=float(doc["fuzzification"]["sigma"]),
+            tsk_consequents=tuple(float(f) for f in doc["tsk"]["consequents"]),
+            reward=doc["reward"],
+            training=doc["training"],
+            policy_version=doc["policy_version"],
+            data_sha256=doc["data_sha256"],
+            checkpoint_sha256=doc["checkpoint_sha256"],
+            dtype=doc["dtype"],
+            shape=tuple(doc["shape"]),
+            created=doc["created"],
+            provenance=doc["provenance"],
+            path=path,
+        )
+
+
+def sidecar_path(path_npy: str | Path) -> Path:
+    """The sidecar that belongs to ``path_npy``: same directory and stem, suffix ``.json``.
+
+    Raises:
+        TensorFileError: ``path_npy`` does not end in ``.npy``.
+    """
+    path = Path(path_npy)
+    if path.suffix != ".npy":
+        raise TensorFileError(f"{path}: a lookup tensor file must end in .npy")
+    return path.with_suffix(".json")
+
+
+def write_tensor(
+    path_npy: str | Path,
+    values: ArrayLike,
+    output: str,
+    *,
+    interpolation: Interpolation = "trilinear",
+    consequents: Sequence[float] | None = None,
+    fuzzy_centres: Sequence[float] = DEFAULT_FUZZY_CENTRES,
+    fuzzy_sigma: float = DEFAULT_FUZZY_SIGMA,
+    reward: Mapping[str, Any] | None = None,
+    training: Mapping[str, Any] | None = None,
+    policy_version: int = 0,
+    checkpoint_sha256: str | None = None,
+    provenance: Mapping[str, Any] | None = None,
+    created: datetime | None = None,
+) -> TensorSidecar:
+    """Write ``values`` as ``path_npy`` and its validated sidecar ``<stem>.json`` beside it.
+
+    Args:
+        path_npy: target ``.npy`` path; the sidecar goes to the same stem with ``.json``.
+        values: array of shape :data:`TENSOR_SHAPE`, finite, inside [min f, max f] once stored as
+            float32 (clip before writing if the network's arithmetic overshoots by an ulp).
+        output: ``B`` or ``psi_K``.
+        interpolation: default lookup mode recorded in the sidecar.
+        consequents: TSK consequents; the output's defaults (:data:`OUTPUTS`) when None.
+        fuzzy_centres, fuzzy_sigma: fuzzification constants the policy was trained with.
+        reward, training, provenance: configuration and provenance objects (JSON-able).
+        policy_version: version of the exported policy.
+        checkpoint_sha256: SHA-256 of the source checkpoint, None for synthetic tensors.
+        created: export time (timezone-aware); now (UTC) when None.
+
+    Returns:
+        The sidecar as written.
+
+    Raises:
+        TensorFileError: bad path, output, shape, non-finite or out-of-range values, or a sidecar
+            that fails the schema; nothing is written in those cases.
+    """
+    path = Path(path_npy)
+    side = sidecar_path(path)
+    if output not in OUTPUTS:
+        raise TensorFileError(
+            f"{path}: unknown output {output!r}; expected one of {sorted(OUTPUTS)}"
+        )
+    spec = OUTPUTS[output]
+    f = tuple(float(v) for v in (spec.consequents if consequents is None else consequents))
+    if not f or min(f) >= max(f):
+        raise TensorFileError(f"{path}: consequents {f} do not span a range")
+    data = np.ascontiguousarray(np.asarray(values), dtype=TENSOR_DTYPE)
+    _check_values(path, data, TENSOR_SHAPE, (min(f), max(f)))
+    stamp = created or datetime.now(UTC)
+    if stamp.tzinfo is None:
+        raise TensorFileError(f"{path}: created time {stamp.isoformat()} has no time zone")
+    sidecar = TensorSidecar(
+        output=output,
+        value_range=(min(f), max(f)),
+        rounding=spec.rounding,
+        axes=tuple(AxisSpec(name, (0.0, 1.0), GRID_SIZE, "identity") for name in AXIS_NAMES),
+        interpolation=interpolation,
+        fuzzy_centres=tuple(float(c) for c in fuzzy_centres),
+        fuzzy_sigma=float(fuzzy_sigma),
+        tsk_consequents=f,
+        reward=dict(reward or {}),
+        training=dict(training or {}),
+        policy_version=policy_version,
+        data_sha256=hashlib.sha256(data.tobytes()).hexdigest(),
+        checkpoint_sha256=checkpoint_sha256,
+        dtype=TENSOR_DTYPE.str,
+        shape=TENSOR_SHAPE,
+        created=stamp.isoformat(timespec="seconds"),
+        provenance=dict(provenance or {}),
+        path=side,
+    )
+    try:
+        text = lit_msgs_json.dumps(SIDECAR_SCHEMA, sidecar.to_dict(), indent=2)
+    except (
+        lit_msgs_json.SchemaError,
+        TypeError,
+    ) as exc:  # TypeError: a value that is not JSON-able
+        raise TensorFileError(f"{side}: sidecar not written: {exc}") from exc
+    with path.open("wb") as stream:
+        np.lib.format.write_array(stream, data, version=(1, 0), allow_pickle=False)
+    side.write_text(text + "\n", encoding="utf-8")
+    return sidecar
+
+
+def read_sidecar(path_npy: str | Path) -> TensorSidecar:
+    """Read and validate the sidecar that sits next to ``path_npy``.
+
+    Raises:
+        TensorFileError: the .npy or its sidecar is missing, the sidecar is not JSON, fails the
+            schema, or its output range disagrees with its consequents.
+    """
+    path = Path(path_npy)
+    side = sidecar_path(path)
+    if not path.is_file():
+        raise TensorFileError(f"{path}: tensor file not found")
+    if not side.is_file():
+        raise TensorFileError(f"{path}: no sidecar next to it (expected {side})")
+    try:
+        doc = lit_msgs_json.loads(SIDECAR_SCHEMA, side.read_bytes())
+    except lit_msgs_json.SchemaError as exc:
+        raise TensorFileError(f"{side}: {exc}") from exc
+    sidecar = TensorSidecar.from_dict(doc, side)
+    lo, hi = sidecar.value_range
+    if not lo < hi or (lo, hi) != (min(sidecar.tsk_consequents), max(sidecar.tsk_consequents)):
+        raise TensorFileError(
+            f"{side}: $.output.range {[lo, hi]} must be the increasing [min, max] of "
+            f"$.tsk.consequents {list(sidecar.tsk_consequents)}"
+        )
+    return sidecar
+
+
+def read_tensor(path_npy: str | Path) -> tuple[NDArray[np.float32], TensorSidecar]:
+    """Read a lookup tensor with every check the C++ reader makes, plus the data hash.
+
+    Returns:
+        The read-only float32 values and their sidecar.
+
+    Raises:
+        TensorFileError: bad sidecar (see :func:`read_sidecar`), not NPY v1.0, wrong dtype, Fortran
+            order, shape differing from the sidecar, truncated or trailing data, hash mismatch,
+            non-finite or out-of-range values.
+    """
+    sidecar = read_sidecar(path_npy)
+    path = Path(path_npy)
+    with path.open("rb") as stream:
+        try:
+            version = np.lib.format.read_magic(stream)
+            header = np.lib.format.read_array_header_1_0(stream) if version == (1, 0) else None
+        except ValueError as exc:
+            raise TensorFileError(f"{path}: not a valid NPY file: {exc}") from exc
+        if header is None:
+            raise TensorFileError(f"{path}: NPY version {version[0]}.{version[1]}, expected 1.0")
+        shape, fortran_order, dtype = header
+        payload = stream.read()
+    if dtype != TENSOR_DTYPE:
+        raise TensorFileError(f"{path}: dtype {dtype.str}, expected {TENSOR_DTYPE.str}")
+    if fortran_order:
+        raise TensorFileError(f"{path}: Fortran order, expected C order")
+    if tuple(shape) != sidecar.shape:
+        raise TensorFileError(
+            f"{path}: shape {tuple(shape)} differs from the sidecar's {sidecar.shape}"
+        )
+    expected_bytes = math.prod(shape) * TENSOR_DTYPE.itemsize
+    if len(payload) != expected_bytes:
+        raise TensorFileError(f"{path}: {len(payload)} data bytes, expected {expected_bytes}")
+    digest = hashlib.sha256(payload).hexdigest()
+    if digest != sidecar.data_sha256:
+        raise TensorFileError(
+            f"{path}: data SHA-256 {digest} differs from the sidecar's {sidecar.data_sha256}"
+        )
+    values = np.frombuffer(payload, dtype=TENSOR_DTYPE).reshape(shape)
+    _check_values(path, values, sidecar.shape, sidecar.value_range)
+    return values, sidecar
+
+
+def lookup(
+    values: ArrayLike, x: ArrayLike, mode: Interpolation = "trilinear"
+) -> NDArray[np.float64]:
+    """Reference lookup of feature points ``x`` in a node-centred tensor over [0, 1]^3.
+
+    Args:
+        values: tensor of shape (s0, s1, s2), each s >= 2; node i of an axis sits at i / (s - 1).
+        x: finite feature points, shape (..., 3); clamped to [0, 1].
+        mode: ``nearest`` (index ``floor(x * (s - 1) + 0.5)``, half up) or ``trilinear``.
+
+    Returns:
+        float64 array of shape ``x.shape[:-1]`` (0-d for a single point).
+
+    Raises:
+        TensorLookupError: malformed tensor, non-finite or wrongly shaped points, unknown mode.
+    """
+    grid = np.asarray(values)
+    if grid.ndim != 3 or min(grid.shape) < 2:
+        raise TensorLookupError(
+            f"tensor of shape {grid.shape} is not 3-D with at least 2 nodes per axis"
+        )
+    points = np.asarray(x, dtype=np.float64)
+    if points.ndim == 0 or points.shape[-1] != 3:
+        raise TensorLookupError(
+            f"feature points of shape {points.shape} do not end in an axis of 3"
+        )
+    if not np.all(np.isfinite(points)):
+        raise TensorLookupError(
+            f"feature points must be finite, got {points[~np.isfinite(points)][:3]}"
+        )
+    last = np.array(grid.shape) - 1
+    scaled = np.clip(points, 0.0, 1.0) * last
+    if mode == "nearest":
+        index = np.floor(scaled + 0.5).astype(np.intp)
+        nearest: NDArray[np.float64] = grid[index[..., 0], index[..., 1], index[..., 2]].astype(
+            np.float64
+        )
+        return nearest
+    if mode != "trilinear":
+        raise TensorLookupError(f"unknown lookup mode {mode!r}; expected one of {INTERPOLATIONS}")
+    base = np.minimum(np.floor(scaled).astype(np.intp), last - 1)
+    t = scaled - base
+    result = np.zeros(points.shape[:-1])
+    for corner in itertools.product((0, 1), repeat=3):
+        weight = np.prod(
+            [t[..., a] if c else 1.0 - t[..., a] for a, c in enumerate(corner)], axis=0
+        )
+        node = grid[tuple(base[..., a] + c for a, c in enumerate(corner))]
+        result += weight * node.astype(np.float64)
+    return result
+
+
+def affine_test_tensor(a: float, b: float, c: float, d: float) -> NDArray[np.float32]:
+    """Tensor with ``value[i, j, k] = a + b*i/100 + c*j/100 + d*k/100`` (float32).
+
+    Trilinear interpolation reproduces an affine function exactly, so the lookup of any point is
+    known in closed form: the shared check between the Python and C++ readers.
+    """
+    i, j, k = np.meshgrid(*(np.arange(GRID_SIZE, dtype=np.float64),) * 3, indexing="ij")
+    last = GRID_SIZE - 1
+    return (a + b * i / last + c * j / last + d * k / last).astype(TENSOR_DTYPE)
+
+
+def _pair(values: Sequence[float]) -> tuple[float, float]:
+    return float(values[0]), float(values[1])
+
+
+def _check_values(
+    path: Path,
+    values: NDArray[np.float32],
+    shape: tuple[int, ...],
+    value_range: tuple[float, float],
+) -> None:
+    if values.shape != shape:
+        raise TensorFileError(f"{path}: values of shape {values.shape}, expected {shape}")
+    finite = np.isfinite(values)
+    if not finite.all():
+        where = tuple(int(v) for v in np.argwhere(~finite)[0])
+        raise TensorFileError(f"{path}: non-finite value {values[where]} at index {where}")
+    lo, hi = value_range
+    outside = (values < lo) | (values > hi)
+    if outside.any():
+        where = tuple(int(v) for v in np.argwhere(outside)[0])
+        raise TensorFileError(
+            f"{path}: value {values[where]} at index {where} outside the range [{lo}, {hi}]"
+        )

@@ -1,0 +1,250 @@
+"""``lit test``: every test of the checkout, C++ through ctest and Python through pytest.
+
+The C++ GoogleTest binaries live in the core's persistent build tree
+(``lit_planner/core/build/<wheel tag>/``, registered with ctest); the Python tests live in
+``tests/`` and in each package's ``test/`` directory. Both runners write JUnit XML into a temporary
+directory, and the counts come from there. Every child process runs with DDS discovery confined to
+this host and with a ROS domain reserved for this run, so concurrent runs do not hear each other.
+
+The last line printed is always::
+
+    lit test: <P> passed, <F> failed (ctest <p1>/<n1>, pytest <p2>/<n2>)
+
+and the exit status is non-zero when anything failed, a runner broke, or no test ran at all.
+"""
+
+from __future__ import annotations
+
+import argparse
+import fcntl
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import xml.etree.ElementTree as ElementTree
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO
+
+PYTHON_TEST_DIRS = ("tests", "lit_planner/test", "lit_learner/test", "lit_msgs_json/test")
+"""Python test directories, relative to the checkout root; missing ones are skipped."""
+CTEST_GLOB = "lit_planner/core/build/*/CTestTestfile.cmake"
+"""Where the core's scikit-build-core build tree registers its GoogleTest binaries."""
+ROS_DOMAIN_IDS = range(1, 101)
+"""Domains a test run may reserve (ROS allows 0-232; 0 is everyone's default, so avoid it)."""
+
+
+@dataclass
+class RunnerResult:
+    """What one test runner reported."""
+
+    name: str
+    passed: int = 0
+    failed: int = 0
+    skipped: int = 0
+    error: str | None = None
+    """Set when the runner itself broke (no report, crash, usage error): the run fails."""
+
+    @property
+    def ran(self) -> int:
+        return self.passed + self.failed
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``lit test``."""
+    parser.add_argument(
+        "-k", dest="keyword", metavar="EXPR", help="only run pytest tests matching EXPR (pytest -k)"
+    )
+    parser.add_argument(
+        "-R",
+        "--ctest-regex",
+        metavar="REGEX",
+        help="only run ctest tests whose name matches REGEX (ctest -R)",
+    )
+    parser.add_argument("--no-ctest", action="store_true", help="skip the C++ tests")
+    parser.add_argument("--no-pytest", action="store_true", help="skip the Python tests")
+    parser.add_argument(
+        "pytest_args",
+        nargs="*",
+        metavar="PYTEST_ARG",
+        help='after "--": passed to pytest as is; test paths given here replace '
+        "the default test directories",
+    )
+
+
+def repo_root() -> Path:
+    """The checkout: ``$LIT_ROOT`` (set by ``./lit``), else found above this (editable) file."""
+    if os.environ.get("LIT_ROOT"):
+        return Path(os.environ["LIT_ROOT"]).resolve()
+    for parent in Path(__file__).resolve().parents:
+        if (parent / "lit_planner" / "core" / "CMakeLists.txt").is_file():
+            return parent
+    raise SystemExit("lit test: cannot locate the LIT* checkout; set LIT_ROOT")
+
+
+def reserve_ros_domain() -> tuple[int, IO[str] | None]:
+    """Pick this run's ROS_DOMAIN_ID, starting from one derived from the PID.
+
+    A lock file per domain (held until the returned file is closed) keeps two concurrent test runs
+    on this host out of each other's domain.
+    """
+    first = os.getpid() % len(ROS_DOMAIN_IDS)
+    for offset in range(len(ROS_DOMAIN_IDS)):
+        domain = ROS_DOMAIN_IDS[(first + offset) % len(ROS_DOMAIN_IDS)]
+        lock_path = Path(tempfile.gettempdir()) / f"lit-ros-domain-{domain}.lock"
+        try:
+            lock = open(lock_path, "w")  # noqa: SIM115 -- held for the whole run
+        except OSError:
+            continue
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            lock.close()
+            continue
+        return domain, lock
+    return ROS_DOMAIN_IDS[first], None  # every domain busy: share one rather than refuse to test
+
+
+def child_environment(root: Path, domain: int) -> dict[str, str]:
+    env = dict(os.environ)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["ROS_DOMAIN_ID"] = str(domain)
+    env["LIT_ROOT"] = str(root)
+    return env
+
+
+def find_ctest_dir(root: Path) -> Path | None:
+    """The core's build tree with registered tests; the newest one if there are several."""
+    candidates = sorted(root.glob(CTEST_GLOB), key=lambda path: path.stat().st_mtime)
+    return candidates[-1].parent if candidates else None
+
+
+def run_ctest(root: Path, env: dict[str, str], report_dir: Path, regex: str | None) -> RunnerResult:
+    result = RunnerResult("ctest")
+    build_dir = find_ctest_dir(root)
+    if build_dir is None:
+        result.error = f"no C++ build with tests ({CTEST_GLOB}); run ./lit once to build the core"
+        return result
+    ctest = shutil.which("ctest")
+    if ctest is None:
+        result.error = "ctest not found on PATH (Debian package cmake)"
+        return result
+    report = report_dir / "ctest.xml"
+    command = [
+        ctest,
+        "--test-dir",
+        str(build_dir),
+        "--output-on-failure",
+        "--output-junit",
+        str(report),
+    ]
+    if regex:
+        command += ["-R", regex]
+    print(f"lit test: ctest in {build_dir.relative_to(root)}", flush=True)
+    returncode = subprocess.run(command, env=env, cwd=build_dir, check=False).returncode
+    if not report.is_file():
+        result.error = f"ctest exited with {returncode} and wrote no report"
+        return result
+    for case in ElementTree.parse(report).getroot().iter("testcase"):
+        status = case.get("status")
+        if status == "run" and case.find("failure") is None:
+            result.passed += 1
+        elif status == "disabled":
+            result.skipped += 1
+        else:  # 'fail', 'notrun' (missing executable, failed fixture): ctest counts it as failed
+            result.failed += 1
+    if returncode != 0 and result.failed == 0:
+        result.error = f"ctest exited with {returncode}"
+    return result
+
+
+def _pytest_targets(root: Path, passthrough: list[str]) -> tuple[list[str], list[str]]:
+    """Split off explicit test paths (made absolute: pytest runs in the root) from other args."""
+    explicit, rewritten = [], []
+    for arg in passthrough:
+        path, sep, rest = arg.partition("::")
+        if not arg.startswith("-") and Path(path).exists():
+            arg = str(Path(path).resolve()) + sep + rest
+            explicit.append(arg)
+        rewritten.append(arg)
+    if explicit:
+        return [], rewritten
+    defaults = [directory for directory in PYTHON_TEST_DIRS if (root / directory).is_dir()]
+    return defaults, rewritten
+
+
+def run_pytest(
+    root: Path, env: dict[str, str], report_dir: Path, keyword: str | None, passthrough: list[str]
+) -> RunnerResult:
+    result = RunnerResult("pytest")
+    targets, extra = _pytest_targets(root, passthrough)
+    if not targets and not extra:
+        print("lit test: no Python test directories", flush=True)
+        return result
+    report = report_dir / "pytest.xml"
+    # Default (prepend) import mode: test module basenames must be unique across the test
+    # directories. importlib mode would lift that, but it registers `lit_planner`, `lit_msgs_json`
+    # as parents of the test modules and so hides the real packages.
+    command = [sys.executable, "-m", "pytest", "-q", f"--junitxml={report}"]
+    if keyword:
+        command += ["-k", keyword]
+    command += targets + extra
+    print(f"lit test: pytest {' '.join(targets + extra)}", flush=True)
+    returncode = subprocess.run(command, env=env, cwd=root, check=False).returncode
+    if returncode == 5:  # pytest: no tests collected
+        return result
+    if not report.is_file():
+        result.error = f"pytest exited with {returncode} and wrote no report"
+        return result
+    for suite in ElementTree.parse(report).getroot().iter("testsuite"):
+        tests, skipped = int(suite.get("tests", 0)), int(suite.get("skipped", 0))
+        failed = int(suite.get("failures", 0)) + int(suite.get("errors", 0))
+        result.failed += failed
+        result.skipped += skipped
+        result.passed += tests - failed - skipped
+    if returncode not in (0, 1) or (returncode == 1 and result.failed == 0):
+        result.error = f"pytest exited with {returncode}"
+    return result
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run the tests selected by ``args``; the exit status of ``lit test``."""
+    root = repo_root()
+    domain, domain_lock = reserve_ros_domain()
+    env = child_environment(root, domain)
+    print(f"lit test: ROS_DOMAIN_ID={domain}, ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST", flush=True)
+    try:
+        with tempfile.TemporaryDirectory(prefix="lit-test-") as tmp:
+            report_dir = Path(tmp)
+            ctest = (
+                RunnerResult("ctest")
+                if args.no_ctest
+                else run_ctest(root, env, report_dir, args.ctest_regex)
+            )
+            pytest = (
+                RunnerResult("pytest")
+                if args.no_pytest
+                else run_pytest(root, env, report_dir, args.keyword, args.pytest_args)
+            )
+    finally:
+        if domain_lock is not None:
+            domain_lock.close()
+
+    results = (ctest, pytest)
+    for result in results:
+        if result.skipped:
+            print(f"lit test: {result.name}: {result.skipped} skipped")
+        if result.error:
+            print(f"lit test: {result.name}: {result.error}")
+    passed = sum(result.passed for result in results)
+    failed = sum(result.failed for result in results)
+    if passed + failed == 0:
+        print("lit test: no test ran")
+    print(
+        f"lit test: {passed} passed, {failed} failed "
+        f"(ctest {ctest.passed}/{ctest.ran}, pytest {pytest.passed}/{pytest.ran})",
+        flush=True,
+    )
+    broken = any(result.error for result in results)
+    return 1 if failed or broken or passed + failed == 0 else 0

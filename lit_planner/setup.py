@@ -1,0 +1,31 @@
+"""ament_python packaging of lit_planner (works with pip, colcon and `ros2 run`)."""
+
+from setuptools import find_packages, setup
+
+package_name = "lit_planner"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test", "test.*"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=False,
+    maintainer="LIT* maintainers",
+    maintainer_email="maintainers@lit-star.invalid",
+    description=(
+        "LIT* planner: C++17 OMPL core (lit_core bindings), planner node, benchmark CLI "
+        "and scenario registry."
+    ),
+    license="Apache-2.0",
+    python_requires=">=3.11",
+    entry_points={
+        "console_scripts": [
+            # The one user-facing command; ROS node executables are added here as they land.
+            "lit = lit_planner.cli:main",
+        ],
+    },
+)

@@ -1,0 +1,332 @@
+"""Tests of the scenario registry: geometry, optima, reproducibility, validity and path checking."""
+
+from __future__ import annotations
+
+import json
+import math
+import zlib
+
+import numpy as np
+import pytest
+from lit_planner.errors import ScenarioError
+from lit_planner.scenarios import check_path, get, is_valid
+
+from lit_planner import scenarios
+
+DIMS = range(2, 17)
+NP_OPTIMUM = 0.2 + 2 * math.sqrt(0.1**2 + 0.05**2)
+WG_OPTIMUM = 0.2 + 2 * math.sqrt(0.2**2 + 0.08**2)
+WG_AROUND_TOP = 0.2 + 2 * math.sqrt(0.2**2 + 0.30**2)
+
+
+def point(dim: int, x0: float, x1: float, rest: float = 0.0) -> np.ndarray:
+    return np.array([x0, x1] + [rest] * (dim - 2))
+
+
+def test_names_cover_every_family_and_dimension() -> None:
+    names = scenarios.names()
+    assert len(names) == len(set(names)) == 4 * len(DIMS)
+    assert {"np2", "np8", "wg4", "rr16", "rrd8", "rrd16"} <= set(names)
+    assert scenarios.DEFAULT_SCENARIO == "np8" and scenarios.DEFAULT_SCENARIO in names
+    for name in names:
+        assert get(name).key.split("/")[0] == name
+
+
+@pytest.mark.parametrize("dim", [2, 8, 16])
+def test_narrow_passage_geometry(dim: int) -> None:
+    s = get(f"np{dim}")
+    assert s.start == (-0.2,) + (0.0,) * (dim - 1) and s.goal == (0.2,) + (0.0,) * (dim - 1)
+    assert s.lower == (-0.5,) * dim and s.upper == (0.5,) * dim
+    assert s.boxes.shape == (2, 2, dim)
+    cases = {
+        (0.0, 0.10): True,  # inside the free slab
+        (0.0, 0.0): False,  # in the wall
+        (0.0, 0.05): False,  # slab boundaries belong to the closed boxes
+        (0.0, 0.15): False,
+        (-0.1, 0.0): False,  # wall faces too
+        (-0.1 - 1e-9, 0.0): True,
+        (0.1 + 1e-9, 0.0): True,
+        (0.0, 0.5): False,  # wall reaches the bound
+        (0.5, 0.5): True,  # bounds are closed
+        (0.5 + 1e-9, 0.0): False,
+    }
+    pts = np.array([point(dim, x0, x1) for x0, x1 in cases])
+    assert is_valid(s, pts).tolist() == list(cases.values())
+    # The wall spans every other axis fully.
+    assert not is_valid(s, point(dim, 0.0, 0.0, rest=0.5))
+    assert is_valid(s, point(dim, 0.0, 0.1, rest=-0.5))
+
+
+@pytest.mark.parametrize("dim", [2, 4, 16])
+def test_wall_gap_geometry(dim: int) -> None:
+    s = get(f"wg{dim}")
+    assert s.start[0] == -0.3 and s.goal[0] == 0.3
+    cases = {
+        (0.0, 0.10): True,
+        (0.0, 0.2): False,
+        (0.0, 0.35): True,
+        (0.0, 0.30): False,
+        (0.0, 0.08): False,
+        (0.0, 0.12): False,
+        (0.0, -0.4): False,
+        (0.2, 0.2): True,
+    }
+    pts = np.array([point(dim, x0, x1) for x0, x1 in cases])
+    assert is_valid(s, pts).tolist() == list(cases.values())
+
+
+def test_optima_are_exact() -> None:
+    for dim in DIMS:
+        assert get(f"np{dim}").optimal_cost == pytest.approx(NP_OPTIMUM, abs=1e-15)
+        assert get(f"wg{dim}").optimal_cost == pytest.approx(WG_OPTIMUM, abs=1e-15)
+        assert get(f"rr{dim}").optimal_cost is None and get(f"rrd{dim}").optimal_cost is None
+    assert round(NP_OPTIMUM, 4) == 0.4236 and round(WG_OPTIMUM, 4) == 0.6308
+    assert round(WG_AROUND_TOP, 4) == 0.9211
+
+
+@pytest.mark.parametrize("dim", [2, 8, 16])
+def test_optimal_polylines_pass_when_pushed_into_free_space(dim: int) -> None:
+    for name, gap_edge, optimum in (("np", 0.05, NP_OPTIMUM), ("wg", 0.08, WG_OPTIMUM)):
+        s = get(f"{name}{dim}")
+        for push, expected_ok in ((1e-6, True), (0.0, False)):
+            path = np.array(
+                [
+                    s.start,
+                    point(dim, -0.1, gap_edge + push),
+                    point(dim, 0.1, gap_edge + push),
+                    s.goal,
+                ]
+            )
+            check = check_path(s, path)
+            assert check.ok is expected_ok and check.valid is expected_ok
+            assert check.starts_at_start and check.ends_at_goal
+            assert check.cost == pytest.approx(optimum, abs=1e-5)
+            if not expected_ok:  # touching the closed box at the first corner
+                assert check.first_invalid_index == 0
+                assert check.first_invalid_point == pytest.approx(tuple(path[1]))
+
+
+def test_wg_route_around_the_top_is_valid_but_longer() -> None:
+    s = get("wg4")
+    path = np.array([s.start, point(4, -0.1, 0.3 + 1e-6), point(4, 0.1, 0.3 + 1e-6), s.goal])
+    check = check_path(s, path)
+    assert check.ok and check.cost == pytest.approx(WG_AROUND_TOP, abs=1e-5)
+    assert check.cost > s.optimal_cost
+
+
+def test_check_path_reports_first_collision_in_the_np_wall() -> None:
+    s = get("np8")
+    path = np.array([s.start, point(8, -0.15, 0.0), point(8, 0.15, 0.0), s.goal])
+    check = check_path(s, path)
+    assert not check.ok and not check.valid
+    assert check.starts_at_start and check.ends_at_goal
+    assert check.first_invalid_index == 1
+    assert check.first_invalid_point is not None
+    assert check.first_invalid_point[0] == pytest.approx(-0.1, abs=check.spacing)
+    assert check.first_invalid_point[0] >= -0.1
+    assert check.cost == pytest.approx(0.4)
+
+
+def test_check_path_invalid_first_waypoint_and_single_point_paths() -> None:
+    s = get("np4")
+    assert check_path(s, [point(4, 0.0, 0.0), s.goal]).first_invalid_index == 0
+    single = check_path(s, [s.start])
+    assert single.valid and single.starts_at_start and not single.ends_at_goal and not single.ok
+    assert single.points_checked == 1 and single.cost == 0.0
+
+
+def test_check_path_samples_at_the_requested_spacing() -> None:
+    s = get("np2")
+    path = np.array([[-0.2, 0.1], [0.2, 0.1]])
+    check = check_path(s, path, resolution=1e-3)
+    assert check.spacing == pytest.approx(1e-3 * math.sqrt(2) / 4)
+    assert check.points_checked == math.ceil(0.4 / check.spacing) + 1
+    default = check_path(s, path)
+    assert default.spacing == pytest.approx(5e-6 * math.sqrt(2) / 4)
+    assert default.ok is False and default.valid  # does not start at the start
+
+
+def test_check_path_catches_a_thin_crossing_between_waypoints() -> None:
+    s = get("np2")
+    # Every waypoint is free; the first segment cuts the wall's corner (-0.1, 0.05) over ~2e-5.
+    path = np.array([s.start, [-0.1 + 1e-4, 0.05 + 1e-5], [0.1, 0.05 + 1e-5], s.goal])
+    assert is_valid(s, path).all()
+    check = check_path(s, path)
+    assert not check.valid and check.first_invalid_index == 0
+    assert check.first_invalid_point is not None
+    assert check.first_invalid_point[0] >= -0.1 and check.first_invalid_point[1] <= 0.05
+    assert check_path(s, path, resolution=1e-2).valid  # too coarse to see the cut
+
+
+def test_check_path_endpoint_tolerance() -> None:
+    s = get("np2")
+    route = [s.start, [-0.1, 0.1], [0.1, 0.1]]
+    assert check_path(s, [*route, np.add(s.goal, [1e-10, 0.0])]).ends_at_goal
+    assert not check_path(s, [*route, np.add(s.goal, [1e-8, 0.0])]).ends_at_goal
+
+
+def test_check_path_rejects_malformed_paths() -> None:
+    s = get("np4")
+    with pytest.raises(ScenarioError, match=r"path of shape \(2, 3\) does not fit scenario 'np4'"):
+        check_path(s, np.zeros((2, 3)))
+    with pytest.raises(ScenarioError, match="path waypoint 1 is not finite"):
+        check_path(s, [s.start, [np.nan] * 4])
+    with pytest.raises(ScenarioError, match="resolution must be a positive"):
+        check_path(s, [s.start], resolution=0.0)
+    with pytest.raises(ScenarioError, match="last axis must have length 4"):
+        is_valid(s, np.zeros((5, 2)))
+
+
+def test_is_valid_keeps_leading_shape() -> None:
+    s = get("rr3/1")
+    pts = np.random.default_rng(0).uniform(-0.6, 0.6, (7, 5, 3))
+    result = is_valid(s, pts)
+    assert result.shape == (7, 5) and result.dtype == bool
+    assert result.tolist() == [[bool(is_valid(s, p)) for p in row] for row in pts]
+
+
+def test_random_instances_are_reproducible_and_distinct() -> None:
+    first = get("rrd8/3").boxes.copy()
+    scenarios._build.cache_clear()
+    assert np.array_equal(get("rrd8", 3).boxes, first)
+    assert np.array_equal(get("rrd8/3").boxes, first)
+    assert not np.array_equal(get("rrd8/4").boxes, first)
+    assert get("rr8/3").seed != get("rrd8/3").seed != get("rrd9/3").seed
+    assert get("rrd8/3").seed == zlib.crc32(b"lit_planner.scenarios/rrd/8/3")
+    assert get("np8").seed is None
+
+
+def test_random_instance_regression() -> None:
+    # Pins the instances behind recorded benchmarks: change only together with those results.
+    s = get("rr4/0")
+    assert s.seed == 4267859315
+    assert s.boxes[0].tolist() == [
+        [0.17824380046358201, 0.18342004449087052, -0.29309427124299303, -0.15265137096376113],
+        [0.3189058755974401, 0.34008485315611886, -0.10666071952629753, 0.042117794010411144],
+    ]
+    assert float(s.boxes.sum()) == pytest.approx(1.0872424907229061, abs=1e-12)
+
+
+@pytest.mark.parametrize("family", ["np", "wg", "rr", "rrd"])
+def test_start_and_goal_valid_everywhere(family: str) -> None:
+    instances = range(5) if scenarios.FAMILIES[family].randomised else range(1)
+    for dim in DIMS:
+        for instance in instances:
+            s = get(f"{family}{dim}", instance)
+            assert is_valid(s, np.array([s.start, s.goal])).all(), s.key
+
+
+@pytest.mark.parametrize("family", ["rr", "rrd"])
+def test_random_boxes_follow_their_distributions(family: str) -> None:
+    layout = scenarios.FAMILIES[family].obstacles
+    assert isinstance(layout, scenarios.RandomBoxes)
+    for dim in (2, 4, 8, 16):
+        s = get(f"{family}{dim}/2")
+        lo, hi = layout.side_range(dim)
+        sides = s.boxes[:, 1] - s.boxes[:, 0]
+        centres = s.boxes.mean(axis=1)
+        assert len(s.boxes) == layout.count
+        assert np.all((sides >= lo) & (sides <= hi))
+        assert np.all(np.abs(centres) <= 0.5)
+
+
+def test_dense_side_range_rule() -> None:
+    layout = scenarios.FAMILIES["rrd"].obstacles
+    assert isinstance(layout, scenarios.RandomBoxes)
+    expected = {
+        2: (0.1, 1.0),
+        4: (0.1, 1.0),
+        6: (0.1, 1.0),
+        7: (0.1, 2.0),
+        8: (0.1, 2.0),
+        12: (0.1, 2.0),
+        13: (0.5, 1.5),
+        16: (0.5, 1.5),
+        32: (0.5, 1.5),
+    }
+    assert {dim: layout.side_range(dim) for dim in expected} == expected
+    rr = scenarios.FAMILIES["rr"].obstacles
+    assert isinstance(rr, scenarios.RandomBoxes) and rr.count == 35
+    assert all(rr.side_range(dim) == (0.1, 0.2) for dim in (2, 4, 16, 32))
+
+
+def test_time_budgets() -> None:
+    budget = {
+        name: get(name).time_budget
+        for name in (
+            "np4",
+            "np8",
+            "np16",
+            "wg4",
+            "wg8",
+            "wg16",
+            "rr4",
+            "rr8",
+            "rr16",
+            "rrd4",
+            "rrd8",
+            "rrd16",
+        )
+    }
+    assert budget == {
+        "np4": 0.12,
+        "np8": 0.4,
+        "np16": 0.6,
+        "wg4": 0.12,
+        "wg8": 0.4,
+        "wg16": 0.6,
+        "rr4": 0.15,
+        "rr8": 0.3,
+        "rr16": 2.0,
+        "rrd4": 0.15,
+        "rrd8": 0.3,
+        "rrd16": 2.0,
+    }
+    assert get("np2").time_budget == 0.12 and get("rr32").time_budget == 2.0
+    assert get("np12").time_budget == pytest.approx(0.5)
+    assert get("rr6").time_budget == pytest.approx(0.225)
+
+
+def test_resolution_and_extent() -> None:
+    for dim in (2, 8, 16):
+        for family in scenarios.FAMILIES:
+            s = get(f"{family}{dim}")
+            assert s.resolution == 5e-6
+            assert s.max_extent == pytest.approx(math.sqrt(dim))
+
+
+def test_to_dict_is_json_and_round_trips_boxes() -> None:
+    s = get("rrd4/1")
+    doc = json.loads(json.dumps(s.to_dict(), allow_nan=False))
+    assert doc["key"] == "rrd4/1" and doc["family"] == "rrd" and doc["optimal_cost"] is None
+    assert np.array_equal(np.array(doc["boxes"]), s.boxes)
+    assert s.family_spec is scenarios.FAMILIES["rrd"]
+    assert "instance 1" in s.description
+
+
+def test_boxes_are_read_only() -> None:
+    with pytest.raises(ValueError):
+        get("np8").boxes[0, 0, 0] = 1.0
+
+
+@pytest.mark.parametrize(
+    ("name", "instance", "message"),
+    [
+        ("xx8", None, r"unknown scenario 'xx8'"),
+        ("np", None, r"unknown scenario 'np'"),
+        ("np1", None, r"dimension 1 outside 2\.\.32"),
+        ("rr33", None, r"dimension 33 outside"),
+        ("np8/1", None, r"family 'np' has only instance 0, not 1"),
+        ("wg4", 2, r"family 'wg' has only instance 0, not 2"),
+        ("rr8/2", 3, r"names instance 2 but instance=3"),
+        ("rr8", -1, r"instance -1 is negative"),
+    ],
+)
+def test_get_rejects_bad_names(name: str, instance: int | None, message: str) -> None:
+    with pytest.raises(ScenarioError, match=message):
+        get(name, instance)
+
+
+def test_get_accepts_instance_zero_of_fixed_families_and_large_dims() -> None:
+    assert get("np8/0") is get("np8")
+    assert get("rrd32/7").boxes.shape == (30, 2, 32)
