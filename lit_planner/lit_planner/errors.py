@@ -21,3 +21,11 @@ class TensorFileError(LitPlannerError, ValueError):
 
 class TensorLookupError(LitPlannerError, ValueError):
     """A lookup into a tensor got a malformed tensor, query point or interpolation mode."""
+
+
+class PlannerError(LitPlannerError, ValueError):
+    """An unknown planner or policy name, or planning options that do not fit together."""
+
+
+class MissingTensorsError(TensorFileError):
+    """The ``tensor`` policy found no lookup tensor; says where it looked and how to get some."""

@@ -1,0 +1,171 @@
+"""``lit plan``: plan one scenario with one planner and print the result.
+
+::
+
+    lit plan --scenario np8 --planner litstar --policy fixed --time 1.0 --seed 7 --json
+
+With ``--json`` the output is exactly one JSON object on one line: everything
+:func:`lit_planner.planning.plan` returns, with ``null`` for every infinite float (an unsolved
+run's ``cost``, ``t_init`` and ``c_init``). Without it, a readable summary.
+
+Exit status: 0 solved, 1 planned but no exact solution, 2 bad input (unknown scenario, planner or
+policy, missing or defective tensors), reported as one line on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import lit_core
+
+from lit_planner import planning, scenarios
+from lit_planner.errors import LitPlannerError, PlannerError
+from lit_planner.scenarios import Scenario
+
+EXIT_SOLVED = 0
+"""The planner found an exact solution."""
+EXIT_UNSOLVED = 1
+"""The planner ran but found no exact solution (see ``status`` and ``message``)."""
+EXIT_BAD_INPUT = 2
+"""The query could not be set up; nothing was planned."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``lit plan``."""
+    parser.add_argument(
+        "--scenario",
+        default=scenarios.DEFAULT_SCENARIO,
+        help="scenario name such as np8, wg4, rr16, rrd8 or rrd8/3 (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--instance", type=int, help="instance of a random family (rr, rrd); default 0"
+    )
+    parser.add_argument(
+        "--planner",
+        default=planning.LITSTAR,
+        metavar="NAME",
+        help=f"one of {', '.join(planning.PLANNER_CHOICES)} (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--policy",
+        metavar="NAME",
+        help=f"LIT*'s parameter policy: {', '.join(planning.NAMED_POLICIES)} "
+        f"(default: {planning.DEFAULT_POLICY})",
+    )
+    parser.add_argument(
+        "--time",
+        type=float,
+        metavar="SECONDS",
+        help="time budget (default: the scenario's; LIT* with --iterations or --batches: none)",
+    )
+    parser.add_argument("--seed", type=int, default=1, help="seed (default: %(default)s)")
+    parser.add_argument(
+        "--iterations", type=int, default=0, metavar="N", help="LIT*: stop after N iterations"
+    )
+    parser.add_argument(
+        "--batches", type=int, default=0, metavar="N", help="LIT*: stop after N batches"
+    )
+    parser.add_argument(
+        "--tensors",
+        type=Path,
+        metavar="DIR",
+        help="tensor policy: folder with b_tensor.npy / k_tensor.npy "
+        f"(default: ${planning.TENSORS_ENV} or the checkout's tensors/)",
+    )
+    parser.add_argument(
+        "--interpolation",
+        choices=tuple(planning.INTERPOLATIONS),
+        default="trilinear",
+        help="tensor policy lookup (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--json", action="store_true", help="print one JSON object (null for infinite values)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Plan as ``args`` say; the exit status of ``lit plan``."""
+    try:
+        scenario = scenarios.get(args.scenario, args.instance)
+        planner, policy = planning.resolve_planner(args.planner, args.policy)
+        if policy == "external":
+            raise PlannerError(
+                "the external policy needs a callable and is not available on the command line"
+            )
+        planning.check_seed(args.seed)
+        planning.quiet_ompl(planner)
+        lit_core.set_global_seed(args.seed)
+        result = planning.plan(
+            scenario,
+            planner,
+            policy,
+            time=args.time,
+            seed=args.seed,
+            max_iterations=args.iterations,
+            max_batches=args.batches,
+            tensors_dir=args.tensors,
+            interpolation=args.interpolation,
+        )
+    except LitPlannerError as error:
+        print(f"lit plan: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.json:
+        print(json.dumps(planning.json_safe(result), allow_nan=False))
+    else:
+        print("\n".join(summary_lines(result, scenario)))
+    return EXIT_SOLVED if result["solved"] else EXIT_UNSOLVED
+
+
+def summary_lines(result: Mapping[str, Any], scenario: Scenario) -> list[str]:
+    """A readable summary of a :func:`lit_planner.planning.plan` result."""
+    counters = result["counters"]
+    policy = f" (policy {result['policy']})" if result.get("policy") else ""
+    budget = result.get("time_budget")
+    lines = [
+        f"scenario   {scenario.key}: {scenario.description}",
+        f"planner    {result['planner']}{policy}, seed {result['seed']}, "
+        + (f"budget {_duration(budget)}" if budget else "no time limit"),
+        f"status     {result['status']}: {'solved' if result['solved'] else 'not solved'}"
+        + (f" ({result['message']})" if result.get("message") else ""),
+    ]
+    if result["improvements"]:
+        lines.append(
+            f"first      t_init {_duration(result['t_init'])}, c_init {result['c_init']:.4f}"
+        )
+    if result["solved"]:
+        cost, optimum = result["cost"], result.get("optimal_cost")
+        versus = f" (optimum {optimum:.4f}, ratio {cost / optimum:.3f})" if optimum else ""
+        lines.append(
+            f"final      cost {cost:.4f}{versus} after {len(result['improvements'])} improvement(s)"
+        )
+    lines.append(f"time       {_duration(result['time'])} planning")
+    if "batches" in counters:
+        samples = (
+            f"{counters['valid_samples']} valid, {counters['invalid_samples']} invalid, "
+            f"{counters['pruned_samples']} pruned, in {counters['batches']} batches"
+        )
+        edges = (
+            f"{counters['edges_evaluated']} evaluated, {counters['edges_invalid']} found invalid"
+        )
+        lines += [f"samples    {samples}", f"edges      {edges}"]
+    lines.append(f"checks     {counters['validity_checks']} collision checks")
+    check = result.get("path_check")
+    if check is not None:
+        verdict = "passed" if check["ok"] else "FAILED"
+        lines.append(
+            f"path       {len(result['path'])} states; independent re-check {verdict} "
+            f"({check['points_checked']} points, length {check['cost']:.4f})"
+        )
+    return lines
+
+
+def _duration(seconds: float) -> str:
+    if not math.isfinite(seconds):
+        return "-"
+    return f"{seconds * 1e3:.1f} ms" if seconds < 1.0 else f"{seconds:.3f} s"

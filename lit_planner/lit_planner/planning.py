@@ -1,0 +1,364 @@
+"""The planner's Python API: a scenario becomes a query, a policy name becomes a policy, and
+:func:`plan` runs one planner on one scenario and returns everything it reported.
+
+::
+
+    from lit_planner.planning import plan
+    result = plan("np8", planner="litstar", policy="fixed", time=0.4, seed=1)
+    result["solved"], result["cost"], result["path_check"]["ok"]
+
+The C++ core (``lit_core``) does the planning; this module only translates names into core
+objects and adds what the core cannot know: the scenario's identity and optimum, and an
+independent numpy re-check of the returned path (:func:`lit_planner.scenarios.check_path`).
+
+Results keep the core's floats, so an unsolved run has ``cost``, ``t_init`` and ``c_init`` equal to
+``inf``. :func:`json_safe` turns a result into JSON-able data with ``null`` for every
+non-finite float (JSON has no infinity).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import lit_core
+
+from lit_planner import scenarios
+from lit_planner.errors import MissingTensorsError, PlannerError, TensorFileError
+from lit_planner.scenarios import Scenario
+
+LITSTAR = "litstar"
+"""Our planner; the only one that takes a parameter policy."""
+OMPL_PLANNERS = ("aitstar", "bitstar", "abitstar", "irrtstar", "rrtconnect")
+"""OMPL 1.5.2's planners that the core runs on the same problem and validity checker."""
+PLANNERS = (LITSTAR, *OMPL_PLANNERS)
+"""Planner names of the core."""
+POLICIES = ("fixed", "fit", "tensor", "external")
+"""Policy names :func:`make_policy` knows."""
+NAMED_POLICIES = ("fixed", "fit", "tensor")
+"""Policies that a name alone configures (``external`` needs a callable)."""
+DEFAULT_POLICY = "fixed"
+"""LIT*'s policy when none is given: B = 100, psi_K = e (our EIT* baseline)."""
+SHORTHANDS = {f"{LITSTAR}-{policy}": policy for policy in NAMED_POLICIES}
+"""``litstar-fixed``, ``litstar-fit``, ``litstar-tensor``: LIT* with that policy, as one name."""
+PLANNER_CHOICES = (*PLANNERS, *SHORTHANDS)
+"""Every planner name :func:`plan` and ``lit plan --planner`` accept."""
+INTERPOLATIONS = {
+    "trilinear": lit_core.Interpolation.trilinear,
+    "nearest": lit_core.Interpolation.nearest,
+}
+"""Lookup modes of the ``tensor`` policy."""
+TENSORS_ENV = "LIT_TENSORS"
+"""Environment variable that overrides the default tensor folder."""
+TENSOR_FILES = {"B": "b_tensor.npy", "psi_K": "k_tensor.npy"}
+"""File name of each output's lookup tensor inside a tensor folder (sidecars: same stem, .json)."""
+MAX_SEED = 2**32 - 1
+"""Largest seed the core accepts (an unsigned 32-bit integer)."""
+
+DecisionCallback = Callable[[lit_core.DecisionContext], float]
+
+
+def default_tensors_dir() -> Path:
+    """Where the ``tensor`` policy looks: ``$LIT_TENSORS``, else the checkout's ``tensors/``."""
+    override = os.environ.get(TENSORS_ENV)
+    if override:
+        return Path(override)
+    return Path(__file__).resolve().parents[2] / "tensors"
+
+
+def query_for(scenario: Scenario) -> lit_core.Query:
+    """The core's query for ``scenario``: its bounds, boxes, start, goal and resolution."""
+    return lit_core.Query(
+        list(scenario.lower),
+        list(scenario.upper),
+        scenario.boxes[:, 0, :].tolist(),
+        scenario.boxes[:, 1, :].tolist(),
+        list(scenario.start),
+        list(scenario.goal),
+        scenario.resolution,
+    )
+
+
+def resolve_planner(planner: str, policy: str | None = None) -> tuple[str, str | None]:
+    """Split a planner name (shorthands included) into the core's planner and the policy name.
+
+    Returns:
+        ``(core planner, policy)``; the policy is :data:`DEFAULT_POLICY` for LIT* when none is
+        given, and None for the OMPL planners.
+
+    Raises:
+        PlannerError: unknown planner, unknown policy, a policy for an OMPL planner, or a
+            shorthand contradicting ``policy``.
+    """
+    if planner in SHORTHANDS:
+        implied = SHORTHANDS[planner]
+        if policy is not None and policy != implied:
+            raise PlannerError(
+                f"planner {planner!r} means policy {implied!r}, but policy {policy!r} was given"
+            )
+        return LITSTAR, implied
+    if planner == LITSTAR:
+        chosen = DEFAULT_POLICY if policy is None else policy
+        if chosen not in POLICIES:
+            raise PlannerError(f"unknown policy {chosen!r}; expected one of {', '.join(POLICIES)}")
+        return LITSTAR, chosen
+    if planner in OMPL_PLANNERS:
+        if policy is not None:
+            raise PlannerError(
+                f"policy {policy!r} applies to {LITSTAR} only; {planner} has no parameter policy"
+            )
+        return planner, None
+    raise PlannerError(f"unknown planner {planner!r}; expected one of {', '.join(PLANNER_CHOICES)}")
+
+
+def make_policy(
+    name: str,
+    tensors_dir: Path | str | None = None,
+    interpolation: str = "trilinear",
+    callback: DecisionCallback | None = None,
+) -> lit_core.ParameterPolicy:
+    """The core's parameter policy called ``name``.
+
+    Args:
+        name: ``fixed`` (B = 100, psi_K = e), ``fit`` (FIT*'s batch rule), ``tensor`` (the
+            trained lookup tensors) or ``external`` (``callback`` decides).
+        tensors_dir: folder holding ``b_tensor.npy`` and/or ``k_tensor.npy`` with their sidecars
+            (``tensor`` only); :func:`default_tensors_dir` when None. A missing tensor makes that
+            parameter fall back to its fixed value.
+        interpolation: ``trilinear`` or ``nearest`` lookup (``tensor`` only).
+        callback: ``callback(context: lit_core.DecisionContext) -> float`` answering B or psi_K
+            (``external`` only). The planner's clock is paused while it runs; an answer that is
+            NaN or raises falls back to the fixed value and is counted in the policy's
+            ``failures``.
+
+    Raises:
+        PlannerError: unknown name or interpolation, or a callback missing / given in vain.
+        MissingTensorsError: ``tensor`` found neither tensor file.
+        TensorFileError: a tensor file or its sidecar is defective (names the file and problem).
+    """
+    if name not in POLICIES:
+        raise PlannerError(f"unknown policy {name!r}; expected one of {', '.join(POLICIES)}")
+    if (callback is not None) != (name == "external"):
+        raise PlannerError(
+            "the external policy needs a callback"
+            if callback is None
+            else f"a callback applies to the external policy only, not to {name!r}"
+        )
+    if name == "fixed":
+        return lit_core.FixedPolicy()
+    if name == "fit":
+        return lit_core.FitPolicy()
+    if name == "external":
+        if not callable(callback):
+            raise PlannerError(f"the external policy's callback {callback!r} is not callable")
+        return lit_core.ExternalPolicy(callback)
+    if interpolation not in INTERPOLATIONS:
+        raise PlannerError(
+            f"unknown interpolation {interpolation!r}; expected one of {', '.join(INTERPOLATIONS)}"
+        )
+    folder = default_tensors_dir() if tensors_dir is None else Path(tensors_dir)
+    tensors = {
+        output: load_tensor(folder / file_name, output)
+        for output, file_name in TENSOR_FILES.items()
+        if (folder / file_name).exists()
+    }
+    if not tensors:
+        if tensors_dir is not None:
+            source = "given"
+        elif os.environ.get(TENSORS_ENV):
+            source = f"from ${TENSORS_ENV}"
+        else:
+            source = f"the default; set ${TENSORS_ENV} or pass a folder to override"
+        raise MissingTensorsError(
+            f"the tensor policy found no lookup tensors in {folder} ({source}): expected "
+            f"{' and/or '.join(TENSOR_FILES.values())} with their .json sidecars. Train and "
+            "export them with `lit train` (arrives with the learner issue), or use the fixed "
+            "or fit policy"
+        )
+    return lit_core.TensorPolicy(
+        tensors.get("B"), tensors.get("psi_K"), INTERPOLATIONS[interpolation]
+    )
+
+
+def load_tensor(path: Path, output: str) -> lit_core.LookupTensor:
+    """Load the lookup tensor of ``output`` (``B`` or ``psi_K``) with the C++ reader.
+
+    The sidecar gives the shape and value range that the C++ reader checks the file against
+    (magic, version, dtype, order, shape, size, finiteness, range); the Python reader then checks
+    the data against the sidecar's SHA-256, so a tensor replaced without its sidecar is caught.
+
+    Raises:
+        TensorFileError: the file, its sidecar, or the pair is defective; names the problem.
+    """
+    # Imported here: it pulls in the JSON-Schema validator, which other policies never need.
+    from lit_planner import tensor_files
+
+    sidecar = tensor_files.read_sidecar(path)
+    if sidecar.output != output:
+        raise TensorFileError(
+            f"{path}: its sidecar says it holds {sidecar.output!r}, but this file name is "
+            f"reserved for {output!r}"
+        )
+    if len(sidecar.shape) != 3:
+        raise TensorFileError(f"{path}: the sidecar's shape {sidecar.shape} is not 3-D")
+    low, high = sidecar.value_range
+    try:
+        tensor = lit_core.LookupTensor.load(str(path), list(sidecar.shape), low, high)
+    except lit_core.TensorError as error:
+        raise TensorFileError(str(error)) from error
+    tensor_files.read_tensor(path)
+    return tensor
+
+
+def plan(
+    scenario: str | Scenario,
+    planner: str = LITSTAR,
+    policy: str | lit_core.ParameterPolicy | None = None,
+    time: float | None = None,
+    seed: int = 1,
+    max_iterations: int = 0,
+    max_batches: int = 0,
+    tensors_dir: Path | str | None = None,
+    params: Mapping[str, object] | None = None,
+    listener: object | None = None,
+    *,
+    instance: int | None = None,
+    interpolation: str = "trilinear",
+) -> dict[str, Any]:
+    """Plan ``scenario`` with ``planner`` and return the core's result plus scenario facts.
+
+    Args:
+        scenario: a registry name (``np8``, ``rrd8/3``) or a :class:`Scenario`.
+        planner: one of :data:`PLANNER_CHOICES` (``litstar-fit`` is LIT* with the fit policy).
+        policy: LIT*'s policy: a name (:data:`POLICIES`; ``external`` needs a policy object
+            from :func:`make_policy`), a ``lit_core`` policy object, or None for the default
+            (or the shorthand's). Must be None for the OMPL planners.
+        time: time budget in seconds (LIT*: its own clock, which excludes external-policy time;
+            OMPL planners: wall time). None: the scenario's budget, except that LIT* given
+            ``max_iterations`` or ``max_batches`` then stops on those alone (deterministic).
+        seed: LIT*'s seed. The OMPL planners draw from OMPL's global generator, which
+            ``lit_core.set_global_seed`` seeds once per process.
+        max_iterations, max_batches: LIT* only; 0 means no limit.
+        tensors_dir, interpolation: for the ``tensor`` policy (see :func:`make_policy`).
+        params: planner parameters by their ``declareParam`` names (values are stringified).
+        listener: object with optional ``on_solution``, ``on_decision``, ``on_batch`` methods
+            (LIT* only), called with the core's event objects as they happen.
+        instance: instance of a random scenario family when ``scenario`` is a name.
+
+    Returns:
+        The dict of ``lit_core.solve`` (``status``, ``solved``, ``message``, ``cost``, ``t_init``,
+        ``c_init``, ``improvements`` as (time, cost) tuples, ``path``, ``time``, ``counters``,
+        ``decisions``, ``planner``, ``seed``, LIT*'s ``policy``) plus ``policy`` (None for OMPL
+        planners), ``scenario`` (name), ``instance``, ``dimension``, ``optimal_cost`` (None where
+        unknown), ``time_budget`` (the limit given, None if none) and ``path_check`` (the
+        independent re-check as a dict, None without a path).
+
+    Raises:
+        ScenarioError: unknown scenario or instance.
+        PlannerError: unknown planner or policy, options that do not fit the planner, bad numbers.
+        TensorFileError: see :func:`make_policy`.
+        ValueError: a planner parameter in ``params`` that the planner does not have.
+    """
+    problem = _scenario(scenario, instance)
+    policy_name = policy.name if isinstance(policy, lit_core.ParameterPolicy) else policy
+    core_planner, policy_name = resolve_planner(planner, policy_name)
+    if isinstance(policy, lit_core.ParameterPolicy):
+        policy_object = policy
+    elif policy_name is None:
+        policy_object = None
+    elif policy_name == "external":
+        raise PlannerError(
+            "the external policy needs a callable: pass make_policy('external', callback=...)"
+        )
+    else:
+        policy_object = make_policy(policy_name, tensors_dir, interpolation)
+
+    for label, value in (("max_iterations", max_iterations), ("max_batches", max_batches)):
+        if not 0 <= value <= MAX_SEED:
+            raise PlannerError(f"{label} must be between 0 and {MAX_SEED}, got {value}")
+    check_seed(seed)
+    stops_on_count = bool(max_iterations or max_batches)
+    if core_planner != LITSTAR and stops_on_count:
+        raise PlannerError(
+            f"{core_planner} stops on time only: max_iterations and max_batches are for {LITSTAR}"
+        )
+    if time is None:
+        time = 0.0 if stops_on_count else problem.time_budget
+    elif not (math.isfinite(time) and time > 0):
+        raise PlannerError(f"time must be a positive number of seconds, got {time}")
+
+    result: dict[str, Any] = lit_core.solve(
+        query_for(problem),
+        core_planner,
+        time=time,
+        policy=policy_object,
+        seed=seed,
+        max_iterations=max_iterations,
+        max_batches=max_batches,
+        params={key: _param_text(value) for key, value in (params or {}).items()},
+        listener=listener,
+    )
+    result.setdefault("policy", None)
+    result.update(
+        scenario=problem.name,
+        instance=problem.instance,
+        dimension=problem.dim,
+        optimal_cost=problem.optimal_cost,
+        time_budget=time if time > 0 else None,
+        path_check=(
+            dataclasses.asdict(scenarios.check_path(problem, result["path"]))
+            if result["path"]
+            else None
+        ),
+    )
+    return result
+
+
+def check_seed(seed: int) -> None:
+    """Raise :class:`PlannerError` unless ``seed`` fits the core's unsigned 32-bit seeds."""
+    if not 0 <= seed <= MAX_SEED:
+        raise PlannerError(f"seed must be between 0 and {MAX_SEED}, got {seed}")
+
+
+def quiet_ompl(planner: str) -> None:
+    """Set OMPL's console to warnings for LIT* and to errors for the OMPL planners.
+
+    OMPL 1.5.2's BIT* and ABIT* warn about their own names at construction; that says nothing
+    about the run, so the baselines only report errors.
+    """
+    is_litstar = planner == LITSTAR or planner in SHORTHANDS
+    lit_core.set_log_level("warn" if is_litstar else "error")
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` as JSON-able data: tuples become lists and non-finite floats become None."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, Mapping):
+        return {str(key): json_safe(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(item) for item in value]
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def _scenario(scenario: str | Scenario, instance: int | None) -> Scenario:
+    if isinstance(scenario, Scenario):
+        if instance is not None and instance != scenario.instance:
+            raise PlannerError(
+                f"instance {instance} given with scenario {scenario.key!r} of instance "
+                f"{scenario.instance}"
+            )
+        return scenario
+    return scenarios.get(scenario, instance)
+
+
+def _param_text(value: object) -> str:
+    if isinstance(value, bool):
+        return "1" if value else "0"
+    return str(value)

@@ -1,0 +1,136 @@
+"""Tests of ``lit plan`` and ``lit demo`` as users run them: real processes, real planner runs."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from lit_planner import scenarios
+from lit_planner import tensor_files as tf
+
+REQUIRED_FIELDS = {
+    "status", "solved", "cost", "t_init", "c_init", "improvements", "path", "counters",
+    "planner", "scenario", "seed", "policy", "time", "message", "decisions", "path_check",
+}  # fmt: skip
+
+
+def lit(*args: str) -> subprocess.CompletedProcess[str]:
+    """Run the ``lit`` entry point in this interpreter (the checkout's .venv)."""
+    return subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+
+
+def plan_json(*args: str, returncode: int = 0) -> dict[str, Any]:
+    process = lit("plan", *args, "--json")
+    assert process.returncode == returncode, process.stderr
+    assert len(process.stdout.strip().splitlines()) == 1  # exactly one JSON object
+    document: dict[str, Any] = json.loads(process.stdout)
+    return document
+
+
+def test_plan_json_litstar() -> None:
+    doc = plan_json(
+        "--scenario", "np4", "--planner", "litstar", "--policy", "fixed",
+        "--iterations", "2000", "--seed", "7",
+    )  # fmt: skip
+    assert REQUIRED_FIELDS <= doc.keys()
+    assert (doc["planner"], doc["policy"], doc["scenario"], doc["seed"]) == (
+        "litstar", "fixed", "np4", 7,
+    )  # fmt: skip
+    assert doc["status"] == "exact_solution" and doc["solved"] is True
+    assert doc["counters"]["iterations"] == 2000 and doc["counters"]["batches"] > 0
+    improvements = doc["improvements"]
+    assert all(isinstance(item, list) and len(item) == 2 for item in improvements)
+    assert [doc["t_init"], doc["c_init"]] == improvements[0]
+    assert doc["cost"] == improvements[-1][1]
+    costs = [cost for _, cost in improvements]
+    assert costs == sorted(costs, reverse=True)
+    scenario = scenarios.get("np4")
+    check = scenarios.check_path(scenario, doc["path"])
+    assert check.ok and math.isclose(check.cost, doc["cost"], rel_tol=1e-9)
+    assert doc["path_check"]["ok"] is True
+    assert doc["optimal_cost"] == pytest.approx(scenario.optimal_cost)
+    assert {d["kind"] for d in doc["decisions"]} == {"B"}
+    # Same seed and iteration budget in another process: the same plan.
+    again = plan_json(
+        "--scenario", "np4", "--planner", "litstar-fixed", "--iterations", "2000", "--seed", "7",
+    )  # fmt: skip
+    assert again["path"] == doc["path"] and again["cost"] == doc["cost"]
+
+
+def test_plan_json_ompl_baseline() -> None:
+    doc = plan_json("--scenario", "np4", "--planner", "rrtconnect", "--time", "0.2", "--seed", "3")
+    assert REQUIRED_FIELDS <= doc.keys()
+    assert (doc["planner"], doc["policy"], doc["seed"], doc["time_budget"]) == (
+        "rrtconnect", None, 3, 0.2,
+    )  # fmt: skip
+    assert doc["solved"] and doc["path_check"]["ok"]
+    assert scenarios.check_path(scenarios.get("np4"), doc["path"]).ok
+
+
+def test_plan_json_unsolved_uses_null() -> None:
+    doc = plan_json("--scenario", "np4", "--iterations", "1", returncode=1)
+    assert doc["status"] == "timeout" and doc["solved"] is False
+    assert doc["cost"] is None and doc["t_init"] is None and doc["c_init"] is None
+    assert doc["improvements"] == [] and doc["path"] == [] and doc["path_check"] is None
+
+
+def test_plan_json_tensor_policy(tmp_path: Path) -> None:
+    tf.write_tensor(
+        tmp_path / "b_tensor.npy", tf.affine_test_tensor(*tf.AFFINE_TEST_COEFFICIENTS), "B"
+    )
+    doc = plan_json(
+        "--scenario", "rrd4", "--instance", "0", "--planner", "litstar-tensor",
+        "--tensors", str(tmp_path), "--interpolation", "nearest", "--iterations", "1500",
+    )  # fmt: skip
+    assert doc["policy"] == "tensor" and doc["scenario"] == "rrd4" and doc["instance"] == 0
+    assert all(d["policy"] == "tensor" for d in doc["decisions"])
+
+
+def test_plan_summary_is_readable() -> None:
+    process = lit("plan", "--scenario", "wg4", "--iterations", "2000")
+    assert process.returncode == 0, process.stderr
+    assert "exact_solution: solved" in process.stdout
+    assert "independent re-check passed" in process.stdout
+    assert "optimum 0.6308" in process.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--scenario", "xx9"], "unknown scenario 'xx9'"),
+        (["--planner", "eitstar"], "unknown planner 'eitstar'"),
+        (["--policy", "learned"], "unknown policy 'learned'"),
+        (["--planner", "aitstar", "--policy", "fit"], "applies to litstar only"),
+        (["--policy", "tensor", "--tensors", "/nonexistent/tensors"], "no lookup tensors"),
+        (["--planner", "bitstar", "--iterations", "5"], "stops on time only"),
+        (["--seed", "-1"], "seed must be"),
+    ],
+)
+def test_plan_bad_input_is_one_line(args: list[str], message: str) -> None:
+    process = lit("plan", *args, "--json")
+    assert process.returncode == 2
+    assert process.stdout == ""
+    lines = process.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("lit plan: ") and message in lines[0]
+
+
+def test_demo_solves_the_default_scenario() -> None:
+    process = lit("demo")
+    assert process.returncode == 0, process.stderr
+    assert "solved" in process.stdout
+    assert scenarios.get(scenarios.DEFAULT_SCENARIO).description in process.stdout
+    for words in ("t_init", "c_init", "ratio", "improvement", "batches", "collision checks",
+                  "evaluated", "re-check passed"):  # fmt: skip
+        assert words in process.stdout

@@ -1,0 +1,397 @@
+"""Tests of the planner's Python API (lit_planner.planning) with real planner runs.
+
+No wall-clock thresholds: LIT* runs stop on iterations (exact and deterministic), the OMPL
+baselines get short budgets and their paths are only checked when they solved.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import lit_core
+import numpy as np
+import pytest
+from lit_planner.errors import MissingTensorsError, PlannerError, TensorFileError
+from lit_planner.planning import (
+    OMPL_PLANNERS,
+    json_safe,
+    make_policy,
+    plan,
+    query_for,
+    resolve_planner,
+)
+
+from lit_planner import scenarios
+from lit_planner import tensor_files as tf
+
+ITERATIONS = 2000
+"""LIT*'s iteration budget in these tests: a few milliseconds, enough to solve np4 and rrd4."""
+BASELINE_TIME = 0.3
+"""Wall-time budget of each OMPL baseline run (they need 2-110 ms on np4 / rrd4)."""
+K_TENSOR_COEFFICIENTS = (3.0, 4.0, 4.0, 4.0)
+"""An affine psi_K tensor spanning 3..15, psi_K's range."""
+
+
+@pytest.fixture(autouse=True, scope="module")
+def quiet_ompl() -> None:
+    lit_core.set_log_level("error")
+
+
+def assert_sound(result: dict[str, Any], scenario: scenarios.Scenario) -> None:
+    """A solved result: valid joined path, non-increasing costs ending in the reported cost."""
+    assert result["solved"] and result["status"] == "exact_solution"
+    path = np.array(result["path"])
+    assert np.allclose(path[0], scenario.start) and np.allclose(path[-1], scenario.goal)
+    # plan() ran the independent dense re-check (scenarios.check_path) on this path already.
+    check = result["path_check"]
+    assert check["ok"] and check["valid"] and check["points_checked"] > len(path), check
+    assert math.isclose(check["cost"], result["cost"], rel_tol=1e-9)
+    costs = [cost for _, cost in result["improvements"]]
+    times = [t for t, _ in result["improvements"]]
+    assert costs and all(b <= a for a, b in itertools.pairwise(costs))
+    assert times == sorted(times)
+    assert math.isclose(costs[-1], result["cost"], rel_tol=1e-9)
+    assert (result["t_init"], result["c_init"]) == tuple(result["improvements"][0])
+    if scenario.optimal_cost is not None:
+        assert result["cost"] >= scenario.optimal_cost - 1e-9
+
+
+def write_tensor_pair(folder: Path, b: bool = True, k: bool = True) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    if b:
+        values = tf.affine_test_tensor(*tf.AFFINE_TEST_COEFFICIENTS)
+        tf.write_tensor(folder / "b_tensor.npy", values, "B")
+    if k:
+        tf.write_tensor(
+            folder / "k_tensor.npy", tf.affine_test_tensor(*K_TENSOR_COEFFICIENTS), "psi_K"
+        )
+
+
+def round_half_away(value: float) -> float:
+    return math.copysign(math.floor(abs(value) + 0.5), value)
+
+
+# ------------------------------------------------------------------------------------ LIT*
+
+
+@pytest.mark.parametrize("name", ["np4", "rrd4"])
+@pytest.mark.parametrize("policy", ["fixed", "fit"])
+def test_litstar_named_policies_give_sound_paths(name: str, policy: str) -> None:
+    scenario = scenarios.get(name)
+    result = plan(name, "litstar", policy, max_iterations=ITERATIONS, seed=3)
+    assert_sound(result, scenario)
+    assert result["policy"] == policy and result["planner"] == "litstar"
+    assert (result["scenario"], result["dimension"], result["seed"]) == (name, 4, 3)
+    assert result["counters"]["iterations"] == ITERATIONS
+    assert result["time_budget"] is None and result["optimal_cost"] == scenario.optimal_cost
+    batch_decisions = [d for d in result["decisions"] if d["kind"] == "B"]
+    assert batch_decisions and all(d["policy"] == policy for d in batch_decisions)
+    if policy == "fixed":
+        assert {d["value"] for d in result["decisions"]} == {100.0}
+    else:  # FIT*: integers in [1, 199], psi_K stays e (not decided)
+        assert all(
+            1 <= d["value"] <= 199 and d["value"] == int(d["value"]) for d in batch_decisions
+        )
+        assert not [d for d in result["decisions"] if d["kind"] == "psi_K"]
+
+
+def test_shorthand_planner_names() -> None:
+    assert resolve_planner("litstar-fit") == ("litstar", "fit")
+    assert resolve_planner("litstar") == ("litstar", "fixed")
+    assert resolve_planner("aitstar") == ("aitstar", None)
+    result = plan("np4", "litstar-fit", max_iterations=500)
+    assert result["policy"] == "fit"
+    with pytest.raises(PlannerError, match="means policy 'fit'"):
+        resolve_planner("litstar-fit", "tensor")
+    with pytest.raises(PlannerError, match="unknown planner 'eitstar'"):
+        plan("np4", "eitstar")
+    with pytest.raises(PlannerError, match="applies to litstar only"):
+        plan("np4", "aitstar", "fit", time=0.01)
+    with pytest.raises(PlannerError, match="stops on time only"):
+        plan("np4", "rrtconnect", max_iterations=10)
+    with pytest.raises(PlannerError, match="unknown policy"):
+        make_policy("learned")
+
+
+def test_same_seed_same_result() -> None:
+    runs = [plan("rrd4", seed=11, max_iterations=ITERATIONS) for _ in range(2)]
+    assert runs[0]["solved"]
+    assert runs[0]["path"] == runs[1]["path"] and runs[0]["cost"] == runs[1]["cost"]
+    assert [c for _, c in runs[0]["improvements"]] == [c for _, c in runs[1]["improvements"]]
+    assert runs[0]["counters"] == runs[1]["counters"]
+    other = plan("rrd4", seed=12, max_iterations=ITERATIONS)
+    assert other["path"] != runs[0]["path"]
+
+
+def test_max_batches_stops_litstar() -> None:
+    result = plan("np4", max_batches=3)
+    assert result["counters"]["batches"] == 3
+
+
+def test_tensor_policy_applies_lookups(tmp_path: Path) -> None:
+    write_tensor_pair(tmp_path)
+    b_values = tf.affine_test_tensor(*tf.AFFINE_TEST_COEFFICIENTS)
+    k_values = tf.affine_test_tensor(*K_TENSOR_COEFFICIENTS)
+    scenario = scenarios.get("np4")
+    result = plan(scenario, policy="tensor", tensors_dir=tmp_path, max_iterations=ITERATIONS)
+    assert_sound(result, scenario)
+    assert result["policy"] == "tensor"
+    kinds = {d["kind"] for d in result["decisions"]}
+    assert kinds == {"B", "psi_K"}
+    for decision in result["decisions"]:
+        assert decision["policy"] == "tensor"
+        if decision["kind"] == "B":
+            x = (decision["rho_global"], decision["rho_local_b"], decision["measure"])
+            expected = float(tf.lookup(b_values, x))
+            assert abs(decision["value"] - expected) <= 0.5 + 1e-6
+            assert decision["value"] == round_half_away(decision["value"])
+        else:
+            x = (decision["rho_global"], decision["rho_local_k"], decision["measure"])
+            assert decision["value"] == pytest.approx(float(tf.lookup(k_values, x)), abs=1e-4)
+
+
+def test_tensor_policy_with_k_tensor_alone(tmp_path: Path) -> None:
+    write_tensor_pair(tmp_path, b=False)
+    result = plan("np4", policy="tensor", tensors_dir=tmp_path, max_iterations=ITERATIONS)
+    assert result["solved"]
+    by_kind: dict[str, set[float]] = {}
+    for decision in result["decisions"]:
+        by_kind.setdefault(decision["kind"], set()).add(decision["value"])
+    assert by_kind["B"] == {100.0} and by_kind["psi_K"]
+
+
+def test_tensor_policy_nearest_interpolation(tmp_path: Path) -> None:
+    write_tensor_pair(tmp_path, b=False)
+    k_values = tf.affine_test_tensor(*K_TENSOR_COEFFICIENTS)
+    policy = make_policy("tensor", tmp_path, interpolation="nearest")
+    result = plan("np4", policy=policy, max_iterations=ITERATIONS)
+    for decision in (d for d in result["decisions"] if d["kind"] == "psi_K"):
+        x = (decision["rho_global"], decision["rho_local_k"], decision["measure"])
+        assert decision["value"] == pytest.approx(float(tf.lookup(k_values, x, "nearest")))
+
+
+def test_missing_tensors_name_the_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    with pytest.raises(MissingTensorsError, match=f"{tmp_path}.*lit train"):
+        make_policy("tensor", tmp_path)
+    monkeypatch.setenv("LIT_TENSORS", str(tmp_path / "elsewhere"))
+    with pytest.raises(MissingTensorsError, match="elsewhere.*LIT_TENSORS"):
+        make_policy("tensor")
+    write_tensor_pair(tmp_path / "elsewhere", k=False)
+    assert make_policy("tensor").name == "tensor"
+
+
+def test_external_policy_is_asked_and_obeyed() -> None:
+    calls: list[tuple[str, float, float, float, bool]] = []
+
+    def decide(context: lit_core.DecisionContext) -> float:
+        calls.append(
+            (
+                context.kind,
+                context.rho_global,
+                context.rho_local,
+                context.measure,
+                context.has_solution,
+            )
+        )
+        return 37.0 if context.kind == "B" else 5.5
+
+    scenario = scenarios.get("np4")
+    policy = make_policy("external", callback=decide)
+    result = plan(scenario, policy=policy, max_iterations=ITERATIONS)
+    assert_sound(result, scenario)
+    assert {kind for kind, *_ in calls} == {"B", "psi_K"}
+    for _, rho_global, rho_local, measure, _ in calls:
+        assert 0.0 <= rho_global <= 1.0 and 0.0 <= rho_local <= 1.0 and 0.0 <= measure <= 1.0
+    assert any(has_solution for *_, has_solution in calls)
+    values = {(d["kind"], d["value"], d["policy"]) for d in result["decisions"]}
+    assert values == {("B", 37.0, "external"), ("psi_K", 5.5, "external")}
+    assert len(result["decisions"]) == len(calls)
+    assert result["counters"]["batch_decisions"] + result["counters"]["neighbour_decisions"] == len(
+        calls
+    )
+    assert policy.failures == 0
+
+
+def test_external_policy_failures_fall_back(capfd: pytest.CaptureFixture[str]) -> None:
+    def broken(context: lit_core.DecisionContext) -> float:
+        if context.kind == "B":
+            raise RuntimeError("learner unavailable")
+        return math.nan
+
+    policy = make_policy("external", callback=broken)
+    result = plan("np4", policy=policy, max_iterations=ITERATIONS)
+    assert result["solved"]
+    assert policy.failures == len(result["decisions"]) > 0
+    assert {d["value"] for d in result["decisions"] if d["kind"] == "B"} == {100.0}
+    assert {d["value"] for d in result["decisions"] if d["kind"] == "psi_K"} == {math.e}
+    with pytest.raises(PlannerError, match="needs a callback"):
+        make_policy("external")
+    with pytest.raises(PlannerError, match="external policy only"):
+        make_policy("fixed", callback=broken)
+    with pytest.raises(PlannerError, match="needs a callable"):
+        plan("np4", policy="external", max_iterations=10)
+
+
+def test_external_policy_time_is_not_planning_time() -> None:
+    sleep = 0.002
+    calls = 0
+
+    def slow(context: lit_core.DecisionContext) -> float:
+        nonlocal calls
+        calls += 1
+        time.sleep(sleep)
+        return 100.0 if context.kind == "B" else math.e
+
+    policy = make_policy("external", callback=slow)
+    started = time.perf_counter()
+    result = plan("np4", policy=policy, max_iterations=ITERATIONS)
+    wall = time.perf_counter() - started
+    assert calls > 10
+    # The planner's clock excludes every callback, and each callback took at least `sleep`.
+    assert result["time"] < wall - calls * sleep
+    assert all(t <= result["time"] for t, _ in result["improvements"])
+
+
+def test_listener_sees_events() -> None:
+    class Recorder:
+        def __init__(self) -> None:
+            self.solutions: list[tuple[float, float]] = []
+            self.batches = 0
+            self.decisions = 0
+
+        def on_solution(self, event: Any) -> None:
+            self.solutions.append((event.time, event.cost))
+
+        def on_batch(self, event: Any) -> None:
+            self.batches += 1
+
+        def on_decision(self, event: Any) -> None:
+            self.decisions += 1
+
+    recorder = Recorder()
+    result = plan("np4", max_iterations=ITERATIONS, listener=recorder)
+    assert recorder.solutions == [tuple(i) for i in result["improvements"]]
+    assert recorder.batches == result["counters"]["batches"]
+    assert recorder.decisions == len(result["decisions"])
+
+
+# --------------------------------------------------------------------------- OMPL baselines
+
+
+@pytest.mark.parametrize("name", ["np4", "rrd4"])
+@pytest.mark.parametrize("planner", OMPL_PLANNERS)
+def test_ompl_baselines_give_sound_paths(planner: str, name: str) -> None:
+    scenario = scenarios.get(name)
+    result = plan(name, planner, time=BASELINE_TIME)
+    assert result["planner"] == planner and result["policy"] is None
+    assert result["time_budget"] == BASELINE_TIME
+    assert result["counters"]["validity_checks"] > 0
+    if name == "np4":  # every baseline solves np4 within a few ms; rrd4 may take longer
+        assert result["solved"], result["status"]
+    if result["solved"]:
+        assert_sound(result, scenario)
+    else:
+        assert result["status"] in ("timeout", "approximate_solution")
+        assert result["path"] == [] and result["path_check"] is None
+        assert math.isinf(result["cost"]) and math.isinf(result["t_init"])
+
+
+# ------------------------------------------------------------------- invalid start and goal
+
+
+@pytest.mark.parametrize("planner", ["litstar", "rrtconnect"])
+def test_invalid_start_and_goal_are_reported(planner: str) -> None:
+    scenario = scenarios.get("np4")
+    in_wall = dataclasses.replace(scenario, start=(0.0, 0.0, 0.0, 0.0))
+    outside = dataclasses.replace(scenario, goal=(0.7, 0.0, 0.0, 0.0))
+    assert not query_for(in_wall).is_valid(list(in_wall.start))
+    for problem, status, words in (
+        (in_wall, "invalid_start", "start is in collision"),
+        (outside, "invalid_goal", "goal is out of bounds"),
+    ):
+        result = plan(problem, planner, time=0.05)
+        assert result["status"] == status and words in result["message"]
+        assert not result["solved"] and result["path"] == [] and result["path_check"] is None
+        assert math.isinf(result["cost"]) and result["improvements"] == []
+        safe = json.loads(json.dumps(json_safe(result), allow_nan=False))
+        assert safe["cost"] is None and safe["t_init"] is None and safe["c_init"] is None
+
+
+# --------------------------------------------------------------------------------- tensors
+
+
+def test_cpp_and_python_lookups_agree(tmp_path: Path) -> None:
+    rng = np.random.default_rng(20260509)
+    values = rng.uniform(20.0, 200.0, tf.TENSOR_SHAPE).astype(np.float32)
+    path = tmp_path / "b_tensor.npy"
+    sidecar = tf.write_tensor(path, values, "B")
+    tensor = lit_core.LookupTensor.load(str(path), list(sidecar.shape), *sidecar.value_range)
+    points = np.vstack(
+        [
+            rng.uniform(-0.1, 1.1, (400, 3)),  # clamped outside [0, 1]
+            rng.integers(0, tf.GRID_SIZE, (50, 3)) / (tf.GRID_SIZE - 1),  # exactly on nodes
+            [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.005, 0.995, 0.5]],  # ends and half-way points
+        ]
+    )
+    for mode in tf.INTERPOLATIONS:
+        expected = tf.lookup(values, points, mode)
+        lookup = getattr(tensor, mode)
+        got = np.array([lookup(*map(float, point)) for point in points])
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-4, err_msg=mode)
+
+
+def corrupt(path: Path, defect: str) -> None:
+    """Rewrite ``path`` (a valid B tensor) with one defect, keeping its sidecar."""
+    values = np.load(path).copy()
+    if defect == "bad magic":
+        data = bytearray(path.read_bytes())
+        data[:6] = b"NOTNPY"
+        path.write_bytes(bytes(data))
+        return
+    if defect == "wrong dtype":
+        values = values.astype("<f8")
+    elif defect == "wrong shape":
+        values = values[:, :, :-1]
+    elif defect == "NaN":
+        values[3, 4, 5] = np.nan
+    elif defect == "out of range":
+        values[1, 2, 3] = 500.0
+    elif defect == "stale sidecar":
+        values[1, 2, 3] = 150.0
+    np.save(path, np.ascontiguousarray(values), allow_pickle=False)
+
+
+@pytest.mark.parametrize(
+    ("defect", "message"),
+    [
+        ("bad magic", "bad magic"),
+        ("wrong dtype", "dtype is '<f8', expected '<f4'"),
+        ("wrong shape", r"shape \(101, 101, 100\) does not match the sidecar's \(101, 101, 101\)"),
+        ("NaN", "value 31012 is not finite"),
+        ("out of range", r"value 10406 = 500\.0+ is out of range \[20\.0+, 200\.0+\]"),
+        ("stale sidecar", "SHA-256"),
+    ],
+)
+def test_bad_tensor_files_are_rejected(tmp_path: Path, defect: str, message: str) -> None:
+    write_tensor_pair(tmp_path, k=False)
+    corrupt(tmp_path / "b_tensor.npy", defect)
+    with pytest.raises(TensorFileError, match=message) as caught:
+        make_policy("tensor", tmp_path)
+    assert "b_tensor.npy" in str(caught.value)
+
+
+def test_tensor_sidecar_problems_are_rejected(tmp_path: Path) -> None:
+    write_tensor_pair(tmp_path, k=False)
+    (tmp_path / "b_tensor.npy").rename(tmp_path / "k_tensor.npy")
+    (tmp_path / "b_tensor.json").rename(tmp_path / "k_tensor.json")
+    with pytest.raises(TensorFileError, match="holds 'B'.*reserved for 'psi_K'"):
+        make_policy("tensor", tmp_path)
+    (tmp_path / "k_tensor.json").unlink()
+    with pytest.raises(TensorFileError, match="no sidecar"):
+        make_policy("tensor", tmp_path)
