@@ -33,6 +33,9 @@ COMMANDS: dict[str, Command] = {
         "run learner and planner as two processes on the default scenario, record a bag, "
         "print the summary table",
     ),
+    "compare": Command(
+        "lit_planner.compare", "LIT* against OMPL planners on the same seeds: medians and ratios"
+    ),
     "plan": Command("lit_planner.plan_cli", "plan one query or a benchmark with the C++ core"),
     "test": Command(
         "lit_planner.testing", "run all tests: C++ (ctest) and Python (pytest)", run="main"

@@ -232,6 +232,7 @@ namespace lit
         }
 
         dimension_ = si_->getStateDimension();
+        longestValidSegment_ = si_->getStateSpace()->getLongestValidSegmentLength();
         spaceMeasure_ = si_->getSpaceMeasure();
         if (interpolated_ == nullptr)
             interpolated_ = si_->allocState();
@@ -347,14 +348,19 @@ namespace lit
     {
         if (isWhitelisted(a, b))
             return 0.0;
-        const double interior =
-            std::max(0.0, static_cast<double>(si_->getStateSpace()->validSegmentCount(a->raw_, b->raw_)) - 1.0);
+        const double interior = std::max(0.0, static_cast<double>(segmentCount(a, b)) - 1.0);
         const State *from = a->id_ < b->id_ ? a : b;
         const State *to = a->id_ < b->id_ ? b : a;
         const auto it = from->checkedDepth_.find(to->id_);
         const unsigned int depth = it == from->checkedDepth_.end() ? 0u : it->second;
         const double done = depth >= 63u ? interior : std::ldexp(1.0, static_cast<int>(depth)) - 1.0;
         return std::max(0.0, interior - done);
+    }
+
+    unsigned int LITstar::segmentCount(const State *a, const State *b) const
+    {
+        // As OMPL's StateSpace::validSegmentCount: the same resolution for every planner in a comparison.
+        return static_cast<unsigned int>(std::ceil(graph_->distance(a, b) / longestValidSegment_));
     }
 
     bool LITstar::checkEdge(State *a, State *b, unsigned int depth)
@@ -364,7 +370,7 @@ namespace lit
         State *from = a->id_ < b->id_ ? a : b;
         State *to = a->id_ < b->id_ ? b : a;
         unsigned int &done = checkedDepth(from, to);
-        const unsigned int segments = si_->getStateSpace()->validSegmentCount(from->raw_, to->raw_);
+        const unsigned int segments = segmentCount(from, to);
         std::vector<std::pair<unsigned int, unsigned int>> intervals{{0u, segments}}, next;
         unsigned int level = 0u;
         while (!intervals.empty() && level < depth)
@@ -405,7 +411,7 @@ namespace lit
     {
         const double toGo = edge.target->reverseCost(reverseTag_);
         const double effort = edge.target->reverseEffort(reverseTag_);
-        const double cost = si_->distance(edge.source->raw_, edge.target->raw_);
+        const double cost = graph_->distance(edge.source, edge.target);
         edge.lowerBoundKey = edge.source->costToCome_ + cost + toGo;
         if (!std::isfinite(effort))
             edge.effortKey = infinity;
@@ -458,7 +464,7 @@ namespace lit
         {
             if (other == state->reverseParent_ || other->isGoal_ || isBlacklisted(state, other))
                 continue;
-            const double cost = costToGo + si_->distance(state->raw_, other->raw_);
+            const double cost = costToGo + graph_->distance(state, other);
             if (cost >= other->reverseCost(reverseTag_))
                 continue;
             const double key = cost + other->costToComeLowerBound_;
@@ -475,7 +481,7 @@ namespace lit
         reverseQueue_.pop();
         State *source = edge.source;
         State *target = edge.target;
-        const double cost = source->reverseCost(reverseTag_) + si_->distance(source->raw_, target->raw_);
+        const double cost = source->reverseCost(reverseTag_) + graph_->distance(source, target);
         if (cost >= target->reverseCost(reverseTag_) || cost + target->costToComeLowerBound_ >= bestCost_ ||
             isBlacklisted(source, target))
             return;
@@ -513,7 +519,7 @@ namespace lit
                 forwardQueue_->insert(state, other);  // re-traverses the kept forward tree
                 continue;
             }
-            const double costToCome = state->costToCome_ + si_->distance(state->raw_, other->raw_);
+            const double costToCome = state->costToCome_ + graph_->distance(state, other);
             if (costToCome >= other->costToCome_ || costToCome + other->costToGoLowerBound_ >= bestCost_)
                 continue;
             forwardQueue_->insert(state, other);
@@ -531,7 +537,7 @@ namespace lit
             expandForward(target);
             return;
         }
-        const double edgeCost = si_->distance(source->raw_, target->raw_);
+        const double edgeCost = graph_->distance(source, target);
         const double costToCome = source->costToCome_ + edgeCost;
         if (costToCome >= target->costToCome_ || costToCome + target->costToGoLowerBound_ >= bestCost_)
             return;

@@ -132,6 +132,7 @@ namespace lit
         /** \brief Edge checks: sparse to a bisection depth, or full; both reuse earlier checks. */
         bool checkEdge(litstar::State *a, litstar::State *b, unsigned int depth);
         unsigned int &checkedDepth(litstar::State *a, litstar::State *b);
+        unsigned int segmentCount(const litstar::State *a, const litstar::State *b) const;
         double remainingChecks(const litstar::State *a, const litstar::State *b) const;
         bool isWhitelisted(const litstar::State *a, const litstar::State *b) const;
         bool isBlacklisted(const litstar::State *a, const litstar::State *b) const;
@@ -188,6 +189,7 @@ namespace lit
         bool batchLimitReached_{false};
         std::string statusMessage_;
         unsigned int dimension_{0u};
+        double longestValidSegment_{1.0};
         double spaceMeasure_{0.0};
         double bestCost_{std::numeric_limits<double>::infinity()};
         std::vector<litstar::State *> bestPathStates_;

@@ -3,7 +3,6 @@
 #include "lit/InformedMeasure.h"
 
 #include <ompl/base/spaces/RealVectorStateSpace.h>
-#include <ompl/util/Exception.h>
 
 #include <algorithm>
 #include <cmath>
@@ -17,14 +16,17 @@ namespace lit::litstar
             const double *v = state->as<ompl::base::RealVectorStateSpace::StateType>()->values;
             return {v, v + dim};
         }
+
+        /** \brief Strict order of neighbour candidates: distance, then id (deterministic ties). */
+        bool closer(double da, const State *a, double db, const State *b)
+        {
+            return da != db ? da < db : a->id_ < b->id_;
+        }
     }  // namespace
 
     RandomGeometricGraph::RandomGeometricGraph(const ompl::base::SpaceInformationPtr &si, std::uint_fast32_t seed)
-      : si_(si), sampler_(si, seed)
+      : si_(si), sampler_(si, seed), dim_(si->getStateDimension())
     {
-        validNN_.setDistanceFunction([this](State *const &a, State *const &b) { return si_->distance(a->raw_, b->raw_); });
-        invalidNN_.setDistanceFunction(
-            [this](ompl::base::State *const &a, ompl::base::State *const &b) { return si_->distance(a, b); });
     }
 
     RandomGeometricGraph::~RandomGeometricGraph()
@@ -32,10 +34,13 @@ namespace lit::litstar
         clear();
     }
 
+    const double *RandomGeometricGraph::coordinatesOf(const ompl::base::State *raw)
+    {
+        return raw->as<ompl::base::RealVectorStateSpace::StateType>()->values;
+    }
+
     void RandomGeometricGraph::clear()
     {
-        validNN_.clear();
-        invalidNN_.clear();
         for (auto &state : states_)
             si_->freeState(state->raw_);
         states_.clear();
@@ -45,28 +50,28 @@ namespace lit::litstar
         start_ = nullptr;
         goals_.clear();
         invalidDraws_ = validDraws_ = 0u;
+        ++pruneEpoch_;
         ++version_;
     }
 
     State *RandomGeometricGraph::createState(ompl::base::State *raw)
     {
-        states_.push_back(std::make_unique<State>(nextId_++, raw));
+        states_.push_back(std::make_unique<State>(nextId_++, raw, coordinatesOf(raw)));
         return states_.back().get();
     }
 
     void RandomGeometricGraph::computeLowerBounds(State *state) const
     {
-        state->costToComeLowerBound_ = si_->distance(start_->raw_, state->raw_);
+        state->costToComeLowerBound_ = distance(start_, state);
         double toGoal = std::numeric_limits<double>::infinity();
         for (const State *goal : goals_)
-            toGoal = std::min(toGoal, si_->distance(state->raw_, goal->raw_));
+            toGoal = std::min(toGoal, distance(state, goal));
         state->costToGoLowerBound_ = toGoal;
     }
 
     void RandomGeometricGraph::setTerminals(const ompl::base::State *start,
                                             const std::vector<const ompl::base::State *> &goals)
     {
-        const unsigned int dim = si_->getStateDimension();
         start_ = createState(si_->cloneState(start));
         start_->isStart_ = true;
         std::vector<std::vector<double>> goalCoordinates;
@@ -75,24 +80,19 @@ namespace lit::litstar
             State *state = createState(si_->cloneState(goal));
             state->isGoal_ = true;
             goals_.push_back(state);
-            goalCoordinates.push_back(coordinates(goal, dim));
+            goalCoordinates.push_back(coordinates(goal, dim_));
         }
-        sampler_.setFoci(coordinates(start, dim), goalCoordinates);
+        sampler_.setFoci(coordinates(start, dim_), goalCoordinates);
         for (auto &state : states_)
-        {
             computeLowerBounds(state.get());
-            validNN_.add(state.get());
-        }
         ++version_;
     }
 
     std::size_t RandomGeometricGraph::addBatch(std::size_t batchSize, double maxCost)
     {
-        std::vector<State *> added;
-        std::vector<ompl::base::State *> rejected;
-        added.reserve(batchSize);
+        std::size_t added = 0u;
         std::size_t failures = 0u;
-        while (added.size() < batchSize && failures < 10u)
+        while (added < batchSize && failures < 10u)
         {
             ompl::base::State *raw = si_->allocState();
             if (!sampler_.sample(maxCost, raw))
@@ -103,26 +103,18 @@ namespace lit::litstar
             }
             if (si_->isValid(raw))
             {
-                State *state = createState(raw);
-                computeLowerBounds(state);
-                added.push_back(state);
+                computeLowerBounds(createState(raw));
+                ++added;
                 ++validDraws_;
             }
             else
             {
-                rejected.push_back(raw);
+                invalid_.push_back(raw);
                 ++invalidDraws_;
             }
         }
-        if (!added.empty())
-            validNN_.add(added);
-        if (!rejected.empty())
-        {
-            invalid_.insert(invalid_.end(), rejected.begin(), rejected.end());
-            invalidNN_.add(rejected);
-        }
         ++version_;
-        return added.size();
+        return added;
     }
 
     State *RandomGeometricGraph::addValidSample(const std::vector<double> &x)
@@ -132,7 +124,6 @@ namespace lit::litstar
         State *state = createState(raw);
         if (start_ != nullptr)
             computeLowerBounds(state);
-        validNN_.add(state);
         ++version_;
         return state;
     }
@@ -142,7 +133,6 @@ namespace lit::litstar
         ompl::base::State *raw = si_->allocState();
         si_->getStateSpace()->copyFromReals(raw, x);
         invalid_.push_back(raw);
-        invalidNN_.add(raw);
         ++version_;
     }
 
@@ -165,11 +155,12 @@ namespace lit::litstar
             else
                 kept.push_back(std::move(state));
         }
+        states_ = std::move(kept);
         std::vector<ompl::base::State *> keptInvalid;
         keptInvalid.reserve(invalid_.size());
         for (auto *raw : invalid_)
         {
-            if (sampler_.heuristicCost(raw->as<ompl::base::RealVectorStateSpace::StateType>()->values) > maxCost)
+            if (sampler_.heuristicCost(coordinatesOf(raw)) > maxCost)
             {
                 si_->freeState(raw);
                 ++removed;
@@ -177,34 +168,67 @@ namespace lit::litstar
             else
                 keptInvalid.push_back(raw);
         }
-        states_ = std::move(kept);
         invalid_ = std::move(keptInvalid);
         if (removed > 0u)
         {
-            validNN_.clear();
-            std::vector<State *> all;
-            all.reserve(states_.size());
-            for (auto &state : states_)
-                all.push_back(state.get());
-            validNN_.add(all);
-            invalidNN_.clear();
-            invalidNN_.add(invalid_);
+            ++pruneEpoch_;  // cached neighbour lists may hold removed states and their positions shifted
             ++version_;
         }
         return removed;
     }
 
+    void RandomGeometricGraph::scanNeighbours(State *state, std::size_t k, std::size_t from)
+    {
+        // Merge the cached list with the candidates states_[from, end): a bounded max-heap on (distance, id).
+        std::vector<std::pair<double, State *>> best;
+        best.reserve(k + 1u);
+        auto worse = [](const std::pair<double, State *> &a, const std::pair<double, State *> &b) {
+            return closer(a.first, a.second, b.first, b.second);
+        };
+        for (std::size_t i = 0; i < state->neighbours_.size(); ++i)
+            best.emplace_back(state->neighbourDistances_[i], state->neighbours_[i]);
+        std::make_heap(best.begin(), best.end(), worse);
+        for (std::size_t i = from; i < states_.size(); ++i)
+        {
+            State *other = states_[i].get();
+            if (other == state)
+                continue;
+            const double d = distance(state, other);
+            if (best.size() < k)
+            {
+                best.emplace_back(d, other);
+                std::push_heap(best.begin(), best.end(), worse);
+            }
+            else if (k > 0u && closer(d, other, best.front().first, best.front().second))
+            {
+                std::pop_heap(best.begin(), best.end(), worse);
+                best.back() = {d, other};
+                std::push_heap(best.begin(), best.end(), worse);
+            }
+        }
+        std::sort_heap(best.begin(), best.end(), worse);
+        state->neighbours_.clear();
+        state->neighbourDistances_.clear();
+        for (const auto &[d, other] : best)
+        {
+            state->neighbours_.push_back(other);
+            state->neighbourDistances_.push_back(d);
+        }
+        state->neighboursScanned_ = states_.size();
+    }
+
     const std::vector<State *> &RandomGeometricGraph::neighbours(State *state, std::size_t k)
     {
-        if (state->neighboursVersion_ == version_ && state->neighboursK_ == k)
+        if (state->neighboursEpoch_ == pruneEpoch_ && state->neighboursK_ == k)
+        {
+            if (state->neighboursScanned_ < states_.size())
+                scanNeighbours(state, k, state->neighboursScanned_);
             return state->neighbours_;
+        }
         state->neighbours_.clear();
-        validNN_.nearestK(state, k + 1u, state->neighbours_);
-        state->neighbours_.erase(std::remove(state->neighbours_.begin(), state->neighbours_.end(), state),
-                                 state->neighbours_.end());
-        if (state->neighbours_.size() > k)
-            state->neighbours_.resize(k);
-        state->neighboursVersion_ = version_;
+        state->neighbourDistances_.clear();
+        scanNeighbours(state, k, 0u);
+        state->neighboursEpoch_ = pruneEpoch_;
         state->neighboursK_ = k;
         return state->neighbours_;
     }
@@ -217,16 +241,14 @@ namespace lit::litstar
 
     double RandomGeometricGraph::localRatio(const ompl::base::State *centre, double radius) const
     {
-        query_.raw_ = const_cast<ompl::base::State *>(centre);
-        std::vector<State *> valid;
-        std::vector<ompl::base::State *> invalid;
-        if (validNN_.size() > 0u)
-            validNN_.nearestR(&query_, radius, valid);
-        if (invalidNN_.size() > 0u)
-            invalidNN_.nearestR(const_cast<ompl::base::State *>(centre), radius, invalid);
-        query_.raw_ = nullptr;
-        const double total = static_cast<double>(valid.size() + invalid.size());
-        return total > 0.0 ? static_cast<double>(invalid.size()) / total : -1.0;
+        const double *c = coordinatesOf(centre);
+        std::size_t valid = 0u, invalid = 0u;
+        for (const auto &state : states_)
+            valid += distance(c, state->coordinates_) <= radius ? 1u : 0u;
+        for (const auto *raw : invalid_)
+            invalid += distance(c, coordinatesOf(raw)) <= radius ? 1u : 0u;
+        const double total = static_cast<double>(valid + invalid);
+        return total > 0.0 ? static_cast<double>(invalid) / total : -1.0;
     }
 
     std::pair<double, double> RandomGeometricGraph::localRatioCalc(
@@ -256,10 +278,9 @@ namespace lit::litstar
 
     double RandomGeometricGraph::radius(double rewireFactor, double informed) const
     {
-        const double n = static_cast<double>(si_->getStateDimension());
+        const double n = static_cast<double>(dim_);
         const double q = std::max(static_cast<double>(states_.size()), 2.0);
-        return rewireFactor * std::pow(2.0 * (1.0 + 1.0 / n) * (informed / unitBallMeasure(si_->getStateDimension())) *
-                                           (std::log(q) / q),
+        return rewireFactor * std::pow(2.0 * (1.0 + 1.0 / n) * (informed / unitBallMeasure(dim_)) * (std::log(q) / q),
                                        1.0 / n);
     }
 }  // namespace lit::litstar

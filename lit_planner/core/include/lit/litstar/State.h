@@ -24,7 +24,8 @@ namespace lit::litstar
     public:
         static constexpr double infinity = std::numeric_limits<double>::infinity();
 
-        State(std::size_t id, ompl::base::State *raw) : id_(id), raw_(raw)
+        State(std::size_t id, ompl::base::State *raw, const double *coordinates)
+          : id_(id), raw_(raw), coordinates_(coordinates)
         {
         }
 
@@ -32,6 +33,8 @@ namespace lit::litstar
         std::size_t id_;
         /** \brief The OMPL state (owned by the graph). */
         ompl::base::State *raw_;
+        /** \brief Its R^n coordinates (inside raw_). */
+        const double *coordinates_;
 
         /** \brief Admissible cost from the start (straight line), \hat g_lb. */
         double costToComeLowerBound_{infinity};
@@ -62,10 +65,13 @@ namespace lit::litstar
         /** \brief Bisection depth already checked on the edge to a neighbour (kept on the smaller id). */
         std::unordered_map<std::size_t, unsigned int> checkedDepth_;
 
-        /** \brief k-nearest cache, valid for (graph version, K). */
+        /** \brief k-nearest cache with distances, sorted. Valid for (prune epoch, K); samples appended since
+         *  (index >= neighboursScanned_) are merged in incrementally. */
         std::vector<State *> neighbours_;
-        std::size_t neighboursVersion_{std::numeric_limits<std::size_t>::max()};
+        std::vector<double> neighbourDistances_;
+        std::size_t neighboursEpoch_{std::numeric_limits<std::size_t>::max()};
         std::size_t neighboursK_{0u};
+        std::size_t neighboursScanned_{0u};
 
         /** \brief Forward-queue edges leaving / entering this state (for re-keying). */
         std::vector<ForwardQueueElement *> outgoing_;

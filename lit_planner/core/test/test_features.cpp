@@ -1,0 +1,117 @@
+#include "Worlds.h"
+
+#include "lit/litstar/RandomGeometricGraph.h"
+
+#include <ompl/base/ScopedState.h>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <tuple>
+
+using namespace lit;
+using litstar::RandomGeometricGraph;
+
+namespace
+{
+    std::unique_ptr<RandomGeometricGraph> handBuilt(const BoxProblem &problem)
+    {
+        auto graph = std::make_unique<RandomGeometricGraph>(problem.si, 1u);
+        ompl::base::ScopedState<> start(problem.si), goal(problem.si);
+        start[0] = -0.2;
+        start[1] = 0.0;
+        goal[0] = 0.2;
+        goal[1] = 0.0;
+        graph->setTerminals(start.get(), {goal.get()});
+        return graph;
+    }
+}  // namespace
+
+TEST(Features, GlobalRatioCountsPrunedSetsIncludingTerminals)
+{
+    BoxProblem problem = test::narrowPassage(2);
+    RandomGeometricGraph graph(problem.si, 1u);
+    EXPECT_DOUBLE_EQ(graph.ratioCalc(), 0.0);  // no samples at all
+    ompl::base::ScopedState<> start(problem.si), goal(problem.si);
+    start[0] = -0.2;
+    start[1] = 0.0;
+    goal[0] = 0.2;
+    goal[1] = 0.0;
+    graph.setTerminals(start.get(), {goal.get()});
+    graph.addValidSample({-0.3, 0.3});
+    graph.addValidSample({0.3, 0.3});
+    graph.addInvalidSample({0.0, 0.0});
+    graph.addInvalidSample({0.0, 0.3});
+    EXPECT_EQ(graph.numValid(), 4u);
+    EXPECT_EQ(graph.numInvalid(), 2u);
+    EXPECT_DOUBLE_EQ(graph.ratioCalc(), 2.0 / 6.0);
+}
+
+TEST(Features, LocalRatiosAroundPathStatesAndTheExpandedState)
+{
+    BoxProblem problem = test::narrowPassage(2);
+    auto owner = handBuilt(problem);
+    RandomGeometricGraph &graph = *owner;  // valid: start (-0.2, 0), goal (0.2, 0)
+    graph.addValidSample({-0.15, 0.0});
+    graph.addInvalidSample({-0.05, 0.0});
+    graph.addInvalidSample({0.0, 0.0});
+    graph.addInvalidSample({0.05, 0.0});
+    graph.addValidSample({0.0, 0.4});
+
+    ompl::base::ScopedState<> a(problem.si), b(problem.si), lonely(problem.si);
+    a[0] = -0.2;   // within 0.06: start, (-0.15, 0) -> ratio 0
+    a[1] = 0.0;
+    b[0] = 0.0;    // within 0.06: (-0.05, 0), (0, 0), (0.05, 0) -> ratio 1
+    b[1] = 0.0;
+    lonely[0] = -0.45;
+    lonely[1] = -0.45;
+    EXPECT_DOUBLE_EQ(graph.localRatio(a.get(), 0.06), 0.0);
+    EXPECT_DOUBLE_EQ(graph.localRatio(b.get(), 0.06), 1.0);
+    EXPECT_LT(graph.localRatio(lonely.get(), 0.06), 0.0);  // empty neighbourhood
+
+    const double global = 3.0 / 7.0;
+    EXPECT_DOUBLE_EQ(graph.ratioCalc(), global);
+    // rho_local,B is the mean over path states; rho_local,K the ratio at the expanded state.
+    auto [localB, localK] = graph.localRatioCalc({a.get(), b.get()}, b.get(), 0.06);
+    EXPECT_DOUBLE_EQ(localB, 0.5);
+    EXPECT_DOUBLE_EQ(localK, 1.0);
+    // Fallbacks: no path -> rho_global; empty neighbourhood -> rho_global (also inside the path mean).
+    std::tie(localB, localK) = graph.localRatioCalc({}, lonely.get(), 0.06);
+    EXPECT_DOUBLE_EQ(localB, global);
+    EXPECT_DOUBLE_EQ(localK, global);
+    std::tie(localB, localK) = graph.localRatioCalc({a.get(), lonely.get()}, nullptr, 0.06);
+    EXPECT_DOUBLE_EQ(localB, (0.0 + global) / 2.0);
+    EXPECT_DOUBLE_EQ(localK, global);
+}
+
+TEST(Features, RadiusFollowsTheRggFormula)
+{
+    BoxProblem problem = test::narrowPassage(2);
+    auto owner = handBuilt(problem);
+    RandomGeometricGraph &graph = *owner;
+    for (int i = 0; i < 98; ++i)
+        graph.addValidSample({-0.4 + 0.008 * i, 0.3});
+    const double q = 100.0, n = 2.0, informed = 0.5;
+    const double expected = 1.1 * std::pow(2.0 * (1.0 + 1.0 / n) * (informed / M_PI) * (std::log(q) / q), 1.0 / n);
+    EXPECT_NEAR(graph.radius(1.1, informed), expected, 1e-12);
+}
+
+TEST(Features, PruningRemovesWhatCannotImproveAndKeepsTerminals)
+{
+    BoxProblem problem = test::narrowPassage(2);
+    auto owner = handBuilt(problem);
+    RandomGeometricGraph &graph = *owner;
+    graph.addValidSample({0.0, 0.05});   // heuristic 2 * sqrt(0.04 + 0.0025) = 0.412
+    graph.addValidSample({0.0, 0.4});    // heuristic 2 * sqrt(0.04 + 0.16) = 0.894
+    graph.addInvalidSample({0.0, 0.1});  // 0.447
+    graph.addInvalidSample({0.3, 0.4});  // 0.412 + ... > 0.6
+    std::size_t callbacks = 0u;
+    const std::size_t removed = graph.prune(0.5, [&](litstar::State *) { ++callbacks; });
+    EXPECT_EQ(removed, 2u);
+    EXPECT_EQ(callbacks, 1u);
+    EXPECT_EQ(graph.numValid(), 3u);
+    EXPECT_EQ(graph.numInvalid(), 1u);
+    EXPECT_NE(graph.start(), nullptr);
+    EXPECT_EQ(graph.goals().size(), 1u);
+}
