@@ -30,8 +30,7 @@ class Command:
 COMMANDS: dict[str, Command] = {
     "demo": Command(
         "lit_planner.demo",
-        "run learner and planner as two processes on the default scenario, record a bag, "
-        "print the summary table",
+        "plan the default scenario (narrow passage in R^8) with LIT* and print the result",
     ),
     "compare": Command(
         "lit_planner.compare", "LIT* against OMPL planners on the same seeds: medians and ratios"

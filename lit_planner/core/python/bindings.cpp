@@ -470,7 +470,17 @@ PYBIND11_MODULE(lit_core, m)
                  auto holder = std::make_shared<py::function>(std::move(callback));
                  ExternalPolicy::Callback call = [holder](const DecisionContext &context) {
                      py::gil_scoped_acquire gil;
-                     return (*holder)(context).cast<double>();
+                     py::object answer = (*holder)(context);
+                     try
+                     {
+                         return answer.cast<double>();
+                     }
+                     catch (const py::cast_error &)
+                     {
+                         throw std::runtime_error("external policy answered " +
+                                                  std::string(py::repr(answer)) + " for " + toString(context.kind) +
+                                                  ", expected a number");
+                     }
                  };
                  // The py::function must be released with the GIL held.
                  return std::make_shared<ExternalPolicy>(std::move(call), decidesNeighbourFactor);
