@@ -36,6 +36,14 @@ COMMANDS: dict[str, Command] = {
         "lit_planner.compare", "LIT* against OMPL planners on the same seeds: medians and ratios"
     ),
     "plan": Command("lit_planner.plan_cli", "plan one query or a benchmark with the C++ core"),
+    "arena": Command(
+        "lit_planner.arena",
+        "turn a bench run folder's runs.jsonl into OMPL benchmark logs and a Planner Arena database",
+    ),
+    "crosscheck": Command(
+        "lit_planner.crosscheck",
+        "independent cross-check: LIT*'s paths and costs against OMPL 2.0.1 (PyPI ompl) planners",
+    ),
     "test": Command(
         "lit_planner.testing", "run all tests: C++ (ctest) and Python (pytest)", run="main"
     ),
