@@ -3,7 +3,8 @@
 Schemas live in ``lit_msgs_json/schemas/<Name>.schema.json`` and are found with
 ``importlib.resources``, so they work from a source tree, a wheel or a ROS install alike.
 Validation uses JSON Schema draft 2020-12 and additionally rejects non-finite numbers, which JSON
-cannot carry and which numeric bounds do not catch (every comparison with NaN is false).
+cannot carry and which numeric bounds do not catch (every comparison with NaN is false). A schema
+may ``$ref`` another shipped schema by its ``$id`` (``BenchSummary`` holds ``BenchRun`` records).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from typing import Any
 
 from jsonschema import Draft202012Validator
 from jsonschema.exceptions import best_match
+from referencing import Registry, Resource
 
 from lit_msgs_json.errors import SchemaError, UnknownSchemaError
 
@@ -83,12 +85,26 @@ def loads(name: str, text: str | bytes) -> Any:
 
 @cache
 def _validator(name: str) -> Draft202012Validator:
+    schema = _schema(name)
+    Draft202012Validator.check_schema(schema)
+    return Draft202012Validator(schema, registry=_registry())
+
+
+@cache
+def _schema(name: str) -> dict[str, Any]:
     resource = files("lit_msgs_json") / "schemas" / f"{name}{SCHEMA_SUFFIX}"
     if "/" in name or not resource.is_file():
         raise UnknownSchemaError(name, schema_names())
-    schema = json.loads(resource.read_text(encoding="utf-8"))
-    Draft202012Validator.check_schema(schema)
-    return Draft202012Validator(schema)
+    return json.loads(resource.read_text(encoding="utf-8"))  # type: ignore[no-any-return]
+
+
+@cache
+def _registry() -> Registry:
+    """Every shipped schema under its ``$id``, so that schemas can refer to each other."""
+    schemas = [_schema(name) for name in schema_names()]
+    return Registry().with_resources(
+        (schema["$id"], Resource.from_contents(schema)) for schema in schemas if "$id" in schema
+    )
 
 
 def _non_finite_numbers(obj: object, path: str) -> Iterator[tuple[str, float]]:

@@ -35,6 +35,10 @@ COMMANDS: dict[str, Command] = {
     "compare": Command(
         "lit_planner.compare", "LIT* against OMPL planners on the same seeds: medians and ratios"
     ),
+    "bench": Command(
+        "lit_planner.bench.cli",
+        "benchmark planners on the paper's scenarios: statistics, tables, plots (--quick, --paper)",
+    ),
     "plan": Command("lit_planner.plan_cli", "plan one query or a benchmark with the C++ core"),
     "arena": Command(
         "lit_planner.arena",

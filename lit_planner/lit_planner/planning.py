@@ -228,6 +228,7 @@ def plan(
     *,
     instance: int | None = None,
     interpolation: str = "trilinear",
+    check_path: bool = True,
 ) -> dict[str, Any]:
     """Plan ``scenario`` with ``planner`` and return the core's result plus scenario facts.
 
@@ -248,6 +249,8 @@ def plan(
         listener: object with optional ``on_solution``, ``on_decision``, ``on_batch`` methods
             (LIT* only), called with the core's event objects as they happen.
         instance: instance of a random scenario family when ``scenario`` is a name.
+        check_path: run the independent re-check of the returned path now. ``lit bench`` passes
+            False and checks all paths afterwards, in parallel, while no planner is timing.
 
     Returns:
         The dict of ``lit_core.solve`` (``status``, ``solved``, ``message``, ``cost``, ``t_init``,
@@ -255,7 +258,7 @@ def plan(
         ``decisions``, ``planner``, ``seed``, LIT*'s ``policy``) plus ``policy`` (None for OMPL
         planners), ``scenario`` (name), ``instance``, ``dimension``, ``optimal_cost`` (None where
         unknown), ``time_budget`` (the limit given, None if none) and ``path_check`` (the
-        independent re-check as a dict, None without a path).
+        independent re-check as a dict, None without a path or with ``check_path=False``).
 
     Raises:
         ScenarioError: unknown scenario or instance.
@@ -311,7 +314,7 @@ def plan(
         time_budget=time if time > 0 else None,
         path_check=(
             dataclasses.asdict(scenarios.check_path(problem, result["path"]))
-            if result["path"]
+            if result["path"] and check_path
             else None
         ),
     )

@@ -1,0 +1,303 @@
+"""``lit bench``: the benchmark in the manner of the Planner Developer Tools.
+
+::
+
+    lit bench --quick                  # np4 and rrd4, 5 runs, every planner (development)
+    lit bench --paper                  # the paper's six scenarios, 100 runs (the reproduction)
+    lit bench --scenarios np8 --planners litstar-fixed,aitstar --runs 20 --out results/np8
+
+Writes into the run folder (``--out``, default ``results/<timestamp>``): ``runs.jsonl`` (one
+``BenchRun`` record per line, appended scenario by scenario), ``summary.json`` (a validated
+``BenchSummary``), ``summary.md`` (the tables) and ``plots/<scenario>.png|.pdf``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from lit_planner import planning, scenarios
+from lit_planner.bench import runner
+from lit_planner.errors import LitPlannerError
+
+RUNS_FILE = "runs.jsonl"
+SUMMARY_JSON = "summary.json"
+SUMMARY_MD = "summary.md"
+PLOTS_DIR = "plots"
+DEFAULT_OUT = "results/{timestamp}"
+"""Run folder when ``--out`` is not given (relative to the working directory)."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``lit bench``."""
+    presets = parser.add_mutually_exclusive_group()
+    for name, preset in runner.PRESETS.items():
+        presets.add_argument(f"--{name}", action="store_true", help=preset.purpose)
+    parser.add_argument(
+        "--scenarios",
+        help="comma-separated scenario names (default: the preset's, else "
+        f"{','.join(runner.PAPER_SCENARIOS)})",
+    )
+    parser.add_argument(
+        "--planners",
+        help=f"comma-separated planners (default: all: {','.join(runner.ALL_PLANNERS)})",
+    )
+    parser.add_argument(
+        "--runs", type=int, help="runs per scenario and planner (default: the preset's, else 100)"
+    )
+    parser.add_argument(
+        "--out", type=Path, help="run folder (default: results/<timestamp>); must be new or empty"
+    )
+    parser.add_argument(
+        "--time-scale",
+        type=float,
+        default=1.0,
+        metavar="F",
+        help="multiply every scenario's (the paper's) time budget by F (default: 1)",
+    )
+    parser.add_argument("--seed", type=int, default=1, help="seed of the first run (default: 1)")
+    parser.add_argument(
+        "--instance",
+        type=int,
+        default=0,
+        help="instance of the random scenario families (rr, rrd) for every run (default: 0)",
+    )
+    parser.add_argument(
+        "--tensors",
+        type=Path,
+        metavar="DIR",
+        help="trained tensors for litstar-tensor (default: $LIT_TENSORS, else tensors/)",
+    )
+    parser.add_argument(
+        "--check-jobs",
+        type=int,
+        default=os.cpu_count() or 1,
+        metavar="N",
+        help="processes for the independent path checks between scenarios (default: all cores)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``lit bench``; 0 on success, 1 when a returned path failed the re-check, 2 bad input."""
+    try:
+        config, preset, requested = _config(args)
+        out = _out_dir(args.out)
+    except (LitPlannerError, ValueError) as error:
+        print(f"lit bench: {error}", file=sys.stderr)
+        return 2
+    for skip in config.skipped:
+        print(f"lit bench: {skip.planner} {skip.reason} ({skip.detail})", file=sys.stderr)
+    estimate = runner.planning_estimate(
+        config.scenarios, len(config.planners), config.runs, config.time_scale
+    )
+    formula = _estimate_formula(config, estimate)
+    print(f"lit bench: {formula}", file=sys.stderr)
+    print(f"lit bench: writing to {out}", file=sys.stderr)
+
+    started = datetime.now(UTC)
+    clock = time.perf_counter()
+    runs_path = out / RUNS_FILE
+    runs_path.touch()
+
+    def append(records: list[dict[str, Any]]) -> None:
+        from lit_msgs_json import codec
+
+        with runs_path.open("a", encoding="utf-8") as handle:
+            for record in records:
+                handle.write(codec.dumps(runner.RUN_SCHEMA, record) + "\n")
+
+    try:
+        records = runner.run_benchmark(config, on_scenario_done=append)
+    except KeyboardInterrupt:
+        print(
+            f"lit bench: interrupted; {runs_path} holds the runs of the finished scenarios",
+            file=sys.stderr,
+        )
+        return 130
+    duration = time.perf_counter() - clock
+    finished = datetime.now(UTC)
+
+    write_outputs(
+        out,
+        records,
+        config,
+        preset=preset,
+        requested=requested,
+        started=started,
+        finished=finished,
+        duration=duration,
+        estimate=(estimate, formula),
+    )
+    print((out / SUMMARY_MD).read_text(encoding="utf-8"))
+    invalid = sum(1 for r in records if r["solved"] and r["path_valid"] is False)
+    print(
+        f"lit bench: {len(records)} runs in {duration / 60:.1f} min; {invalid} returned paths "
+        f"failed the independent re-check; outputs in {out}",
+        file=sys.stderr,
+    )
+    return 1 if invalid else 0
+
+
+def write_outputs(
+    out: Path,
+    records: list[dict[str, Any]],
+    config: runner.BenchConfig,
+    *,
+    preset: str | None,
+    requested: list[str],
+    started: datetime,
+    finished: datetime,
+    duration: float,
+    estimate: tuple[float, str],
+    argv: list[str] | None = None,
+) -> dict[str, Any]:
+    """Compute the statistics, draw the plots, validate and write summary.json and summary.md."""
+    from lit_msgs_json import codec
+    from lit_planner.bench import environment, plots, report, stats
+
+    scenario_info = {}
+    for name in config.scenarios:
+        problem = runner.scenario_for(name, config.instance)
+        scenario_info[name] = {
+            "name": problem.name,
+            "key": problem.key,
+            "instance": problem.instance,
+            "dimension": problem.dim,
+            "time_budget": config.time_budget(problem),
+            "optimal_cost": problem.optimal_cost,
+            "description": problem.description,
+        }
+    summaries, curves = report.scenario_summaries(records, scenario_info, config.planners)
+    plot_files: dict[str, list[str]] = {}
+    for name, (_, planner_curves) in curves.items():
+        if planner_curves:
+            paths = plots.plot_scenario(name, summaries[name], planner_curves, out / PLOTS_DIR)
+            plot_files[name] = [str(path.relative_to(out)) for path in paths]
+    root = Path(__file__).resolve().parents[3]
+    summary = {
+        "schema": report.SUMMARY_SCHEMA,
+        "version": report.SUMMARY_SCHEMA_VERSION,
+        "started": started.isoformat(timespec="seconds"),
+        "finished": finished.isoformat(timespec="seconds"),
+        "duration_s": duration,
+        "command": {
+            "argv": argv if argv is not None else ["lit", *sys.argv[1:]],
+            "cwd": os.getcwd(),
+            "preset": preset,
+        },
+        "config": {
+            "scenarios": list(config.scenarios),
+            "planners_requested": requested,
+            "planners": list(config.planners),
+            "runs": config.runs,
+            "first_seed": config.first_seed,
+            "instance": config.instance,
+            "time_scale": config.time_scale,
+            "confidence": stats.CONFIDENCE,
+            "ompl_global_seed": config.first_seed,
+            "shuffle": f"random.Random({runner.SHUFFLE_KEY!r}).shuffle(planners) per run",
+            "check_jobs": config.check_jobs,
+            "tensors_dir": str(config.tensors_dir or planning.default_tensors_dir()),
+        },
+        "estimate": {"planning_s": estimate[0], "formula": estimate[1]},
+        "skipped": [
+            {"planner": s.planner, "reason": s.reason, "detail": s.detail} for s in config.skipped
+        ],
+        "machine": environment.machine(),
+        "versions": environment.versions(root),
+        "planners": {
+            name: runner.planner_setup(name, config.tensors_dir).to_dict()
+            for name in config.planners
+        },
+        "scenarios": summaries,
+        "comparisons": report.comparisons(
+            summaries, config.planners, [s.planner for s in config.skipped]
+        ),
+        "statistics": {
+            "interval_rule": report.CI_RULE,
+            "min_runs_for_interval": stats.MIN_RUNS_FOR_INTERVAL,
+        },
+        "runs": [{k: v for k, v in r.items() if k != "path"} for r in records],
+        "outputs": {"summary_md": SUMMARY_MD, "runs_jsonl": RUNS_FILE, "plots": plot_files},
+    }
+    codec.validate(report.SUMMARY_SCHEMA, summary)
+    (out / SUMMARY_JSON).write_text(
+        json.dumps(summary, allow_nan=False, indent=1), encoding="utf-8"
+    )
+    (out / SUMMARY_MD).write_text(report.markdown(summary), encoding="utf-8")
+    return summary
+
+
+def _config(args: argparse.Namespace) -> tuple[runner.BenchConfig, str | None, list[str]]:
+    preset_name = next((name for name in runner.PRESETS if getattr(args, name)), None)
+    preset = runner.PRESETS[preset_name] if preset_name else runner.PRESETS["paper"]
+    scenario_names = _split(args.scenarios) if args.scenarios else list(preset.scenarios)
+    planners = _split(args.planners) if args.planners else list(runner.ALL_PLANNERS)
+    runs = args.runs if args.runs is not None else preset.runs
+    if runs < 1:
+        raise ValueError(f"--runs must be at least 1, got {runs}")
+    if not (math.isfinite(args.time_scale) and args.time_scale > 0):
+        raise ValueError(f"--time-scale must be a positive number, got {args.time_scale}")
+    if args.check_jobs < 1:
+        raise ValueError(f"--check-jobs must be at least 1, got {args.check_jobs}")
+    planning.check_seed(args.seed)
+    planning.check_seed(args.seed + runs - 1)
+    if not scenario_names or not planners:
+        raise ValueError("need at least one scenario and one planner")
+    for label, names in (("scenario", scenario_names), ("planner", planners)):
+        duplicates = sorted({n for n in names if names.count(n) > 1})
+        if duplicates:
+            raise ValueError(f"{label} given twice: {', '.join(duplicates)}")
+    for name in scenario_names:
+        if "/" in name:
+            raise ValueError(
+                f"scenario {name!r}: give the instance with --instance, not in the name"
+            )
+        runner.scenario_for(name, args.instance)
+    running, skipped = runner.select_planners(planners, args.tensors)
+    if not running:
+        raise ValueError("none of the requested planners can run")
+    config = runner.BenchConfig(
+        scenarios=tuple(scenario_names),
+        planners=tuple(running),
+        runs=runs,
+        first_seed=args.seed,
+        instance=args.instance,
+        time_scale=args.time_scale,
+        tensors_dir=args.tensors,
+        check_jobs=args.check_jobs,
+        skipped=tuple(skipped),
+    )
+    return config, preset_name, planners
+
+
+def _out_dir(requested: Path | None) -> Path:
+    if requested is None:
+        stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
+        requested = Path(DEFAULT_OUT.format(timestamp=stamp))
+    out = requested.resolve()
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ValueError(f"--out {requested}: exists and is not an empty folder; choose a new one")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _estimate_formula(config: runner.BenchConfig, estimate: float) -> str:
+    budgets = [scenarios.get(name).time_budget * config.time_scale for name in config.scenarios]
+    return (
+        f"planning time alone: {config.runs} runs x {len(config.planners)} planners x "
+        f"{sum(budgets):.3g} s (budgets of {len(budgets)} scenarios: "
+        f"{' + '.join(f'{b:g}' for b in budgets)}) = {estimate:.4g} s = {estimate / 60:.3g} min; "
+        "set-up and the path checks add to this"
+    )
+
+
+def _split(text: str) -> list[str]:
+    return [item.strip() for item in text.split(",") if item.strip()]

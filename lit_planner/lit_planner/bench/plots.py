@@ -1,0 +1,135 @@
+"""Per-scenario figures like the LIT* paper's Fig. 5: cost over time and success over time.
+
+Top panel: median cost against time (log time axis), one line per planner, the 99% interval of
+the median as a band (the full range when the runs are too few for an interval), the median
+initial solution as a marker with its interval as error bars in time and cost, and the known
+optimum as a dashed line. Bottom panel: the fraction of runs solved against time.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only: no display, no GUI toolkit
+
+import matplotlib.pyplot as plt  # after choosing the backend
+import numpy as np
+
+from lit_planner.bench import stats
+from lit_planner.bench.report import label
+
+FORMATS = ("png", "pdf")
+"""File formats of every figure."""
+DPI = 150
+"""Resolution of the PNG files."""
+HEADROOM = 1.08
+"""Cost axis top as a multiple of the largest finite value drawn."""
+FOOTROOM = 0.95
+"""Cost axis bottom as a multiple of the smallest value drawn (or the optimum)."""
+
+
+def plot_scenario(
+    name: str,
+    scenario: dict,
+    curves: dict[str, stats.CostCurve],
+    out_dir: Path,
+) -> list[Path]:
+    """Draw ``name``'s figure into ``out_dir`` as ``<name>.png`` and ``<name>.pdf``."""
+    figure, (cost_axes, success_axes) = plt.subplots(
+        2, 1, figsize=(7.0, 6.5), sharex=True, gridspec_kw={"height_ratios": [2.2, 1.0]}
+    )
+    colours = plt.get_cmap("tab10")
+    finite_tops, finite_bottoms = [], []
+    for curve in curves.values():
+        lows = curve.lower if curve.ranks else curve.minimum
+        if np.isfinite(lows).any():
+            finite_bottoms.append(float(lows[np.isfinite(lows)].min()))
+        for values in (curve.upper, curve.median, None if curve.ranks else curve.maximum):
+            if values is not None and np.isfinite(values).any():
+                finite_tops.append(float(np.nanmax(np.where(np.isfinite(values), values, np.nan))))
+    optimum = scenario.get("optimal_cost")
+    top = HEADROOM * max(finite_tops + ([optimum] if optimum else []) + [1e-9])
+    bottom = FOOTROOM * min(finite_bottoms + ([optimum] if optimum else []) + [top])
+    any_range = False
+    for index, (planner, curve) in enumerate(curves.items()):
+        colour = colours(index % 10)
+        entry = scenario["planners"][planner]
+        times = curve.times
+        if curve.ranks is not None:
+            lower, upper = curve.lower, curve.upper
+        else:
+            any_range = True
+            lower, upper = curve.minimum, curve.maximum
+        drawable = np.isfinite(lower)
+        cost_axes.fill_between(
+            times,
+            np.where(drawable, lower, np.nan),
+            np.where(drawable, np.minimum(upper, top), np.nan),
+            color=colour,
+            alpha=0.18,
+            linewidth=0,
+            step="post",
+        )
+        median = np.where(np.isfinite(curve.median), curve.median, np.nan)
+        cost_axes.step(times, median, where="post", color=colour, label=label(planner), lw=1.6)
+        _initial_solution_marker(cost_axes, entry, colour, top)
+        success_axes.step(times, curve.success * 100, where="post", color=colour, lw=1.6)
+    if optimum:
+        cost_axes.axhline(optimum, color="black", ls="--", lw=1.0, label=f"optimum {optimum:.4f}")
+    cost_axes.set_xscale("log")
+    cost_axes.set_ylim(bottom, top)
+    cost_axes.set_ylabel("cost (path length)")
+    band = "full range (too few runs for a 99% interval)" if any_range else "99% interval"
+    cost_axes.set_title(
+        f"{name}: median cost, band = {band}; budget {scenario['time_budget']:g} s", fontsize=10
+    )
+    cost_axes.grid(True, which="both", alpha=0.3)
+    cost_axes.legend(fontsize=8, loc="upper right")
+    success_axes.set_ylim(-2, 102)
+    success_axes.set_ylabel("success (%)")
+    success_axes.set_xlabel("time (s)")
+    success_axes.grid(True, which="both", alpha=0.3)
+    figure.tight_layout()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for extension in FORMATS:
+        path = out_dir / f"{name}.{extension}"
+        figure.savefig(path, dpi=DPI)
+        paths.append(path)
+    plt.close(figure)
+    return paths
+
+
+def _initial_solution_marker(axes: plt.Axes, entry: dict, colour: object, top: float) -> None:
+    """The median initial solution with its intervals (or ranges) as error bars."""
+    t, c = entry["t_init"], entry["c_init"]
+    t_median, c_median = float(t["median"]), float(c["median"])
+    if not (math.isfinite(t_median) and math.isfinite(c_median)):
+        return
+
+    def bounds(item: dict) -> tuple[float, float]:
+        low, high = (
+            (item["ci"]["lower"], item["ci"]["upper"])
+            if item["ci"] is not None
+            else (item["min"], item["max"])
+        )
+        return float(low), float(high)
+
+    t_low, t_high = bounds(t)
+    c_low, c_high = bounds(c)
+    t_high = t_high if math.isfinite(t_high) else axes.get_xlim()[1]
+    c_high = min(c_high, top)
+    axes.errorbar(
+        [t_median],
+        [c_median],
+        xerr=[[t_median - t_low], [max(t_high - t_median, 0.0)]],
+        yerr=[[c_median - c_low], [max(c_high - c_median, 0.0)]],
+        fmt="o",
+        ms=4,
+        color=colour,
+        capsize=2,
+        lw=1.0,
+    )

@@ -1,0 +1,398 @@
+"""From run records to the benchmark's statistics, ``summary.json`` content and ``summary.md``.
+
+JSON has no infinity. In the statistics of ``summary.json`` an infinite value (a median or bound
+among failed runs) is the string ``"inf"`` (``float("inf")`` parses it) and ``null`` means "does
+not exist" (no interval for too few runs, an undefined improvement). Run records keep the
+convention of ``lit plan --json``: ``null`` times and costs for a run without a solution.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+from lit_planner import planning
+from lit_planner.bench import stats
+from lit_planner.bench.runner import TENSOR_PLANNER
+
+SUMMARY_SCHEMA = "lit_msgs_json/BenchSummary"
+"""Schema of ``summary.json``."""
+SUMMARY_SCHEMA_VERSION = 1
+"""Version of :data:`SUMMARY_SCHEMA` that this module writes."""
+METRICS = ("t_init", "c_init", "c_final")
+"""Per-run quantities whose medians the tables show."""
+FIT_PLANNER = "litstar-fit"
+"""FIT*'s batch rule on LIT*: the paper's Table I baseline."""
+LIT_CANDIDATES = (TENSOR_PLANNER, "litstar-fixed")
+"""LIT* in Table I: with trained tensors, else with the fixed policy (said in the table)."""
+CI_RULE = (
+    "99% interval of the median from binomial order statistics: with the sample sorted "
+    "x_(1) <= ... <= x_(n), P(x_(l) <= median <= x_(u)) = F(u-1) - F(l-1), F the CDF of "
+    "Binomial(n, 1/2) (scipy.stats.binom). Of all rank pairs with coverage >= 0.99 the narrowest, "
+    "then the one of highest coverage, then (mirror-image ties) the upper one; this reproduces "
+    "PDT's table (n = 100: ranks 38 and 64). For n < 8 no pair reaches 99%: the interval is null "
+    "and the tables show the full range (min–max) instead, marked †. Unsolved runs count as "
+    "infinite time and cost."
+)
+"""The interval rule in words, written into both outputs."""
+BEST_OMPL_RULE = (
+    "best OMPL planner per scenario: lowest median final cost, ties broken by the lower median "
+    "initial-solution time"
+)
+"""How the OMPL planner that LIT* is compared with is chosen."""
+
+Record = dict[str, Any]
+
+
+def ext(value: float | None) -> float | str | None:
+    """A float for ``summary.json``: inf becomes ``"inf"``, None stays None (does not exist)."""
+    if value is None:
+        return None
+    if math.isnan(value):
+        raise ValueError("NaN has no place in the summary")
+    return "inf" if math.isinf(value) else float(value)
+
+
+def record_value(record: Record, metric: str) -> float:
+    """``t_init``, ``c_init`` or ``c_final`` of a record; inf for a run without a solution."""
+    value = record[metric] if record["solved"] else None
+    return math.inf if value is None else float(value)
+
+
+def median_summary(estimate: stats.MedianEstimate) -> dict[str, Any]:
+    """A :class:`stats.MedianEstimate` as summary JSON."""
+    ci = None
+    if estimate.ranks is not None:
+        ci = {
+            "lower": ext(estimate.lower),
+            "upper": ext(estimate.upper),
+            "lower_rank": estimate.ranks.lower_rank,
+            "upper_rank": estimate.ranks.upper_rank,
+            "coverage": estimate.ranks.coverage,
+        }
+    return {
+        "median": ext(estimate.median),
+        "ci": ci,
+        "min": ext(estimate.minimum),
+        "max": ext(estimate.maximum),
+    }
+
+
+def planner_statistics(records: Sequence[Record]) -> dict[str, Any]:
+    """Success rate, invalid paths and the medians of one (scenario, planner)."""
+    result: dict[str, Any] = {
+        "runs": len(records),
+        "solved": sum(bool(r["solved"]) for r in records),
+        "success_rate": stats.success_rate(r["solved"] for r in records),
+        "invalid_paths": sum(r["solved"] and r["path_valid"] is False for r in records),
+    }
+    for metric in METRICS:
+        estimate = stats.median_with_interval([record_value(r, metric) for r in records])
+        result[metric] = median_summary(estimate)
+    return result
+
+
+def curves(
+    records_by_planner: dict[str, list[Record]], budget: float
+) -> tuple[np.ndarray, dict[str, stats.CostCurve]]:
+    """The scenario's time grid and every planner's cost curve on it."""
+    firsts = [record_value(r, "t_init") for rs in records_by_planner.values() for r in rs]
+    finite = [t for t in firsts if math.isfinite(t) and t > 0]
+    grid = stats.time_grid(budget, min(finite) if finite else None)
+    result = {}
+    for planner, records in records_by_planner.items():
+        runs = [r["improvements"] if r["solved"] else [] for r in records]
+        result[planner] = stats.cost_curve(runs, grid)
+    return grid, result
+
+
+def curve_summary(curve: stats.CostCurve) -> dict[str, Any]:
+    """A :class:`stats.CostCurve` as summary JSON (the grid is stored once per scenario)."""
+
+    def series(values: np.ndarray | None) -> list[Any] | None:
+        return None if values is None else [ext(float(v)) for v in values]
+
+    return {
+        "median": series(curve.median),
+        "lower": series(curve.lower),
+        "upper": series(curve.upper),
+        "success": [float(v) for v in curve.success],
+    }
+
+
+def group(records: Iterable[Record]) -> dict[str, dict[str, list[Record]]]:
+    """Records by scenario, then planner, in first-seen order."""
+    grouped: dict[str, dict[str, list[Record]]] = {}
+    for record in records:
+        grouped.setdefault(record["scenario"], {}).setdefault(record["planner"], []).append(record)
+    return grouped
+
+
+def scenario_summaries(
+    records: Sequence[Record], scenario_info: dict[str, dict[str, Any]], planners: Sequence[str]
+) -> tuple[dict[str, Any], dict[str, tuple[np.ndarray, dict[str, stats.CostCurve]]]]:
+    """Per scenario: facts, per-planner statistics and curves; also the curves for plotting."""
+    grouped = group(records)
+    summaries: dict[str, Any] = {}
+    all_curves = {}
+    for name, info in scenario_info.items():
+        by_planner = {p: grouped.get(name, {}).get(p, []) for p in planners}
+        by_planner = {p: rs for p, rs in by_planner.items() if rs}
+        grid, planner_curves = (
+            curves(by_planner, info["time_budget"])
+            if by_planner
+            else (
+                np.array([info["time_budget"]]),
+                {},
+            )
+        )
+        all_curves[name] = (grid, planner_curves)
+        summaries[name] = {
+            **info,
+            "planners": {p: planner_statistics(rs) for p, rs in by_planner.items()},
+            "time_grid": [float(t) for t in grid],
+            "curves": {p: curve_summary(c) for p, c in planner_curves.items()},
+        }
+    return summaries, all_curves
+
+
+def _medians(planner_stats: dict[str, Any]) -> dict[str, float]:
+    return {m: _as_float(planner_stats[m]["median"]) for m in METRICS}
+
+
+def _as_float(value: float | str | None) -> float:
+    return math.inf if value is None else float(value)
+
+
+def comparisons(
+    summaries: dict[str, Any], planners: Sequence[str], skipped: Sequence[str]
+) -> dict[str, Any]:
+    """Table I (LIT* against FIT*) and LIT* against the best OMPL planner, per scenario."""
+    lit = next((p for p in LIT_CANDIDATES if p in planners), None)
+    if lit == TENSOR_PLANNER:
+        note = "LIT* is litstar-tensor (trained lookup tensors)"
+    elif lit is not None and TENSOR_PLANNER in skipped:
+        note = f"LIT* is {lit}: litstar-tensor was skipped (no trained tensors in tensors/)"
+    elif lit is not None:
+        note = f"LIT* is {lit}: litstar-tensor was not among the planners"
+    else:
+        note = "no LIT* run (neither litstar-tensor nor litstar-fixed among the planners)"
+    fit_rows: dict[str, Any] = {}
+    best_rows: dict[str, Any] = {}
+    ompl = [p for p in planners if p in planning.OMPL_PLANNERS]
+    for name, summary in summaries.items():
+        per_planner = summary["planners"]
+        if lit is None or lit not in per_planner:
+            continue
+        lit_medians = _medians(per_planner[lit])
+        if FIT_PLANNER in per_planner:
+            fit_medians = _medians(per_planner[FIT_PLANNER])
+            fit_rows[name] = _comparison_row(FIT_PLANNER, fit_medians, lit_medians)
+        candidates = {
+            p: (_medians(per_planner[p])["c_final"], _medians(per_planner[p])["t_init"])
+            for p in ompl
+            if p in per_planner
+        }
+        best = stats.best_by_final_cost(candidates)
+        if best is not None:
+            best_rows[name] = _comparison_row(best, _medians(per_planner[best]), lit_medians)
+    return {
+        "litstar": lit,
+        "litstar_note": note,
+        "improvement": "(reference - LIT*) / reference x 100; positive: LIT* is faster / cheaper; "
+        "null where a median is infinite",
+        "fit": {"planner": FIT_PLANNER if fit_rows else None, "rows": fit_rows},
+        "best_ompl": {"rule": BEST_OMPL_RULE, "rows": best_rows},
+    }
+
+
+def _comparison_row(
+    reference: str, reference_medians: dict[str, float], lit_medians: dict[str, float]
+) -> dict[str, Any]:
+    return {
+        "reference": reference,
+        "reference_medians": {m: ext(v) for m, v in reference_medians.items()},
+        "litstar_medians": {m: ext(v) for m, v in lit_medians.items()},
+        "improvement_percent": {
+            m: stats.improvement_percent(reference_medians[m], lit_medians[m]) for m in METRICS
+        },
+    }
+
+
+# --- Markdown -------------------------------------------------------------------------------
+
+PLANNER_LABELS = {
+    "litstar-tensor": "LIT* (tensor)",
+    "litstar-fit": "FIT* (LIT*, fit)",
+    "litstar-fixed": "LIT* (fixed)",
+    "aitstar": "AIT*",
+    "bitstar": "BIT*",
+    "abitstar": "ABIT*",
+    "irrtstar": "Informed RRT*",
+    "rrtconnect": "RRT-Connect",
+}
+"""Names in tables and legends."""
+
+
+def label(planner: str) -> str:
+    """The display name of ``planner``."""
+    return PLANNER_LABELS.get(planner, planner)
+
+
+def fmt(value: float | str | None, digits: int = 4) -> str:
+    """A number for a table: ``∞`` for inf, ``—`` for None."""
+    if value is None:
+        return "—"
+    number = float(value)
+    if math.isinf(number):
+        return "∞"
+    return f"{number:.{digits}f}"
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds:.1f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
+
+
+def fmt_percent(value: float | None) -> str:
+    return "—" if value is None else f"{value:+.2f}"
+
+
+def fmt_median(entry: dict[str, Any], digits: int = 4) -> str:
+    """``median [lower, upper]``, or ``median (min–max)†`` when no interval exists."""
+    median = fmt(entry["median"], digits)
+    if entry["ci"] is not None:
+        return (
+            f"{median} [{fmt(entry['ci']['lower'], digits)}, {fmt(entry['ci']['upper'], digits)}]"
+        )
+    return f"{median} ({fmt(entry['min'], digits)}–{fmt(entry['max'], digits)})†"
+
+
+def markdown(summary: dict[str, Any]) -> str:
+    """``summary.md``: the comparison tables, every planner's statistics, notes and plots."""
+    config = summary["config"]
+    comp = summary["comparisons"]
+    lines = [
+        "# LIT* benchmark",
+        "",
+        f"`{' '.join(summary['command']['argv'])}`",
+        "",
+        (
+            f"{config['runs']} runs per scenario and planner; seeds {config['first_seed']}…"
+            f"{config['first_seed'] + config['runs'] - 1}; instance {config['instance']} of the random "
+            f"scenarios; time budgets {config['time_scale']:g} × the paper's; "
+            f"{summary['started']} → {summary['finished']} ({_duration(summary['duration_s'])}) on "
+            f"{summary['machine']['cpu_model']} ({summary['machine']['cores']} cores)."
+        ),
+        "",
+    ]
+    for skip in summary["skipped"]:
+        lines += [f"**{skip['planner']} {skip['reason']}.**", ""]
+    lines += [f"{comp['litstar_note']}.", ""]
+
+    lines += ["## LIT* against FIT* (the paper's Table I)", ""]
+    rows = comp["fit"]["rows"]
+    if rows:
+        lines += [
+            (
+                "| scenario | FIT* t_init (s) | FIT* c_init | FIT* c_final | LIT* t_init (s) | LIT* c_init "
+                "| LIT* c_final | t_init ⇑ (%) | c_init ⇑ (%) | c_final ⇑ (%) |"
+            ),
+            "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        ]
+        for name, row in rows.items():
+            ref, lit, imp = (
+                row["reference_medians"],
+                row["litstar_medians"],
+                row["improvement_percent"],
+            )
+            lines.append(
+                f"| {name} | {fmt(ref['t_init'])} | {fmt(ref['c_init'])} | {fmt(ref['c_final'])} "
+                f"| {fmt(lit['t_init'])} | {fmt(lit['c_init'])} | {fmt(lit['c_final'])} "
+                f"| {fmt_percent(imp['t_init'])} | {fmt_percent(imp['c_init'])} "
+                f"| {fmt_percent(imp['c_final'])} |"
+            )
+        lines += [
+            "",
+            (
+                "Medians. Improvement ⇑ = (FIT* − LIT*) / FIT* × 100: positive means LIT* is faster "
+                "or cheaper; — where a median is infinite."
+            ),
+            "",
+        ]
+    else:
+        lines += ["Not available: this benchmark did not run both LIT* and litstar-fit.", ""]
+
+    lines += ["## LIT* against the best OMPL planner", ""]
+    rows = comp["best_ompl"]["rows"]
+    if rows:
+        lines += [
+            (
+                "| scenario | best OMPL planner | its t_init (s) | its c_init | its c_final | LIT* t_init (s) "
+                "| LIT* c_init | LIT* c_final | t_init ⇑ (%) | c_init ⇑ (%) | c_final ⇑ (%) |"
+            ),
+            "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        ]
+        for name, row in rows.items():
+            ref, lit, imp = (
+                row["reference_medians"],
+                row["litstar_medians"],
+                row["improvement_percent"],
+            )
+            lines.append(
+                f"| {name} | {label(row['reference'])} | {fmt(ref['t_init'])} | {fmt(ref['c_init'])} "
+                f"| {fmt(ref['c_final'])} | {fmt(lit['t_init'])} | {fmt(lit['c_init'])} "
+                f"| {fmt(lit['c_final'])} | {fmt_percent(imp['t_init'])} "
+                f"| {fmt_percent(imp['c_init'])} | {fmt_percent(imp['c_final'])} |"
+            )
+        lines += ["", f"The {comp['best_ompl']['rule']}.", ""]
+    else:
+        lines += ["Not available: no LIT* or no OMPL planner in this benchmark.", ""]
+
+    lines += ["## Every planner", ""]
+    for name, scenario in summary["scenarios"].items():
+        optimum = scenario["optimal_cost"]
+        lines += [
+            (
+                f"### {name} (budget {scenario['time_budget']:g} s, optimum "
+                f"{fmt(optimum) if optimum is not None else 'unknown'})"
+            ),
+            "",
+            "| planner | success | median t_init (s) | median c_init | median c_final | invalid paths |",
+            "| --- | ---: | ---: | ---: | ---: | ---: |",
+        ]
+        for planner, entry in scenario["planners"].items():
+            lines.append(
+                f"| {label(planner)} | {entry['success_rate']:.0%} | {fmt_median(entry['t_init'])} "
+                f"| {fmt_median(entry['c_init'])} | {fmt_median(entry['c_final'])} "
+                f"| {entry['invalid_paths']} |"
+            )
+        lines += [""]
+        for plot in summary["outputs"]["plots"].get(name, []):
+            if plot.endswith(".png"):
+                lines += [f"![{name}]({plot})", ""]
+
+    invalid = sum(1 for r in summary["runs"] if r["solved"] and r["path_valid"] is False)
+    solved = sum(1 for r in summary["runs"] if r["solved"])
+    lines += [
+        "## Notes",
+        "",
+        f"- {CI_RULE}",
+        (
+            "- Brackets: the 99% interval of the median; † (min–max): too few runs for a 99% interval, "
+            "the full range instead."
+        ),
+        (
+            f"- Independent path check (numpy, 4× finer than the planners' resolution): {invalid} of "
+            f"{solved} returned paths invalid."
+        ),
+        (
+            "- Times: LIT*'s from its own planning clock, which starts after its set-up and problem "
+            "initialisation (and pauses only for an external policy, unused here); the OMPL planners' "
+            "wall time from before their setup(). Every planner gets the same budget."
+        ),
+        "",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,353 @@
+"""The benchmark runner: every planner on every scenario, run after run, one record per run.
+
+Fairness rules (PDT's): every planner of a run gets the same scenario instance and seed; the
+planner order is shuffled per run (seeded, so a benchmark repeats its order); each run plans with
+a fresh planner (``lit_core.solve`` builds planner, problem and validity checker per call). LIT*
+draws from its own generator, seeded with the run's seed. OMPL 1.5.2's planners draw from OMPL's
+process-wide generator, which :func:`run_benchmark` seeds once with the first run's seed
+(OMPL accepts that seed once per process), so their runs are seeded as a sequence, not one by one.
+Runs stop on time, so no run repeats exactly anyway.
+
+Paths are re-checked independently (:func:`lit_planner.scenarios.check_path`) after each
+scenario's planning, in parallel worker processes, so the check neither runs while a planner is
+being timed nor doubles the benchmark's duration.
+
+Each record is a ``lit_msgs_json/BenchRun`` document (see that schema): JSON-ready, with ``null``
+for the times and costs of a run without a solution (they count as infinite).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import multiprocessing
+import random
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from lit_planner import planning, scenarios
+from lit_planner.errors import MissingTensorsError, PlannerError
+
+RUN_SCHEMA = "lit_msgs_json/BenchRun"
+"""Schema of one run record (a line of ``runs.jsonl``)."""
+RUN_SCHEMA_VERSION = 1
+"""Version of :data:`RUN_SCHEMA` that this module writes."""
+PAPER_SCENARIOS = ("np4", "np8", "np16", "rrd4", "rrd8", "rrd16")
+"""The LIT* paper's six benchmark scenarios (narrow passage, dense random rectangles)."""
+ALL_PLANNERS = (
+    "litstar-tensor",
+    "litstar-fit",
+    "litstar-fixed",
+    "aitstar",
+    "bitstar",
+    "abitstar",
+    "irrtstar",
+    "rrtconnect",
+)
+"""Every planner the benchmark knows, LIT*'s three policies first."""
+TENSOR_PLANNER = "litstar-tensor"
+"""The planner that needs trained lookup tensors."""
+SKIPPED_NO_TENSORS = "skipped: no trained tensors in tensors/"
+"""Reason recorded when ``litstar-tensor`` cannot run (the folder is named in the detail)."""
+SHUFFLE_KEY = "lit bench/{scenario}/{instance}/{run}/{seed}"
+"""String seeding each run's planner order (``random.Random`` hashes strings stably)."""
+
+
+@dataclass(frozen=True)
+class Preset:
+    """Named benchmark sizes: ``--quick`` and ``--paper``."""
+
+    scenarios: tuple[str, ...]
+    """Scenarios it runs."""
+    runs: int
+    """Runs per scenario and planner."""
+    purpose: str
+    """One line for ``--help``."""
+
+
+PRESETS: dict[str, Preset] = {
+    "quick": Preset(("np4", "rrd4"), 5, "np4 and rrd4, 5 runs, every planner: for development"),
+    "paper": Preset(PAPER_SCENARIOS, 100, "the paper's six scenarios, 100 runs: the reproduction"),
+}
+"""The presets by name."""
+
+
+@dataclass(frozen=True)
+class BenchConfig:
+    """What one benchmark runs."""
+
+    scenarios: tuple[str, ...]
+    """Scenario names (registry names without instance suffix)."""
+    planners: tuple[str, ...]
+    """Planners to run (after skipping the unavailable ones)."""
+    runs: int
+    """Runs per scenario and planner."""
+    first_seed: int = 1
+    """Seed of run 0; run i has seed ``first_seed + i``."""
+    instance: int = 0
+    """Instance of the random scenario families (the fixed ones always run their only one, 0)."""
+    time_scale: float = 1.0
+    """Factor on every scenario's own (the paper's) time budget."""
+    tensors_dir: Path | None = None
+    """Tensor folder of ``litstar-tensor``; None: :func:`planning.default_tensors_dir`."""
+    check_jobs: int = 1
+    """Worker processes for the independent path checks."""
+    skipped: tuple[Skip, ...] = ()
+    """Planners that were asked for but do not run, with the reason."""
+
+    def time_budget(self, scenario: scenarios.Scenario) -> float:
+        """The budget every planner gets on ``scenario``."""
+        return scenario.time_budget * self.time_scale
+
+
+@dataclass(frozen=True)
+class Skip:
+    """A requested planner that the benchmark does not run."""
+
+    planner: str
+    """Its name."""
+    reason: str
+    """Short reason, e.g. :data:`SKIPPED_NO_TENSORS`."""
+    detail: str = ""
+    """Where it looked, what is missing."""
+
+
+@dataclass
+class PlannerSetup:
+    """How a planner is configured; the same for every run."""
+
+    name: str
+    core_planner: str
+    policy: str | None
+    params: dict[str, str] = field(default_factory=dict)
+    """Parameter overrides by ``declareParam`` name; empty: the planner's defaults."""
+    tensors: dict[str, Any] | None = None
+    """For the tensor policy: folder and SHA-256 of each tensor file."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def scenario_for(name: str, instance: int = 0) -> scenarios.Scenario:
+    """Scenario ``name``; ``instance`` applies to the random families, the fixed ones have only 0."""
+    family = scenarios.get(name).family_spec
+    return scenarios.get(name, instance if family.randomised else 0)
+
+
+def select_planners(
+    planners: Sequence[str], tensors_dir: Path | None = None
+) -> tuple[list[str], list[Skip]]:
+    """Split ``planners`` into those that run and those skipped (no trained tensors).
+
+    Raises:
+        PlannerError: an unknown planner name.
+        TensorFileError: tensors exist but are defective (never skipped silently).
+    """
+    for name in planners:
+        planning.resolve_planner(name)
+        if name not in ALL_PLANNERS:
+            raise PlannerError(
+                f"lit bench runs the named planners only ({', '.join(ALL_PLANNERS)}), not {name!r}"
+            )
+    running, skipped = [], []
+    for name in planners:
+        if name == TENSOR_PLANNER:
+            try:
+                planning.make_policy("tensor", tensors_dir)
+            except MissingTensorsError as error:
+                skipped.append(Skip(name, SKIPPED_NO_TENSORS, str(error)))
+                continue
+        running.append(name)
+    return running, skipped
+
+
+def planner_setup(name: str, tensors_dir: Path | None = None) -> PlannerSetup:
+    """The configuration of planner ``name`` as the benchmark runs it."""
+    core, policy = planning.resolve_planner(name)
+    tensors = None
+    if policy == "tensor":
+        folder = planning.default_tensors_dir() if tensors_dir is None else Path(tensors_dir)
+        tensors = {"folder": str(folder)}
+        for output, file_name in planning.TENSOR_FILES.items():
+            path = folder / file_name
+            tensors[output] = _sha256(path) if path.exists() else None
+    return PlannerSetup(name, core, policy, {}, tensors)
+
+
+def planning_estimate(
+    scenario_names: Sequence[str], planner_count: int, runs: int, time_scale: float = 1.0
+) -> float:
+    """Seconds of planning alone: runs x planners x the sum of the scenarios' budgets."""
+    budgets = sum(scenarios.get(name).time_budget for name in scenario_names)
+    return runs * planner_count * budgets * time_scale
+
+
+def run_order(
+    planners: Sequence[str], scenario: str, instance: int, run: int, seed: int
+) -> list[str]:
+    """The planners of one run in their shuffled, reproducible order."""
+    order = list(planners)
+    key = SHUFFLE_KEY.format(scenario=scenario, instance=instance, run=run, seed=seed)
+    random.Random(key).shuffle(order)
+    return order
+
+
+def make_record(
+    result: dict[str, Any],
+    *,
+    planner: str,
+    run: int,
+    order: int,
+    budget: float,
+    wall_time: float,
+    scenario: scenarios.Scenario,
+    params: dict[str, str],
+) -> dict[str, Any]:
+    """A ``BenchRun`` record from :func:`planning.plan`'s result (path not yet checked)."""
+    solved = bool(result["solved"])
+    core_planner, _ = planning.resolve_planner(planner)
+    return planning.json_safe(
+        {
+            "schema": RUN_SCHEMA,
+            "version": RUN_SCHEMA_VERSION,
+            "scenario": scenario.name,
+            "scenario_key": scenario.key,
+            "instance": scenario.instance,
+            "dimension": scenario.dim,
+            "run": run,
+            "seed": result["seed"],
+            "order": order,
+            "planner": planner,
+            "core_planner": core_planner,
+            "policy": result.get("policy"),
+            "params": params,
+            "time_budget": budget,
+            "status": result["status"],
+            "message": result.get("message", ""),
+            "solved": solved,
+            "t_init": result["t_init"] if solved else None,
+            "c_init": result["c_init"] if solved else None,
+            "c_final": result["cost"] if solved else None,
+            "improvements": [list(pair) for pair in result["improvements"]] if solved else [],
+            "time": result["time"],
+            "wall_time": wall_time,
+            "path_valid": None,
+            "path_check": None,
+            "path_states": len(result["path"]),
+            "path": result["path"],
+            "counters": dict(result["counters"]),
+            "optimal_cost": scenario.optimal_cost,
+        }
+    )
+
+
+def check_record_paths(records: list[dict[str, Any]], jobs: int = 1) -> None:
+    """Fill ``path_valid`` and ``path_check`` of every record with a path, in place."""
+    todo = [record for record in records if record["path"]]
+    tasks = [(record["scenario"], record["instance"], record["path"]) for record in todo]
+    if jobs > 1 and len(tasks) > 1:
+        # spawn: a fresh interpreter per worker, unaffected by the planner's threads and state.
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(min(jobs, len(tasks)), mp_context=context) as pool:
+            checks = list(pool.map(_check_path, tasks, chunksize=max(1, len(tasks) // (4 * jobs))))
+    else:
+        checks = [_check_path(task) for task in tasks]
+    for record, check in zip(todo, checks, strict=True):
+        record["path_check"] = planning.json_safe(check)
+        record["path_valid"] = bool(check["ok"])
+
+
+def _check_path(task: tuple[str, int, list[list[float]]]) -> dict[str, Any]:
+    name, instance, path = task
+    return dataclasses.asdict(scenarios.check_path(scenarios.get(name, instance), path))
+
+
+def run_benchmark(
+    config: BenchConfig,
+    on_scenario_done: Callable[[list[dict[str, Any]]], None] | None = None,
+    progress_file: Any = None,
+) -> list[dict[str, Any]]:
+    """Run the benchmark; return every record in execution order.
+
+    Args:
+        config: what to run.
+        on_scenario_done: called with a scenario's records once they are checked (the CLI
+            appends them to ``runs.jsonl`` there, so an interrupted benchmark keeps its data).
+        progress_file: where the progress bar goes (default stderr).
+    """
+    import lit_core  # the C++ extension: only when planning really starts
+
+    lit_core.set_global_seed(config.first_seed)
+    problems = [scenario_for(name, config.instance) for name in config.scenarios]
+    total = sum(config.time_budget(p) for p in problems) * config.runs * len(config.planners)
+    records: list[dict[str, Any]] = []
+    bar = tqdm(
+        total=total,
+        unit="s",
+        file=progress_file or sys.stderr,
+        dynamic_ncols=True,
+        bar_format="{desc} |{bar}| {percentage:3.0f}% of planning time [{elapsed}<{remaining}]",
+    )
+    with bar:
+        for problem in problems:
+            budget = config.time_budget(problem)
+            scenario_records = []
+            for run, seed, order in _runs(config, problem):
+                for position, planner in enumerate(order):
+                    bar.set_description_str(
+                        f"{problem.name} run {run + 1}/{config.runs} {planner:<14}", refresh=True
+                    )
+                    planning.quiet_ompl(planner)
+                    started = time.perf_counter()
+                    result = planning.plan(
+                        problem,
+                        planner,
+                        time=budget,
+                        seed=seed,
+                        tensors_dir=config.tensors_dir,
+                        check_path=False,
+                    )
+                    wall = time.perf_counter() - started
+                    scenario_records.append(
+                        make_record(
+                            result,
+                            planner=planner,
+                            run=run,
+                            order=position,
+                            budget=budget,
+                            wall_time=wall,
+                            scenario=problem,
+                            params={},
+                        )
+                    )
+                    bar.update(budget)
+            bar.set_description_str(
+                f"{problem.name} checking {len(scenario_records)} paths", refresh=True
+            )
+            check_record_paths(scenario_records, config.check_jobs)
+            records.extend(scenario_records)
+            if on_scenario_done is not None:
+                on_scenario_done(scenario_records)
+    return records
+
+
+def _runs(config: BenchConfig, problem: scenarios.Scenario) -> Iterator[tuple[int, int, list[str]]]:
+    for run in range(config.runs):
+        seed = config.first_seed + run
+        planning.check_seed(seed)
+        yield run, seed, run_order(config.planners, problem.name, problem.instance, run, seed)
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()

@@ -1,0 +1,278 @@
+"""Tests of the benchmark statistics (lit_planner.bench.stats) and of the summary they feed.
+
+The reference intervals are computed here independently of scipy: exact binomial probabilities
+from ``math.comb`` in rational arithmetic and a brute-force search over every pair of ranks; and
+PDT's published table (``esp_statistics``, zero-based ranks) where it has the n.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+import pytest
+from lit_msgs_json.errors import SchemaError
+from lit_planner.bench import report, stats
+from lit_planner.bench.runner import RUN_SCHEMA, RUN_SCHEMA_VERSION, run_order
+
+from lit_msgs_json import codec
+
+INF = math.inf
+
+
+def exact_coverage(n: int, lower: int, upper: int) -> Fraction:
+    """P(x_(l) <= median <= x_(u)) = P(l <= B <= u - 1), B ~ Binomial(n, 1/2), exactly."""
+    return Fraction(sum(math.comb(n, k) for k in range(lower, upper)), 2**n)
+
+
+def brute_force_ranks(n: int, confidence: Fraction) -> tuple[int, int, Fraction] | None:
+    """Narrowest pair with coverage >= confidence; then highest coverage; then the upper one."""
+    pairs = [
+        (upper - lower, -exact_coverage(n, lower, upper), -lower, lower, upper)
+        for lower in range(1, n + 1)
+        for upper in range(lower + 1, n + 1)
+        if exact_coverage(n, lower, upper) >= confidence
+    ]
+    if not pairs:
+        return None
+    *_, lower, upper = min(pairs)
+    return lower, upper, exact_coverage(n, lower, upper)
+
+
+NINETY_NINE = Fraction(99, 100)
+
+
+@pytest.mark.parametrize("n", [10, 20, 100])
+def test_interval_ranks_match_an_independent_exact_computation(n: int) -> None:
+    expected = brute_force_ranks(n, NINETY_NINE)
+    ranks = stats.median_interval_ranks(n)
+    assert expected is not None and ranks is not None
+    assert (ranks.lower_rank, ranks.upper_rank) == expected[:2]
+    assert ranks.coverage == pytest.approx(float(expected[2]), abs=1e-12)
+    assert ranks.coverage >= 0.99
+
+
+def test_interval_ranks_by_hand() -> None:
+    # n = 10: only (1, 10) reaches 99%: 1 - 2/1024. (1, 9) covers 1 - 1/1024 - 11/1024 < 0.99.
+    ranks = stats.median_interval_ranks(10)
+    assert (ranks.lower_rank, ranks.upper_rank) == (1, 10)
+    assert ranks.coverage == pytest.approx(1 - 2 / 1024)
+    assert exact_coverage(10, 1, 9) == 1 - Fraction(12, 1024) < NINETY_NINE
+    # n = 20: width 12 is the narrowest; (4, 16) and (5, 17) mirror each other at
+    # 1 - F(3) - F(4) = 1 - (1351 + 6196) / 2^20; the upper one is taken.
+    ranks = stats.median_interval_ranks(20)
+    assert (ranks.lower_rank, ranks.upper_rank) == (5, 17)
+    assert ranks.coverage == pytest.approx(1 - (1351 + 6196) / 2**20)
+    assert exact_coverage(20, 5, 16) < NINETY_NINE  # width 11 is not enough
+    # n = 100: PDT's table says zero-based (37, 63), coverage 0.9907.
+    ranks = stats.median_interval_ranks(100)
+    assert (ranks.lower_rank - 1, ranks.upper_rank - 1) == (37, 63)
+    assert ranks.coverage == pytest.approx(0.9907, abs=1e-4)
+
+
+@pytest.mark.parametrize(
+    ("n", "zero_based"), [(50, (15, 34)), (200, (81, 118)), (250, (104, 145)), (300, (127, 172))]
+)
+def test_interval_ranks_reproduce_pdt_table(n: int, zero_based: tuple[int, int]) -> None:
+    ranks = stats.median_interval_ranks(n)
+    assert (ranks.lower_rank - 1, ranks.upper_rank - 1) == zero_based
+
+
+def test_no_interval_below_eight_runs() -> None:
+    assert stats.MIN_RUNS_FOR_INTERVAL == 8
+    for n in range(1, 8):
+        # The widest pair (1, n) covers 1 - 2^(1-n) < 0.99 (n = 1 has no pair at all).
+        assert brute_force_ranks(n, NINETY_NINE) is None
+        assert stats.median_interval_ranks(n) is None
+    assert exact_coverage(8, 1, 8) == 1 - Fraction(2, 256) >= NINETY_NINE
+    assert stats.median_interval_ranks(8) is not None
+    estimate = stats.median_with_interval([3.0, 1.0, 2.0, 5.0, 4.0])
+    assert estimate.median == 3.0
+    assert estimate.ranks is None and estimate.lower is None and estimate.upper is None
+    assert (estimate.minimum, estimate.maximum) == (1.0, 5.0)
+
+
+def test_median_with_interval_picks_the_order_statistics() -> None:
+    values = np.arange(20, 0, -1, dtype=float)  # 20 .. 1, unsorted on purpose
+    estimate = stats.median_with_interval(values)
+    assert estimate.median == 10.5
+    assert (estimate.lower, estimate.upper) == (5.0, 17.0)  # ranks (5, 17) of 1..20
+
+
+def test_failures_count_as_infinite() -> None:
+    # 4 of 10 failed: the median is finite, the upper bound x_(10) is a failure.
+    values = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0] + [INF] * 4
+    estimate = stats.median_with_interval(values)
+    assert estimate.median == 5.5
+    assert estimate.lower == 1.0 and estimate.upper == INF
+    # 5 of 10 failed: the two middle values are 5.0 and inf, so the median is infinite.
+    estimate = stats.median_with_interval([1.0, 2.0, 3.0, 4.0, 5.0] + [INF] * 5)
+    assert estimate.median == INF
+    with pytest.raises(ValueError, match="NaN"):
+        stats.median_with_interval([1.0, math.nan])
+
+
+def test_an_all_failed_planner() -> None:
+    estimate = stats.median_with_interval([INF] * 10)
+    assert estimate.median == INF and estimate.lower == INF and estimate.upper == INF
+    curve = stats.cost_curve([[]] * 10, [0.1, 0.2])
+    assert np.all(np.isinf(curve.median)) and np.all(curve.success == 0)
+    records = [_record(run, solved=False) for run in range(10)]
+    summary = report.planner_statistics(records)
+    assert summary["success_rate"] == 0 and summary["solved"] == 0
+    assert summary["c_final"]["median"] == "inf"
+    assert summary["t_init"]["ci"]["lower"] == "inf"
+
+
+def test_cost_at_is_the_last_improvement_at_or_before_each_time() -> None:
+    improvements = [(0.1, 5.0), (0.3, 4.0), (0.7, 2.5)]
+    times = [0.05, 0.1, 0.2, 0.3, 0.69, 0.7, 1.0]
+    assert stats.costs_at(improvements, times).tolist() == [INF, 5.0, 5.0, 4.0, 4.0, 2.5, 2.5]
+    assert stats.costs_at([], times).tolist() == [INF] * len(times)
+    with pytest.raises(ValueError, match="time order"):
+        stats.costs_at([(0.2, 3.0), (0.1, 2.0)], times)
+
+
+def test_cost_curve_median_and_success_over_time() -> None:
+    runs = [[(0.1, 3.0), (0.5, 1.0)], [(0.2, 4.0)], []]
+    curve = stats.cost_curve(runs, [0.05, 0.15, 0.3, 0.6])
+    # At 0.6 the costs are 1, 4 and inf: median 4. At 0.15 they are 3, inf, inf: median inf.
+    assert curve.median.tolist() == [INF, INF, 4.0, 4.0]
+    assert curve.success.tolist() == pytest.approx([0, 1 / 3, 2 / 3, 2 / 3])
+    assert curve.lower is None and curve.ranks is None  # 3 runs: no 99% interval
+    assert curve.minimum.tolist() == [INF, 3.0, 3.0, 1.0]
+
+
+def test_cost_curve_interval_with_enough_runs() -> None:
+    runs = [[(0.1 * (i + 1), float(10 - i))] for i in range(10)]  # run i: cost 10 - i from 0.1(i+1)
+    curve = stats.cost_curve(runs, [1.05])
+    assert curve.ranks is not None and (curve.ranks.lower_rank, curve.ranks.upper_rank) == (1, 10)
+    assert (curve.lower[0], curve.median[0], curve.upper[0]) == (1.0, 5.5, 10.0)
+
+
+def test_time_grid_is_logarithmic_and_ends_at_the_budget() -> None:
+    grid = stats.time_grid(0.4, earliest=0.002)
+    assert grid[-1] == pytest.approx(0.4) and grid[0] == pytest.approx(0.0018)
+    assert np.allclose(np.diff(np.log(grid)), np.log(grid[1] / grid[0]))
+    assert stats.time_grid(0.4, earliest=1e-9)[0] == pytest.approx(0.4 * stats.GRID_SPAN)
+    with pytest.raises(ValueError, match="budget"):
+        stats.time_grid(0.0)
+
+
+def test_improvement_and_best_planner() -> None:
+    assert stats.improvement_percent(0.0626, 0.0597) == pytest.approx(
+        4.63, abs=0.01
+    )  # paper, RR-R4
+    assert stats.improvement_percent(2.0, 2.5) == pytest.approx(-25.0)
+    assert stats.improvement_percent(INF, 1.0) is None
+    medians = {"aitstar": (1.0, 0.2), "bitstar": (1.0, 0.1), "rrtconnect": (INF, 0.01)}
+    assert stats.best_by_final_cost(medians) == "bitstar"  # tie on cost, faster first solution
+    assert stats.best_by_final_cost({}) is None
+
+
+def test_run_order_is_a_reproducible_shuffle() -> None:
+    planners = ["a", "b", "c", "d", "e"]
+    orders = {tuple(run_order(planners, "np4", 0, run, run + 1)) for run in range(20)}
+    assert all(sorted(order) == planners for order in orders)
+    assert len(orders) > 1
+    assert run_order(planners, "np4", 0, 3, 4) == run_order(planners, "np4", 0, 3, 4)
+
+
+# --- summary schema -------------------------------------------------------------------------
+
+
+def _record(run: int, planner: str = "litstar-fixed", solved: bool = True) -> dict[str, Any]:
+    cost = 1.0 + run / 10
+    return {
+        "schema": RUN_SCHEMA,
+        "version": RUN_SCHEMA_VERSION,
+        "scenario": "np4",
+        "scenario_key": "np4",
+        "instance": 0,
+        "dimension": 4,
+        "run": run,
+        "seed": run + 1,
+        "order": 0,
+        "planner": planner,
+        "core_planner": "litstar" if planner.startswith("litstar") else planner,
+        "policy": "fixed" if planner.startswith("litstar") else None,
+        "params": {},
+        "time_budget": 0.12,
+        "status": "exact_solution" if solved else "timeout",
+        "message": "",
+        "solved": solved,
+        "t_init": 0.01 if solved else None,
+        "c_init": cost + 1 if solved else None,
+        "c_final": cost if solved else None,
+        "improvements": [[0.01, cost + 1], [0.05, cost]] if solved else [],
+        "time": 0.12,
+        "wall_time": 0.125,
+        "path_valid": True if solved else None,
+        "path_check": None,
+        "path_states": 3 if solved else 0,
+        "counters": {"validity_checks": 100},
+        "optimal_cost": 0.4236,
+    }
+
+
+def _summary() -> dict[str, Any]:
+    from lit_planner.bench import cli, runner
+
+    records = [
+        _record(run, planner)
+        for planner in ("litstar-fixed", "litstar-fit", "aitstar")
+        for run in range(8)
+    ]
+    config = runner.BenchConfig(
+        scenarios=("np4",), planners=("litstar-fixed", "litstar-fit", "aitstar"), runs=8
+    )
+    return {"records": records, "config": config, "cli": cli}
+
+
+def test_summary_validates_and_a_broken_one_is_rejected_naming_the_field(tmp_path: Any) -> None:
+    from datetime import UTC, datetime
+
+    parts = _summary()
+    now = datetime.now(UTC)
+    summary = parts["cli"].write_outputs(
+        tmp_path,
+        parts["records"],
+        parts["config"],
+        preset=None,
+        requested=list(parts["config"].planners),
+        started=now,
+        finished=now,
+        duration=1.0,
+        estimate=(0.0, "test"),
+        argv=["lit", "bench", "--test"],
+    )
+    codec.validate("BenchSummary", summary)  # write_outputs validated it already; again, explicitly
+    assert (tmp_path / "summary.json").is_file() and (tmp_path / "summary.md").is_file()
+    stats_np4 = summary["scenarios"]["np4"]["planners"]["litstar-fixed"]
+    assert stats_np4["c_final"]["ci"]["lower_rank"] == 1 and stats_np4["success_rate"] == 1.0
+    assert summary["comparisons"]["fit"]["rows"]["np4"]["improvement_percent"]["c_final"] == 0.0
+    assert summary["comparisons"]["best_ompl"]["rows"]["np4"]["reference"] == "aitstar"
+
+    broken = copy.deepcopy(summary)
+    broken["scenarios"]["np4"]["planners"]["aitstar"]["success_rate"] = 1.5
+    with pytest.raises(SchemaError, match=r"success_rate"):
+        codec.validate("BenchSummary", broken)
+    broken = copy.deepcopy(summary)
+    broken["runs"][3]["c_final"] = "cheap"
+    with pytest.raises(SchemaError, match=r"runs\[3\]\.c_final"):
+        codec.validate("BenchSummary", broken)
+    broken = copy.deepcopy(summary)
+    del broken["machine"]["cpu_model"]
+    with pytest.raises(SchemaError, match=r"cpu_model"):
+        codec.validate("BenchSummary", broken)
+
+
+def test_run_record_schema_ties_solved_to_its_numbers() -> None:
+    codec.validate("BenchRun", _record(0))
+    codec.validate("BenchRun", _record(0, solved=False))
+    unsolved_with_cost = dict(_record(0, solved=False), c_final=1.0)
+    with pytest.raises(SchemaError, match="c_final"):
+        codec.validate("BenchRun", unsolved_with_cost)

@@ -1,0 +1,112 @@
+"""System test: `lit bench` as a user runs it, through the repository's `./lit` wrapper.
+
+A tiny real benchmark (np4, two planners, two runs, a quarter of the budget) must write every
+output; no assertion depends on how fast the machine is.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from lit_msgs_json import codec
+
+ROOT = Path(__file__).resolve().parents[1]
+PLANNERS = ("litstar-fixed", "aitstar")
+
+
+def _lit(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    full_env = dict(os.environ, LIT_SKIP_SETUP="1", ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    full_env.update(env or {})
+    return subprocess.run(
+        [str(ROOT / "lit"), *args],
+        cwd=ROOT,
+        env=full_env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+
+
+@pytest.fixture(scope="module")
+def bench_run(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> tuple[Path, subprocess.CompletedProcess[str]]:
+    out = tmp_path_factory.mktemp("bench") / "tmp"
+    no_tensors = tmp_path_factory.mktemp("no_tensors")
+    result = _lit(
+        "bench",
+        "--scenarios", "np4",
+        "--planners", ",".join(("litstar-tensor", *PLANNERS)),
+        "--runs", "2",
+        "--time-scale", "0.25",
+        "--out", str(out),
+        env={"LIT_TENSORS": str(no_tensors)},
+    )  # fmt: skip
+    return out, result
+
+
+def test_bench_writes_every_output(
+    bench_run: tuple[Path, subprocess.CompletedProcess[str]],
+) -> None:
+    out, result = bench_run
+    assert result.returncode == 0, result.stderr
+    for name in ("summary.json", "summary.md", "runs.jsonl", "plots/np4.png", "plots/np4.pdf"):
+        assert (out / name).is_file(), name
+    assert (out / "plots/np4.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (out / "plots/np4.pdf").read_bytes()[:5] == b"%PDF-"
+    assert "planning time alone: 2 runs x 2 planners" in result.stderr
+    assert "| np4 |" in result.stdout and "## Every planner" in result.stdout
+
+
+def test_bench_records_same_seeds_and_valid_paths(
+    bench_run: tuple[Path, subprocess.CompletedProcess[str]],
+) -> None:
+    out, _ = bench_run
+    lines = (out / "runs.jsonl").read_text(encoding="utf-8").splitlines()
+    records = [codec.loads("BenchRun", line) for line in lines]
+    assert sorted((r["planner"], r["run"], r["seed"]) for r in records) == sorted(
+        (p, run, run + 1) for p in PLANNERS for run in (0, 1)
+    )
+    for record in records:
+        assert record["instance"] == 0 and record["time_budget"] == pytest.approx(0.03)
+        if record["solved"]:
+            assert record["path_valid"] is True and record["path"]
+            assert record["improvements"][0] == [record["t_init"], record["c_init"]]
+
+
+def test_bench_summary_is_complete_and_names_the_skipped_tensor_planner(
+    bench_run: tuple[Path, subprocess.CompletedProcess[str]],
+) -> None:
+    out, result = bench_run
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    codec.validate("BenchSummary", summary)
+    assert summary["config"]["planners"] == list(PLANNERS)
+    assert [s["planner"] for s in summary["skipped"]] == ["litstar-tensor"]
+    assert "litstar-tensor skipped: no trained tensors in tensors/" in result.stderr
+    assert "litstar-tensor skipped: no trained tensors" in (out / "summary.md").read_text()
+    assert summary["comparisons"]["litstar"] == "litstar-fixed"
+    assert summary["machine"]["cores"] >= 1 and summary["versions"]["python"]
+    assert summary["command"]["argv"][:2] == ["lit", "bench"]
+    assert len(summary["runs"]) == 4 and all("path" not in r for r in summary["runs"])
+    np4 = summary["scenarios"]["np4"]
+    assert set(np4["planners"]) == set(PLANNERS) and set(np4["curves"]) == set(PLANNERS)
+    assert len(np4["curves"]["aitstar"]["success"]) == len(np4["time_grid"])
+    assert np4["planners"]["aitstar"]["t_init"]["ci"] is None  # 2 runs: no 99% interval
+
+
+def test_bench_rejects_bad_input(tmp_path: Path) -> None:
+    result = _lit(
+        "bench", "--planners", "litstar-fixed,nosuchplanner", "--out", str(tmp_path / "x")
+    )
+    assert result.returncode == 2 and "nosuchplanner" in result.stderr
+    assert "Traceback" not in result.stderr
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "keep.txt").write_text("mine")
+    result = _lit("bench", "--quick", "--out", str(tmp_path / "full"))
+    assert result.returncode == 2 and "not an empty folder" in result.stderr
