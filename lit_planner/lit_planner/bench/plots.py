@@ -1,7 +1,8 @@
 """Per-scenario figures like the LIT* paper's Fig. 5: cost over time and success over time.
 
 Top panel: median cost against time (log time axis), one line per planner, the 99% interval of
-the median as a band (the full range when the runs are too few for an interval), the median
+the median as a band where the median is finite (the full range when the runs are too few for an
+interval; an infinite upper bound is drawn to the top of the axes), the median
 initial solution as a marker with its interval as error bars in time and cost, and the known
 optimum as a dashed line. Bottom panel: the fraction of runs solved against time.
 """
@@ -63,7 +64,8 @@ def plot_scenario(
         else:
             any_range = True
             lower, upper = curve.minimum, curve.maximum
-        drawable = np.isfinite(lower)
+        # PDT draws no interval while the median is infinite (half the runs or more unsolved).
+        drawable = np.isfinite(curve.median) & np.isfinite(lower)
         cost_axes.fill_between(
             times,
             np.where(drawable, lower, np.nan),

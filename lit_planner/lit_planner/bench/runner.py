@@ -327,7 +327,7 @@ def run_benchmark(
                             params={},
                         )
                     )
-                    bar.update(budget)
+                    bar.update(min(budget, bar.total - bar.n))  # float sums overshoot
             bar.set_description_str(
                 f"{problem.name} checking {len(scenario_records)} paths", refresh=True
             )
