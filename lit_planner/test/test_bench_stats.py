@@ -221,14 +221,13 @@ def _record(run: int, planner: str = "litstar-fixed", solved: bool = True) -> di
 def _summary() -> dict[str, Any]:
     from lit_planner.bench import cli, runner
 
+    planners = ("litstar-fixed", "litstar-fit", "aitstar", "rrtconnect")
     records = [
-        _record(run, planner)
-        for planner in ("litstar-fixed", "litstar-fit", "aitstar")
+        _record(run, planner, solved=planner != "rrtconnect")  # an all-failed planner too
+        for planner in planners
         for run in range(8)
     ]
-    config = runner.BenchConfig(
-        scenarios=("np4",), planners=("litstar-fixed", "litstar-fit", "aitstar"), runs=8
-    )
+    config = runner.BenchConfig(scenarios=("np4",), planners=planners, runs=8)
     return {"records": records, "config": config, "cli": cli}
 
 
@@ -255,6 +254,11 @@ def test_summary_validates_and_a_broken_one_is_rejected_naming_the_field(tmp_pat
     assert stats_np4["c_final"]["ci"]["lower_rank"] == 1 and stats_np4["success_rate"] == 1.0
     assert summary["comparisons"]["fit"]["rows"]["np4"]["improvement_percent"]["c_final"] == 0.0
     assert summary["comparisons"]["best_ompl"]["rows"]["np4"]["reference"] == "aitstar"
+    failed = summary["scenarios"]["np4"]["planners"]["rrtconnect"]
+    assert failed["success_rate"] == 0 and failed["c_final"]["median"] == "inf"
+    assert set(summary["scenarios"]["np4"]["curves"]["rrtconnect"]["median"]) == {"inf"}
+    assert (tmp_path / "plots" / "np4.png").is_file() and (tmp_path / "plots" / "np4.pdf").is_file()
+    assert "| RRT-Connect | 0% | ∞ [∞, ∞]" in (tmp_path / "summary.md").read_text()
 
     broken = copy.deepcopy(summary)
     broken["scenarios"]["np4"]["planners"]["aitstar"]["success_rate"] = 1.5
