@@ -13,7 +13,7 @@ Two steps:
    :mod:`lit_planner.ompl2.arena_db` worker because PyPI ``ompl`` must not share a process with
    ``lit_core``.
 
-:func:`export_arena` does both; ``lit bench`` calls it at the end of a run. Upload ``benchmark.db``
+:func:`export_arena` does both; it is the function for ``lit bench`` to call at the end of a run. Upload ``benchmark.db``
 to https://plannerarena.org (or a local Planner Arena) to browse the results.
 
 Per-run properties (column names in the ``runs`` table in brackets): ``time REAL`` [time] (the
@@ -21,9 +21,11 @@ run's planning time: the record's ``time``, else its time budget), ``solved BOOL
 ``status ENUM`` [status] (OMPL's ``PlannerStatus`` order), ``best cost REAL`` [best_cost] and
 ``final cost REAL`` [final_cost] (c_final), ``initial cost REAL`` [initial_cost] (c_init), ``time to
 first solution REAL`` [time_to_first_solution] (t_init), ``time of last improvement REAL``,
-``improvements INTEGER``, ``seed INTEGER``, ``instance INTEGER``, ``correct solution BOOLEAN`` (when
-the record says whether the path passed the independent check) and every numeric counter (e.g.
-``validity checks INTEGER``). Costs and times of unsolved runs are written as ``inf``, which the
+``improvements INTEGER``, ``seed INTEGER``, ``instance INTEGER``, ``run index INTEGER``, ``planner
+order INTEGER`` (position in the run's shuffled order), ``wall time REAL``, ``solution segments
+INTEGER``, ``correct solution BOOLEAN`` (when the record says whether the path passed the independent
+check) and every numeric counter (e.g. ``validity checks INTEGER``; a counter whose name is an SQL
+keyword gets the prefix ``counter``). Costs and times of unsolved runs are written as ``inf``, which the
 converter stores as NULL. Progress (table ``progress``, columns ``time`` and ``best_cost``): the
 best cost after each solution improvement, plus the step curve sampled at
 :data:`PROGRESS_POINTS` evenly spaced times up to the time limit (OMPL samples progress every
@@ -76,6 +78,22 @@ BUDGET_KEYS = ("time_budget", "budget", "time_limit")
 """Record keys that may hold a run's time budget, in order of preference."""
 PROGRESS_PROPERTIES = ("best cost REAL", "time REAL")
 """Progress columns, in OMPL's (alphabetical) order."""
+SQLITE_KEYWORDS = frozenset(
+    """
+    abort action add after all alter always analyze and as asc attach autoincrement before begin
+    between by cascade case cast check collate column commit conflict constraint create cross
+    current current_date current_time current_timestamp database default deferrable deferred
+    delete desc detach distinct do drop each else end escape except exclude exclusive exists
+    explain fail filter first following for foreign from full generated glob group groups having
+    if ignore immediate in index indexed initially inner insert instead intersect into is isnull
+    join key last left like limit match materialized natural no not nothing notnull null nulls of
+    offset on or order others outer over partition plan pragma preceding primary query raise range
+    recursive references regexp reindex release rename replace restrict returning right rollback
+    row rows savepoint select set table temp temporary then ties to transaction trigger unbounded
+    union unique update using vacuum values view virtual when where window with without
+    """.split()  # noqa: SIM905 -- a word list reads better than 147 quoted strings
+)
+"""SQLite's keywords: the converter adds columns with unquoted names, so none may be one."""
 _UNSAFE = re.compile(r"[^a-z0-9]+")
 
 
@@ -330,10 +348,11 @@ def _run_properties(record: Mapping[str, Any], time_limit: float | None) -> dict
         "time of last improvement REAL": improvements[-1][0] if improvements and solved else math.inf,
         "improvements INTEGER": len(improvements),
     }
-    for key in ("seed", "instance", "run", "order"):
+    for key, name in (("seed", "seed"), ("instance", "instance"), ("run", "run index"),
+                      ("order", "planner order")):  # fmt: skip
         number = _instance(record) if key == "instance" else record.get(key)
         if isinstance(number, int) and not isinstance(number, bool):
-            values[f"{key} INTEGER"] = number
+            values[f"{name} INTEGER"] = number
     wall_time = _float(record.get("wall_time"))
     if math.isfinite(wall_time):
         values["wall time REAL"] = wall_time
@@ -348,7 +367,7 @@ def _run_properties(record: Mapping[str, Any], time_limit: float | None) -> dict
         taken = {name.rsplit(" ", 1)[0] for name in values}
         for key, value in counters.items():
             name = " ".join(_UNSAFE.sub(" ", str(key).lower()).split())
-            if not name or name in taken or name[0].isdigit():
+            if not name or name in taken or name[0].isdigit() or name in SQLITE_KEYWORDS:
                 name = f"counter {name}".strip()
             if isinstance(value, bool):
                 values[f"{name} BOOLEAN"] = int(value)

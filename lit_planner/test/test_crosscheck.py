@@ -1,0 +1,119 @@
+"""``lit crosscheck``: LIT*'s paths and costs against OMPL 2.0.1 and an independent checker.
+
+The OMPL 2.0.1 side runs in its own process (PyPI ompl must not meet lit_core); these tests check
+that it does, that it catches invalid paths and mis-reported costs, and run one short real
+cross-check on np4.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from lit_planner import crosscheck, ompl2, scenarios
+
+
+def test_agreement_rule() -> None:
+    assert crosscheck.agree(0.46, 0.44, 0.10)
+    assert crosscheck.agree(0.44, 0.46, 0.10)  # symmetric
+    assert not crosscheck.agree(0.61, 0.45, 0.10)
+    assert crosscheck.agree(1.0, 1.099, 0.10) and not crosscheck.agree(1.0, 1.101, 0.10)
+    assert not crosscheck.agree(None, 0.5, 0.10)  # a planner without a solution never agrees
+    assert not crosscheck.agree(math.inf, 0.5, 0.10)
+
+
+def test_worker_revalidates_paths_in_its_own_process() -> None:
+    scenario = scenarios.get("np4")
+    through_slab = [scenario.start, (-0.1, 0.1, 0.0, 0.0), (0.1, 0.1, 0.0, 0.0), scenario.goal]
+    length = scenarios.check_path(scenario, through_slab).cost
+    response = ompl2.run_worker("crosscheck", {
+        "scenario": scenario.to_dict(),
+        "paths": [
+            {"label": "straight", "path": [scenario.start, scenario.goal], "cost": 0.4},
+            {"label": "slab", "path": through_slab, "cost": length},
+            {"label": "slab, wrong cost", "path": through_slab, "cost": length - 0.01},
+            {"label": "slab, not to the goal", "path": through_slab[:-1], "cost": length - 0.1},
+        ],
+        "planners": [], "runs": 0, "time": 1.0, "seed": 1,
+    }, capture_stderr=True)  # fmt: skip
+    assert response["process"]["pid"] != os.getpid()
+    assert response["process"]["lit_core_loaded"] is False
+    assert response["process"]["ompl_version"] == "2.0.1"
+    straight, slab, wrong_cost, short = response["validations"]
+    assert not straight["valid"] and not straight["ompl_motion_valid"]
+    assert straight["ompl_first_invalid_segment"] == 0 and not straight["dense_valid"]
+    assert slab["valid"] and slab["ompl_motion_valid"] and slab["dense_valid"]
+    assert slab["length"] == pytest.approx(length, rel=1e-12)
+    assert not wrong_cost["valid"] and wrong_cost["ompl_motion_valid"]
+    assert not wrong_cost["cost_matches"]
+    assert not short["valid"] and short["dense"]["ends_at_goal"] is False
+
+
+def test_verdict_of_an_invalid_path_and_a_disagreement() -> None:
+    scenario = scenarios.get("np4")
+
+    def run(planner: str, cost: float, valid: bool = True) -> dict[str, Any]:
+        return {"planner": planner, "solved": True, "c_final": cost,
+                "validation": {"valid": valid}}  # fmt: skip
+
+    rows = crosscheck._rows(scenario, "litstar-fixed", [run("litstar-fixed", 0.45, valid=False)],
+                            [run("bitstar", 0.46), run("irrtstar", 0.60)],
+                            ["bitstar", "irrtstar"], 0.10)  # fmt: skip
+    lit, bitstar, irrtstar = rows
+    assert lit["paths_valid"] == 0 and not lit["ok"]
+    assert bitstar["agrees"] and bitstar["ok"]
+    assert not irrtstar["agrees"] and not irrtstar["ok"]
+    assert irrtstar["difference"] == pytest.approx((0.60 - 0.45) / 0.45)
+    report = {"ok": False, "tolerance": 0.10, "time": 5.0, "runs": 1,
+              "litstar": "litstar-fixed", "rows": rows}  # fmt: skip
+    text = crosscheck.format_table(report)
+    assert "FAILED: 1 invalid path(s)" in text
+    assert "best costs disagree: np4 OMPL 2.0.1 Informed RRT*" in text
+    below = crosscheck._row(scenario, "bitstar", "x", [run("bitstar", 0.40)])
+    assert below["below_optimum"] and not below["ok"]  # np4's optimum is 0.4236
+
+
+def test_short_real_crosscheck_on_np4(tmp_path: Path) -> None:
+    """One run of each planner, short times; a huge tolerance: here only validity is judged."""
+    out = tmp_path / "crosscheck.json"
+    process = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "crosscheck", "--scenarios", "np4",
+         "--runs", "1", "--time", "0.5", "--tolerance", "100", "--json", str(out)],
+        capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert process.returncode == 0, process.stdout + process.stderr
+    assert "| np4 | litstar-fixed | 1 | 1 | 1/1 |" in process.stdout
+    assert "| np4 | OMPL 2.0.1 BIT* | 1 | 1 | 1/1 |" in process.stdout
+    assert "| np4 | OMPL 2.0.1 Informed RRT* | 1 |" in process.stdout
+    assert "Known optima: np4 0.4236" in process.stdout
+    report = json.loads(out.read_text())
+    assert report["ok"] is True
+    (detail,) = report["scenarios"]
+    assert detail["ompl2_process"]["lit_core_loaded"] is False
+    assert detail["ompl2_process"]["pid"] != os.getpid()
+    (lit_run,) = detail["litstar_runs"]
+    validation = lit_run["validation"]
+    assert validation["valid"] and validation["ompl_motion_valid"] and validation["dense_valid"]
+    assert validation["length"] == pytest.approx(lit_run["c_final"], rel=1e-9)
+    assert {run["planner"] for run in detail["ompl2_runs"]} == {"bitstar", "irrtstar"}
+    for run in detail["ompl2_runs"]:
+        if run["solved"]:
+            assert run["validation"]["valid"]
+            assert run["c_final"] >= scenarios.get("np4").optimal_cost
+
+
+def test_bad_arguments_exit_2() -> None:
+    process = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "crosscheck", "--scenarios", "np4",
+         "--planners", "rrtconnect"],
+        capture_output=True, text=True, timeout=60, check=False,
+    )  # fmt: skip
+    assert process.returncode == 2
+    assert "OMPL 2.0.1 planners must be among bitstar, irrtstar" in process.stderr
