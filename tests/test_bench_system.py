@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import sqlite3
 import subprocess
 from pathlib import Path
 
@@ -60,6 +61,13 @@ def test_bench_writes_every_output(
         assert (out / name).is_file(), name
     assert (out / "plots/np4.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (out / "plots/np4.pdf").read_bytes()[:5] == b"%PDF-"
+    # The Planner Arena database, made from OMPL benchmark logs in a separate process.
+    assert (out / "arena" / "np4.log").is_file()
+    with sqlite3.connect(out / "benchmark.db") as db:
+        runs = db.execute("SELECT COUNT(*) FROM runs").fetchone()[0]
+        planners = {row[0] for row in db.execute("SELECT name FROM plannerConfigs")}
+    assert runs == 4
+    assert len(planners) == 2
     assert "planning time alone: 2 runs x 2 planners" in result.stderr
     assert "| np4 |" in result.stdout and "## Every planner" in result.stdout
 

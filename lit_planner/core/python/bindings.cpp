@@ -208,6 +208,11 @@ namespace
                                           "' or rejected the value '" + value + "'");
             planner->setProblemDefinition(problem.pdef);
 
+            {
+                // Set-up is outside every planner's clock (LIT*'s clock starts in solve as well).
+                py::gil_scoped_release release;
+                planner->setup();
+            }
             const auto startTime = std::chrono::steady_clock::now();
             if (!litstar)
                 problem.pdef->setIntermediateSolutionCallback(
@@ -220,7 +225,6 @@ namespace
             ompl::base::PlannerStatus plannerStatus;
             {
                 py::gil_scoped_release release;
-                planner->setup();
                 if (litstar)
                     plannerStatus = planner->solve(ompl::base::plannerNonTerminatingCondition());
                 else

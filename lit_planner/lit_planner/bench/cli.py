@@ -136,6 +136,16 @@ def run(args: argparse.Namespace) -> int:
         estimate=(estimate, formula),
     )
     print((out / SUMMARY_MD).read_text(encoding="utf-8"))
+    # Planner Arena database from OMPL benchmark logs (PyPI ompl, in its own process).
+    from lit_planner import arena, ompl2
+
+    try:
+        export = arena.export_arena(out, records)
+        print(f"lit bench: Planner Arena database {export.database} ({len(export.logs)} OMPL logs)",
+              file=sys.stderr)
+    except (arena.ArenaError, ompl2.Ompl2Error) as error:
+        print(f"lit bench: Planner Arena export failed: {error}", file=sys.stderr)
+        return 1
     invalid = sum(1 for r in records if r["solved"] and r["path_valid"] is False)
     print(
         f"lit bench: {len(records)} runs in {duration / 60:.1f} min; {invalid} returned paths "

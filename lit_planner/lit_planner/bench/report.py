@@ -389,9 +389,9 @@ def markdown(summary: dict[str, Any]) -> str:
             f"{solved} returned paths invalid."
         ),
         (
-            "- Times: LIT*'s from its own planning clock, which starts after its set-up and problem "
-            "initialisation (and pauses only for an external policy, unused here); the OMPL planners' "
-            "wall time from before their setup(). Every planner gets the same budget."
+            "- Times: every planner's clock starts after its setup(), at solve(). LIT*'s is its own "
+            "planning clock (it pauses only for an external policy, unused here; its first batch of "
+            "samples is inside it); the OMPL planners' is wall time. Every planner gets the same budget."
         ),
         "",
     ]
