@@ -81,9 +81,9 @@ def run_comparison(scenario_names: Sequence[str], planners: Sequence[str], runs:
 
 def format_table(summary: dict[str, Any], planners: Sequence[str]) -> str:
     reference = planners[0]
-    lines = [f"| scenario | planner | success | median t_init (s) | median c_init | median c_final | "
-             f"t_init {reference} / planner | c_init {reference} / planner |",
-             "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
+    header = (f"| scenario | planner | success | median t_init (s) | median c_init | median c_final | "
+              f"t_init {reference} / planner | c_init {reference} / planner |")
+    lines = [header, "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
     for name, per_planner in summary["medians"].items():
         ref = per_planner[reference]
         for planner in planners:
