@@ -48,6 +48,10 @@ COMMANDS: dict[str, Command] = {
         "lit_planner.crosscheck",
         "independent cross-check: LIT*'s paths and costs against OMPL 2.0.1 (PyPI ompl) planners",
     ),
+    "train": Command(
+        "lit_learner.train",
+        "train the Fuzzy-DDPG policy (B, then psi_K) in-process against LIT*; export lookup tensors",
+    ),
     "test": Command(
         "lit_planner.testing", "run all tests: C++ (ctest) and Python (pytest)", run="main"
     ),

@@ -1,0 +1,760 @@
+"""``lit train``: Fuzzy-DDPG training driven in-process through LIT*'s external policy.
+
+One episode is one planning query: a scenario instance drawn from the training distribution, planned
+by LIT* with a training seed until the scenario's time budget (planner time; the learner's time is
+outside the planner's clock). Every decision the planner asks for becomes a
+:class:`~lit_learner.messages.DecisionRequest` to the :class:`~lit_learner.core.LearnerCore`; after
+the query the episode is closed with an :class:`~lit_learner.messages.EpisodeEnd`, which runs the
+gradient updates outside the timed loop.
+
+**Training distribution.** Each episode draws a scenario uniformly from ``--scenarios``. Fixed
+families (NP, WG) have only instance 0; random families (RR, RRD) draw an instance from
+:data:`TRAINING_INSTANCES`. The planner seed is drawn from :data:`TRAINING_SEEDS`. ``lit bench``
+uses seeds 1..100 on instance 0, so training never plans a benchmark query: the seeds are disjoint
+everywhere and the random obstacle layouts are disjoint too. All draws come from one generator
+seeded by ``--seed``, saved with every checkpoint, so a resumed run continues the same sequence.
+
+**Schedule** (``LEARNER.md``). ``b-then-k``: the first half (of ``--episodes``, or of
+``--minutes``) trains the B agent with psi_K fixed at e; then the B agent is exported to a lookup
+tensor (``<run>/b_phase_tensors/``) and the second half trains the psi_K agent while B comes from
+that tensor by trilinear lookup, exactly as the shipped ``tensor`` policy will answer it (so K
+learns against the B it will meet in deployment, and B's transitions stop). ``joint``: both agents
+decide and learn in every episode.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import shlex
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lit_learner.metrics import (
+    CURVES_FILE,
+    METRICS_FILE,
+    MetricsLog,
+    histogram_column,
+    plot_training_curves,
+)
+
+TRAINING_SEEDS = (1_000_000, 2**32 - 1)
+"""Inclusive range of planner seeds for training episodes (benchmarks use 1..100)."""
+TRAINING_INSTANCES = (1, 10_000)
+"""Inclusive range of instances of random families for training (benchmarks use instance 0)."""
+DEFAULT_SCENARIOS = ("np4", "np8", "np16", "wg4", "wg8", "wg16", "rrd4", "rrd8", "rrd16")
+"""The default training mix: NP, WG and RRD in R^4, R^8 and R^16."""
+SCHEDULES = ("b-then-k", "joint")
+"""Training schedules; see the module docstring."""
+DEFAULT_EPISODES = 200
+"""Episodes when neither ``--episodes`` nor ``--minutes`` is given."""
+DEFAULT_DECISION_INTERVAL = 10
+"""psi_K is decided every this many expansions (the planner's ``decision_interval``)."""
+DEFAULT_CHECKPOINT_EVERY = 100
+"""Episodes between periodic checkpoints."""
+KEEP_CHECKPOINTS = 2
+"""Periodic checkpoints kept (older ones are deleted); the final one is always kept."""
+HISTOGRAM_BINS = 10
+"""Bins of the per-episode action histograms (over each agent's consequent range)."""
+FIXED_NEIGHBOUR_FACTOR = math.e
+"""psi_K while only the B agent trains (the fixed policy's value)."""
+BUDGET_TOLERANCE = 1e-3
+"""An episode whose planner time reaches (1 - this) of the budget ran out of time: truncated."""
+
+PHASE_B, PHASE_K, PHASE_JOINT = "B", "psi_K", "joint"
+CHECKPOINT_DIR = "checkpoints"
+B_PHASE_TENSORS = "b_phase_tensors"
+PROVENANCE_FILE = "provenance.json"
+STATE_SUFFIX = ".driver.json"
+
+METRIC_COLUMNS = (
+    "episode",
+    "phase",
+    "scenario",
+    "instance",
+    "seed",
+    "solved",
+    "truncated",
+    "cost",
+    "minimum_cost",
+    "t_init",
+    "improvements",
+    "planner_time",
+    "wall_time",
+    "learner_time",
+    "decisions_B",
+    "decisions_psi_K",
+    "mean_B",
+    "mean_psi_K",
+    "policy_version",
+)
+"""Driver columns of ``metrics.csv``; the learner's metrics (``charts/...``, ``losses/...``) and
+the action histograms (``actions/B_bin0`` ...) follow them."""
+
+
+class TrainingError(RuntimeError):
+    """A training run could not start or continue (bad options, a failed callback, ...)."""
+
+
+# --------------------------------------------------------------------------------------------
+# Training distribution
+
+
+@dataclass(frozen=True)
+class EpisodeSpec:
+    """One training query: which scenario instance, planned with which seed."""
+
+    index: int
+    """Episode number in the run (0-based)."""
+    scenario: str
+    """Registry name without instance suffix (``rrd8``)."""
+    instance: int
+    """Scenario instance (0 for fixed families, from :data:`TRAINING_INSTANCES` otherwise)."""
+    seed: int
+    """LIT*'s seed, from :data:`TRAINING_SEEDS`."""
+
+
+class TrainingDistribution:
+    """Draws training queries; benchmark queries (seeds 1..100, instance 0) are never drawn."""
+
+    def __init__(self, scenario_names: Sequence[str], rng: np.random.Generator) -> None:
+        from lit_planner import scenarios
+
+        if not scenario_names:
+            raise TrainingError("no training scenarios given")
+        self.names = list(scenario_names)
+        self.randomised = {}
+        for name in self.names:
+            try:
+                problem = scenarios.get(name)
+            except Exception as error:  # ScenarioError: names the bad input
+                raise TrainingError(f"training scenario {name!r}: {error}") from error
+            if problem.instance != 0 or "/" in name:
+                raise TrainingError(
+                    f"training scenario {name!r}: give the family and dimension only; the "
+                    "instance is drawn from the training distribution"
+                )
+            self.randomised[name] = problem.family_spec.randomised
+        self.rng = rng
+
+    def draw(self, index: int) -> EpisodeSpec:
+        """The query of episode ``index`` (consumes the generator)."""
+        name = self.names[int(self.rng.integers(len(self.names)))]
+        low, high = TRAINING_INSTANCES
+        instance = int(self.rng.integers(low, high + 1)) if self.randomised[name] else 0
+        seed = int(self.rng.integers(TRAINING_SEEDS[0], TRAINING_SEEDS[1] + 1))
+        return EpisodeSpec(index, name, instance, seed)
+
+
+# --------------------------------------------------------------------------------------------
+# One episode
+
+
+@dataclass
+class EpisodeOutcome:
+    """What one episode produced: the planner's result, the learner's metrics, the actions."""
+
+    spec: EpisodeSpec
+    phase: str
+    result: dict[str, Any]
+    metrics: dict[str, float]
+    actions: dict[str, list[float]] = field(default_factory=dict)
+    wall_time: float = 0.0
+    learner_time: float = 0.0
+    """Seconds spent in the callback and ``end_episode`` (outside the planner's clock)."""
+    truncated: bool = True
+    minimum_cost: float = 0.0
+
+
+def round_batch_size(value: float, low: float, high: float) -> float:
+    """B as the planner executes it: rounded half away from zero, clamped to ``[low, high]``."""
+    rounded = math.floor(abs(value) + 0.5) * (1 if value >= 0 else -1)
+    return float(min(max(rounded, low), high))
+
+
+def run_episode(
+    core: Any,
+    spec: EpisodeSpec,
+    phase: str,
+    episode_id: str,
+    *,
+    decision_interval: int = DEFAULT_DECISION_INTERVAL,
+    b_tensor: Any = None,
+    b_range: tuple[float, float] = (20.0, 200.0),
+    explore: bool = True,
+    time_budget: float | None = None,
+) -> EpisodeOutcome:
+    """Plan one training query with the learner deciding, then close the episode.
+
+    Args:
+        core: the :class:`~lit_learner.core.LearnerCore`.
+        spec: the query.
+        phase: :data:`PHASE_B` (B learns, psi_K fixed at e), :data:`PHASE_K` (psi_K learns, B from
+            ``b_tensor``) or :data:`PHASE_JOINT` (both learn).
+        episode_id: unique per episode (the learner pairs messages by it).
+        decision_interval: psi_K is decided every this many expansions.
+        b_tensor: ``lit_core.LookupTensor`` answering B in :data:`PHASE_K`.
+        explore: exploration noise on (training) or off (evaluation).
+        time_budget: planner seconds; the scenario's budget when None.
+
+    Raises:
+        TrainingError: the callback raised (the planner would otherwise silently fall back to the
+            fixed values) or the phase needs a tensor that is missing.
+    """
+    import lit_core
+
+    from lit_learner.messages import DecisionRequest, EpisodeEnd
+    from lit_planner import planning, scenarios
+
+    if phase == PHASE_K and b_tensor is None:
+        raise TrainingError("the psi_K phase needs the B lookup tensor of the B phase")
+    problem = scenarios.get(spec.scenario, spec.instance)
+    budget = problem.time_budget if time_budget is None else time_budget
+    actions: dict[str, list[float]] = {"B": [], "psi_K": []}
+    errors: list[BaseException] = []
+    learner_seconds = [0.0]
+
+    def decide(context: lit_core.DecisionContext) -> float:
+        started = time.perf_counter()
+        try:
+            if context.kind == "B" and phase == PHASE_K:
+                value = round_batch_size(
+                    b_tensor.trilinear(context.rho_global, context.rho_local, context.measure),
+                    *b_range,
+                )
+            else:
+                value = core.decide(
+                    DecisionRequest(
+                        agent=context.kind,
+                        episode_id=episode_id,
+                        rho_global=context.rho_global,
+                        rho_local=context.rho_local,
+                        measure=context.measure,
+                        planning_time=context.planning_time,
+                        time_budget=budget,
+                        cost=context.cost if context.has_solution else None,
+                        minimum_cost=context.minimum_cost,
+                        improvements=context.improvements,
+                        path_states=context.path_states,
+                        explore=explore,
+                    )
+                )
+            actions[context.kind].append(float(value))
+            return float(value)
+        except BaseException as error:
+            errors.append(error)
+            raise
+        finally:
+            learner_seconds[0] += time.perf_counter() - started
+
+    policy = lit_core.ExternalPolicy(decide, decides_neighbour_factor=phase != PHASE_B)
+    started = time.perf_counter()
+    result = planning.plan(
+        problem,
+        policy=policy,
+        time=budget,
+        seed=spec.seed,
+        params={"decision_interval": decision_interval},
+        check_path=False,
+    )
+    if errors:
+        raise TrainingError(
+            f"episode {spec.index} ({problem.name}, seed {spec.seed}): the learner's decision "
+            f"failed: {errors[0]!r}"
+        ) from errors[0]
+    if policy.failures:
+        raise TrainingError(
+            f"episode {spec.index} ({problem.name}, seed {spec.seed}): {policy.failures} "
+            "decisions fell back to the fixed values (NaN answers)"
+        )
+    truncated = result["time"] >= budget * (1.0 - BUDGET_TOLERANCE)
+    ended = time.perf_counter()
+    metrics = core.end_episode(
+        EpisodeEnd(
+            episode_id=episode_id,
+            planning_time=float(result["time"]),
+            time_budget=budget,
+            cost=float(result["cost"]) if result["solved"] else None,
+            minimum_cost=minimum_cost(problem),
+            improvements=len(result["improvements"]),
+            path_states=len(result["path"]) if result["path"] else 0,
+            truncated=truncated,
+        )
+    )
+    finished = time.perf_counter()
+    return EpisodeOutcome(
+        spec=spec,
+        phase=phase,
+        result=result,
+        metrics=dict(metrics or {}),
+        actions=actions,
+        wall_time=finished - started,
+        learner_time=learner_seconds[0] + (finished - ended),
+        truncated=truncated,
+        minimum_cost=minimum_cost(problem),
+    )
+
+
+def minimum_cost(problem: Any) -> float:
+    """c_min of the rewards: the start-goal distance."""
+    return float(np.linalg.norm(np.asarray(problem.goal) - np.asarray(problem.start)))
+
+
+def histogram(values: Sequence[float], low: float, high: float, bins: int) -> list[int]:
+    """Counts of ``values`` in ``bins`` equal bins over ``[low, high]`` (ends included)."""
+    counts, _ = np.histogram(np.clip(values, low, high), bins=bins, range=(low, high))
+    return [int(count) for count in counts]
+
+
+# --------------------------------------------------------------------------------------------
+# Evaluation
+
+
+def evaluate(
+    core: Any,
+    scenario: str,
+    seeds: Sequence[int],
+    *,
+    instance: int = 0,
+    agent: str = "B",
+    decision_interval: int = DEFAULT_DECISION_INTERVAL,
+    scratch: Path,
+) -> list[float]:
+    """Noise-free returns of ``agent`` on fixed queries, measured on a throwaway copy of ``core``.
+
+    The copy (saved to and loaded from ``scratch``) absorbs the evaluation's transitions and
+    updates, so evaluating never changes the learner being trained.
+    """
+    from lit_learner.core import LearnerCore
+
+    scratch.mkdir(parents=True, exist_ok=True)
+    path = scratch / "evaluation.ckpt"
+    core.save_checkpoint(path)
+    probe = LearnerCore.load_checkpoint(path)
+    phase = PHASE_B if agent == "B" else PHASE_JOINT
+    returns = []
+    for number, seed in enumerate(seeds):
+        spec = EpisodeSpec(number, scenario, instance, seed)
+        outcome = run_episode(
+            probe,
+            spec,
+            phase,
+            f"evaluation-{scenario}-{instance}-{seed}-{number}",
+            decision_interval=decision_interval,
+            explore=False,
+        )
+        returns.append(float(outcome.metrics[f"charts/return_{agent}"]))
+    path.unlink(missing_ok=True)
+    return returns
+
+
+# --------------------------------------------------------------------------------------------
+# Run state, checkpoints, provenance
+
+
+@dataclass
+class DriverState:
+    """Everything besides the learner that a resumed run needs (saved beside each checkpoint)."""
+
+    run_id: str
+    scenarios: list[str]
+    schedule: str
+    decision_interval: int
+    seed: int
+    episodes: int | None
+    minutes: float | None
+    command: list[str]
+    episode: int = 0
+    """Episodes finished."""
+    elapsed: float = 0.0
+    """Wall seconds of training so far (resumes add to it)."""
+    phase: str = PHASE_B
+    b_tensor_dir: str | None = None
+    """Folder of the B tensor exported at the phase switch (relative to the run folder)."""
+    rng_state: dict[str, Any] = field(default_factory=dict)
+    episodes_per_phase: dict[str, int] = field(default_factory=dict)
+    started_utc: str = ""
+
+    def save(self, path: Path) -> None:
+        path.write_text(json.dumps(dataclasses.asdict(self), indent=2) + "\n")
+
+    @classmethod
+    def load(cls, path: Path) -> DriverState:
+        if not path.exists():
+            raise TrainingError(
+                f"{path}: the driver state of this checkpoint is missing; `lit train --resume` "
+                "needs the checkpoint and its .driver.json written by `lit train`"
+            )
+        return cls(**json.loads(path.read_text()))
+
+
+def state_path(checkpoint: Path) -> Path:
+    """The driver state file beside ``checkpoint``."""
+    return checkpoint.with_name(checkpoint.name + STATE_SUFFIX)
+
+
+def git_commit() -> str | None:
+    """The checkout's commit, with ``-dirty`` when tracked files are modified; None outside git."""
+    root = Path(__file__).resolve().parents[2]
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return commit + ("-dirty" if dirty else "")
+
+
+def provenance(state: DriverState, run_dir: Path) -> dict[str, Any]:
+    """What made these tensors: command, seeds, distribution, episodes, wall time, commit."""
+    return {
+        "command": shlex.join(state.command),
+        "run_folder": str(run_dir),
+        "git_commit": git_commit(),
+        "started_utc": state.started_utc,
+        "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "wall_time_s": round(state.elapsed, 1),
+        "episodes": state.episode,
+        "episodes_per_phase": state.episodes_per_phase,
+        "schedule": state.schedule,
+        "scenarios": state.scenarios,
+        "decision_interval": state.decision_interval,
+        "seed": state.seed,
+        "training_seeds": list(TRAINING_SEEDS),
+        "training_instances_of_random_families": list(TRAINING_INSTANCES),
+        "seed_rule": (
+            "planner seeds drawn from training_seeds and random-family instances from "
+            "training_instances, all from a generator seeded by `seed`; benchmarks use seeds "
+            "1..100 on instance 0, so no training query is a benchmark query"
+        ),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# The command
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``lit train``."""
+    parser.add_argument(
+        "--episodes",
+        type=int,
+        help=f"episodes to train (default {DEFAULT_EPISODES} without "
+        "--minutes; with --resume: the new total)",
+    )
+    parser.add_argument(
+        "--minutes",
+        type=float,
+        help="wall-clock minutes to train (stops at whichever of "
+        "--episodes and --minutes comes first; with --resume: the new total)",
+    )
+    parser.add_argument(
+        "--scenarios",
+        default=",".join(DEFAULT_SCENARIOS),
+        help="comma-separated training scenarios (family+dimension; instances are drawn)",
+    )
+    parser.add_argument("--schedule", choices=SCHEDULES, default=SCHEDULES[0])
+    parser.add_argument(
+        "--decision-interval",
+        type=int,
+        default=DEFAULT_DECISION_INTERVAL,
+        help="decide psi_K every N expansions (planner parameter decision_interval)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the learner and the draws")
+    parser.add_argument("--out", type=Path, help="run folder (default runs/train-<UTC time>)")
+    parser.add_argument("--resume", type=Path, metavar="CHECKPOINT", help="continue a run")
+    parser.add_argument(
+        "--export", type=Path, metavar="DIR", help="write the lookup tensors here at the end"
+    )
+    parser.add_argument(
+        "--checkpoint-every", type=int, default=DEFAULT_CHECKPOINT_EVERY, metavar="N"
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Train, checkpoint, plot and (with ``--export``) export; returns the exit code."""
+    from lit_planner.errors import LitError
+
+    try:
+        summary = train(args, hooks=None)
+    except (TrainingError, LitError) as error:
+        print(f"lit train: {error}", file=sys.stderr)
+        return 2
+    print(summary)
+    return 0
+
+
+@dataclass
+class TrainingHooks:
+    """Test seams: a learner-config override and a per-episode observer."""
+
+    learner_config: Any = None
+    """``LearnerConfig`` for a fresh run (default: the learner's defaults with ``--seed``)."""
+    on_episode: Callable[[EpisodeOutcome], None] | None = None
+
+
+def _phase_for(state: DriverState) -> str:
+    if state.schedule == "joint":
+        return PHASE_JOINT
+    half_episodes = state.episodes is not None and state.episode >= math.ceil(state.episodes / 2)
+    half_time = state.minutes is not None and state.elapsed >= state.minutes * 30.0
+    return PHASE_K if (state.phase == PHASE_K or half_episodes or half_time) else PHASE_B
+
+
+def _finished(state: DriverState) -> bool:
+    return (state.episodes is not None and state.episode >= state.episodes) or (
+        state.minutes is not None and state.elapsed >= state.minutes * 60.0
+    )
+
+
+def agent_range(agent_config: Any, fallback: tuple[float, float]) -> tuple[float, float]:
+    """``[min f, max f]`` of an agent's consequents (``fallback`` if the config has none)."""
+    if not hasattr(agent_config, "action_min"):
+        return fallback
+    return float(agent_config.action_min), float(agent_config.action_max)
+
+
+def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
+    """The body of ``lit train``; returns a one-paragraph summary."""
+    import lit_core
+
+    from lit_learner.config import LearnerConfig
+    from lit_learner.core import LearnerCore
+    from lit_planner import planning
+
+    hooks = hooks or TrainingHooks()
+    lit_core.set_log_level("warn")
+    command = ["lit", "train", *(sys.argv[2:] if sys.argv[1:2] == ["train"] else sys.argv[1:])]
+    if args.decision_interval < 1:
+        raise TrainingError(f"--decision-interval must be at least 1, got {args.decision_interval}")
+    for label, value in (("--episodes", args.episodes), ("--minutes", args.minutes)):
+        if value is not None and not value > 0:
+            raise TrainingError(f"{label} must be positive, got {value}")
+
+    if args.resume is not None:
+        checkpoint = Path(args.resume)
+        if not checkpoint.exists():
+            raise TrainingError(f"--resume {checkpoint}: no such checkpoint")
+        state = DriverState.load(state_path(checkpoint))
+        run_dir = Path(args.out) if args.out else checkpoint.resolve().parent.parent
+        core = LearnerCore.load_checkpoint(checkpoint)
+        if args.episodes is not None:
+            state.episodes = args.episodes
+        if args.minutes is not None:
+            state.minutes = args.minutes
+        state.command = command
+        rng = np.random.default_rng()
+        rng.bit_generator.state = state.rng_state
+    else:
+        stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
+        run_dir = Path(args.out) if args.out else Path("runs") / f"train-{stamp}"
+        if (run_dir / METRICS_FILE).exists():
+            raise TrainingError(
+                f"{run_dir} already holds a training run; choose another --out or --resume"
+            )
+        episodes = args.episodes
+        if episodes is None and args.minutes is None:
+            episodes = DEFAULT_EPISODES
+        state = DriverState(
+            run_id=f"train-{stamp}-s{args.seed}",
+            scenarios=[name.strip() for name in args.scenarios.split(",") if name.strip()],
+            schedule=args.schedule,
+            decision_interval=args.decision_interval,
+            seed=args.seed,
+            episodes=episodes,
+            minutes=args.minutes,
+            command=command,
+            started_utc=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        )
+        config = hooks.learner_config or LearnerConfig(seed=args.seed)
+        core = LearnerCore(config)
+        rng = np.random.default_rng(args.seed)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    distribution = TrainingDistribution(state.scenarios, rng)
+    b_range = agent_range(core.config.b, (20.0, 200.0))
+    k_range = agent_range(core.config.k, (3.0, 12.0 + 3.0))
+    ranges = {"B": b_range, "psi_K": k_range}
+    b_tensor = None
+    if state.b_tensor_dir is not None:
+        b_tensor = planning.load_tensor(
+            run_dir / state.b_tensor_dir / planning.TENSOR_FILES["B"], "B"
+        )
+
+    columns = [*METRIC_COLUMNS] + [
+        histogram_column(agent, index) for agent in ranges for index in range(HISTOGRAM_BINS)
+    ]
+    log = MetricsLog(run_dir / METRICS_FILE, columns)
+    progress = _progress(state, disable=args.no_progress)
+    session_start = time.perf_counter() - state.elapsed
+    periodic: list[Path] = []
+    try:
+        while not _finished(state):
+            phase = _phase_for(state)
+            if phase == PHASE_K and state.phase != PHASE_K:
+                b_tensor = _switch_to_k(core, state, run_dir)
+            state.phase = phase
+            spec = distribution.draw(state.episode)
+            outcome = run_episode(
+                core,
+                spec,
+                phase,
+                f"{state.run_id}-{spec.index:07d}",
+                decision_interval=state.decision_interval,
+                b_tensor=b_tensor,
+                b_range=b_range,
+            )
+            state.episode += 1
+            state.elapsed = time.perf_counter() - session_start
+            state.episodes_per_phase[phase] = state.episodes_per_phase.get(phase, 0) + 1
+            log.append(_row(outcome, core, ranges))
+            if hooks.on_episode is not None:
+                hooks.on_episode(outcome)
+            _advance(progress, state, outcome)
+            if args.checkpoint_every > 0 and state.episode % args.checkpoint_every == 0:
+                periodic.append(
+                    _checkpoint(core, state, rng, run_dir, f"episode-{state.episode:07d}")
+                )
+                while len(periodic) > KEEP_CHECKPOINTS:
+                    old = periodic.pop(0)
+                    old.unlink(missing_ok=True)
+                    state_path(old).unlink(missing_ok=True)
+    finally:
+        progress.close()
+    final = _checkpoint(core, state, rng, run_dir, "final")
+    curves = plot_training_curves(run_dir / METRICS_FILE, run_dir / CURVES_FILE, HISTOGRAM_BINS)
+    record = provenance(state, run_dir)
+    (run_dir / PROVENANCE_FILE).write_text(json.dumps(record, indent=2) + "\n")
+    lines = [
+        (
+            f"lit train: {state.episode} episodes in {state.elapsed / 60:.1f} min "
+            f"({state.episodes_per_phase}), run folder {run_dir}"
+        ),
+        f"  checkpoint {final}, metrics {run_dir / METRICS_FILE}, curves {curves}",
+    ]
+    if args.export is not None:
+        written = export(core, Path(args.export), record, curves)
+        lines.append(f"  tensors {', '.join(str(path) for path in written.values())}")
+    return "\n".join(lines)
+
+
+def export(core: Any, directory: Path, record: dict[str, Any], curves: Path | None) -> dict:
+    """Write both tensors with ``record`` as provenance, plus ``provenance.json`` and the curves."""
+    directory.mkdir(parents=True, exist_ok=True)
+    written = core.export_tensors(directory, record)
+    (directory / PROVENANCE_FILE).write_text(json.dumps(record, indent=2) + "\n")
+    if curves is not None and curves.exists():
+        shutil.copyfile(curves, directory / CURVES_FILE)
+    return written
+
+
+def _switch_to_k(core: Any, state: DriverState, run_dir: Path) -> Any:
+    """End of the B phase: export B so that the psi_K phase answers B from its tensor."""
+    from lit_planner import planning
+
+    folder = run_dir / B_PHASE_TENSORS
+    record = provenance(state, run_dir) | {"note": "B tensor at the end of the B phase"}
+    written = core.export_tensors(folder, record)
+    state.b_tensor_dir = B_PHASE_TENSORS
+    return planning.load_tensor(Path(written["B"]), "B")
+
+
+def _checkpoint(
+    core: Any, state: DriverState, rng: np.random.Generator, run_dir: Path, name: str
+) -> Path:
+    folder = run_dir / CHECKPOINT_DIR
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{name}.ckpt"
+    core.save_checkpoint(path)
+    state.rng_state = rng.bit_generator.state
+    state.save(state_path(path))
+    return path
+
+
+def _row(outcome: EpisodeOutcome, core: Any, ranges: dict[str, tuple[float, float]]) -> dict:
+    result = outcome.result
+    row: dict[str, object] = {
+        "episode": outcome.spec.index,
+        "phase": outcome.phase,
+        "scenario": outcome.spec.scenario,
+        "instance": outcome.spec.instance,
+        "seed": outcome.spec.seed,
+        "solved": bool(result["solved"]),
+        "truncated": outcome.truncated,
+        "cost": float(result["cost"]) if result["solved"] else None,
+        "minimum_cost": outcome.minimum_cost,
+        "t_init": result.get("t_init"),
+        "improvements": len(result["improvements"]),
+        "planner_time": float(result["time"]),
+        "wall_time": outcome.wall_time,
+        "learner_time": outcome.learner_time,
+        "policy_version": getattr(core, "policy_version", None),
+    }
+    for agent, (low, high) in ranges.items():
+        values = outcome.actions.get(agent, [])
+        row[f"decisions_{agent}"] = len(values)
+        row[f"mean_{agent}"] = float(np.mean(values)) if values else None
+        for index, count in enumerate(histogram(values, low, high, HISTOGRAM_BINS)):
+            row[histogram_column(agent, index)] = count
+    row.update(outcome.metrics)
+    return row
+
+
+class _NoProgress:
+    def update(self, *_: object) -> None: ...
+    def set_postfix(self, *_: object, **__: object) -> None: ...
+    def close(self) -> None: ...
+
+
+def _progress(state: DriverState, disable: bool) -> Any:
+    if disable:
+        return _NoProgress()
+    from tqdm import tqdm
+
+    return tqdm(
+        total=state.episodes,
+        initial=state.episode,
+        unit="ep",
+        desc="lit train",
+        dynamic_ncols=True,
+    )
+
+
+def _advance(progress: Any, state: DriverState, outcome: EpisodeOutcome) -> None:
+    returns = {
+        key.split("_", 1)[1]: value
+        for key, value in outcome.metrics.items()
+        if key.startswith("charts/return_")
+    }
+    left = []
+    if state.minutes is not None:
+        left.append(max(0.0, state.minutes * 60 - state.elapsed))
+    if state.episodes is not None and state.episode:
+        left.append(state.elapsed / state.episode * (state.episodes - state.episode))
+    progress.update(1)
+    progress.set_postfix(
+        {
+            "phase": outcome.phase,
+            "scenario": f"{outcome.spec.scenario}/{outcome.spec.instance}",
+            **{f"R_{agent}": f"{value:.3g}" for agent, value in returns.items()},
+            "left": time.strftime("%H:%M:%S", time.gmtime(min(left))) if left else "?",
+        },
+        refresh=False,
+    )
