@@ -1,5 +1,7 @@
-"""LIT* learner package.
+"""LIT* learner: the Fuzzy-DDPG policy for batch size B and neighbour factor psi_K.
 
-The Fuzzy-DDPG learner (B and psi_K agents, prioritized replay, rewards, tensor export and the
-learner node) arrives with its issue; this module only reserves the package.
+:class:`~lit_learner.core.LearnerCore` takes :class:`~lit_learner.messages.DecisionRequest` and
+:class:`~lit_learner.messages.EpisodeEnd` messages, returns executed actions, pairs transitions,
+trains both agents at episode ends, checkpoints and exports lookup tensors. The specification is
+``shared/design/LEARNER.md``.
 """

@@ -1,0 +1,177 @@
+"""One DDPG agent with prioritized replay (LEARNER.md "Action" and "Update").
+
+The action outside the actor is the crisp scalar a_norm in [0, 1]: (B - 20) / 180 or
+(psi - 3) / 12; the executed value (B rounded half away from zero, both clamped) is what gets
+stored. Exploration: a_norm + N(0, noise_std), clipped; uniform actions until warm-up is reached.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Any
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from lit_learner.config import AgentConfig
+from lit_learner.fuzzy import fuzzify
+from lit_learner.messages import Features
+from lit_learner.networks import Actor, Critic, polyak_update
+from lit_learner.replay import PrioritizedReplay, beta_at
+
+
+def round_half_away_from_zero(value: float) -> float:
+    """2.5 -> 3, -2.5 -> -3 (Python's round() would give 2)."""
+    return math.copysign(math.floor(abs(value) + 0.5), value)
+
+
+class DDPGAgent:
+    """Actor, critic, their targets and optimisers, a replay buffer and a random generator."""
+
+    def __init__(self, config: AgentConfig, seed: int) -> None:
+        self.config = config
+        self.rng = np.random.default_rng(seed)
+        """Exploration noise, warm-up actions and replay sampling."""
+        with torch.random.fork_rng(devices=[]):  # seeded init without touching the global RNG
+            torch.manual_seed(seed)
+            self.actor = Actor(
+                config.consequents, config.conv_kernels, config.conv_channels, config.hidden,
+                config.actor_last_init,
+            )
+            self.critic = Critic(config.conv_kernels, config.conv_channels, config.hidden)
+        self.actor_target = copy.deepcopy(self.actor)
+        self.critic_target = copy.deepcopy(self.critic)
+        for net in (self.actor_target, self.critic_target):
+            net.requires_grad_(False)
+        self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=config.lr_actor)
+        self.critic_optimizer = torch.optim.Adam(self.critic.parameters(), lr=config.lr_critic)
+        self.replay = PrioritizedReplay(config.buffer_size, config.alpha, config.priority_eps)
+        self.updates = 0
+        """Gradient steps taken."""
+        self.transitions = 0
+        """Transitions ever stored."""
+
+    # ------------------------------------------------------------------ actions
+
+    def state(self, features: torch.Tensor) -> torch.Tensor:
+        """Fuzzy 9-vectors of raw (..., 3) features."""
+        return fuzzify(features, self.config.fuzzy_centres, self.config.fuzzy_sigma)
+
+    @torch.no_grad()
+    def policy(self, features: Features) -> float:
+        """Noise-free z*(features) in action units, before rounding."""
+        x = torch.tensor([features], dtype=torch.float32)
+        return float(self.actor(self.state(x))[0])
+
+    @property
+    def warming_up(self) -> bool:
+        """True until ``warmup`` transitions are stored: actions are uniform then."""
+        return self.transitions < self.config.warmup
+
+    def normalise(self, value: float) -> float:
+        """a_norm of an action value."""
+        lo, hi = self.config.action_min, self.config.action_max
+        return (value - lo) / (hi - lo)
+
+    def executed(self, a_norm: float) -> float:
+        """The value the planner executes for a_norm: rounded (B) and clamped to the range."""
+        lo, hi = self.config.action_min, self.config.action_max
+        value = lo + a_norm * (hi - lo)
+        if self.config.rounding == "half_away_from_zero":
+            value = round_half_away_from_zero(value)
+        return min(max(value, lo), hi)
+
+    def act(self, features: Features, explore: bool) -> tuple[float, float]:
+        """(executed value, its a_norm) for one decision."""
+        if explore and self.warming_up:
+            a_norm = float(self.rng.uniform(0.0, 1.0))
+        else:
+            a_norm = self.normalise(self.policy(features))
+            if explore:
+                a_norm = float(np.clip(a_norm + self.rng.normal(0.0, self.config.noise_std), 0, 1))
+        value = self.executed(a_norm)
+        return value, self.normalise(value)
+
+    # ------------------------------------------------------------------ learning
+
+    def remember(
+        self, state: Features, action: float, reward: float, next_state: Features,
+        terminated: bool,
+    ) -> None:
+        """Store one transition (a truncated one bootstraps, so only ``terminated`` matters)."""
+        self.replay.add(state, action, reward, next_state, terminated)
+        self.transitions += 1
+
+    @property
+    def beta(self) -> float:
+        """Importance-weight exponent of the next gradient step."""
+        c = self.config
+        return beta_at(self.updates, c.beta_start, c.beta_end, c.beta_steps)
+
+    def update(self) -> dict[str, float]:
+        """One gradient step on the critic and the actor, then Polyak updates of both targets."""
+        c = self.config
+        beta = self.beta
+        batch = self.replay.sample(c.batch_size, beta, self.rng)
+        state = self.state(torch.from_numpy(batch.state))
+        next_state = self.state(torch.from_numpy(batch.next_state))
+        action = torch.from_numpy(batch.action)
+        reward = torch.from_numpy(batch.reward)
+        terminated = torch.from_numpy(batch.terminated)
+        weight = torch.from_numpy(batch.weight)
+
+        with torch.no_grad():
+            next_q = self.critic_target(next_state, self.actor_target.normalised(next_state))
+            target = reward + c.gamma * (1.0 - terminated) * next_q
+        q = self.critic(state, action)
+        critic_loss = (weight * (q - target) ** 2).mean()
+        self.critic_optimizer.zero_grad()
+        critic_loss.backward()
+        self.critic_optimizer.step()
+        self.replay.update_priorities(batch.index, (target - q).detach().double().numpy())
+
+        actor_loss = -self.critic(state, self.actor.normalised(state)).mean()
+        self.actor_optimizer.zero_grad()
+        actor_loss.backward()
+        self.actor_optimizer.step()
+
+        polyak_update(self.critic_target, self.critic, c.tau)
+        polyak_update(self.actor_target, self.actor, c.tau)
+        self.updates += 1
+        return {
+            "critic": float(critic_loss),
+            "actor": float(actor_loss),
+            "mean_q": float(q.detach().mean()),
+            "td_abs": float(F.l1_loss(q.detach(), target)),
+            "beta": beta,
+        }
+
+    # ------------------------------------------------------------------ checkpoints
+
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            "actor": self.actor.state_dict(),
+            "critic": self.critic.state_dict(),
+            "actor_target": self.actor_target.state_dict(),
+            "critic_target": self.critic_target.state_dict(),
+            "actor_optimizer": self.actor_optimizer.state_dict(),
+            "critic_optimizer": self.critic_optimizer.state_dict(),
+            "replay": self.replay.state_dict(),
+            "rng": self.rng.bit_generator.state,
+            "updates": self.updates,
+            "transitions": self.transitions,
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.actor.load_state_dict(state["actor"])
+        self.critic.load_state_dict(state["critic"])
+        self.actor_target.load_state_dict(state["actor_target"])
+        self.critic_target.load_state_dict(state["critic_target"])
+        self.actor_optimizer.load_state_dict(state["actor_optimizer"])
+        self.critic_optimizer.load_state_dict(state["critic_optimizer"])
+        self.replay.load_state_dict(state["replay"])
+        self.rng.bit_generator.state = state["rng"]
+        self.updates = state["updates"]
+        self.transitions = state["transitions"]

@@ -1,0 +1,221 @@
+"""Configuration dataclasses of the Fuzzy-DDPG learner (LEARNER.md; values marked "ours" there are
+our choices, not the paper's, and are recorded in every exported tensor's sidecar)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from lit_learner.errors import ConfigError
+
+AGENT_NAMES = ("B", "psi_K")
+"""The two agents: batch size B and neighbour factor psi_K."""
+
+
+@dataclass(frozen=True)
+class AgentConfig:
+    """One DDPG agent (B-Net or K-Net): its action range, networks and update constants."""
+
+    name: str
+    """Agent and output name: ``B`` or ``psi_K``."""
+    consequents: tuple[float, float, float]
+    """Zero-order TSK consequents f; (min f, max f) is the action range."""
+    rounding: str = "none"
+    """Rounding of the executed value: ``half_away_from_zero`` (B) or ``none`` (psi_K)."""
+    gamma: float = 0.99
+    """Discount factor."""
+    tau: float = 0.005
+    """Polyak factor of both target networks (1 copies)."""
+    lr_actor: float = 3e-4
+    """Adam learning rate of the actor."""
+    lr_critic: float = 3e-4
+    """Adam learning rate of the critic."""
+    batch_size: int = 64
+    """Transitions per gradient step."""
+    buffer_size: int = 100_000
+    """Replay capacity in transitions (oldest overwritten first)."""
+    warmup: int = 500
+    """Stored transitions before the first gradient step; actions are uniform until then."""
+    alpha: float = 0.6
+    """Priority exponent: sampling probability p_i^alpha / sum p^alpha."""
+    beta_start: float = 0.4
+    """Importance-weight exponent at the first gradient step."""
+    beta_end: float = 1.0
+    """Importance-weight exponent after ``beta_steps`` gradient steps."""
+    beta_steps: int = 50_000
+    """Gradient steps over which beta rises linearly from start to end (ours)."""
+    priority_eps: float = 1e-6
+    """Added to |y - Q| so no transition gets priority 0."""
+    noise_std: float = 0.05
+    """Std of the Gaussian exploration noise on a_norm (clipped to [0, 1] afterwards)."""
+    fuzzy_centres: tuple[float, float, float] = (0.0, 0.5, 1.0)
+    """Gaussian membership centres per feature."""
+    fuzzy_sigma: float = 0.2123
+    """Gaussian membership width (neighbours cross at 0.5)."""
+    conv_kernels: tuple[int, ...] = (3, 5, 7)
+    """Kernel sizes of the trunk's parallel Conv1d(1 -> 3) layers (same padding)."""
+    conv_channels: int = 3
+    """Output channels of each trunk convolution."""
+    hidden: tuple[int, ...] = (64, 128, 128, 64, 32)
+    """Hidden widths of the actor's and the critic's MLP (ReLU)."""
+    actor_last_init: float = 3e-3
+    """Half-width of the uniform init of the actor's last layer, so z* starts mid-range (ours)."""
+
+    def __post_init__(self) -> None:
+        if self.name not in AGENT_NAMES:
+            raise ConfigError(f"agent name {self.name!r} is not one of {AGENT_NAMES}")
+        if len(self.consequents) != 3 or min(self.consequents) >= max(self.consequents):
+            raise ConfigError(f"{self.name}: consequents {self.consequents} do not span a range")
+        if self.rounding not in ("half_away_from_zero", "none"):
+            raise ConfigError(f"{self.name}: unknown rounding {self.rounding!r}")
+        if not 0.0 < self.tau <= 1.0:
+            raise ConfigError(f"{self.name}: tau {self.tau} not in (0, 1]")
+        if not 0.0 <= self.gamma <= 1.0:
+            raise ConfigError(f"{self.name}: gamma {self.gamma} not in [0, 1]")
+        if self.batch_size < 1 or self.buffer_size < self.batch_size:
+            raise ConfigError(
+                f"{self.name}: batch_size {self.batch_size} must be >= 1 and <= buffer_size "
+                f"{self.buffer_size}"
+            )
+        if self.warmup < self.batch_size:
+            raise ConfigError(
+                f"{self.name}: warmup {self.warmup} must be >= batch_size {self.batch_size}"
+            )
+        if self.priority_eps <= 0.0:
+            raise ConfigError(f"{self.name}: priority_eps {self.priority_eps} must be > 0")
+        if self.beta_steps < 1:
+            raise ConfigError(f"{self.name}: beta_steps {self.beta_steps} must be >= 1")
+
+    @property
+    def action_min(self) -> float:
+        """Smallest executable value (min f)."""
+        return float(min(self.consequents))
+
+    @property
+    def action_max(self) -> float:
+        """Largest executable value (max f)."""
+        return float(max(self.consequents))
+
+    @classmethod
+    def batch_size_agent(cls, **overrides: Any) -> AgentConfig:
+        """B-Net with LEARNER.md's defaults: f = (20, 110, 200), batch 64, buffer 1e5, warm-up 500."""
+        values: dict[str, Any] = dict(
+            name="B",
+            consequents=(20.0, 110.0, 200.0),
+            rounding="half_away_from_zero",
+            batch_size=64,
+            buffer_size=100_000,
+            warmup=500,
+            beta_steps=50_000,
+        )
+        return cls(**(values | overrides))
+
+    @classmethod
+    def neighbour_agent(cls, **overrides: Any) -> AgentConfig:
+        """K-Net with LEARNER.md's defaults: f = (3, 9, 15), batch 256, buffer 1e6, warm-up 1e4."""
+        values: dict[str, Any] = dict(
+            name="psi_K",
+            consequents=(3.0, 9.0, 15.0),
+            rounding="none",
+            batch_size=256,
+            buffer_size=1_000_000,
+            warmup=10_000,
+            beta_steps=500_000,
+        )
+        return cls(**(values | overrides))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able form (tuples become lists)."""
+        return _jsonable(asdict(self))
+
+
+@dataclass(frozen=True)
+class RewardConfig:
+    """Reward weights of R_B and R_K and the constants of kappa (LEARNER.md, all ours)."""
+
+    w_t: float = 0.01
+    """Weight of the speed term 1 / t_hat."""
+    w_c: float = 1.0
+    """Weight of the cost term c_min / c."""
+    w_u: float = 0.05
+    """B: penalty per solution improvement so far."""
+    w_s: float = 0.1
+    """K: penalty per 50 states on the current best path."""
+    nu: float = 1.0
+    """Scale of kappa(n) = nu * log2(6.8 - n)."""
+    nu_min: float = 0.1
+    """Floor of kappa, also its value once 6.8 - n <= 0."""
+    kappa_offset: float = 6.8
+    """The 6.8 in kappa(n) = nu * log2(6.8 - n)."""
+    t_hat_min: float = 0.01
+    """Floor of the normalised step time t_hat = t / T_budget."""
+    path_states_scale: float = 50.0
+    """K: path states are divided by this before weighting with w_s."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able form."""
+        return _jsonable(asdict(self))
+
+
+@dataclass(frozen=True)
+class LearnerConfig:
+    """The whole learner: both agents, the rewards, the seed and what is trained."""
+
+    b: AgentConfig = field(default_factory=AgentConfig.batch_size_agent)
+    """B-Net."""
+    k: AgentConfig = field(default_factory=AgentConfig.neighbour_agent)
+    """K-Net."""
+    reward: RewardConfig = field(default_factory=RewardConfig)
+    """Reward weights."""
+    seed: int = 0
+    """Seed of network initialisation, exploration and replay sampling."""
+    train_b: bool = True
+    """Store B transitions and update B-Net; False: B decisions are noise-free, nothing stored."""
+    train_k: bool = True
+    """Same for K-Net."""
+    device: str = "cpu"
+    """Torch device; the learner is written for the CPU."""
+    num_threads: int = 1
+    """torch.set_num_threads at construction: one thread is fastest for these small batches and
+    makes results independent of the machine's core count."""
+
+    def __post_init__(self) -> None:
+        if self.b.name != "B" or self.k.name != "psi_K":
+            raise ConfigError(
+                f"LearnerConfig.b must be the B agent and .k the psi_K agent, got "
+                f"{self.b.name!r} and {self.k.name!r}"
+            )
+        if self.device != "cpu":
+            raise ConfigError(f"device {self.device!r}: the learner runs on the CPU only")
+
+    def agent(self, name: str) -> AgentConfig:
+        """The config of agent ``name``."""
+        if name == "B":
+            return self.b
+        if name == "psi_K":
+            return self.k
+        raise ConfigError(f"unknown agent {name!r}; expected one of {AGENT_NAMES}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able form."""
+        return _jsonable(asdict(self))
+
+    @classmethod
+    def from_dict(cls, doc: dict[str, Any]) -> LearnerConfig:
+        """Inverse of :meth:`to_dict`."""
+
+        def agent(d: dict[str, Any]) -> AgentConfig:
+            return AgentConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
+        rest = {k: v for k, v in doc.items() if k not in ("b", "k", "reward")}
+        return cls(
+            b=agent(doc["b"]), k=agent(doc["k"]), reward=RewardConfig(**doc["reward"]), **rest
+        )
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    return value

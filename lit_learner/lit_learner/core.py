@@ -1,0 +1,261 @@
+"""The learner core: decision requests in, actions out; transitions, updates, checkpoints, export.
+
+It knows nothing about ROS or the planner: ``lit train`` and the learner node feed it
+:class:`DecisionRequest` and :class:`EpisodeEnd` messages. Gradient steps run only in
+:meth:`LearnerCore.end_episode`, so they never sit inside the planner's timed loop; a decision is
+one actor forward pass (plus pairing and a replay insert).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import random
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from lit_learner.agent import DDPGAgent
+from lit_learner.config import AGENT_NAMES, LearnerConfig
+from lit_learner.errors import CheckpointError, ConfigError
+from lit_learner.export import CHECKPOINT_FILE, TENSOR_FILES, policy_grid
+from lit_learner.messages import DecisionRequest, EpisodeEnd
+from lit_learner.pairing import Pairing, Transition
+
+CHECKPOINT_FORMAT = 1
+"""Version of the checkpoint layout written by :meth:`LearnerCore.save_checkpoint`."""
+AGENT_SEED_OFFSET = {"B": 0, "psi_K": 1}
+"""Agent seed = config seed + offset, so the two agents never share random streams."""
+
+
+class LearnerCore:
+    """Both agents, the message pairing and the bookkeeping of training."""
+
+    def __init__(self, config: LearnerConfig) -> None:
+        self.config = config
+        torch.set_num_threads(config.num_threads)
+        self.agents = {
+            name: DDPGAgent(config.agent(name), config.seed + AGENT_SEED_OFFSET[name])
+            for name in AGENT_NAMES
+        }
+        self.pairing = Pairing(config.reward)
+        self.episodes = 0
+        """Episodes ended so far."""
+        self._policy_version = 0
+        self._pending_updates = dict.fromkeys(AGENT_NAMES, 0)
+        """Transitions stored since the last update round, counted from warm-up on."""
+        self._episode_terms: dict[str, dict[str, list[float]]] = {}
+        """Per episode and agent: summed reward terms [time, cost, penalty] and the step count."""
+
+    @property
+    def policy_version(self) -> int:
+        """Gradient steps taken by both agents together; 0 before the first one."""
+        return self._policy_version
+
+    def trains(self, agent: str) -> bool:
+        """Whether ``agent`` stores transitions and learns."""
+        return self.config.train_b if agent == "B" else self.config.train_k
+
+    # ------------------------------------------------------------------ messages
+
+    def decide(self, request: DecisionRequest) -> float:
+        """The executed value for a request: B rounded half away from zero and clamped to
+        20..200 (as a float), psi_K clamped to [3, 15]. Closes the agent's previous step of the
+        episode and records this one as pending (only for trained agents)."""
+        request.validate()
+        agent = self.agents[request.agent]
+        if self.trains(request.agent):
+            value, a_norm = agent.act(request.features, request.explore)
+            closed = self.pairing.step(request, a_norm)
+        else:
+            value = agent.executed(agent.normalise(agent.policy(request.features)))
+            closed = self.pairing.step(request, None)
+        if closed is not None:
+            self._store(closed)
+        return value
+
+    def end_episode(self, end: EpisodeEnd) -> dict[str, float]:
+        """Close the episode's pending steps, then run one gradient step per transition stored
+        since the last round for every agent past warm-up.
+
+        Returns:
+            Metrics: ``charts/return_<A>``, ``charts/steps_<A>``, ``rewards/<A>_time|cost|penalty``
+            (sums over the episode's steps) for agents that stepped in this episode;
+            ``losses/critic_<A>``, ``losses/actor_<A>``, ``losses/mean_q_<A>``,
+            ``losses/td_abs_<A>`` (means over this round's updates) and ``charts/beta_<A>`` for
+            agents that updated; ``charts/updates_<A>``, ``charts/transitions_<A>``,
+            ``charts/warming_up_<A>`` for trained agents; ``charts/policy_version``,
+            ``charts/episodes``. ``<A>`` is ``B`` or ``psi_K``.
+        """
+        end.validate()
+        closed, _ = self.pairing.end(end)
+        for transition in closed:
+            self._store(transition)
+        self.episodes += 1
+        metrics: dict[str, float] = {}
+        for name, (time, cost, penalty, steps) in self._episode_terms.pop(
+            end.episode_id, {}
+        ).items():
+            metrics[f"charts/return_{name}"] = time + cost + penalty
+            metrics[f"charts/steps_{name}"] = steps
+            metrics[f"rewards/{name}_time"] = time
+            metrics[f"rewards/{name}_cost"] = cost
+            metrics[f"rewards/{name}_penalty"] = penalty
+        for name, agent in self.agents.items():
+            if not self.trains(name):
+                continue
+            rounds, self._pending_updates[name] = self._pending_updates[name], 0
+            history = [agent.update() for _ in range(rounds)]
+            self._policy_version += rounds
+            if history:
+                for key in ("critic", "actor", "mean_q", "td_abs"):
+                    metrics[f"losses/{key}_{name}"] = float(np.mean([h[key] for h in history]))
+                metrics[f"charts/beta_{name}"] = history[-1]["beta"]
+            metrics[f"charts/updates_{name}"] = agent.updates
+            metrics[f"charts/transitions_{name}"] = agent.transitions
+            metrics[f"charts/warming_up_{name}"] = float(agent.warming_up)
+        metrics["charts/policy_version"] = self._policy_version
+        metrics["charts/episodes"] = self.episodes
+        return metrics
+
+    def _store(self, transition: Transition) -> None:
+        agent = self.agents[transition.agent]
+        agent.remember(
+            transition.state, transition.action, transition.reward.total, transition.next_state,
+            transition.terminated,
+        )
+        if not agent.warming_up:
+            self._pending_updates[transition.agent] += 1
+        terms = self._episode_terms.setdefault(transition.episode_id, {}).setdefault(
+            transition.agent, [0.0, 0.0, 0.0, 0.0]
+        )
+        reward = transition.reward
+        for i, value in enumerate((reward.time, reward.cost, reward.penalty, 1.0)):
+            terms[i] += value
+
+    # ------------------------------------------------------------------ checkpoints
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything training depends on, including the global RNG states."""
+        return {
+            "format": CHECKPOINT_FORMAT,
+            "config": self.config.to_dict(),
+            "agents": {name: agent.state_dict() for name, agent in self.agents.items()},
+            "pairing": self.pairing.state_dict(),
+            "episodes": self.episodes,
+            "policy_version": self._policy_version,
+            "pending_updates": dict(self._pending_updates),
+            "episode_terms": {e: {a: list(t) for a, t in d.items()}
+                              for e, d in self._episode_terms.items()},
+            "rng": {
+                "torch": torch.get_rng_state(),
+                "numpy": np.random.get_state(),
+                "python": random.getstate(),
+            },
+        }
+
+    def save_checkpoint(self, path: str | Path) -> None:
+        """Write the state atomically (a temporary file renamed into place)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        temporary = path.with_name(path.name + ".tmp")
+        torch.save(self.state_dict(), temporary)
+        os.replace(temporary, path)
+
+    @classmethod
+    def load_checkpoint(cls, path: str | Path) -> LearnerCore:
+        """A core that continues exactly where the saved one stopped.
+
+        Raises:
+            CheckpointError: missing, unreadable or incompatible checkpoint.
+        """
+        path = Path(path)
+        if not path.is_file():
+            raise CheckpointError(f"{path}: checkpoint not found")
+        try:
+            # Not weights_only: the replay buffer and RNG states are numpy objects and tuples.
+            state = torch.load(path, map_location="cpu", weights_only=False)
+        except Exception as exc:  # torch raises many types for a damaged file
+            raise CheckpointError(f"{path}: cannot read checkpoint: {exc}") from exc
+        if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
+            found = state.get("format") if isinstance(state, dict) else type(state).__name__
+            raise CheckpointError(
+                f"{path}: checkpoint format {found!r}, expected {CHECKPOINT_FORMAT}"
+            )
+        try:
+            core = cls(LearnerConfig.from_dict(state["config"]))
+        except (ConfigError, TypeError, KeyError) as exc:
+            raise CheckpointError(f"{path}: bad config in checkpoint: {exc}") from exc
+        for name, agent in core.agents.items():
+            agent.load_state_dict(state["agents"][name])
+        core.pairing.load_state_dict(state["pairing"])
+        core.episodes = state["episodes"]
+        core._policy_version = state["policy_version"]
+        core._pending_updates = dict(state["pending_updates"])
+        core._episode_terms = {e: {a: list(t) for a, t in d.items()}
+                               for e, d in state["episode_terms"].items()}
+        torch.set_rng_state(state["rng"]["torch"])
+        np.random.set_state(state["rng"]["numpy"])
+        random.setstate(state["rng"]["python"])
+        return core
+
+    # ------------------------------------------------------------------ export
+
+    def export_tensors(
+        self, directory: str | Path, provenance: dict[str, Any],
+        agents: Sequence[str] = AGENT_NAMES,
+    ) -> dict[str, Path]:
+        """Write ``checkpoint.pt`` and each agent's lookup tensor with its sidecar into
+        ``directory``.
+
+        Returns:
+            Paths keyed ``B`` (b_tensor.npy), ``psi_K`` (k_tensor.npy) and ``checkpoint``.
+
+        Raises:
+            lit_planner.errors.TensorFileError: a tensor or sidecar failed validation.
+        """
+        from lit_planner.tensor_files import write_tensor  # pulls in the JSON-Schema validator
+
+        directory = Path(directory)
+        directory.mkdir(parents=True, exist_ok=True)
+        checkpoint = directory / CHECKPOINT_FILE
+        self.save_checkpoint(checkpoint)
+        checkpoint_sha256 = _sha256(checkpoint)
+        paths: dict[str, Path] = {"checkpoint": checkpoint}
+        for name in agents:
+            agent = self.agents[name]
+            path = directory / TENSOR_FILES[name]
+            write_tensor(
+                path,
+                policy_grid(agent),
+                name,
+                interpolation="trilinear",
+                consequents=agent.config.consequents,
+                fuzzy_centres=agent.config.fuzzy_centres,
+                fuzzy_sigma=agent.config.fuzzy_sigma,
+                reward=self.config.reward.to_dict(),
+                training={
+                    "agent": agent.config.to_dict(),
+                    "seed": self.config.seed,
+                    "trained": self.trains(name),
+                    "updates": agent.updates,
+                    "transitions": agent.transitions,
+                    "episodes": self.episodes,
+                },
+                policy_version=self._policy_version,
+                checkpoint_sha256=checkpoint_sha256,
+                provenance=provenance,
+            )
+            paths[name] = path
+        return paths
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as stream:
+        for block in iter(lambda: stream.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()

@@ -1,0 +1,27 @@
+"""Errors of the learner; each names the input that caused it."""
+
+from __future__ import annotations
+
+
+class LearnerError(Exception):
+    """Base class of every learner error."""
+
+
+class ConfigError(LearnerError, ValueError):
+    """A configuration value is out of its valid range."""
+
+
+class MessageError(LearnerError, ValueError):
+    """A decision request or episode end is malformed (unknown agent, non-finite feature, ...)."""
+
+
+class PairingError(LearnerError):
+    """Messages arrive in an order that cannot form transitions (e.g. time running backwards)."""
+
+
+class ReplayError(LearnerError):
+    """The replay buffer was asked for something it cannot give (e.g. sampling while empty)."""
+
+
+class CheckpointError(LearnerError):
+    """A checkpoint is missing, unreadable, or of an incompatible version."""

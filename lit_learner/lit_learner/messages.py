@@ -1,0 +1,117 @@
+"""Plain messages between a planner (or its ROS node, or ``lit train``) and the learner core."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from lit_learner.config import AGENT_NAMES
+from lit_learner.errors import MessageError
+
+Features = tuple[float, float, float]
+"""Raw features (rho_global, rho_local, measure), each in [0, 1]."""
+
+
+@dataclass(frozen=True)
+class DecisionRequest:
+    """The planner asks agent ``agent`` for a value; also carries the reward information."""
+
+    agent: str
+    """``B`` or ``psi_K``."""
+    episode_id: str
+    """The planning query this belongs to; several planners may feed one learner."""
+    rho_global: float
+    """Raw feature in [0, 1]."""
+    rho_local: float
+    """Raw feature in [0, 1]: rho_local,B for B, rho_local,K for psi_K."""
+    measure: float
+    """Raw feature m in [0, 1]."""
+    planning_time: float
+    """Planner clock since the episode (query) started, s."""
+    time_budget: float
+    """The episode's time budget T_budget, s."""
+    cost: float | None
+    """Current best cost, None without a solution."""
+    minimum_cost: float
+    """Start-goal straight-line distance c_min."""
+    improvements: int
+    """Solution improvements so far (1 at the first solution)."""
+    path_states: int
+    """States on the current best path (0 without one)."""
+    explore: bool = True
+    """False: noise-free action (evaluation)."""
+
+    @property
+    def features(self) -> Features:
+        """(rho_global, rho_local, measure)."""
+        return (self.rho_global, self.rho_local, self.measure)
+
+    def validate(self) -> None:
+        """Raises MessageError naming the bad field."""
+        if self.agent not in AGENT_NAMES:
+            raise MessageError(
+                f"episode {self.episode_id!r}: unknown agent {self.agent!r}; "
+                f"expected one of {AGENT_NAMES}"
+            )
+        for name, value in zip(("rho_global", "rho_local", "measure"), self.features):
+            if not math.isfinite(value):
+                raise MessageError(
+                    f"episode {self.episode_id!r}, agent {self.agent}: {name} = {value} "
+                    "is not finite"
+                )
+        _validate_progress(self.episode_id, self.planning_time, self.time_budget, self.cost,
+                           self.minimum_cost, self.improvements, self.path_states)
+
+
+@dataclass(frozen=True)
+class EpisodeEnd:
+    """The planner closes an episode (time budget reached or query terminated)."""
+
+    episode_id: str
+    """The planning query that ends."""
+    planning_time: float
+    """Planner clock at the end, s."""
+    time_budget: float
+    """The episode's time budget, s."""
+    cost: float | None
+    """Final best cost, None without a solution."""
+    minimum_cost: float
+    """Start-goal straight-line distance c_min."""
+    improvements: int
+    """Solution improvements in the episode."""
+    path_states: int
+    """States on the final best path (0 without one)."""
+    truncated: bool = True
+    """True: time-budget end (the last steps bootstrap); False: termination (no bootstrap)."""
+    final_features: dict[str, Features] | None = None
+    """Optional raw features at the end per agent (``B``/``psi_K``), the s' of each agent's last
+    step; an agent without an entry uses its last request's features (features move slowly)."""
+
+    def validate(self) -> None:
+        """Raises MessageError naming the bad field."""
+        _validate_progress(self.episode_id, self.planning_time, self.time_budget, self.cost,
+                           self.minimum_cost, self.improvements, self.path_states)
+
+
+def _validate_progress(
+    episode_id: str,
+    planning_time: float,
+    time_budget: float,
+    cost: float | None,
+    minimum_cost: float,
+    improvements: int,
+    path_states: int,
+) -> None:
+    where = f"episode {episode_id!r}"
+    if not (math.isfinite(planning_time) and planning_time >= 0.0):
+        raise MessageError(f"{where}: planning_time {planning_time} must be finite and >= 0")
+    if not (math.isfinite(time_budget) and time_budget > 0.0):
+        raise MessageError(f"{where}: time_budget {time_budget} must be finite and > 0")
+    if cost is not None and not cost > 0.0:
+        raise MessageError(f"{where}: cost {cost} must be > 0 or None")
+    if not (math.isfinite(minimum_cost) and minimum_cost >= 0.0):
+        raise MessageError(f"{where}: minimum_cost {minimum_cost} must be finite and >= 0")
+    if improvements < 0 or path_states < 0:
+        raise MessageError(
+            f"{where}: improvements {improvements} and path_states {path_states} must be >= 0"
+        )

@@ -1,0 +1,183 @@
+"""Message -> transition pairing (LEARNER.md "Episodes, steps, transitions").
+
+Per (episode, agent) the previous request is pending. A new request of the same agent in the same
+episode closes it as (s, a, r, s', terminated=False, truncated=False) with s' the new request's
+features; an episode end closes every pending step of that episode (truncated per its flag,
+terminated otherwise). Episodes are kept apart by ``episode_id``, so several planners may feed one
+learner. The rewards follow from the progress information of the closing message.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from lit_learner.config import AGENT_NAMES, RewardConfig
+from lit_learner.errors import PairingError
+from lit_learner.messages import DecisionRequest, EpisodeEnd, Features
+from lit_learner.rewards import RewardTerms, batch_size_reward, neighbour_reward
+
+
+@dataclass(frozen=True)
+class Transition:
+    """One agent step of one episode."""
+
+    agent: str
+    episode_id: str
+    state: Features
+    """Raw features at the decision."""
+    action: float
+    """Executed action, normalised to [0, 1]."""
+    reward: RewardTerms
+    next_state: Features
+    terminated: bool
+    truncated: bool
+
+
+@dataclass
+class PendingStep:
+    """A decision whose outcome is not known yet."""
+
+    state: Features
+    action: float
+    improvements: int
+    """Improvements when the decision was taken."""
+
+
+@dataclass
+class EpisodeProgress:
+    """What the pairing remembers of one episode."""
+
+    improvement_times: dict[int, float] = field(default_factory=lambda: {0: 0.0})
+    """Planner time at which each improvement count was first seen (0 improvements at t = 0)."""
+    last_time: float = 0.0
+    pending: dict[str, PendingStep] = field(default_factory=dict)
+    returns: dict[str, float] = field(default_factory=dict)
+    """Undiscounted return per agent so far."""
+
+    def observe(self, episode_id: str, planning_time: float, improvements: int) -> None:
+        if planning_time < self.last_time:
+            raise PairingError(
+                f"episode {episode_id!r}: planning_time {planning_time} is before the previous "
+                f"message's {self.last_time}"
+            )
+        self.last_time = planning_time
+        if improvements not in self.improvement_times and improvements > max(
+            self.improvement_times
+        ):
+            self.improvement_times[improvements] = planning_time
+
+    def step_time(self, improvements: int) -> float:
+        """Planner time from the improvement before ``improvements`` to it (or from the start)."""
+        previous = max(n for n in self.improvement_times if n < improvements)
+        return self.improvement_times[improvements] - self.improvement_times[previous]
+
+
+class Pairing:
+    """Turns the message stream of any number of episodes into transitions."""
+
+    def __init__(self, reward: RewardConfig) -> None:
+        self.reward = reward
+        self.episodes: dict[str, EpisodeProgress] = {}
+
+    def step(self, request: DecisionRequest, action: float | None) -> Transition | None:
+        """Close the agent's pending step in this episode (if any) and open a new one.
+
+        Args:
+            request: the decision request.
+            action: the executed a_norm; None records nothing new (the agent is not trained).
+
+        Returns:
+            The closed transition, or None when nothing was pending.
+        """
+        episode = self.episodes.setdefault(request.episode_id, EpisodeProgress())
+        episode.observe(request.episode_id, request.planning_time, request.improvements)
+        closed = None
+        pending = episode.pending.pop(request.agent, None)
+        if pending is not None:
+            closed = self._close(
+                request.agent, request.episode_id, episode, pending, request.features,
+                request, terminated=False, truncated=False,
+            )
+        if action is not None:
+            episode.pending[request.agent] = PendingStep(
+                request.features, float(action), request.improvements
+            )
+        return closed
+
+    def end(self, end: EpisodeEnd) -> tuple[list[Transition], dict[str, float]]:
+        """Close every pending step of the episode and forget it.
+
+        Returns:
+            The closed transitions (B first) and each agent's undiscounted episode return
+            (agents that took no step are absent).
+        """
+        episode = self.episodes.pop(end.episode_id, None)
+        if episode is None:
+            return [], {}
+        episode.observe(end.episode_id, end.planning_time, end.improvements)
+        closed = []
+        for agent in AGENT_NAMES:
+            pending = episode.pending.pop(agent, None)
+            if pending is None:
+                continue
+            final = (end.final_features or {}).get(agent, pending.state)
+            closed.append(
+                self._close(agent, end.episode_id, episode, pending, tuple(final), end,
+                            terminated=not end.truncated, truncated=end.truncated)
+            )
+        return closed, dict(episode.returns)
+
+    def _close(
+        self,
+        agent: str,
+        episode_id: str,
+        episode: EpisodeProgress,
+        pending: PendingStep,
+        next_state: Features,
+        info: DecisionRequest | EpisodeEnd,
+        *,
+        terminated: bool,
+        truncated: bool,
+    ) -> Transition:
+        improved = info.improvements > pending.improvements
+        step_time = episode.step_time(info.improvements) if improved else 0.0
+        if agent == "B":
+            reward = batch_size_reward(
+                improved, info.improvements, step_time, info.time_budget, info.cost,
+                info.minimum_cost, self.reward,
+            )
+        else:
+            reward = neighbour_reward(
+                improved, step_time, info.time_budget, info.cost, info.minimum_cost,
+                info.path_states, self.reward,
+            )
+        episode.returns[agent] = episode.returns.get(agent, 0.0) + reward.total
+        return Transition(
+            agent, episode_id, pending.state, pending.action, reward, next_state,
+            terminated, truncated,
+        )
+
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            episode_id: {
+                "improvement_times": dict(e.improvement_times),
+                "last_time": e.last_time,
+                "pending": {
+                    a: (p.state, p.action, p.improvements) for a, p in e.pending.items()
+                },
+                "returns": dict(e.returns),
+            }
+            for episode_id, e in self.episodes.items()
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.episodes = {
+            episode_id: EpisodeProgress(
+                improvement_times=dict(e["improvement_times"]),
+                last_time=e["last_time"],
+                pending={a: PendingStep(tuple(p[0]), p[1], p[2]) for a, p in e["pending"].items()},
+                returns=dict(e["returns"]),
+            )
+            for episode_id, e in state.items()
+        }

@@ -1,0 +1,186 @@
+"""Prioritized experience replay with a float64 sum tree (LEARNER.md "Update").
+
+Sampling probability P(i) = p_i^alpha / sum_k p_k^alpha; importance weights
+w_i = (P(i) / P_min)^(-beta) <= 1 (P_min over the stored items); new items enter at the largest raw
+priority set so far (1 at the start), so each is sampled at least about as often as the best.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from lit_learner.errors import ReplayError
+
+
+class SumTree:
+    """Binary tree of float64 sums over ``capacity`` leaves, vectorised update and search."""
+
+    def __init__(self, capacity: int) -> None:
+        if capacity < 1:
+            raise ReplayError(f"sum tree capacity {capacity} must be >= 1")
+        self.capacity = capacity
+        self.leaves = 1 << max(0, (capacity - 1).bit_length())  # power of two >= capacity
+        self.nodes = np.zeros(2 * self.leaves, dtype=np.float64)  # node 1 is the root
+
+    @property
+    def total(self) -> float:
+        """Sum of all leaves."""
+        return float(self.nodes[1])
+
+    def get(self, index: NDArray[np.intp]) -> NDArray[np.float64]:
+        """Leaf values at ``index``."""
+        return self.nodes[self.leaves + np.asarray(index)]
+
+    def set(self, index: NDArray[np.intp] | int, value: NDArray[np.float64] | float) -> None:
+        """Set leaves (a repeated index keeps its last value) and recompute their ancestors."""
+        index = np.atleast_1d(np.asarray(index, dtype=np.intp))
+        if index.size == 0:
+            return
+        if index.min() < 0 or index.max() >= self.capacity:
+            raise ReplayError(f"sum tree index outside [0, {self.capacity})")
+        node = self.leaves + index
+        self.nodes[node] = np.broadcast_to(np.asarray(value, dtype=np.float64), node.shape)
+        node = np.unique(node // 2)
+        while node[0] >= 1:
+            self.nodes[node] = self.nodes[2 * node] + self.nodes[2 * node + 1]
+            node = np.unique(node // 2)
+            if node[0] == 0:
+                break
+
+    def find(self, value: NDArray[np.float64]) -> NDArray[np.intp]:
+        """Leaf indices whose cumulative range [prefix, prefix + leaf) holds each ``value``."""
+        node = np.ones(value.shape, dtype=np.intp)
+        remaining = value.astype(np.float64, copy=True)
+        while node[0] < self.leaves:
+            left = 2 * node
+            left_sum = self.nodes[left]
+            go_right = remaining >= left_sum
+            remaining = np.where(go_right, remaining - left_sum, remaining)
+            node = np.where(go_right, left + 1, left)
+        return node - self.leaves
+
+    def state_dict(self) -> dict[str, Any]:
+        return {"capacity": self.capacity, "nodes": self.nodes.copy()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        if state["capacity"] != self.capacity:
+            raise ReplayError(
+                f"sum tree of capacity {state['capacity']} loaded into one of {self.capacity}"
+            )
+        self.nodes[:] = state["nodes"]
+
+
+@dataclass
+class Batch:
+    """Sampled transitions (numpy) with their buffer indices and importance weights."""
+
+    index: NDArray[np.intp]
+    state: NDArray[np.float32]
+    """(m, 3) raw features."""
+    action: NDArray[np.float32]
+    """(m,) executed a_norm."""
+    reward: NDArray[np.float32]
+    next_state: NDArray[np.float32]
+    terminated: NDArray[np.float32]
+    weight: NDArray[np.float32]
+    """(m,) importance weights (P_i / P_min)^(-beta), each <= 1."""
+
+
+class PrioritizedReplay:
+    """Ring buffer of transitions (raw features, a_norm, r, raw features', terminated)."""
+
+    def __init__(self, capacity: int, alpha: float, priority_eps: float) -> None:
+        self.capacity = capacity
+        self.alpha = alpha
+        self.priority_eps = priority_eps
+        self.tree = SumTree(capacity)
+        self.state = np.zeros((capacity, 3), dtype=np.float32)
+        self.action = np.zeros(capacity, dtype=np.float32)
+        self.reward = np.zeros(capacity, dtype=np.float32)
+        self.next_state = np.zeros((capacity, 3), dtype=np.float32)
+        self.terminated = np.zeros(capacity, dtype=np.float32)
+        self.size = 0
+        self.position = 0
+        self.max_priority = 1.0
+        """Largest raw priority set so far: the priority of new items."""
+
+    def __len__(self) -> int:
+        return self.size
+
+    def add(
+        self,
+        state: tuple[float, float, float],
+        action: float,
+        reward: float,
+        next_state: tuple[float, float, float],
+        terminated: bool,
+    ) -> int:
+        """Store one transition at the current maximum priority; returns its index."""
+        i = self.position
+        self.state[i] = state
+        self.action[i] = action
+        self.reward[i] = reward
+        self.next_state[i] = next_state
+        self.terminated[i] = float(terminated)
+        self.tree.set(i, self.max_priority**self.alpha)
+        self.position = (i + 1) % self.capacity
+        self.size = min(self.size + 1, self.capacity)
+        return i
+
+    def sample(self, batch_size: int, beta: float, rng: np.random.Generator) -> Batch:
+        """Draw ``batch_size`` items with probability p^alpha / sum p^alpha (with replacement)."""
+        if self.size == 0:
+            raise ReplayError("cannot sample from an empty replay buffer")
+        total = self.tree.total
+        index = self.tree.find(rng.uniform(0.0, total, batch_size))
+        # Rounding can walk past the last stored leaf into the empty (zero) ones.
+        index = np.minimum(index, self.size - 1)
+        probability = self.tree.get(index) / total
+        p_min = self.tree.get(np.arange(self.size)).min() / total
+        weight = (probability / p_min) ** (-beta)
+        return Batch(
+            index=index,
+            state=self.state[index],
+            action=self.action[index],
+            reward=self.reward[index],
+            next_state=self.next_state[index],
+            terminated=self.terminated[index],
+            weight=weight.astype(np.float32),
+        )
+
+    def update_priorities(self, index: NDArray[np.intp], td_error: NDArray[np.float64]) -> None:
+        """Raw priority |y - Q| + eps for the sampled items."""
+        priority = np.abs(np.asarray(td_error, dtype=np.float64)) + self.priority_eps
+        self.tree.set(index, priority**self.alpha)
+        self.max_priority = max(self.max_priority, float(priority.max()))
+
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            "tree": self.tree.state_dict(),
+            "state": self.state[: self.size].copy(),
+            "action": self.action[: self.size].copy(),
+            "reward": self.reward[: self.size].copy(),
+            "next_state": self.next_state[: self.size].copy(),
+            "terminated": self.terminated[: self.size].copy(),
+            "size": self.size,
+            "position": self.position,
+            "max_priority": self.max_priority,
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.tree.load_state_dict(state["tree"])
+        n = state["size"]
+        for name in ("state", "action", "reward", "next_state", "terminated"):
+            getattr(self, name)[:n] = state[name]
+        self.size = n
+        self.position = state["position"]
+        self.max_priority = state["max_priority"]
+
+
+def beta_at(update: int, start: float, end: float, steps: int) -> float:
+    """Importance exponent after ``update`` gradient steps: linear from start to end."""
+    return start + (end - start) * min(1.0, update / steps)
