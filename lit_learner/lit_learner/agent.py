@@ -141,8 +141,8 @@ class DDPGAgent:
         polyak_update(self.actor_target, self.actor, c.tau)
         self.updates += 1
         return {
-            "critic": float(critic_loss),
-            "actor": float(actor_loss),
+            "critic": critic_loss.item(),
+            "actor": actor_loss.item(),
             "mean_q": float(q.detach().mean()),
             "td_abs": float(F.l1_loss(q.detach(), target)),
             "beta": beta,

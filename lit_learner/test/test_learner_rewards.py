@@ -1,0 +1,55 @@
+"""Rewards: kappa table, t_hat floor, cost ratio, R_B and R_K term by term."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from lit_learner.config import RewardConfig
+from lit_learner.rewards import (
+    batch_size_reward,
+    cost_ratio,
+    kappa,
+    neighbour_reward,
+    t_hat,
+)
+
+CONFIG = RewardConfig()
+
+
+def test_kappa_table_has_no_nan_and_is_floored() -> None:
+    table = {n: kappa(n, CONFIG) for n in range(1, 11)}
+    assert all(math.isfinite(v) for v in table.values())
+    assert table[1] == pytest.approx(math.log2(5.8))
+    assert table[5] == pytest.approx(math.log2(1.8))
+    assert table[6] == 0.1  # log2(0.8) < 0: the floor
+    assert all(table[n] == 0.1 for n in range(7, 11))  # 6.8 - n <= 0
+    assert all(table[n] >= table[n + 1] for n in range(1, 10))
+
+
+def test_t_hat_and_cost_ratio() -> None:
+    assert t_hat(2.0, 10.0, CONFIG) == 0.2
+    assert t_hat(0.0, 10.0, CONFIG) == 0.01
+    assert cost_ratio(None, 3.0) == 0.0
+    assert cost_ratio(math.inf, 3.0) == 0.0
+    assert cost_ratio(4.0, 3.0) == 0.75
+
+
+def test_batch_size_reward_with_and_without_improvement() -> None:
+    r = batch_size_reward(True, 2, 1.0, 10.0, 4.0, 3.0, CONFIG)
+    k = math.log2(4.8)
+    assert r.time == pytest.approx(0.01 * k / 0.1)
+    assert r.cost == pytest.approx(1.0 * k * 0.75)
+    assert r.penalty == pytest.approx(-0.1)
+    assert r.total == pytest.approx(r.time + r.cost + r.penalty)
+    none = batch_size_reward(False, 3, 1.0, 10.0, 4.0, 3.0, CONFIG)
+    assert (none.time, none.cost, none.penalty) == (0.0, 0.0, pytest.approx(-0.15))
+
+
+def test_neighbour_reward_with_and_without_improvement() -> None:
+    r = neighbour_reward(True, 0.5, 10.0, 4.0, 3.0, 100, CONFIG)
+    assert r.time == pytest.approx(0.01 / 0.05)
+    assert r.cost == pytest.approx(0.75)
+    assert r.penalty == pytest.approx(-0.1 * 2.0)  # fewer path states is better
+    assert neighbour_reward(False, 0.5, 10.0, 4.0, 3.0, 100, CONFIG).total == 0.0
