@@ -1,0 +1,114 @@
+"""Message -> transition pairing: consecutive requests, episode ends, interleaved episodes."""
+
+from __future__ import annotations
+
+import pytest
+
+from lit_learner.config import RewardConfig
+from lit_learner.errors import PairingError
+from lit_learner.messages import DecisionRequest, EpisodeEnd
+from lit_learner.pairing import Pairing
+from lit_learner.rewards import batch_size_reward, neighbour_reward
+
+REWARD = RewardConfig()
+
+
+def request(
+    agent: str, episode: str, t: float, features: float, improvements: int = 0,
+    cost: float | None = None, path_states: int = 0,
+) -> DecisionRequest:
+    return DecisionRequest(
+        agent, episode, features, features, features, t, 10.0, cost, 2.0, improvements,
+        path_states,
+    )
+
+
+def test_consecutive_requests_of_one_agent_form_a_transition() -> None:
+    pairing = Pairing(REWARD)
+    assert pairing.step(request("psi_K", "e", 0.0, 0.1), 0.3) is None
+    assert pairing.step(request("B", "e", 0.0, 0.2), 0.6) is None  # other agent: own pending
+    t = pairing.step(request("psi_K", "e", 1.5, 0.4, improvements=1, cost=4.0, path_states=25),
+                     0.7)
+    assert t is not None
+    assert (t.agent, t.episode_id, t.state, t.action, t.next_state) == (
+        "psi_K", "e", (0.1, 0.1, 0.1), 0.3, (0.4, 0.4, 0.4)
+    )
+    assert not t.terminated and not t.truncated
+    assert t.reward == neighbour_reward(True, 1.5, 10.0, 4.0, 2.0, 25, REWARD)
+
+
+def test_step_time_runs_from_the_previous_improvement() -> None:
+    pairing = Pairing(REWARD)
+    pairing.step(request("B", "e", 0.0, 0.1), 0.5)
+    t1 = pairing.step(request("B", "e", 2.0, 0.1, improvements=1, cost=8.0), 0.5)
+    pairing.step(request("psi_K", "e", 3.0, 0.1, improvements=1, cost=8.0), 0.5)
+    t2 = pairing.step(request("B", "e", 5.0, 0.1, improvements=2, cost=4.0), 0.5)
+    t3 = pairing.step(request("B", "e", 6.0, 0.1, improvements=2, cost=4.0), 0.5)
+    assert t1 is not None and t2 is not None and t3 is not None
+    assert t1.reward == batch_size_reward(True, 1, 2.0, 10.0, 8.0, 2.0, REWARD)
+    assert t2.reward == batch_size_reward(True, 2, 3.0, 10.0, 4.0, 2.0, REWARD)
+    assert t3.reward == batch_size_reward(False, 2, 0.0, 10.0, 4.0, 2.0, REWARD)
+    assert t3.reward.total == pytest.approx(-0.1)
+
+
+@pytest.mark.parametrize("truncated", [True, False])
+def test_episode_end_closes_every_pending_step(truncated: bool) -> None:
+    pairing = Pairing(REWARD)
+    pairing.step(request("B", "e", 0.0, 0.2), 0.6)
+    pairing.step(request("psi_K", "e", 0.5, 0.3), 0.1)
+    end = EpisodeEnd("e", 10.0, 10.0, 4.0, 2.0, 1, 30, truncated=truncated,
+                     final_features={"psi_K": (0.9, 0.8, 0.7)})
+    closed, returns = pairing.end(end)
+    assert [t.agent for t in closed] == ["B", "psi_K"]
+    b, k = closed
+    assert b.next_state == (0.2, 0.2, 0.2)  # no final features for B: its last state
+    assert k.next_state == (0.9, 0.8, 0.7)
+    for t in closed:
+        assert t.truncated is truncated and t.terminated is (not truncated)
+    assert b.reward == batch_size_reward(True, 1, 10.0, 10.0, 4.0, 2.0, REWARD)
+    assert returns == {"B": pytest.approx(b.reward.total), "psi_K": pytest.approx(k.reward.total)}
+    assert pairing.episodes == {}
+    assert pairing.end(end) == ([], {})  # a second end of the same episode closes nothing
+
+
+def test_interleaved_episodes_are_kept_apart() -> None:
+    pairing = Pairing(REWARD)
+    pairing.step(request("B", "a", 0.0, 0.1), 0.1)
+    pairing.step(request("B", "b", 0.0, 0.5), 0.5)
+    ta = pairing.step(request("B", "a", 1.0, 0.2, improvements=1, cost=4.0), 0.2)
+    tb = pairing.step(request("B", "b", 0.5, 0.6), 0.6)
+    assert ta is not None and tb is not None
+    assert (ta.episode_id, ta.state, ta.next_state, ta.action) == (
+        "a", (0.1,) * 3, (0.2,) * 3, 0.1
+    )
+    assert (tb.episode_id, tb.state, tb.next_state, tb.action) == (
+        "b", (0.5,) * 3, (0.6,) * 3, 0.5
+    )
+    assert ta.reward.cost > 0.0 and tb.reward.total == 0.0  # b has no improvement
+    closed, _ = pairing.end(EpisodeEnd("a", 10.0, 10.0, 4.0, 2.0, 1, 5))
+    assert [t.episode_id for t in closed] == ["a"]
+    assert set(pairing.episodes) == {"b"}
+
+
+def test_untrained_agent_records_nothing() -> None:
+    pairing = Pairing(REWARD)
+    assert pairing.step(request("B", "e", 0.0, 0.1), None) is None
+    assert pairing.step(request("B", "e", 1.0, 0.1), None) is None
+    assert pairing.end(EpisodeEnd("e", 2.0, 10.0, None, 2.0, 0, 0)) == ([], {})
+
+
+def test_time_running_backwards_is_an_error() -> None:
+    pairing = Pairing(REWARD)
+    pairing.step(request("B", "e", 2.0, 0.1), 0.1)
+    with pytest.raises(PairingError, match=r"episode 'e': planning_time 1.0 is before"):
+        pairing.step(request("psi_K", "e", 1.0, 0.1), 0.1)
+
+
+def test_state_round_trip() -> None:
+    pairing = Pairing(REWARD)
+    pairing.step(request("B", "e", 0.0, 0.1), 0.1)
+    pairing.step(request("B", "e", 1.0, 0.2, improvements=1, cost=3.0), 0.2)
+    copy = Pairing(REWARD)
+    copy.load_state_dict(pairing.state_dict())
+    nxt = request("B", "e", 2.0, 0.3, improvements=2, cost=2.5)
+    assert copy.step(nxt, 0.3) == pairing.step(nxt, 0.3)

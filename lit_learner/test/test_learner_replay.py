@@ -1,0 +1,104 @@
+"""Prioritized replay: sum-tree totals, sampling frequencies, importance weights, beta."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lit_learner.errors import ReplayError
+from lit_learner.replay import PrioritizedReplay, SumTree, beta_at
+
+
+def test_sum_tree_totals_follow_every_update() -> None:
+    rng = np.random.default_rng(0)
+    tree = SumTree(1000)  # not a power of two
+    values = np.zeros(1000)
+    for _ in range(50):
+        index = rng.integers(0, 1000, 37)
+        new = rng.uniform(0.0, 5.0, 37)
+        tree.set(index, new)
+        values[index] = new  # a repeated index keeps its last value, like numpy
+        assert tree.total == pytest.approx(values.sum(), rel=1e-12)
+        np.testing.assert_array_equal(tree.get(np.arange(1000)), values)
+    assert tree.nodes.dtype == np.float64
+
+
+def test_sum_tree_find_walks_the_cumulative_sums() -> None:
+    tree = SumTree(4)
+    tree.set(np.arange(4), np.array([1.0, 0.0, 2.0, 3.0]))
+    found = tree.find(np.array([0.0, 0.999, 1.0, 2.5, 3.0, 5.999]))
+    np.testing.assert_array_equal(found, [0, 0, 2, 2, 3, 3])  # the zero leaf is never found
+
+
+def test_sum_tree_rejects_bad_indices() -> None:
+    with pytest.raises(ReplayError, match=r"outside \[0, 3\)"):
+        SumTree(3).set(3, 1.0)
+
+
+def filled(priorities: list[float], alpha: float) -> PrioritizedReplay:
+    replay = PrioritizedReplay(len(priorities), alpha, priority_eps=1e-6)
+    for i in range(len(priorities)):
+        replay.add((0.0, 0.0, float(i)), 0.5, float(i), (0.0, 0.0, 0.0), False)
+    replay.update_priorities(np.arange(len(priorities)), np.array(priorities) - 1e-6)
+    return replay
+
+
+def test_sampling_frequencies_follow_p_to_the_alpha() -> None:
+    priorities = [0.5, 1.0, 2.0, 4.0, 8.0]
+    alpha = 0.6
+    replay = filled(priorities, alpha)
+    rng = np.random.default_rng(12345)
+    draws = 200_000
+    counts = np.zeros(len(priorities))
+    for _ in range(draws // 1000):
+        batch = replay.sample(1000, 0.4, rng)
+        np.add.at(counts, batch.index, 1)
+    expected = np.array(priorities) ** alpha
+    expected = draws * expected / expected.sum()
+    chi_square = float(((counts - expected) ** 2 / expected).sum())
+    assert chi_square < 20.0  # 4 degrees of freedom: p < 0.001 at 18.5
+    # The stored reward identifies the item: the batch carries the sampled rows.
+    batch = replay.sample(16, 0.4, rng)
+    np.testing.assert_array_equal(batch.reward, batch.index.astype(np.float32))
+
+
+def test_importance_weights_are_at_most_one_and_one_for_the_rarest() -> None:
+    replay = filled([0.5, 1.0, 2.0, 4.0, 8.0], alpha=0.6)
+    rng = np.random.default_rng(1)
+    for beta in (0.4, 0.7, 1.0):
+        batch = replay.sample(500, beta, rng)
+        assert np.all(batch.weight <= 1.0) and np.all(batch.weight > 0.0)
+        assert np.all(batch.weight[batch.index == 0] == pytest.approx(1.0))
+        p = np.array([0.5, 1.0, 2.0, 4.0, 8.0]) ** 0.6
+        expected = (p[batch.index] / p.min()) ** (-beta)
+        np.testing.assert_allclose(batch.weight, expected, rtol=1e-6)
+
+
+def test_new_items_enter_at_the_largest_priority_so_far() -> None:
+    replay = PrioritizedReplay(8, alpha=0.5, priority_eps=1e-6)
+    replay.add((0, 0, 0), 0.0, 0.0, (0, 0, 0), False)
+    assert replay.tree.get(np.array([0]))[0] == pytest.approx(1.0)
+    replay.update_priorities(np.array([0]), np.array([9.0 - 1e-6]))
+    replay.add((0, 0, 0), 0.0, 0.0, (0, 0, 0), True)
+    assert replay.tree.get(np.array([1]))[0] == pytest.approx(3.0)  # 9 ** 0.5
+    assert replay.terminated[1] == 1.0
+
+
+def test_ring_buffer_overwrites_the_oldest() -> None:
+    replay = PrioritizedReplay(3, alpha=0.6, priority_eps=1e-6)
+    for i in range(5):
+        replay.add((float(i), 0, 0), 0.0, float(i), (0, 0, 0), False)
+    assert len(replay) == 3 and replay.position == 2
+    assert sorted(replay.reward.tolist()) == [2.0, 3.0, 4.0]
+
+
+def test_sampling_an_empty_buffer_fails() -> None:
+    with pytest.raises(ReplayError, match="empty replay buffer"):
+        PrioritizedReplay(4, 0.6, 1e-6).sample(2, 0.4, np.random.default_rng(0))
+
+
+def test_beta_rises_linearly_and_stops_at_the_end() -> None:
+    assert beta_at(0, 0.4, 1.0, 100) == 0.4
+    assert beta_at(50, 0.4, 1.0, 100) == pytest.approx(0.7)
+    assert beta_at(100, 0.4, 1.0, 100) == 1.0
+    assert beta_at(10_000, 0.4, 1.0, 100) == 1.0
