@@ -128,7 +128,7 @@ def plot_training_curves(metrics_path: Path, output: Path, bins: int) -> Path:
     q_axis = axes[1, 2]
     for agent in AGENT_NAMES:
         curve(q_axis, f"losses/actor_{agent}", f"actor loss {agent} (= -mean Q)")
-        curve(q_axis, f"charts/mean_q_{agent}", f"mean Q {agent}")
+        curve(q_axis, f"losses/mean_q_{agent}", f"mean Q {agent}")
     q_axis.set_title("actor losses and mean Q")
     q_axis.set_xlabel("episode")
     q_axis.legend(loc="best", fontsize=7) if q_axis.lines else None

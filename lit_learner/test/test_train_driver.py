@@ -1,0 +1,127 @@
+"""``lit train`` against the real planner and real torch: a short run on np4 with a small warm-up.
+
+Planner runs stop on LIT*'s own clock, so episodes are not bit-for-bit repeatable; nothing here
+compares wall-clock times.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("torch")
+
+from lit_learner import train  # noqa: E402
+from lit_learner.config import AgentConfig, LearnerConfig  # noqa: E402
+from lit_learner.metrics import CURVES_FILE, METRICS_FILE, histogram_column  # noqa: E402
+from lit_planner import planning  # noqa: E402
+
+
+def small_config(seed: int = 0) -> LearnerConfig:
+    """Defaults except for a warm-up and batches small enough for a few dozen np4 episodes."""
+    return LearnerConfig(
+        b=AgentConfig.batch_size_agent(warmup=24, batch_size=16, buffer_size=4096, beta_steps=500),
+        k=AgentConfig.neighbour_agent(warmup=32, batch_size=32, buffer_size=4096, beta_steps=500),
+        seed=seed,
+    )
+
+
+def arguments(out: Path, **overrides: object) -> argparse.Namespace:
+    parser = argparse.ArgumentParser()
+    train.add_arguments(parser)
+    args = parser.parse_args(["--out", str(out), "--no-progress"])
+    for name, value in overrides.items():
+        setattr(args, name, value)
+    return args
+
+
+def test_training_distribution_never_draws_a_benchmark_query() -> None:
+    import numpy as np
+
+    distribution = train.TrainingDistribution(["np4", "rrd8"], np.random.default_rng(3))
+    specs = [distribution.draw(index) for index in range(200)]
+    assert {spec.scenario for spec in specs} == {"np4", "rrd8"}
+    assert all(spec.seed >= train.TRAINING_SEEDS[0] for spec in specs)
+    assert all(spec.instance == 0 for spec in specs if spec.scenario == "np4")
+    assert all(
+        spec.instance >= train.TRAINING_INSTANCES[0] for spec in specs if spec.scenario == "rrd8"
+    )
+
+
+def test_training_distribution_rejects_an_instance_suffix() -> None:
+    import numpy as np
+
+    with pytest.raises(train.TrainingError, match="rrd8/3.*family and dimension only"):
+        train.TrainingDistribution(["rrd8/3"], np.random.default_rng(0))
+
+
+def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    export_dir = tmp_path / "tensors"
+    phases: list[str] = []
+    hooks = train.TrainingHooks(
+        learner_config=small_config(), on_episode=lambda outcome: phases.append(outcome.phase)
+    )
+    args = arguments(
+        run_dir, episodes=12, scenarios="np4", checkpoint_every=5, decision_interval=10
+    )
+    train.train(args, hooks)
+
+    # b-then-k: B first (psi_K fixed), then psi_K with B from the exported B tensor.
+    assert phases == [train.PHASE_B] * 6 + [train.PHASE_K] * 6
+    assert (run_dir / train.B_PHASE_TENSORS / "b_tensor.npy").exists()
+
+    with (run_dir / METRICS_FILE).open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [int(row["episode"]) for row in rows] == list(range(12))
+    columns = set(rows[0])
+    assert set(train.METRIC_COLUMNS) <= columns
+    assert {histogram_column(agent, index) for agent in ("B", "psi_K") for index in range(10)} <= (
+        columns
+    )
+    assert {"charts/return_B", "charts/return_psi_K"} & columns
+    b_rows, k_rows = rows[:6], rows[6:]
+    assert all(int(row["decisions_psi_K"]) == 0 for row in b_rows)
+    assert all(int(row["decisions_psi_K"]) > 0 for row in k_rows)
+    for row in b_rows:  # every B decision is counted in exactly one histogram bin
+        assert sum(int(row[histogram_column("B", i)]) for i in range(10)) == int(row["decisions_B"])
+    assert all(row["solved"] == "1" for row in rows)
+    assert (run_dir / CURVES_FILE).stat().st_size > 10_000
+
+    checkpoints = run_dir / train.CHECKPOINT_DIR
+    assert sorted(path.name for path in checkpoints.glob("*.ckpt")) == [
+        "episode-0000005.ckpt",
+        "episode-0000010.ckpt",
+        "final.ckpt",
+    ]
+
+    # Resume from the final checkpoint with a larger total: continues the numbering and phase.
+    resumed = arguments(run_dir, episodes=14, resume=checkpoints / "final.ckpt", export=export_dir)
+    train.train(resumed, train.TrainingHooks(on_episode=lambda o: phases.append(o.phase)))
+    assert phases[12:] == [train.PHASE_K, train.PHASE_K]
+    with (run_dir / METRICS_FILE).open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [int(row["episode"]) for row in rows] == list(range(14))
+    seeds = [int(row["seed"]) for row in rows]
+    assert len(set(seeds)) == 14  # the generator continued instead of restarting
+
+    # Export: readable by the planner's tensor policy, usable for planning, with provenance.
+    record = json.loads((export_dir / train.PROVENANCE_FILE).read_text())
+    assert record["episodes"] == 14
+    assert record["scenarios"] == ["np4"]
+    assert record["command"].startswith("lit train")
+    assert (export_dir / CURVES_FILE).exists()
+    policy = planning.make_policy("tensor", export_dir)
+    result = planning.plan("np4", policy=policy, seed=1_000_321, time=0.05)
+    assert result["solved"]
+
+
+def test_resume_needs_the_driver_state(tmp_path: Path) -> None:
+    checkpoint = tmp_path / "lonely.ckpt"
+    checkpoint.write_bytes(b"")
+    with pytest.raises(train.TrainingError, match="driver state of this checkpoint is missing"):
+        train.train(arguments(tmp_path / "run", resume=checkpoint))
