@@ -15,10 +15,11 @@ import pytest
 
 pytest.importorskip("torch")
 
-from lit_learner import train  # noqa: E402
-from lit_learner.config import AgentConfig, LearnerConfig  # noqa: E402
-from lit_learner.metrics import CURVES_FILE, METRICS_FILE, histogram_column  # noqa: E402
-from lit_planner import planning  # noqa: E402
+from lit_learner.config import AgentConfig, LearnerConfig
+from lit_learner.metrics import CURVES_FILE, METRICS_FILE, histogram_column
+
+from lit_learner import train
+from lit_planner import planning
 
 
 def small_config(seed: int = 0) -> LearnerConfig:
