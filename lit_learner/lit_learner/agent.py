@@ -45,8 +45,12 @@ class DDPGAgent:
         self.critic_target = copy.deepcopy(self.critic)
         for net in (self.actor_target, self.critic_target):
             net.requires_grad_(False)
-        self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=config.lr_actor)
-        self.critic_optimizer = torch.optim.Adam(self.critic.parameters(), lr=config.lr_critic)
+        self.actor_optimizer = torch.optim.Adam(
+            self.actor.parameters(), lr=config.lr_actor, foreach=True
+        )
+        self.critic_optimizer = torch.optim.Adam(
+            self.critic.parameters(), lr=config.lr_critic, foreach=True
+        )
         self.replay = PrioritizedReplay(config.buffer_size, config.alpha, config.priority_eps)
         self.updates = 0
         """Gradient steps taken."""

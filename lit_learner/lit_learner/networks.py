@@ -100,8 +100,10 @@ class Critic(nn.Module):
 @torch.no_grad()
 def polyak_update(target: nn.Module, source: nn.Module, tau: float) -> None:
     """target <- tau * source + (1 - tau) * target, parameter by parameter (tau = 1 copies)."""
-    for t, s in zip(target.parameters(), source.parameters(), strict=True):
-        if tau == 1.0:
-            t.copy_(s)
-        else:
-            t.mul_(1.0 - tau).add_(s, alpha=tau)
+    targets, sources = list(target.parameters()), list(source.parameters())
+    if len(targets) != len(sources):
+        raise ValueError(f"Polyak update between {len(targets)} and {len(sources)} parameters")
+    if tau == 1.0:
+        torch._foreach_copy_(targets, sources)
+    else:
+        torch._foreach_lerp_(targets, sources, tau)
