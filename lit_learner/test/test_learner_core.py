@@ -1,0 +1,168 @@
+"""LearnerCore: decisions, metrics, untrained agents, message errors, exact resume."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from lit_learner.config import AgentConfig, LearnerConfig
+from lit_learner.core import LearnerCore
+from lit_learner.errors import CheckpointError, MessageError
+from lit_learner.messages import DecisionRequest, EpisodeEnd
+
+Message = DecisionRequest | EpisodeEnd
+
+
+def small_config(**overrides: object) -> LearnerConfig:
+    b = AgentConfig.batch_size_agent(batch_size=8, buffer_size=400, warmup=12, beta_steps=50)
+    k = AgentConfig.neighbour_agent(batch_size=16, buffer_size=1000, warmup=40, beta_steps=200)
+    return replace(LearnerConfig(b=b, k=k, seed=3), **overrides)  # type: ignore[arg-type]
+
+
+def script(episodes: int, seed: int = 0, prefix: str = "ep") -> list[Message]:
+    """A synthetic planner: K decisions every 0.1 s, B decisions at improvements, then an end."""
+    rng = np.random.default_rng(seed)
+    messages: list[Message] = []
+    for e in range(episodes):
+        episode, budget, c_min = f"{prefix}{e}", 2.0, 1.0
+        cost: float | None = None
+        improvements = 0
+
+        def request(agent: str, t: float) -> DecisionRequest:
+            g, l, m = (float(v) for v in rng.uniform(0.0, 1.0, 3))
+            return DecisionRequest(
+                agent, episode, g, l, m, t, budget, cost, c_min, improvements,
+                0 if cost is None else 10 + improvements, explore=True,
+            )
+
+        messages.append(request("B", 0.0))
+        for step in range(1, 15):
+            t = 0.1 * step
+            if rng.uniform() < 0.3:
+                improvements += 1
+                cost = c_min * (1.0 + 1.0 / improvements)
+                messages.append(request("B", t))
+            messages.append(request("psi_K", t))
+        messages.append(
+            EpisodeEnd(episode, budget, budget, cost, c_min, improvements,
+                       0 if cost is None else 10 + improvements, truncated=bool(e % 2 == 0))
+        )
+    return messages
+
+
+def feed(core: LearnerCore, messages: list[Message]) -> list[object]:
+    return [
+        core.decide(m) if isinstance(m, DecisionRequest) else core.end_episode(m)
+        for m in messages
+    ]
+
+
+def test_decisions_are_executed_values() -> None:
+    core = LearnerCore(small_config())
+    for m in script(3):
+        if isinstance(m, DecisionRequest):
+            value = core.decide(m)
+            assert isinstance(value, float)
+            if m.agent == "B":
+                assert 20.0 <= value <= 200.0 and value == int(value)
+            else:
+                assert 3.0 <= value <= 15.0
+        else:
+            core.end_episode(m)
+
+
+def test_metrics_after_warm_up() -> None:
+    core = LearnerCore(small_config())
+    outputs = feed(core, script(8))
+    metrics = [o for o in outputs if isinstance(o, dict)]
+    last = metrics[-1]
+    for agent in ("B", "psi_K"):
+        for key in ("charts/return_", "charts/steps_", "losses/critic_", "losses/actor_",
+                    "losses/mean_q_", "charts/beta_", "charts/updates_"):
+            assert f"{key}{agent}" in last, f"{key}{agent}"
+        for term in ("time", "cost", "penalty"):
+            assert f"rewards/{agent}_{term}" in last
+        assert last[f"charts/return_{agent}"] == pytest.approx(
+            sum(last[f"rewards/{agent}_{t}"] for t in ("time", "cost", "penalty"))
+        )
+    # One update per transition from warm-up on: updates = transitions - warmup + 1.
+    b, k = core.agents["B"], core.agents["psi_K"]
+    assert b.updates == b.transitions - core.config.b.warmup + 1
+    assert k.updates == k.transitions - core.config.k.warmup + 1
+    assert core.policy_version == b.updates + k.updates == last["charts/policy_version"]
+    assert "losses/critic_B" not in metrics[0]  # still warming up after the first episode
+
+
+def test_untrained_agent_acts_noise_free_and_stores_nothing() -> None:
+    core = LearnerCore(small_config(train_b=False))
+    feed(core, script(6))
+    assert core.agents["B"].transitions == 0 and core.agents["B"].updates == 0
+    assert core.agents["psi_K"].transitions > 0
+    request = next(m for m in script(1) if isinstance(m, DecisionRequest) and m.agent == "B")
+    agent = core.agents["B"]
+    assert core.decide(request) == agent.executed(agent.normalise(agent.policy(request.features)))
+
+
+def test_bad_messages_are_rejected_with_their_field() -> None:
+    core = LearnerCore(small_config())
+    good = DecisionRequest("B", "e", 0.1, 0.2, 0.3, 0.0, 1.0, None, 1.0, 0, 0)
+    with pytest.raises(MessageError, match="unknown agent 'K'"):
+        core.decide(replace(good, agent="K"))
+    with pytest.raises(MessageError, match="rho_local = nan is not finite"):
+        core.decide(replace(good, rho_local=float("nan")))
+    with pytest.raises(MessageError, match="time_budget 0.0 must be finite and > 0"):
+        core.end_episode(EpisodeEnd("e", 1.0, 0.0, None, 1.0, 0, 0))
+
+
+def test_missing_checkpoint(tmp_path: Path) -> None:
+    with pytest.raises(CheckpointError, match="checkpoint not found"):
+        LearnerCore.load_checkpoint(tmp_path / "none.pt")
+
+
+def flat_state(core: LearnerCore) -> dict[str, object]:
+    state: dict[str, object] = {}
+    for name, agent in core.agents.items():
+        for net in ("actor", "critic", "actor_target", "critic_target"):
+            for key, value in getattr(agent, net).state_dict().items():
+                state[f"{name}.{net}.{key}"] = value
+        for opt in ("actor_optimizer", "critic_optimizer"):
+            for index, slots in getattr(agent, opt).state_dict()["state"].items():
+                for key, value in slots.items():
+                    state[f"{name}.{opt}.{index}.{key}"] = value
+        replay = agent.replay
+        state[f"{name}.tree"] = torch.from_numpy(replay.tree.nodes.copy())
+        state[f"{name}.actions"] = torch.from_numpy(replay.action[: len(replay)].copy())
+        state[f"{name}.counters"] = (agent.updates, agent.transitions, replay.max_priority)
+    state["version"] = core.policy_version
+    return state
+
+
+def test_resume_from_checkpoint_is_exact(tmp_path: Path) -> None:
+    messages = script(10, seed=5)
+    # Cut in the middle of an episode after both agents passed warm-up: pending steps included.
+    cut = next(
+        i for i, m in enumerate(messages)
+        if isinstance(m, DecisionRequest) and m.episode_id == "ep6" and m.agent == "psi_K"
+    ) + 3
+    uninterrupted = LearnerCore(small_config())
+    expected = feed(uninterrupted, messages)
+
+    first = LearnerCore(small_config())
+    got = feed(first, messages[:cut])
+    assert first.policy_version > 0 and first.pairing.episodes["ep6"].pending
+    first.save_checkpoint(tmp_path / "mid.pt")
+    resumed = LearnerCore.load_checkpoint(tmp_path / "mid.pt")
+    got += feed(resumed, messages[cut:])
+
+    assert got == expected
+    a, b = flat_state(uninterrupted), flat_state(resumed)
+    assert a.keys() == b.keys()
+    for key in a:
+        if isinstance(a[key], torch.Tensor):
+            assert torch.equal(a[key], b[key]), key  # bitwise
+        else:
+            assert a[key] == b[key], key
