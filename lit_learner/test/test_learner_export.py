@@ -1,0 +1,81 @@
+"""Tensor export round trip: Python reader, direct actor evaluation, sidecar, C++ reader."""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import lit_core
+import numpy as np
+import pytest
+import torch
+from lit_planner import tensor_files as tf
+
+from lit_learner.config import AgentConfig, LearnerConfig
+from lit_learner.core import LearnerCore
+from lit_learner.export import grid_features
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory: pytest.TempPathFactory) -> tuple[LearnerCore, dict[str, Path]]:
+    config = LearnerConfig(
+        b=AgentConfig.batch_size_agent(buffer_size=64, warmup=64),
+        k=AgentConfig.neighbour_agent(buffer_size=256, warmup=256),
+        seed=11,
+    )
+    core = LearnerCore(config)
+    generator = torch.Generator().manual_seed(0)
+    for agent in core.agents.values():  # a policy that varies over the grid, as a trained one
+        actor = agent.actor
+        with torch.no_grad():
+            for layer in [*actor.trunk.convs, *actor.head[:-1]]:
+                if isinstance(layer, (torch.nn.Conv1d, torch.nn.Linear)):
+                    layer.weight.mul_(2.0)
+            last = actor.head[-1]
+            last.weight.copy_(torch.randn(last.weight.shape, generator=generator) * 5.0)
+    directory = tmp_path_factory.mktemp("tensors")
+    return core, core.export_tensors(directory, {"command": "pytest", "episodes": 0})
+
+
+def test_grid_is_c_ordered() -> None:
+    grid = grid_features().reshape(tf.TENSOR_SHAPE + (3,))
+    assert grid.dtype == np.float32
+    assert tuple(grid[3, 50, 100]) == (np.float32(0.03), np.float32(0.5), np.float32(1.0))
+
+
+@pytest.mark.parametrize("name", ["B", "psi_K"])
+def test_export_round_trip(exported: tuple[LearnerCore, dict[str, Path]], name: str) -> None:
+    core, paths = exported
+    agent = core.agents[name]
+    assert paths[name].name == {"B": "b_tensor.npy", "psi_K": "k_tensor.npy"}[name]
+    values, sidecar = tf.read_tensor(paths[name])
+    assert values.shape == (101, 101, 101) and values.dtype == np.float32
+    span = agent.config.action_max - agent.config.action_min
+    assert float(values.max() - values.min()) > 0.05 * span  # the policy is not constant
+
+    rng = np.random.default_rng(4)
+    for i, j, k in rng.integers(0, 101, (40, 3)).tolist() + [[0, 0, 0], [100, 100, 100]]:
+        direct = agent.policy((i / 100, j / 100, k / 100))
+        assert values[i, j, k] == pytest.approx(direct, abs=1e-4), (i, j, k)
+
+    assert sidecar.output == name
+    assert sidecar.tsk_consequents == agent.config.consequents
+    assert sidecar.fuzzy_centres == agent.config.fuzzy_centres
+    assert sidecar.fuzzy_sigma == agent.config.fuzzy_sigma
+    assert sidecar.policy_version == core.policy_version
+    assert sidecar.reward == core.config.reward.to_dict()
+    assert sidecar.training["agent"] == agent.config.to_dict()
+    assert sidecar.training["seed"] == 11
+    assert sidecar.provenance == {"command": "pytest", "episodes": 0}
+    checkpoint = paths["checkpoint"].read_bytes()
+    assert sidecar.checkpoint_sha256 == hashlib.sha256(checkpoint).hexdigest()
+    assert LearnerCore.load_checkpoint(paths["checkpoint"]).agents[name].policy(
+        (0.2, 0.4, 0.6)
+    ) == agent.policy((0.2, 0.4, 0.6))
+
+    cpp = lit_core.LookupTensor.load(str(paths[name]), list(sidecar.shape), *sidecar.value_range)
+    points = np.vstack([rng.uniform(0.0, 1.0, (30, 3)), [[0.0, 0.0, 0.0], [1.0, 0.5, 0.25]]])
+    for mode in tf.INTERPOLATIONS:
+        expected = tf.lookup(values, points, mode)
+        got = [getattr(cpp, mode)(*map(float, p)) for p in points]
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-4, err_msg=mode)
