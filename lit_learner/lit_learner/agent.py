@@ -37,7 +37,10 @@ class DDPGAgent:
         with torch.random.fork_rng(devices=[]):  # seeded init without touching the global RNG
             torch.manual_seed(seed)
             self.actor = Actor(
-                config.consequents, config.conv_kernels, config.conv_channels, config.hidden,
+                config.consequents,
+                config.conv_kernels,
+                config.conv_channels,
+                config.hidden,
                 config.actor_last_init,
             )
             self.critic = Critic(config.conv_kernels, config.conv_channels, config.hidden)
@@ -101,7 +104,11 @@ class DDPGAgent:
     # ------------------------------------------------------------------ learning
 
     def remember(
-        self, state: Features, action: float, reward: float, next_state: Features,
+        self,
+        state: Features,
+        action: float,
+        reward: float,
+        next_state: Features,
         terminated: bool,
     ) -> None:
         """Store one transition (a truncated one bootstraps, so only ``terminated`` matters)."""

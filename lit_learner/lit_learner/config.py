@@ -99,29 +99,29 @@ class AgentConfig:
     @classmethod
     def batch_size_agent(cls, **overrides: Any) -> AgentConfig:
         """B-Net with LEARNER.md's defaults: f = (20, 110, 200), batch 64, buffer 1e5, warm-up 500."""
-        values: dict[str, Any] = dict(
-            name="B",
-            consequents=(20.0, 110.0, 200.0),
-            rounding="half_away_from_zero",
-            batch_size=64,
-            buffer_size=100_000,
-            warmup=500,
-            beta_steps=50_000,
-        )
+        values: dict[str, Any] = {
+            "name": "B",
+            "consequents": (20.0, 110.0, 200.0),
+            "rounding": "half_away_from_zero",
+            "batch_size": 64,
+            "buffer_size": 100_000,
+            "warmup": 500,
+            "beta_steps": 50_000,
+        }
         return cls(**(values | overrides))
 
     @classmethod
     def neighbour_agent(cls, **overrides: Any) -> AgentConfig:
         """K-Net with LEARNER.md's defaults: f = (3, 9, 15), batch 256, buffer 1e6, warm-up 1e4."""
-        values: dict[str, Any] = dict(
-            name="psi_K",
-            consequents=(3.0, 9.0, 15.0),
-            rounding="none",
-            batch_size=256,
-            buffer_size=1_000_000,
-            warmup=10_000,
-            beta_steps=500_000,
-        )
+        values: dict[str, Any] = {
+            "name": "psi_K",
+            "consequents": (3.0, 9.0, 15.0),
+            "rounding": "none",
+            "batch_size": 256,
+            "buffer_size": 1_000_000,
+            "warmup": 10_000,
+            "beta_steps": 500_000,
+        }
         return cls(**(values | overrides))
 
     def to_dict(self) -> dict[str, Any]:

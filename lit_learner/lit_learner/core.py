@@ -124,7 +124,10 @@ class LearnerCore:
     def _store(self, transition: Transition) -> None:
         agent = self.agents[transition.agent]
         agent.remember(
-            transition.state, transition.action, transition.reward.total, transition.next_state,
+            transition.state,
+            transition.action,
+            transition.reward.total,
+            transition.next_state,
             transition.terminated,
         )
         if not agent.warming_up:
@@ -148,8 +151,9 @@ class LearnerCore:
             "episodes": self.episodes,
             "policy_version": self._policy_version,
             "pending_updates": dict(self._pending_updates),
-            "episode_terms": {e: {a: list(t) for a, t in d.items()}
-                              for e, d in self._episode_terms.items()},
+            "episode_terms": {
+                e: {a: list(t) for a, t in d.items()} for e, d in self._episode_terms.items()
+            },
             "rng": {
                 "torch": torch.get_rng_state(),
                 "numpy": np.random.get_state(),
@@ -195,8 +199,9 @@ class LearnerCore:
         core.episodes = state["episodes"]
         core._policy_version = state["policy_version"]
         core._pending_updates = dict(state["pending_updates"])
-        core._episode_terms = {e: {a: list(t) for a, t in d.items()}
-                               for e, d in state["episode_terms"].items()}
+        core._episode_terms = {
+            e: {a: list(t) for a, t in d.items()} for e, d in state["episode_terms"].items()
+        }
         torch.set_rng_state(state["rng"]["torch"])
         np.random.set_state(state["rng"]["numpy"])
         random.setstate(state["rng"]["python"])
@@ -205,7 +210,9 @@ class LearnerCore:
     # ------------------------------------------------------------------ export
 
     def export_tensors(
-        self, directory: str | Path, provenance: dict[str, Any],
+        self,
+        directory: str | Path,
+        provenance: dict[str, Any],
         agents: Sequence[str] = AGENT_NAMES,
     ) -> dict[str, Path]:
         """Write ``checkpoint.pt`` and each agent's lookup tensor with its sidecar into

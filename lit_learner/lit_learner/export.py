@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 import torch
+from lit_planner.tensor_files import GRID_SIZE, TENSOR_SHAPE
 from numpy.typing import NDArray
 
 from lit_learner.agent import DDPGAgent
-from lit_planner.tensor_files import GRID_SIZE, TENSOR_SHAPE
 
 EXPORT_CHUNK = 1 << 16
 """Grid points per actor forward pass during export."""

@@ -59,8 +59,15 @@ class DecisionRequest:
                     f"episode {self.episode_id!r}, agent {self.agent}: {name} = {value} "
                     "is not finite"
                 )
-        _validate_progress(self.episode_id, self.planning_time, self.time_budget, self.cost,
-                           self.minimum_cost, self.improvements, self.path_states)
+        _validate_progress(
+            self.episode_id,
+            self.planning_time,
+            self.time_budget,
+            self.cost,
+            self.minimum_cost,
+            self.improvements,
+            self.path_states,
+        )
 
 
 @dataclass(frozen=True)
@@ -89,8 +96,15 @@ class EpisodeEnd:
 
     def validate(self) -> None:
         """Raises MessageError naming the bad field."""
-        _validate_progress(self.episode_id, self.planning_time, self.time_budget, self.cost,
-                           self.minimum_cost, self.improvements, self.path_states)
+        _validate_progress(
+            self.episode_id,
+            self.planning_time,
+            self.time_budget,
+            self.cost,
+            self.minimum_cost,
+            self.improvements,
+            self.path_states,
+        )
 
 
 def _validate_progress(

@@ -21,9 +21,7 @@ class Trunk(nn.Module):
 
     def __init__(self, kernels: Sequence[int] = (3, 5, 7), channels: int = 3) -> None:
         super().__init__()
-        self.convs = nn.ModuleList(
-            nn.Conv1d(1, channels, k, padding="same") for k in kernels
-        )
+        self.convs = nn.ModuleList(nn.Conv1d(1, channels, k, padding="same") for k in kernels)
         self.out_features = channels * len(kernels) * STATE_SIZE
 
     def forward(self, state: torch.Tensor) -> torch.Tensor:

@@ -96,8 +96,14 @@ class Pairing:
         pending = episode.pending.pop(request.agent, None)
         if pending is not None:
             closed = self._close(
-                request.agent, request.episode_id, episode, pending, request.features,
-                request, terminated=False, truncated=False,
+                request.agent,
+                request.episode_id,
+                episode,
+                pending,
+                request.features,
+                request,
+                terminated=False,
+                truncated=False,
             )
         if action is not None:
             episode.pending[request.agent] = PendingStep(
@@ -123,8 +129,16 @@ class Pairing:
                 continue
             final = (end.final_features or {}).get(agent, pending.state)
             closed.append(
-                self._close(agent, end.episode_id, episode, pending, tuple(final), end,
-                            terminated=not end.truncated, truncated=end.truncated)
+                self._close(
+                    agent,
+                    end.episode_id,
+                    episode,
+                    pending,
+                    tuple(final),
+                    end,
+                    terminated=not end.truncated,
+                    truncated=end.truncated,
+                )
             )
         return closed, dict(episode.returns)
 
@@ -144,18 +158,34 @@ class Pairing:
         step_time = episode.step_time(info.improvements) if improved else 0.0
         if agent == "B":
             reward = batch_size_reward(
-                improved, info.improvements, step_time, info.time_budget, info.cost,
-                info.minimum_cost, self.reward,
+                improved,
+                info.improvements,
+                step_time,
+                info.time_budget,
+                info.cost,
+                info.minimum_cost,
+                self.reward,
             )
         else:
             reward = neighbour_reward(
-                improved, step_time, info.time_budget, info.cost, info.minimum_cost,
-                info.path_states, self.reward,
+                improved,
+                step_time,
+                info.time_budget,
+                info.cost,
+                info.minimum_cost,
+                info.path_states,
+                self.reward,
             )
         episode.returns[agent] = episode.returns.get(agent, 0.0) + reward.total
         return Transition(
-            agent, episode_id, pending.state, pending.action, reward, next_state,
-            terminated, truncated,
+            agent,
+            episode_id,
+            pending.state,
+            pending.action,
+            reward,
+            next_state,
+            terminated,
+            truncated,
         )
 
     def state_dict(self) -> dict[str, Any]:
@@ -163,9 +193,7 @@ class Pairing:
             episode_id: {
                 "improvement_times": dict(e.improvement_times),
                 "last_time": e.last_time,
-                "pending": {
-                    a: (p.state, p.action, p.improvements) for a, p in e.pending.items()
-                },
+                "pending": {a: (p.state, p.action, p.improvements) for a, p in e.pending.items()},
                 "returns": dict(e.returns),
             }
             for episode_id, e in self.episodes.items()

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-
 from lit_learner.agent import DDPGAgent, round_half_away_from_zero
 from lit_learner.config import AgentConfig
 
@@ -15,7 +14,11 @@ torch.set_num_threads(1)
 
 def test_round_half_away_from_zero() -> None:
     assert [round_half_away_from_zero(v) for v in (2.5, 3.5, -2.5, 2.49, 0.0)] == [
-        3.0, 4.0, -3.0, 2.0, 0.0
+        3.0,
+        4.0,
+        -3.0,
+        2.0,
+        0.0,
     ]
 
 
@@ -50,8 +53,13 @@ def test_ddpg_solves_a_one_step_bandit() -> None:
     """
     target = 0.8
     config = AgentConfig.neighbour_agent(
-        batch_size=32, buffer_size=5000, warmup=500, lr_actor=1e-4, lr_critic=1e-3,
-        noise_std=0.1, beta_steps=1000,
+        batch_size=32,
+        buffer_size=5000,
+        warmup=500,
+        lr_actor=1e-4,
+        lr_critic=1e-3,
+        noise_std=0.1,
+        beta_steps=1000,
     )
     agent = DDPGAgent(config, seed=7)
     rng = np.random.default_rng(7)

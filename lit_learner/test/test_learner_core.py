@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-
 from lit_learner.config import AgentConfig, LearnerConfig
 from lit_learner.core import LearnerCore
 from lit_learner.errors import CheckpointError, MessageError
@@ -23,41 +22,48 @@ def small_config(**overrides: object) -> LearnerConfig:
     return replace(LearnerConfig(b=b, k=k, seed=3), **overrides)  # type: ignore[arg-type]
 
 
-def script(episodes: int, seed: int = 0, prefix: str = "ep") -> list[Message]:
-    """A synthetic planner: K decisions every 0.1 s, B decisions at improvements, then an end."""
+def random_request(
+    rng: np.random.Generator,
+    agent: str,
+    episode: str,
+    t: float,
+    cost: float | None,
+    improvements: int,
+) -> DecisionRequest:
+    g, l, m = (float(v) for v in rng.uniform(0.0, 1.0, 3))
+    path_states = 0 if cost is None else 10 + improvements
+    return DecisionRequest(agent, episode, g, l, m, t, 2.0, cost, 1.0, improvements, path_states)
+
+
+def script(episodes: int, seed: int = 0) -> list[Message]:
+    """A synthetic planner: K decisions every 0.1 s, B decisions at improvements, then an end
+    (time budget 2 s, c_min 1)."""
     rng = np.random.default_rng(seed)
     messages: list[Message] = []
     for e in range(episodes):
-        episode, budget, c_min = f"{prefix}{e}", 2.0, 1.0
+        episode = f"ep{e}"
         cost: float | None = None
         improvements = 0
-
-        def request(agent: str, t: float) -> DecisionRequest:
-            g, l, m = (float(v) for v in rng.uniform(0.0, 1.0, 3))
-            return DecisionRequest(
-                agent, episode, g, l, m, t, budget, cost, c_min, improvements,
-                0 if cost is None else 10 + improvements, explore=True,
-            )
-
-        messages.append(request("B", 0.0))
+        messages.append(random_request(rng, "B", episode, 0.0, cost, improvements))
         for step in range(1, 15):
             t = 0.1 * step
             if rng.uniform() < 0.3:
                 improvements += 1
-                cost = c_min * (1.0 + 1.0 / improvements)
-                messages.append(request("B", t))
-            messages.append(request("psi_K", t))
+                cost = 1.0 + 1.0 / improvements
+                messages.append(random_request(rng, "B", episode, t, cost, improvements))
+            messages.append(random_request(rng, "psi_K", episode, t, cost, improvements))
+        path_states = 0 if cost is None else 10 + improvements
         messages.append(
-            EpisodeEnd(episode, budget, budget, cost, c_min, improvements,
-                       0 if cost is None else 10 + improvements, truncated=bool(e % 2 == 0))
+            EpisodeEnd(
+                episode, 2.0, 2.0, cost, 1.0, improvements, path_states, truncated=e % 2 == 0
+            )
         )
     return messages
 
 
 def feed(core: LearnerCore, messages: list[Message]) -> list[object]:
     return [
-        core.decide(m) if isinstance(m, DecisionRequest) else core.end_episode(m)
-        for m in messages
+        core.decide(m) if isinstance(m, DecisionRequest) else core.end_episode(m) for m in messages
     ]
 
 
@@ -81,8 +87,15 @@ def test_metrics_after_warm_up() -> None:
     metrics = [o for o in outputs if isinstance(o, dict)]
     last = metrics[-1]
     for agent in ("B", "psi_K"):
-        for key in ("charts/return_", "charts/steps_", "losses/critic_", "losses/actor_",
-                    "losses/mean_q_", "charts/beta_", "charts/updates_"):
+        for key in (
+            "charts/return_",
+            "charts/steps_",
+            "losses/critic_",
+            "losses/actor_",
+            "losses/mean_q_",
+            "charts/beta_",
+            "charts/updates_",
+        ):
             assert f"{key}{agent}" in last, f"{key}{agent}"
         for term in ("time", "cost", "penalty"):
             assert f"rewards/{agent}_{term}" in last
@@ -144,10 +157,14 @@ def flat_state(core: LearnerCore) -> dict[str, object]:
 def test_resume_from_checkpoint_is_exact(tmp_path: Path) -> None:
     messages = script(10, seed=5)
     # Cut in the middle of an episode after both agents passed warm-up: pending steps included.
-    cut = next(
-        i for i, m in enumerate(messages)
-        if isinstance(m, DecisionRequest) and m.episode_id == "ep6" and m.agent == "psi_K"
-    ) + 3
+    cut = (
+        next(
+            i
+            for i, m in enumerate(messages)
+            if isinstance(m, DecisionRequest) and m.episode_id == "ep6" and m.agent == "psi_K"
+        )
+        + 3
+    )
     uninterrupted = LearnerCore(small_config())
     expected = feed(uninterrupted, messages)
 

@@ -9,11 +9,11 @@ import lit_core
 import numpy as np
 import pytest
 import torch
-from lit_planner import tensor_files as tf
-
 from lit_learner.config import AgentConfig, LearnerConfig
 from lit_learner.core import LearnerCore
 from lit_learner.export import grid_features
+
+from lit_planner import tensor_files as tf
 
 
 @pytest.fixture(scope="module")

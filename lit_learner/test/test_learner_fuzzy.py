@@ -6,7 +6,6 @@ import math
 
 import pytest
 import torch
-
 from lit_learner.fuzzy import STATE_SIZE, fuzzify
 
 SIGMA = 0.2123

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import pytest
 import torch
-
 from lit_learner.fuzzy import fuzzify
 from lit_learner.networks import Actor, Critic, Trunk, polyak_update
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import pytest
-
 from lit_learner.config import RewardConfig
 from lit_learner.errors import PairingError
 from lit_learner.messages import DecisionRequest, EpisodeEnd
@@ -14,11 +13,25 @@ REWARD = RewardConfig()
 
 
 def request(
-    agent: str, episode: str, t: float, features: float, improvements: int = 0,
-    cost: float | None = None, path_states: int = 0,
+    agent: str,
+    episode: str,
+    t: float,
+    features: float,
+    improvements: int = 0,
+    cost: float | None = None,
+    path_states: int = 0,
 ) -> DecisionRequest:
     return DecisionRequest(
-        agent, episode, features, features, features, t, 10.0, cost, 2.0, improvements,
+        agent,
+        episode,
+        features,
+        features,
+        features,
+        t,
+        10.0,
+        cost,
+        2.0,
+        improvements,
         path_states,
     )
 
@@ -27,11 +40,14 @@ def test_consecutive_requests_of_one_agent_form_a_transition() -> None:
     pairing = Pairing(REWARD)
     assert pairing.step(request("psi_K", "e", 0.0, 0.1), 0.3) is None
     assert pairing.step(request("B", "e", 0.0, 0.2), 0.6) is None  # other agent: own pending
-    t = pairing.step(request("psi_K", "e", 1.5, 0.4, improvements=1, cost=4.0, path_states=25),
-                     0.7)
+    t = pairing.step(request("psi_K", "e", 1.5, 0.4, improvements=1, cost=4.0, path_states=25), 0.7)
     assert t is not None
     assert (t.agent, t.episode_id, t.state, t.action, t.next_state) == (
-        "psi_K", "e", (0.1, 0.1, 0.1), 0.3, (0.4, 0.4, 0.4)
+        "psi_K",
+        "e",
+        (0.1, 0.1, 0.1),
+        0.3,
+        (0.4, 0.4, 0.4),
     )
     assert not t.terminated and not t.truncated
     assert t.reward == neighbour_reward(True, 1.5, 10.0, 4.0, 2.0, 25, REWARD)
@@ -56,8 +72,17 @@ def test_episode_end_closes_every_pending_step(truncated: bool) -> None:
     pairing = Pairing(REWARD)
     pairing.step(request("B", "e", 0.0, 0.2), 0.6)
     pairing.step(request("psi_K", "e", 0.5, 0.3), 0.1)
-    end = EpisodeEnd("e", 10.0, 10.0, 4.0, 2.0, 1, 30, truncated=truncated,
-                     final_features={"psi_K": (0.9, 0.8, 0.7)})
+    end = EpisodeEnd(
+        "e",
+        10.0,
+        10.0,
+        4.0,
+        2.0,
+        1,
+        30,
+        truncated=truncated,
+        final_features={"psi_K": (0.9, 0.8, 0.7)},
+    )
     closed, returns = pairing.end(end)
     assert [t.agent for t in closed] == ["B", "psi_K"]
     b, k = closed
@@ -78,12 +103,8 @@ def test_interleaved_episodes_are_kept_apart() -> None:
     ta = pairing.step(request("B", "a", 1.0, 0.2, improvements=1, cost=4.0), 0.2)
     tb = pairing.step(request("B", "b", 0.5, 0.6), 0.6)
     assert ta is not None and tb is not None
-    assert (ta.episode_id, ta.state, ta.next_state, ta.action) == (
-        "a", (0.1,) * 3, (0.2,) * 3, 0.1
-    )
-    assert (tb.episode_id, tb.state, tb.next_state, tb.action) == (
-        "b", (0.5,) * 3, (0.6,) * 3, 0.5
-    )
+    assert (ta.episode_id, ta.state, ta.next_state, ta.action) == ("a", (0.1,) * 3, (0.2,) * 3, 0.1)
+    assert (tb.episode_id, tb.state, tb.next_state, tb.action) == ("b", (0.5,) * 3, (0.6,) * 3, 0.5)
     assert ta.reward.cost > 0.0 and tb.reward.total == 0.0  # b has no improvement
     closed, _ = pairing.end(EpisodeEnd("a", 10.0, 10.0, 4.0, 2.0, 1, 5))
     assert [t.episode_id for t in closed] == ["a"]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from lit_learner.errors import ReplayError
 from lit_learner.replay import PrioritizedReplay, SumTree, beta_at
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 
 import pytest
-
 from lit_learner.config import RewardConfig
 from lit_learner.rewards import (
     batch_size_reward,
