@@ -58,8 +58,10 @@ SCHEDULES = ("b-then-k", "joint")
 """Training schedules; see the module docstring."""
 DEFAULT_EPISODES = 200
 """Episodes when neither ``--episodes`` nor ``--minutes`` is given."""
-DEFAULT_DECISION_INTERVAL = 10
-"""psi_K is decided every this many expansions (the planner's ``decision_interval``)."""
+DEFAULT_DECISION_INTERVAL = 1
+"""psi_K is decided every this many expansions (the planner's ``decision_interval``). 1 is the
+planner's default, which the ``tensor`` policy uses in ``lit plan`` and ``lit bench``, so a K step
+means the same in training and in use."""
 DEFAULT_CHECKPOINT_EVERY = 100
 """Episodes between periodic checkpoints."""
 KEEP_CHECKPOINTS = 2
