@@ -55,6 +55,11 @@ class LearnerCore:
         """Gradient steps taken by both agents together; 0 before the first one."""
         return self._policy_version
 
+    def policy(self, agent: str, features: tuple[float, float, float]) -> float:
+        """Noise-free z*(features) of ``agent`` before rounding: what the exported tensor holds
+        at grid points. Touches no state (no pairing, no random numbers)."""
+        return self.agents[agent].policy(features)
+
     def trains(self, agent: str) -> bool:
         """Whether ``agent`` stores transitions and learns."""
         return self.config.train_b if agent == "B" else self.config.train_k
