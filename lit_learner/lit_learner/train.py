@@ -493,11 +493,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Train, checkpoint, plot and (with ``--export``) export; returns the exit code."""
-    from lit_planner.errors import LitError
+    from lit_learner.errors import LearnerError
+    from lit_planner.errors import LitPlannerError
 
     try:
         summary = train(args, hooks=None)
-    except (TrainingError, LitError) as error:
+    except (TrainingError, LearnerError, LitPlannerError) as error:
         print(f"lit train: {error}", file=sys.stderr)
         return 2
     print(summary)

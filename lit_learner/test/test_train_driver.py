@@ -165,3 +165,12 @@ def test_training_moves_the_b_policy_towards_higher_value_on_np4(tmp_path: Path)
         moved = (agent.actor(states) - initial_actor(states)).abs().max().item()
     assert value_after > value_before
     assert moved > 0.5  # at least half a unit of B somewhere on the visited states
+
+
+def test_run_reports_bad_input_as_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert train.run(arguments(tmp_path / "run", scenarios="np4,xx9", episodes=1)) == 2
+    assert "training scenario 'xx9'" in capsys.readouterr().err
+    assert train.run(arguments(tmp_path / "run", decision_interval=0)) == 2
+    assert "--decision-interval must be at least 1, got 0" in capsys.readouterr().err
