@@ -493,8 +493,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Train, checkpoint, plot and (with ``--export``) export; returns the exit code."""
-    from lit_learner.errors import LearnerError
     from lit_planner.errors import LitPlannerError
+
+    from lit_learner.errors import LearnerError
 
     try:
         summary = train(args, hooks=None)
