@@ -176,6 +176,8 @@ class EpisodeOutcome:
     """Seconds spent in the callback and ``end_episode`` (outside the planner's clock)."""
     truncated: bool = True
     minimum_cost: float = 0.0
+    interrupted: bool = False
+    """Ctrl-C arrived during the query: the episode was still closed normally; stop after it."""
 
 
 def round_batch_size(value: float, low: float, high: float) -> float:
@@ -224,35 +226,44 @@ def run_episode(
     budget = problem.time_budget if time_budget is None else time_budget
     actions: dict[str, list[float]] = {"B": [], "psi_K": []}
     errors: list[BaseException] = []
+    interrupts: list[bool] = []
     learner_seconds = [0.0]
+
+    def answer(context: lit_core.DecisionContext) -> float:
+        if context.kind == "B" and phase == PHASE_K:
+            value = round_batch_size(
+                b_tensor.trilinear(context.rho_global, context.rho_local, context.measure),
+                *b_range,
+            )
+        else:
+            value = core.decide(
+                DecisionRequest(
+                    agent=context.kind,
+                    episode_id=episode_id,
+                    rho_global=context.rho_global,
+                    rho_local=context.rho_local,
+                    measure=context.measure,
+                    planning_time=context.planning_time,
+                    time_budget=budget,
+                    cost=context.cost if context.has_solution else None,
+                    minimum_cost=context.minimum_cost,
+                    improvements=context.improvements,
+                    path_states=context.path_states,
+                    explore=explore,
+                )
+            )
+        actions[context.kind].append(float(value))
+        return float(value)
 
     def decide(context: lit_core.DecisionContext) -> float:
         started = time.perf_counter()
         try:
-            if context.kind == "B" and phase == PHASE_K:
-                value = round_batch_size(
-                    b_tensor.trilinear(context.rho_global, context.rho_local, context.measure),
-                    *b_range,
-                )
-            else:
-                value = core.decide(
-                    DecisionRequest(
-                        agent=context.kind,
-                        episode_id=episode_id,
-                        rho_global=context.rho_global,
-                        rho_local=context.rho_local,
-                        measure=context.measure,
-                        planning_time=context.planning_time,
-                        time_budget=budget,
-                        cost=context.cost if context.has_solution else None,
-                        minimum_cost=context.minimum_cost,
-                        improvements=context.improvements,
-                        path_states=context.path_states,
-                        explore=explore,
-                    )
-                )
-            actions[context.kind].append(float(value))
-            return float(value)
+            try:
+                return answer(context)
+            except KeyboardInterrupt:
+                # Ctrl-C: finish this query normally (at most its budget), then the driver stops.
+                interrupts.append(True)
+                return answer(context)
         except BaseException as error:
             errors.append(error)
             raise
@@ -304,6 +315,7 @@ def run_episode(
         learner_time=learner_seconds[0] + (finished - ended),
         truncated=truncated,
         minimum_cost=minimum_cost(problem),
+        interrupted=bool(interrupts),
     )
 
 
@@ -376,6 +388,7 @@ class DriverState:
     episodes: int | None
     minutes: float | None
     command: list[str]
+    """The command that started the run."""
     episode: int = 0
     """Episodes finished."""
     elapsed: float = 0.0
@@ -386,6 +399,8 @@ class DriverState:
     rng_state: dict[str, Any] = field(default_factory=dict)
     episodes_per_phase: dict[str, int] = field(default_factory=dict)
     started_utc: str = ""
+    resumed_with: list[list[str]] = field(default_factory=list)
+    """Commands that resumed the run, in order."""
 
     def save(self, path: Path) -> None:
         path.write_text(json.dumps(dataclasses.asdict(self), indent=2) + "\n")
@@ -428,6 +443,7 @@ def provenance(state: DriverState, run_dir: Path) -> dict[str, Any]:
     """What made these tensors: command, seeds, distribution, episodes, wall time, commit."""
     return {
         "command": shlex.join(state.command),
+        "resumed_with": [shlex.join(command) for command in state.resumed_with],
         "run_folder": str(run_dir),
         "git_commit": git_commit(),
         "started_utc": state.started_utc,
@@ -564,7 +580,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
             state.episodes = args.episodes
         if args.minutes is not None:
             state.minutes = args.minutes
-        state.command = command
+        state.resumed_with.append(command)
         rng = np.random.default_rng()
         rng.bit_generator.state = state.rng_state
     else:
@@ -609,8 +625,9 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
     progress = _progress(state, disable=args.no_progress)
     session_start = time.perf_counter() - state.elapsed
     periodic: list[Path] = []
+    interrupted = False
     try:
-        while not _finished(state):
+        while not (_finished(state) or interrupted):
             phase = _phase_for(state)
             if phase == PHASE_K and state.phase != PHASE_K:
                 b_tensor = _switch_to_k(core, state, run_dir)
@@ -632,6 +649,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
             if hooks.on_episode is not None:
                 hooks.on_episode(outcome)
             _advance(progress, state, outcome)
+            interrupted = outcome.interrupted
             if args.checkpoint_every > 0 and state.episode % args.checkpoint_every == 0:
                 periodic.append(
                     _checkpoint(core, state, rng, run_dir, f"episode-{state.episode:07d}")
@@ -640,6 +658,9 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
                     old = periodic.pop(0)
                     old.unlink(missing_ok=True)
                     state_path(old).unlink(missing_ok=True)
+    except KeyboardInterrupt:
+        # Between queries: the learner is consistent unless Ctrl-C hit a gradient step.
+        interrupted = True
     finally:
         progress.close()
     final = _checkpoint(core, state, rng, run_dir, "final")
@@ -650,6 +671,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
         (
             f"lit train: {state.episode} episodes in {state.elapsed / 60:.1f} min "
             f"({state.episodes_per_phase}), run folder {run_dir}"
+            + (" (interrupted: --resume the final checkpoint to continue)" if interrupted else "")
         ),
         f"  checkpoint {final}, metrics {run_dir / METRICS_FILE}, curves {curves}",
     ]

@@ -174,3 +174,31 @@ def test_run_reports_bad_input_as_one_line(
     assert "training scenario 'xx9'" in capsys.readouterr().err
     assert train.run(arguments(tmp_path / "run", decision_interval=0)) == 2
     assert "--decision-interval must be at least 1, got 0" in capsys.readouterr().err
+
+
+def test_ctrl_c_finishes_the_query_then_stops_with_a_final_checkpoint(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from lit_learner.core import LearnerCore
+
+    original = LearnerCore.decide
+    calls = {"count": 0}
+
+    def decide_with_one_interrupt(self: LearnerCore, request: object) -> float:
+        calls["count"] += 1
+        if calls["count"] == 30:  # in the third or so episode
+            raise KeyboardInterrupt
+        return original(self, request)
+
+    monkeypatch.setattr(LearnerCore, "decide", decide_with_one_interrupt)
+    outcomes: list[train.EpisodeOutcome] = []
+    hooks = train.TrainingHooks(learner_config=small_config(), on_episode=outcomes.append)
+    summary = train.train(arguments(tmp_path / "run", episodes=50, scenarios="np4"), hooks)
+    assert "interrupted" in summary
+    assert 1 <= len(outcomes) < 50 and outcomes[-1].interrupted
+    assert not any(outcome.interrupted for outcome in outcomes[:-1])
+    assert outcomes[-1].result["solved"]  # the interrupted query still ran to its budget
+    state = train.DriverState.load(
+        train.state_path(tmp_path / "run" / train.CHECKPOINT_DIR / "final.ckpt")
+    )
+    assert state.episode == len(outcomes)
