@@ -488,7 +488,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=",".join(DEFAULT_SCENARIOS),
         help="comma-separated training scenarios (family+dimension; instances are drawn)",
     )
-    parser.add_argument("--schedule", choices=SCHEDULES, default=SCHEDULES[0])
+    parser.add_argument(
+        "--schedule",
+        choices=SCHEDULES,
+        default=SCHEDULES[0],
+        help="b-then-k: B with psi_K = e, then psi_K with B from the B tensor; joint: both",
+    )
     parser.add_argument(
         "--decision-interval",
         type=int,
@@ -502,7 +507,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--export", type=Path, metavar="DIR", help="write the lookup tensors here at the end"
     )
     parser.add_argument(
-        "--checkpoint-every", type=int, default=DEFAULT_CHECKPOINT_EVERY, metavar="N"
+        "--checkpoint-every",
+        type=int,
+        default=DEFAULT_CHECKPOINT_EVERY,
+        metavar="N",
+        help=f"checkpoint every N episodes, the last {KEEP_CHECKPOINTS} kept (0: final only)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
