@@ -182,8 +182,9 @@ class EpisodeOutcome:
 
 def round_batch_size(value: float, low: float, high: float) -> float:
     """B as the planner executes it: rounded half away from zero, clamped to ``[low, high]``."""
-    rounded = math.floor(abs(value) + 0.5) * (1 if value >= 0 else -1)
-    return float(min(max(rounded, low), high))
+    from lit_learner.agent import round_half_away_from_zero
+
+    return float(min(max(round_half_away_from_zero(value), low), high))
 
 
 def run_episode(
