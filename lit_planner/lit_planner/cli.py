@@ -32,9 +32,6 @@ COMMANDS: dict[str, Command] = {
         "lit_planner.demo",
         "plan the default scenario (narrow passage in R^8) with LIT* and print the result",
     ),
-    "compare": Command(
-        "lit_planner.compare", "LIT* against OMPL planners on the same seeds: medians and ratios"
-    ),
     "bench": Command(
         "lit_planner.bench.cli",
         "benchmark planners on the paper's scenarios: statistics, tables, plots (--quick, --paper)",

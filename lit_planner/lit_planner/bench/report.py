@@ -293,27 +293,8 @@ def markdown(summary: dict[str, Any]) -> str:
     lines += [f"{comp['litstar_note']}.", ""]
 
     lines += ["## LIT* against FIT* (the paper's Table I)", ""]
-    rows = comp["fit"]["rows"]
-    if rows:
-        lines += [
-            (
-                "| scenario | FIT* t_init (s) | FIT* c_init | FIT* c_final | LIT* t_init (s) | LIT* c_init "
-                "| LIT* c_final | t_init ⇑ (%) | c_init ⇑ (%) | c_final ⇑ (%) |"
-            ),
-            "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
-        ]
-        for name, row in rows.items():
-            ref, lit, imp = (
-                row["reference_medians"],
-                row["litstar_medians"],
-                row["improvement_percent"],
-            )
-            lines.append(
-                f"| {name} | {fmt(ref['t_init'])} | {fmt(ref['c_init'])} | {fmt(ref['c_final'])} "
-                f"| {fmt(lit['t_init'])} | {fmt(lit['c_init'])} | {fmt(lit['c_final'])} "
-                f"| {fmt_percent(imp['t_init'])} | {fmt_percent(imp['c_init'])} "
-                f"| {fmt_percent(imp['c_final'])} |"
-            )
+    if comp["fit"]["rows"]:
+        lines += _comparison_table(comp["fit"]["rows"], with_planner=False)
         lines += [
             "",
             (
@@ -326,27 +307,8 @@ def markdown(summary: dict[str, Any]) -> str:
         lines += ["Not available: this benchmark did not run both LIT* and litstar-fit.", ""]
 
     lines += ["## LIT* against the best OMPL planner", ""]
-    rows = comp["best_ompl"]["rows"]
-    if rows:
-        lines += [
-            (
-                "| scenario | best OMPL planner | its t_init (s) | its c_init | its c_final | LIT* t_init (s) "
-                "| LIT* c_init | LIT* c_final | t_init ⇑ (%) | c_init ⇑ (%) | c_final ⇑ (%) |"
-            ),
-            "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
-        ]
-        for name, row in rows.items():
-            ref, lit, imp = (
-                row["reference_medians"],
-                row["litstar_medians"],
-                row["improvement_percent"],
-            )
-            lines.append(
-                f"| {name} | {label(row['reference'])} | {fmt(ref['t_init'])} | {fmt(ref['c_init'])} "
-                f"| {fmt(ref['c_final'])} | {fmt(lit['t_init'])} | {fmt(lit['c_init'])} "
-                f"| {fmt(lit['c_final'])} | {fmt_percent(imp['t_init'])} "
-                f"| {fmt_percent(imp['c_init'])} | {fmt_percent(imp['c_final'])} |"
-            )
+    if comp["best_ompl"]["rows"]:
+        lines += _comparison_table(comp["best_ompl"]["rows"], with_planner=True)
         lines += ["", f"The {comp['best_ompl']['rule']}.", ""]
     else:
         lines += ["Not available: no LIT* or no OMPL planner in this benchmark.", ""]
@@ -396,3 +358,26 @@ def markdown(summary: dict[str, Any]) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+def _comparison_table(rows: dict[str, Any], *, with_planner: bool) -> list[str]:
+    """Markdown rows of LIT* against a reference: FIT*, or (``with_planner``) the best OMPL planner
+    per scenario, named in an extra column."""
+    ours = "its" if with_planner else "FIT*"
+    named = "| best OMPL planner " if with_planner else ""
+    header = (
+        f"| scenario {named}| {ours} t_init (s) | {ours} c_init | {ours} c_final | LIT* t_init (s) "
+        "| LIT* c_init | LIT* c_final | t_init ⇑ (%) | c_init ⇑ (%) | c_final ⇑ (%) |"
+    )
+    rule = "| --- " + ("| --- " if with_planner else "") + "| ---: " * 9 + "|"
+    lines = [header, rule]
+    for name, row in rows.items():
+        ref, lit, imp = row["reference_medians"], row["litstar_medians"], row["improvement_percent"]
+        planner = f"| {label(row['reference'])} " if with_planner else ""
+        lines.append(
+            f"| {name} {planner}| {fmt(ref['t_init'])} | {fmt(ref['c_init'])} | {fmt(ref['c_final'])} "
+            f"| {fmt(lit['t_init'])} | {fmt(lit['c_init'])} | {fmt(lit['c_final'])} "
+            f"| {fmt_percent(imp['t_init'])} | {fmt_percent(imp['c_init'])} "
+            f"| {fmt_percent(imp['c_final'])} |"
+        )
+    return lines
