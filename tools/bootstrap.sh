@@ -92,9 +92,13 @@ if [ ! -f "$SHARED/.complete" ] || [ "$FORCE" = 1 ]; then
     "$SHARED/bin/python" -m pip check >/dev/null \
       || die "inconsistent shared environment $SHARED (pip check)"
     # Report packages pip pulled in that the lock does not pin (the lock should be complete).
-    unpinned="$("$SHARED/bin/python" -m pip freeze --all --exclude pip \
-      | cut -d= -f1 | tr 'A-Z_' 'a-z-' | sort \
-      | comm -23 - <(grep -v '^\s*#' "$LOCK" | cut -d= -f1 | tr 'A-Z_' 'a-z-' | sort))" || true
+    # (.egg-info directories bundled inside the ros-* wheels are not distributions of their own.)
+    unpinned="$("$SHARED/bin/python" -c 'import importlib.metadata as m
+for d in m.distributions():
+    if str(getattr(d, "_path", "")).endswith(".dist-info") and d.metadata["Name"] != "pip":
+        print(d.metadata["Name"])' \
+      | tr 'A-Z_.' 'a-z--' | sort -u \
+      | comm -23 - <(grep -v '^\s*#' "$LOCK" | cut -d= -f1 | tr 'A-Z_.' 'a-z--' | sort -u))" || true
     [ -z "$unpinned" ] || say "WARNING: requirements.lock does not pin: $(echo $unpinned)"
     cp "$LOCK" "$SHARED/requirements.lock"
     touch "$SHARED/.complete"
@@ -113,8 +117,37 @@ if ! stamp_ok env "$SHARED" || [ ! -x "$VENV/bin/python" ]; then
   # setuptools in .venv would shadow the pinned one.
   "$PYTHON" -m venv --without-pip "$VENV"
   VENV_SITE="$(echo "$VENV"/lib/python3*/site-packages)"
-  # addsitedir (not a bare path line) also runs the shared env's own .pth files.
-  printf 'import site; site.addsitedir(%s)\n' "'$SHARED_SITE'" >"$VENV_SITE/_lit_shared_env.pth"
+  # The shared env joins .venv through a .pth file that imports _lit_shared_env (written below).
+  printf 'import _lit_shared_env\n' >"$VENV_SITE/_lit_shared_env.pth"
+  cat >"$VENV_SITE/_lit_shared_env.py" <<PYEOF
+"""Join the shared third-party env ($SHARED) to this .venv (written by tools/bootstrap.sh).
+
+The ROS 2 wheels' own bootstrapper re-executes Python with LD_LIBRARY_PATH pointing at the
+*running* prefix's lib dirs, which for this .venv are the wrong ones. Do the same with the
+shared env's lib dirs (once: the guard variable stops the wheels' bootstrapper and us), then add
+the shared site-packages (addsitedir also runs its .pth files).
+"""
+import os
+import site
+import sys
+
+_SHARED_SITE = "$SHARED_SITE"
+_SHARED_LIB = "$SHARED/lib"
+if not os.environ.get("_ROS_WHEELS_BOOTSTRAP_COMPLETE") and getattr(sys, "orig_argv", None):
+    _dirs = [_SHARED_LIB] + sorted(
+        os.path.join(_SHARED_SITE, d) for d in os.listdir(_SHARED_SITE)
+        if d.startswith("ros_") and d.endswith(".libs")
+    )
+    _old = [p for p in os.environ.get("LD_LIBRARY_PATH", "").split(os.pathsep) if p]
+    _env = dict(os.environ)
+    _env["LD_LIBRARY_PATH"] = os.pathsep.join(_dirs + [p for p in _old if p not in _dirs])
+    _env["_ROS_WHEELS_BOOTSTRAP_COMPLETE"] = "1"
+    try:
+        os.execve(sys.executable, sys.orig_argv, _env)
+    except OSError as exc:
+        sys.stderr.write(f"lit: could not re-execute Python with the ROS 2 libraries: {exc}\\n")
+site.addsitedir(_SHARED_SITE)
+PYEOF
   # Launchers for the shared env's commands (pytest, ruff, pip, ...) that run under .venv's
   # interpreter, so they see the checkout's editable packages too.
   shebang="#!$SHARED/bin/python"
@@ -129,7 +162,7 @@ if ! stamp_ok env "$SHARED" || [ ! -x "$VENV/bin/python" ]; then
       ln -s "$tool" "$VENV/bin/$name"
     fi
   done
-  "$VENV/bin/python" -c 'import numpy, pytest, pybind11, scikit_build_core' \
+  "$VENV/bin/python" -c 'import numpy, pytest, pybind11, scikit_build_core, rclpy, rosbags' \
     || die "$VENV cannot import the shared packages from $SHARED_SITE"
   stamp_set env "$SHARED"
 fi
