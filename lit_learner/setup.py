@@ -22,5 +22,5 @@ setup(
     ),
     license="Apache-2.0",
     python_requires=">=3.11",
-    entry_points={"console_scripts": []},
+    entry_points={"console_scripts": ["lit_learner_node = lit_learner.node:main"]},
 )

@@ -24,8 +24,10 @@ setup(
     python_requires=">=3.11",
     entry_points={
         "console_scripts": [
-            # The one user-facing command; ROS node executables are added here as they land.
+            # The user-facing command and the planner node (`ros2 run lit_planner lit_planner_node`
+            # on a ROS install).
             "lit = lit_planner.cli:main",
+            "lit_planner_node = lit_planner.node:main",
         ],
     },
 )

@@ -2,8 +2,9 @@
 
 It knows nothing about ROS or the planner: ``lit train`` and the learner node feed it
 :class:`DecisionRequest` and :class:`EpisodeEnd` messages. Gradient steps run only in
-:meth:`LearnerCore.end_episode`, so they never sit inside the planner's timed loop; a decision is
-one actor forward pass (plus pairing and a replay insert).
+:meth:`LearnerCore.end_episode` (or :meth:`LearnerCore.update_step` after
+:meth:`LearnerCore.close_episode`), so they never sit inside the planner's timed loop; a decision
+is one actor forward pass (plus pairing and a replay insert).
 """
 
 from __future__ import annotations
@@ -84,7 +85,8 @@ class LearnerCore:
 
     def end_episode(self, end: EpisodeEnd) -> dict[str, float]:
         """Close the episode's pending steps, then run one gradient step per transition stored
-        since the last round for every agent past warm-up.
+        since the last round for every agent past warm-up (:meth:`close_episode`, then
+        :meth:`update_step` until nothing is pending).
 
         Returns:
             Metrics: ``charts/return_<A>``, ``charts/steps_<A>``, ``rewards/<A>_time|cost|penalty``
@@ -94,6 +96,32 @@ class LearnerCore:
             agents that updated; ``charts/updates_<A>``, ``charts/transitions_<A>``,
             ``charts/warming_up_<A>`` for trained agents; ``charts/policy_version``,
             ``charts/episodes``. ``<A>`` is ``B`` or ``psi_K``.
+        """
+        metrics = self.close_episode(end)
+        for name in self.agents:
+            if not self.trains(name):
+                continue
+            history = []
+            while self._pending_updates[name] > 0:
+                history.append(self.update_step(name))
+            if history:
+                for key in ("critic", "actor", "mean_q", "td_abs"):
+                    metrics[f"losses/{key}_{name}"] = float(np.mean([h[key] for h in history]))
+                metrics[f"charts/beta_{name}"] = history[-1]["beta"]
+        metrics.update(self.counters())
+        return metrics
+
+    def close_episode(self, end: EpisodeEnd) -> dict[str, float]:
+        """Close the episode's pending steps and store their transitions, without training.
+
+        An episode the core never saw (for example one that began before a learner restart)
+        closes with no transitions. The gradient steps the new transitions call for are left
+        pending for :meth:`update_step` (the learner node runs them in a background thread so
+        that decisions keep being answered).
+
+        Returns:
+            The episode's ``charts/return_<A>``, ``charts/steps_<A>`` and
+            ``rewards/<A>_time|cost|penalty`` for agents that stepped in it.
         """
         end.validate()
         closed, _ = self.pairing.end(end)
@@ -109,16 +137,35 @@ class LearnerCore:
             metrics[f"rewards/{name}_time"] = time
             metrics[f"rewards/{name}_cost"] = cost
             metrics[f"rewards/{name}_penalty"] = penalty
+        return metrics
+
+    @property
+    def pending_updates(self) -> int:
+        """Gradient steps owed to stored transitions, summed over the trained agents."""
+        return sum(n for name, n in self._pending_updates.items() if self.trains(name))
+
+    def update_step(self, agent: str | None = None) -> dict[str, float] | None:
+        """One gradient step of ``agent`` (None: the first trained agent with pending steps).
+
+        Returns:
+            The agent's update record (``critic``, ``actor``, ``mean_q``, ``td_abs``, ``beta``),
+            or None when no step was pending.
+        """
+        names = [agent] if agent is not None else list(self.agents)
+        for name in names:
+            if self.trains(name) and self._pending_updates[name] > 0:
+                self._pending_updates[name] -= 1
+                self._policy_version += 1
+                return self.agents[name].update()
+        return None
+
+    def counters(self) -> dict[str, float]:
+        """``charts/updates_<A>``, ``charts/transitions_<A>``, ``charts/warming_up_<A>`` of the
+        trained agents, ``charts/policy_version`` and ``charts/episodes``."""
+        metrics: dict[str, float] = {}
         for name, agent in self.agents.items():
             if not self.trains(name):
                 continue
-            rounds, self._pending_updates[name] = self._pending_updates[name], 0
-            history = [agent.update() for _ in range(rounds)]
-            self._policy_version += rounds
-            if history:
-                for key in ("critic", "actor", "mean_q", "td_abs"):
-                    metrics[f"losses/{key}_{name}"] = float(np.mean([h[key] for h in history]))
-                metrics[f"charts/beta_{name}"] = history[-1]["beta"]
             metrics[f"charts/updates_{name}"] = agent.updates
             metrics[f"charts/transitions_{name}"] = agent.transitions
             metrics[f"charts/warming_up_{name}"] = float(agent.warming_up)

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import re
 import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Literal, cast
@@ -258,6 +259,8 @@ class Scenario:
     @property
     def key(self) -> str:
         """Name that :func:`get` maps back to this scenario: ``np8`` or ``rrd8/3``."""
+        if self.family == CUSTOM_FAMILY:
+            return self.name
         return f"{self.name}/{self.instance}" if self.family_spec.randomised else self.name
 
     @property
@@ -313,6 +316,70 @@ class PathCheck:
     """Path length: the sum of the Euclidean segment lengths."""
     spacing: float
     """Largest distance between consecutive checked points on a segment."""
+
+
+CUSTOM_FAMILY = "custom"
+"""Family of worlds given explicitly (:func:`custom`), not drawn from :data:`FAMILIES`."""
+DEFAULT_CUSTOM_RESOLUTION = 0.001
+"""Collision-checking resolution of a custom world that does not give one (fraction of the
+maximum extent)."""
+
+
+def custom(
+    lower: Sequence[float],
+    upper: Sequence[float],
+    boxes: Sequence[tuple[Sequence[float], Sequence[float]]],
+    start: Sequence[float],
+    goal: Sequence[float],
+    *,
+    time_budget: float = 1.0,
+    resolution: float | None = None,
+) -> Scenario:
+    """A scenario from an explicit world: bounds, closed axis-aligned boxes (lower, upper
+    corners), start and goal. Named ``custom<n>``; no known optimum.
+
+    Raises:
+        ScenarioError: inconsistent dimensions, bounds or boxes with lower > upper, non-finite
+            numbers, a dimension outside ``MIN_DIM..MAX_DIM``.
+    """
+    dim = len(lower)
+    if not MIN_DIM <= dim <= MAX_DIM:
+        raise ScenarioError(f"world dimension {dim} outside {MIN_DIM}..{MAX_DIM}")
+    for label, vector in (("upper", upper), ("start", start), ("goal", goal)):
+        if len(vector) != dim:
+            raise ScenarioError(f"{label} has {len(vector)} coordinates, lower has {dim}")
+    corners = np.zeros((len(boxes), 2, dim))
+    for i, (box_lower, box_upper) in enumerate(boxes):
+        if len(box_lower) != dim or len(box_upper) != dim:
+            raise ScenarioError(f"box {i} does not have {dim} coordinates per corner")
+        corners[i, 0], corners[i, 1] = box_lower, box_upper
+    values = np.concatenate([np.asarray(lower, float), np.asarray(upper, float), corners.ravel()])
+    if not np.all(np.isfinite(values)):
+        raise ScenarioError("the world has a non-finite coordinate")
+    if np.any(np.asarray(lower, float) >= np.asarray(upper, float)):
+        raise ScenarioError("every lower bound must be below its upper bound")
+    bad = np.flatnonzero(np.any(corners[:, 0] > corners[:, 1], axis=1))
+    if len(bad):
+        raise ScenarioError(f"box {bad[0]} has a lower corner above its upper corner")
+    if not (math.isfinite(time_budget) and time_budget > 0):
+        raise ScenarioError(f"time budget must be positive, got {time_budget}")
+    corners.setflags(write=False)
+    return Scenario(
+        name=f"{CUSTOM_FAMILY}{dim}",
+        family=CUSTOM_FAMILY,
+        dim=dim,
+        lower=tuple(float(x) for x in lower),
+        upper=tuple(float(x) for x in upper),
+        start=tuple(float(x) for x in start),
+        goal=tuple(float(x) for x in goal),
+        boxes=corners,
+        time_budget=float(time_budget),
+        resolution=DEFAULT_CUSTOM_RESOLUTION if resolution is None else float(resolution),
+        optimal_cost=None,
+        instance=0,
+        seed=None,
+        description=f"explicit world in R^{dim} with {len(boxes)} boxes",
+    )
 
 
 def seed_for(family: str, dim: int, instance: int) -> int:

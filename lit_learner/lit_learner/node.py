@@ -1,0 +1,345 @@
+"""``lit_learner_node``: the Fuzzy-DDPG learner as a ROS 2 node.
+
+- Serves ``/lit/learner/decide`` (``diagnostic_msgs/srv/AddDiagnostics``; the request's
+  ``load_namespace`` holds a DecideRequest or EpisodeEnd envelope, the response's ``message`` the
+  DecideResponse / EpisodeEndResponse, or an Error with ``success = false``).
+- Episodes of several planners are kept apart: the learner core sees the episode as
+  ``<source>|<run_id>|<episode_id>`` (source = the planner node's fully qualified name).
+- Trains at episode ends: the episode's transitions are stored at once and the gradient steps they
+  call for run on a background thread, one at a time under the same lock as decisions, so decisions
+  keep being answered while it trains (a decision waits at most one gradient step).
+- Publishes ``/lit/learner/stats`` (LearnerStats) every ``stats_period`` s.
+- Checkpoints every ``checkpoint_every`` episodes and ``checkpoint_period`` s, and on shutdown;
+  resumes from ``checkpoint`` when the file exists (``fresh: true`` starts over).
+- Exports the B and K lookup tensors to ``export_dir`` on ``/lit/learner/export``
+  (``std_srvs/srv/Trigger``), after ``max_episodes`` episodes (the end of training), and on
+  shutdown when it trained since the last export.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from lit_planner.rosutil import DECIDE_SERVICE, EXPORT_SERVICE, STATS_TOPIC, json_qos, spin_node
+
+NODE_NAME = "lit_learner"
+
+
+class LearnerNode:
+    """Owns the ROS node and the :class:`~lit_learner.core.LearnerCore`."""
+
+    def __init__(self) -> None:
+        from diagnostic_msgs.srv import AddDiagnostics
+        from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+        from rclpy.node import Node
+        from std_msgs.msg import String
+        from std_srvs.srv import Trigger
+
+        from lit_msgs_json.envelope import Publisher
+
+        self.node = node = Node(NODE_NAME)
+        self.log = node.get_logger()
+        p = {}
+        for name, default in dict(
+            checkpoint="runs/learner/checkpoint.pt",
+            fresh=False,
+            seed=0,
+            train="both",
+            checkpoint_every=50,
+            checkpoint_period=30.0,
+            export_dir="runs/learner/tensors",
+            max_episodes=0,
+            stats_period=1.0,
+            run_id="",
+            service=DECIDE_SERVICE,
+        ).items():
+            node.declare_parameter(name, default)
+            p[name] = node.get_parameter(name).value
+        self.params = p
+        self.run_id = p["run_id"] or time.strftime("learner-%Y%m%d-%H%M%S")
+        self.source = node.get_fully_qualified_name()
+        self.core = self._load_core()
+        self._lock = threading.Lock()
+        self._work = threading.Condition(self._lock)
+        self._stopping = False
+        self._planners: set[str] = set()
+        self._decisions = 0
+        self._waiting = 0
+        """Decisions waiting for the lock: the trainer yields to them between gradient steps."""
+        self._episodes_at_checkpoint = self.core.episodes
+        self._episodes_at_export = self.core.episodes
+        self._last_checkpoint = time.monotonic()
+        self._started = time.monotonic()
+        self._last_metrics: dict[str, float] = {}
+        self._exported_at_end = False
+        self.reply = Publisher(self.source, self.run_id)
+        self.stats = Publisher(self.source, self.run_id)
+        self._string = String
+        self.stats_publisher = node.create_publisher(String, STATS_TOPIC, json_qos())
+        node.create_service(
+            AddDiagnostics, p["service"], self._serve, callback_group=ReentrantCallbackGroup()
+        )
+        node.create_service(
+            Trigger,
+            EXPORT_SERVICE,
+            self._serve_export,
+            callback_group=MutuallyExclusiveCallbackGroup(),
+        )
+        node.create_timer(p["stats_period"], self._publish_stats)
+        self._trainer = threading.Thread(target=self._train, name="trainer", daemon=True)
+        self._trainer.start()
+        self.log.info(
+            f"ready: {p['service']}, {self.core.episodes} episodes and policy version "
+            f"{self.core.policy_version} so far, checkpoint {p['checkpoint']}"
+        )
+
+    def _load_core(self) -> Any:
+        from lit_learner.config import LearnerConfig
+        from lit_learner.core import LearnerCore
+
+        p = self.params
+        path = Path(p["checkpoint"])
+        if path.exists() and not p["fresh"]:
+            core = LearnerCore.load_checkpoint(path)
+            self.log.info(f"resumed from {path}: {core.episodes} episodes")
+            return core
+        train = p["train"]
+        if train not in ("both", "B", "psi_K"):
+            raise SystemExit(f"lit_learner_node: train must be both, B or psi_K, not {train!r}")
+        config = LearnerConfig(
+            seed=int(p["seed"]), train_b=train in ("both", "B"), train_k=train in ("both", "psi_K")
+        )
+        return LearnerCore(config)
+
+    # ------------------------------------------------------------------ service
+
+    def _serve(self, request: Any, response: Any) -> Any:
+        from lit_learner.errors import MessageError as CoreMessageError
+        from lit_learner.messages import DecisionRequest, EpisodeEnd
+        from lit_msgs_json.envelope import MessageError, decode
+
+        try:
+            message = decode(request.load_namespace, accept=("DecideRequest", "EpisodeEnd"))
+        except MessageError as exc:
+            response.success, response.message = False, self.reply.error(exc)
+            self.log.warning(f"rejected: {exc}")
+            return response
+        payload = message.payload
+        episode = f"{message.source}|{message.run_id}|{payload['episode_id']}"
+        try:
+            if message.name == "DecideRequest":
+                decision = DecisionRequest(
+                    agent=payload["agent"],
+                    episode_id=episode,
+                    rho_global=payload["rho_global"],
+                    rho_local=payload["rho_local"],
+                    measure=payload["measure"],
+                    planning_time=payload["planning_time"],
+                    time_budget=payload["time_budget"],
+                    cost=payload["cost"],
+                    minimum_cost=payload["minimum_cost"],
+                    improvements=payload["improvements"],
+                    path_states=payload["path_states"],
+                    explore=payload.get("explore", True),
+                )
+                self._waiting += 1
+                try:
+                    with self._lock:
+                        value = self.core.decide(decision)
+                        version = self.core.policy_version
+                        self._decisions += 1
+                        self._planners.add(message.source)
+                finally:
+                    self._waiting -= 1
+                response.success = True
+                response.message = self.reply.encode(
+                    "DecideResponse",
+                    {
+                        "agent": payload["agent"],
+                        "episode_id": payload["episode_id"],
+                        "value": float(value),
+                        "policy_version": int(version),
+                        "explore": bool(decision.explore),
+                    },
+                )
+                return response
+            final = payload.get("final_features")
+            end = EpisodeEnd(
+                episode_id=episode,
+                planning_time=payload["planning_time"],
+                time_budget=payload["time_budget"],
+                cost=payload["cost"],
+                minimum_cost=payload["minimum_cost"],
+                improvements=payload["improvements"],
+                path_states=payload["path_states"],
+                truncated=payload["truncated"],
+                final_features={k: tuple(v) for k, v in final.items()} if final else None,
+            )
+            with self._lock:
+                before = sum(agent.transitions for agent in self.core.agents.values())
+                metrics = self.core.close_episode(end)
+                stored = sum(agent.transitions for agent in self.core.agents.values()) - before
+                self._last_metrics.update(metrics)
+                self._planners.add(message.source)
+                body = {
+                    "episode_id": payload["episode_id"],
+                    "transitions_stored": int(stored),
+                    "pending_updates": int(self.core.pending_updates),
+                    "policy_version": int(self.core.policy_version),
+                    "episodes": int(self.core.episodes),
+                }
+                self._work.notify_all()
+            if payload.get("fallback_decisions"):
+                self.log.info(
+                    f"episode {episode} ended with {payload['fallback_decisions']} fallback "
+                    "decisions (the planner could not reach the learner for those)"
+                )
+            response.success = True
+            response.message = self.reply.encode("EpisodeEndResponse", body)
+            return response
+        except (CoreMessageError, ValueError) as exc:
+            response.success = False
+            response.message = self.reply.error(
+                MessageError(
+                    "invalid-request",
+                    str(exc),
+                    request_schema=message.name,
+                    request_seq=message.seq,
+                )
+            )
+            self.log.warning(f"rejected: {exc}")
+            return response
+
+    def _serve_export(self, request: Any, response: Any) -> Any:
+        del request
+        try:
+            paths = self.export("request")
+        except Exception as exc:  # report, keep serving
+            response.success, response.message = False, f"export failed: {exc}"
+            return response
+        response.success = True
+        response.message = json.dumps({k: str(v) for k, v in paths.items()})
+        return response
+
+    # ------------------------------------------------------------------ training
+
+    def _train(self) -> None:
+        """Run owed gradient steps one by one; checkpoint and export when due."""
+        while True:
+            with self._work:
+                while not self._stopping and self.core.pending_updates == 0 and not self._due():
+                    self._work.wait(timeout=1.0)
+                if self._stopping:
+                    return
+                record = self.core.update_step()
+                if record is not None:
+                    self._last_metrics.update({f"losses/{k}": float(v) for k, v in record.items()})
+            if record is None:
+                self._maintain()
+            while self._waiting and not self._stopping:
+                time.sleep(0.0001)  # let waiting decisions in (the lock is not fair)
+
+    def _due(self) -> bool:
+        p = self.params
+        episodes = self.core.episodes - self._episodes_at_checkpoint
+        if episodes and (
+            episodes >= p["checkpoint_every"]
+            or time.monotonic() - self._last_checkpoint >= p["checkpoint_period"]
+        ):
+            return True
+        return bool(
+            p["max_episodes"]
+            and self.core.episodes >= p["max_episodes"]
+            and not self._exported_at_end
+        )
+
+    def _maintain(self) -> None:
+        p = self.params
+        with self._lock:
+            episodes = self.core.episodes
+        if episodes != self._episodes_at_checkpoint and (
+            episodes - self._episodes_at_checkpoint >= p["checkpoint_every"]
+            or time.monotonic() - self._last_checkpoint >= p["checkpoint_period"]
+        ):
+            self.checkpoint()
+        if p["max_episodes"] and episodes >= p["max_episodes"] and not self._exported_at_end:
+            self._exported_at_end = True
+            self.export("end of training")
+
+    def checkpoint(self) -> None:
+        """Write the checkpoint atomically (under the lock: a consistent state)."""
+        with self._lock:
+            self.core.save_checkpoint(self.params["checkpoint"])
+            self._episodes_at_checkpoint = self.core.episodes
+        self._last_checkpoint = time.monotonic()
+        self.log.info(
+            f"checkpoint {self.params['checkpoint']} ({self._episodes_at_checkpoint} episodes)"
+        )
+
+    def export(self, why: str) -> dict[str, Path]:
+        """Write both lookup tensors (and a checkpoint copy) into ``export_dir``."""
+        record = {
+            "exported_by": "lit_learner_node",
+            "reason": why,
+            "run_id": self.run_id,
+            "planners": sorted(self._planners),
+            "episodes": self.core.episodes,
+            "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        }
+        with self._lock:
+            paths = self.core.export_tensors(self.params["export_dir"], record)
+            self._episodes_at_export = self.core.episodes
+        self.log.info(f"exported tensors to {self.params['export_dir']} ({why})")
+        return paths
+
+    def _publish_stats(self) -> None:
+        with self._lock:
+            payload = {
+                "episodes": int(self.core.episodes),
+                "policy_version": int(self.core.policy_version),
+                "transitions": {
+                    name: int(agent.transitions) for name, agent in self.core.agents.items()
+                },
+                "pending_updates": int(self.core.pending_updates),
+                "decisions": self._decisions,
+                "planners": sorted(self._planners)[:1024],
+                "metrics": {
+                    k: float(v) for k, v in self._last_metrics.items() if _finite_number(v)
+                },
+                "checkpoint": self.params["checkpoint"],
+                "uptime": time.monotonic() - self._started,
+            }
+        message = self._string()
+        message.data = self.stats.encode("LearnerStats", payload)
+        self.stats_publisher.publish(message)
+
+    def shutdown(self) -> None:
+        """Stop training, then checkpoint (and export if trained since the last export)."""
+        with self._work:
+            self._stopping = True
+            self._work.notify_all()
+        self._trainer.join(timeout=30.0)
+        self.checkpoint()
+        if self.core.episodes != self._episodes_at_export:
+            self.export("shutdown")
+
+
+def _finite_number(value: object) -> bool:
+    import math
+
+    return isinstance(value, (int, float)) and math.isfinite(value)
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Console script ``lit_learner_node`` (ROS arguments: ``--ros-args -p checkpoint:=...``)."""
+    return spin_node(LearnerNode, sys.argv if args is None else args, threads=4)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

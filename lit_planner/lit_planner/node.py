@@ -1,0 +1,679 @@
+"""``lit_planner_node``: the LIT* planner as a ROS 2 node.
+
+- Serves ``lit/planner/plan`` (``diagnostic_msgs/srv/AddDiagnostics`` carrying a PlanRequest
+  envelope in ``load_namespace``; the PlanResponse or an Error in ``message``). Planning runs on one
+  worker thread, off the executor, so the node keeps answering while it plans; requests that arrive
+  while it is busy wait in a queue of ``queue_limit`` places, and beyond that are refused with a
+  ``busy`` Error (never dropped silently).
+- Publishes ``lit/solution`` live, and after every query ``lit/observation`` and ``lit/decision``
+  (one per decision point, from the planner's own record, so publishing never runs inside the timed
+  loop), ``lit/episode`` (EpisodeSummary) and ``lit/path`` (``trajectory_msgs/JointTrajectory``).
+- ``policy: training``: a loop of ``episodes`` training queries over the training distribution;
+  each decision calls the learner's ``/lit/learner/decide`` with a deadline of
+  ``decision_timeout`` s. A late or absent learner: that decision falls back to the tensor policy
+  (``fixed`` without tensors), the episode is marked, a warning is logged, and for
+  ``learner_retry`` s no call is tried; then training resumes with the learner.
+- Other policies with ``episodes > 0``: that many inference queries on ``scenario`` (seeds
+  ``seed``, ``seed + 1``, ...), then the node keeps serving.
+
+The C++ planner's clock is paused while the learner answers, so training and inference see the
+same planning time.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import os
+import queue
+import sys
+import threading
+import time
+import uuid
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from lit_planner.rosutil import (
+    DECIDE_SERVICE,
+    PLAN_SERVICE,
+    TOPICS,
+    ServiceCaller,
+    json_qos,
+    spin_node,
+)
+
+NODE_NAME = "lit_planner"
+MODES = ("tensor", "fit", "fixed", "training")
+"""Values of the ``policy`` parameter."""
+FIXED_BATCH, FIXED_FACTOR = 100.0, math.e
+"""The fixed policy's values (the fallback when no tensors are available)."""
+BATCH_RANGE = (20.0, 200.0)
+"""B range of the learner; fallback tensor values are clamped to it."""
+
+
+@dataclass
+class Job:
+    """One query for the worker: a plan request (service) or an episode (training/inference)."""
+
+    kind: str
+    """``service``, ``training`` or ``inference``."""
+    scenario: Any
+    """The :class:`lit_planner.scenarios.Scenario`."""
+    policy: str
+    planner: str = "litstar"
+    time: float | None = None
+    seed: int = 1
+    max_iterations: int = 0
+    max_batches: int = 0
+    request_id: str | None = None
+    episode_id: str = ""
+    done: threading.Event = field(default_factory=threading.Event)
+    result: dict[str, Any] | None = None
+    error: BaseException | None = None
+
+
+class EpisodeLog:
+    """What one query's decisions went through (training mode)."""
+
+    def __init__(self) -> None:
+        self.sources: list[str] = []
+        self.latencies: list[float | None] = []
+        self.fallbacks = 0
+        self.learner_calls = 0
+        self.warned = False
+
+
+class PlannerNode:
+    """Builds the ROS node; the planning itself lives in :mod:`lit_planner.planning`."""
+
+    def __init__(self) -> None:
+        from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+        from rclpy.node import Node
+        from std_msgs.msg import String
+        from trajectory_msgs.msg import JointTrajectory
+
+        from lit_msgs_json.envelope import Publisher
+
+        self.node = node = Node(NODE_NAME)
+        self.log = node.get_logger()
+        p = self._declare(
+            scenario="np8",
+            policy="tensor",
+            time_budget=0.0,
+            seed=1,
+            episodes=0,
+            learner_service=DECIDE_SERVICE,
+            decision_timeout=0.05,
+            decision_interval=1,
+            learner_retry=1.0,
+            learner_wait=10.0,
+            tensors_dir="",
+            training_scenarios="np4,np8,wg4,wg8,rrd4,rrd8",
+            training_seed=7,
+            queue_limit=4,
+            run_id="",
+            explore=True,
+            exit_when_done=False,
+        )
+        self.params = p
+        if p["policy"] not in MODES:
+            raise SystemExit(
+                f"lit_planner_node: policy must be one of {MODES}, got {p['policy']!r}"
+            )
+        self.run_id = p["run_id"] or f"{time.strftime('%Y%m%d-%H%M%S')}-{uuid.uuid4().hex[:6]}"
+        self.source = node.get_fully_qualified_name()
+        self.finished = False
+        qos = json_qos()
+        self._string = String
+        self._trajectory = JointTrajectory
+        self.publishers = {
+            name: node.create_publisher(String, TOPICS[name], qos)
+            for name in ("observation", "decision", "solution", "episode")
+        }
+        self.path_publisher = node.create_publisher(JointTrajectory, TOPICS["path"], qos)
+        self.envelopes = {
+            name: Publisher(self.source, self.run_id)
+            for name in ("observation", "decision", "solution", "episode", "decide", "reply")
+        }
+        self._publish_lock = threading.Lock()
+        self._fallback = self._fallback_values()
+        self._learner_group = MutuallyExclusiveCallbackGroup()
+        self.learner = ServiceCaller(node, p["learner_service"], self._learner_group)
+        self._learner_down_until = 0.0
+        self._jobs: queue.Queue[Job | None] = queue.Queue()
+        self._queued = 0
+        self._queue_lock = threading.Lock()
+        self._stopping = threading.Event()
+        self._worker = threading.Thread(target=self._work, name="planner", daemon=True)
+        self._worker.start()
+        from diagnostic_msgs.srv import AddDiagnostics
+
+        node.create_service(
+            AddDiagnostics, PLAN_SERVICE, self._serve_plan, callback_group=ReentrantCallbackGroup()
+        )
+        self._driver = threading.Thread(target=self._drive, name="episodes", daemon=True)
+        self._driver.start()
+        self.log.info(
+            f"ready: policy {p['policy']}, scenario {p['scenario']}, run_id {self.run_id}, "
+            f"service {node.resolve_service_name(PLAN_SERVICE)}"
+        )
+
+    # ------------------------------------------------------------------ parameters
+
+    def _declare(self, **defaults: Any) -> dict[str, Any]:
+        values = {}
+        for name, default in defaults.items():
+            self.node.declare_parameter(name, default)
+            values[name] = self.node.get_parameter(name).value
+        return values
+
+    def _fallback_values(self) -> dict[str, Any]:
+        """Tensors answering decisions the learner could not (None entries: fixed values)."""
+        from lit_planner import planning
+
+        folder = self.params["tensors_dir"] or str(planning.default_tensors_dir())
+        tensors: dict[str, Any] = {}
+        for output, file_name in planning.TENSOR_FILES.items():
+            path = os.path.join(folder, file_name)
+            try:
+                tensors[output] = (
+                    planning.load_tensor(path, output) if os.path.exists(path) else None
+                )
+            except Exception as exc:  # a defective tensor: say so, fall back to the fixed values
+                self.log.error(f"fallback tensor {path} unusable ({exc}); using fixed values")
+                tensors[output] = None
+        return tensors
+
+    # ------------------------------------------------------------------ service
+
+    def _serve_plan(self, request: Any, response: Any) -> Any:
+        from lit_msgs_json.envelope import MessageError, decode
+
+        reply = self.envelopes["reply"]
+        try:
+            message = decode(request.load_namespace, accept="PlanRequest")
+            job = self._job_from_request(message.payload)
+        except MessageError as exc:
+            response.success, response.message = False, reply.error(exc)
+            self.log.warning(f"plan request rejected: {exc}")
+            return response
+        except ValueError as exc:  # ScenarioError, PlannerError: the request names bad things
+            response.success = False
+            response.message = reply.error(
+                MessageError(
+                    "invalid-request",
+                    str(exc),
+                    request_schema="PlanRequest",
+                    request_seq=message.seq,
+                )
+            )
+            self.log.warning(f"plan request rejected: {exc}")
+            return response
+        with self._queue_lock:
+            if self._queued >= self.params["queue_limit"]:
+                response.success = False
+                response.message = reply.error(
+                    MessageError(
+                        "busy",
+                        f"planner busy: {self._queued} queries queued or running "
+                        f"(queue_limit {self.params['queue_limit']}); retry later",
+                        request_schema="PlanRequest",
+                        request_seq=message.seq,
+                    )
+                )
+                return response
+            self._queued += 1
+        self._jobs.put(job)
+        job.done.wait()
+        if job.error is not None:
+            response.success = False
+            response.message = reply.error(job.error)
+            return response
+        assert job.result is not None
+        response.success = True
+        response.message = reply.encode("PlanResponse", self._plan_response(job))
+        return response
+
+    def _job_from_request(self, payload: dict[str, Any]) -> Job:
+        from lit_planner import scenarios
+        from lit_planner.errors import ScenarioError
+
+        if "world" in payload:
+            world = payload["world"]
+            problem = scenarios.custom(
+                world["lower"],
+                world["upper"],
+                [(box["lower"], box["upper"]) for box in world["boxes"]],
+                payload["start"],
+                payload["goal"],
+                time_budget=float(payload.get("time", 1.0)),
+                resolution=world.get("resolution"),
+            )
+        else:
+            problem = scenarios.get(payload["scenario"])
+            if "start" in payload or "goal" in payload:
+                problem = scenarios.custom(
+                    problem.lower,
+                    problem.upper,
+                    [(box[0], box[1]) for box in problem.boxes],
+                    payload.get("start", problem.start),
+                    payload.get("goal", problem.goal),
+                    time_budget=problem.time_budget,
+                    resolution=problem.resolution,
+                )
+        for label in ("start", "goal"):
+            vector = getattr(problem, label)
+            outside = [
+                i
+                for i, (x, lo, hi) in enumerate(zip(vector, problem.lower, problem.upper))
+                if not lo <= x <= hi
+            ]
+            if outside:
+                raise ScenarioError(
+                    f"{label} coordinate {outside[0]} = {vector[outside[0]]} is outside the "
+                    f"bounds [{problem.lower[outside[0]]}, {problem.upper[outside[0]]}]"
+                )
+            if not scenarios.is_valid(problem, [vector])[0]:
+                raise ScenarioError(f"{label} {list(vector)} lies inside an obstacle")
+        planner = payload.get("planner", "litstar")
+        policy = payload.get(
+            "policy", "tensor" if self.params["policy"] == "training" else self.params["policy"]
+        )
+        return Job(
+            kind="service",
+            scenario=problem,
+            policy=policy if planner == "litstar" else "",
+            planner=planner,
+            time=payload.get("time"),
+            seed=int(payload.get("seed", self.params["seed"])),
+            max_iterations=int(payload.get("max_iterations", 0)),
+            max_batches=int(payload.get("max_batches", 0)),
+            request_id=payload.get("request_id"),
+            episode_id=payload.get("request_id") or f"req-{uuid.uuid4().hex[:12]}",
+        )
+
+    def _plan_response(self, job: Job) -> dict[str, Any]:
+        result = job.result
+        assert result is not None
+        check = result.get("path_check")
+        return {
+            "request_id": job.request_id,
+            "status": result["status"],
+            "solved": bool(result["solved"]),
+            "message": result["message"],
+            "scenario": job.scenario.key,
+            "dimension": job.scenario.dim,
+            "planner": result["planner"],
+            "policy": result.get("policy"),
+            "seed": job.seed,
+            "cost": _finite(result["cost"]),
+            "t_init": _finite(result["t_init"]),
+            "c_init": _finite(result["c_init"]),
+            "time": float(result["time"]),
+            "improvements": [[float(t), float(c)] for t, c in result["improvements"]],
+            "path": [list(map(float, state)) for state in result["path"]],
+            "counters": {k: int(v) for k, v in result["counters"].items()},
+            "path_valid": None if check is None else bool(check["ok"]),
+        }
+
+    # ------------------------------------------------------------------ episodes
+
+    def _drive(self) -> None:
+        """Training or inference episodes from the parameters, queued like service requests."""
+        p = self.params
+        if p["episodes"] <= 0:
+            return
+        from lit_planner import scenarios
+
+        if p["policy"] == "training":
+            import numpy as np
+
+            from lit_learner.train import TrainingDistribution
+
+            names = [name.strip() for name in p["training_scenarios"].split(",") if name.strip()]
+            distribution = TrainingDistribution(names, np.random.default_rng(p["training_seed"]))
+            if not self.learner.wait(p["learner_wait"]):
+                self.log.warning(
+                    f"learner service {p['learner_service']} not found within "
+                    f"{p['learner_wait']} s; training starts with fallback decisions"
+                )
+        for index in range(p["episodes"]):
+            if self._stopping.is_set():
+                return
+            if p["policy"] == "training":
+                spec = distribution.draw(index)
+                problem = scenarios.get(spec.scenario, spec.instance)
+                job = Job("training", problem, "training", seed=spec.seed)
+            else:
+                problem = scenarios.get(p["scenario"])
+                job = Job("inference", problem, p["policy"], seed=p["seed"] + index)
+            job.time = p["time_budget"] or None
+            job.episode_id = f"{self.run_id}/{index}"
+            with self._queue_lock:
+                self._queued += 1
+            self._jobs.put(job)
+            job.done.wait()
+            if job.error is not None:
+                self.log.error(f"episode {job.episode_id} failed: {job.error}")
+        self.log.info(f"{p['episodes']} {p['policy']} episodes done")
+        if p["exit_when_done"]:
+            self.finished = True
+
+    def _work(self) -> None:
+        while True:
+            job = self._jobs.get()
+            if job is None:
+                return
+            try:
+                self._run(job)
+            except Exception as exc:  # reported to the requester; the node keeps serving
+                job.error = exc
+                self.log.error(f"{job.kind} query {job.episode_id} failed: {exc!r}")
+            finally:
+                with self._queue_lock:
+                    self._queued -= 1
+                job.done.set()
+
+    def _run(self, job: Job) -> None:
+        import lit_core
+
+        from lit_planner import planning
+
+        listener = _Listener(self, job)
+        episode = EpisodeLog()
+        params: dict[str, object] = {}
+        if job.planner == "litstar":
+            params["decision_interval"] = self.params["decision_interval"]
+        if job.policy == "training":
+            budget = job.time or job.scenario.time_budget
+            policy: Any = lit_core.ExternalPolicy(
+                lambda context: self._decide(job, episode, budget, context),
+                decides_neighbour_factor=True,
+            )
+        else:
+            policy = job.policy or None
+        planning.quiet_ompl(job.planner)
+        result = planning.plan(
+            job.scenario,
+            planner=job.planner,
+            policy=policy,
+            time=job.time,
+            seed=job.seed,
+            max_iterations=job.max_iterations,
+            max_batches=job.max_batches,
+            tensors_dir=self.params["tensors_dir"] or None,
+            params=params,
+            listener=listener,
+        )
+        job.result = result
+        if job.policy == "training":
+            self._end_episode(job, episode, result)
+        self._publish_episode(job, episode, listener, result)
+
+    # ------------------------------------------------------------------ learner calls
+
+    def _decide(self, job: Job, episode: EpisodeLog, budget: float, context: Any) -> float:
+        from lit_msgs_json.envelope import MessageError, decode
+
+        kind = context.kind
+        now = time.monotonic()
+        if now >= self._learner_down_until:
+            payload = {
+                "agent": kind,
+                "episode_id": job.episode_id,
+                "rho_global": _unit(context.rho_global),
+                "rho_local": _unit(context.rho_local),
+                "measure": _unit(context.measure),
+                "planning_time": max(0.0, float(context.planning_time)),
+                "time_budget": float(budget),
+                "cost": float(context.cost) if context.has_solution else None,
+                "minimum_cost": float(context.minimum_cost),
+                "improvements": int(context.improvements),
+                "path_states": int(context.path_states),
+                "explore": bool(self.params["explore"]),
+                "dimension": int(context.dimension),
+            }
+            started = time.perf_counter()
+            episode.learner_calls += 1
+            answer = self.learner.call(
+                self.envelopes["decide"].encode("DecideRequest", payload),
+                self.params["decision_timeout"],
+            )
+            latency = (time.perf_counter() - started) * 1e3
+            if answer is not None:
+                success, text = answer
+                try:
+                    reply = decode(text, accept=("DecideResponse", "Error"))
+                except MessageError as exc:
+                    reason = f"unreadable learner answer ({exc})"
+                else:
+                    if success and reply.name == "DecideResponse":
+                        episode.sources.append("learner")
+                        episode.latencies.append(latency)
+                        return float(reply.payload["value"])
+                    reason = f"learner error: {reply.payload.get('message', '?')}"
+            else:
+                reason = (
+                    f"learner did not answer within {self.params['decision_timeout'] * 1e3:.0f} ms"
+                )
+                self._learner_down_until = time.monotonic() + self.params["learner_retry"]
+            if not episode.warned:
+                episode.warned = True
+                self.log.warning(
+                    f"episode {job.episode_id}: {reason}; this decision and those in the next "
+                    f"{self.params['learner_retry']:g} s use the fallback policy"
+                )
+        episode.fallbacks += 1
+        tensor = self._fallback.get(kind)
+        if tensor is None:
+            episode.sources.append("fallback-fixed")
+            episode.latencies.append(None)
+            return FIXED_BATCH if kind == "B" else FIXED_FACTOR
+        episode.sources.append("fallback-tensor")
+        episode.latencies.append(None)
+        value = float(tensor.trilinear(context.rho_global, context.rho_local, context.measure))
+        if kind == "B":
+            value = float(min(max(math.floor(value + 0.5), BATCH_RANGE[0]), BATCH_RANGE[1]))
+        return value
+
+    def _end_episode(self, job: Job, episode: EpisodeLog, result: dict[str, Any]) -> None:
+        from lit_msgs_json.envelope import MessageError, decode
+
+        problem = job.scenario
+        budget = job.time or problem.time_budget
+        payload = {
+            "episode_id": job.episode_id,
+            "planning_time": float(result["time"]),
+            "time_budget": float(budget),
+            "cost": _finite(result["cost"]) if result["solved"] else None,
+            "minimum_cost": math.dist(problem.start, problem.goal),
+            "improvements": len(result["improvements"]),
+            "path_states": len(result["path"]),
+            "truncated": bool(result["time"] >= budget * (1.0 - 1e-3)),
+            "fallback_decisions": episode.fallbacks,
+        }
+        answer = self.learner.call(
+            self.envelopes["decide"].encode("EpisodeEnd", payload),
+            max(1.0, 20 * self.params["decision_timeout"]),
+        )
+        if answer is None:
+            self.log.warning(f"episode {job.episode_id}: the learner did not take the episode end")
+            self._learner_down_until = time.monotonic() + self.params["learner_retry"]
+            return
+        try:
+            reply = decode(answer[1], accept=("EpisodeEndResponse", "Error"))
+        except MessageError as exc:
+            self.log.warning(f"episode {job.episode_id}: unreadable episode-end answer: {exc}")
+            return
+        if reply.name == "Error":
+            self.log.warning(f"episode {job.episode_id}: learner: {reply.payload['message']}")
+
+    # ------------------------------------------------------------------ publishing
+
+    def publish(self, topic: str, schema: str, payload: dict[str, Any]) -> None:
+        """Encode and publish one JSON message (thread-safe; seq rises by one per topic)."""
+        message = self._string()
+        with self._publish_lock:
+            message.data = self.envelopes[topic].encode(schema, payload)
+            self.publishers[topic].publish(message)
+
+    def _publish_episode(
+        self, job: Job, episode: EpisodeLog, listener: _Listener, result: dict[str, Any]
+    ) -> None:
+        from builtin_interfaces.msg import Duration
+        from trajectory_msgs.msg import JointTrajectoryPoint
+
+        solutions = result["improvements"]
+        solution_times = [float(t) for t, _ in solutions]
+        batch_times = [event[0] for event in listener.batches]
+        decisions = result.get("decisions", [])
+        counts = {"B": 0, "psi_K": 0}
+        for index, decision in enumerate(decisions):
+            kind = decision["kind"]
+            counts[kind] = counts.get(kind, 0) + 1
+            at = float(decision["time"])
+            solved = bisect.bisect_right(solution_times, at)
+            batch = bisect.bisect_right(batch_times, at) - 1
+            _, batches, valid, invalid = listener.batches[batch] if batch >= 0 else (0, 0, 0, 0)
+            self.publish(
+                "observation",
+                "Observation",
+                {
+                    "episode_id": job.episode_id,
+                    "kind": kind,
+                    "rho_global": _unit(decision["rho_global"]),
+                    "rho_local_b": _unit(decision["rho_local_b"]),
+                    "rho_local_k": _unit(decision["rho_local_k"]),
+                    "measure": _unit(decision["measure"]),
+                    "planning_time": max(0.0, at),
+                    "iteration": int(decision["iteration"]),
+                    "batches": int(batches),
+                    "valid_samples": int(valid),
+                    "invalid_samples": int(invalid),
+                    "has_solution": solved > 0,
+                    "cost": float(solutions[solved - 1][1]) if solved else None,
+                },
+            )
+            source = _source(job.policy, episode, index)
+            payload = {
+                "episode_id": job.episode_id,
+                "kind": kind,
+                "value": float(decision["value"]),
+                "neighbours": int(decision["neighbours"]),
+                "policy": job.policy,
+                "source": source,
+                "planning_time": max(0.0, at),
+            }
+            if index < len(episode.latencies) and episode.latencies[index] is not None:
+                payload["latency_ms"] = float(episode.latencies[index])
+            self.publish("decision", "Decision", payload)
+        check = result.get("path_check")
+        self.publish(
+            "episode",
+            "EpisodeSummary",
+            {
+                "episode_id": job.episode_id,
+                "mode": job.kind,
+                "scenario": job.scenario.key,
+                "instance": int(job.scenario.instance),
+                "dimension": int(job.scenario.dim),
+                "planner": result["planner"],
+                "policy": job.policy or "none",
+                "seed": int(job.seed),
+                "status": result["status"],
+                "solved": bool(result["solved"]),
+                "cost": _finite(result["cost"]),
+                "t_init": _finite(result["t_init"]),
+                "c_init": _finite(result["c_init"]),
+                "optimal_cost": job.scenario.optimal_cost,
+                "time": float(result["time"]),
+                "time_budget": result.get("time_budget"),
+                "improvements": len(solutions),
+                "decisions": counts,
+                "fallback_decisions": episode.fallbacks,
+                "learner_calls": episode.learner_calls,
+                "path_states": len(result["path"]),
+                "path_valid": None if check is None else bool(check["ok"]),
+                "counters": {k: int(v) for k, v in result["counters"].items()},
+            },
+        )
+        trajectory = self._trajectory()
+        trajectory.header.frame_id = job.episode_id
+        trajectory.joint_names = [f"q{i}" for i in range(job.scenario.dim)]
+        elapsed = 0.0
+        previous = None
+        for state in result["path"]:
+            if previous is not None:
+                elapsed += math.dist(previous, state)  # unit speed along the path
+            previous = state
+            point = JointTrajectoryPoint()
+            point.positions = [float(x) for x in state]
+            seconds = int(elapsed)
+            point.time_from_start = Duration(sec=seconds, nanosec=int((elapsed - seconds) * 1e9))
+            trajectory.points.append(point)
+        with self._publish_lock:
+            self.path_publisher.publish(trajectory)
+
+    def shutdown(self) -> None:
+        """Stop queuing episodes and let the worker finish its current query."""
+        self._stopping.set()
+        self._jobs.put(None)
+        self._worker.join(timeout=30.0)
+
+
+class _Listener:
+    """The core's live events: solutions are published at once, batches kept for observations."""
+
+    def __init__(self, owner: PlannerNode, job: Job) -> None:
+        self.owner = owner
+        self.job = job
+        self.batches: list[tuple[float, int, int, int]] = []
+
+    def on_solution(self, event: Any) -> None:
+        self.owner.publish(
+            "solution",
+            "SolutionUpdate",
+            {
+                "episode_id": self.job.episode_id,
+                "planning_time": max(0.0, float(event.time)),
+                "cost": float(event.cost),
+                "path_states": int(event.path_states),
+                "improvement": max(1, int(event.improvement)),
+                "iteration": int(event.iteration),
+            },
+        )
+
+    def on_batch(self, event: Any) -> None:
+        self.batches.append(
+            (
+                float(event.time),
+                int(event.batch),
+                int(event.valid_samples),
+                int(event.invalid_samples),
+            )
+        )
+
+
+def _source(policy: str, episode: EpisodeLog, index: int) -> str:
+    if policy == "training":
+        return episode.sources[index] if index < len(episode.sources) else "learner"
+    return policy if policy in ("tensor", "fixed", "fit") else "fixed"
+
+
+def _finite(value: float | None) -> float | None:
+    return float(value) if value is not None and math.isfinite(value) else None
+
+
+def _unit(value: float) -> float:
+    """A feature clamped into [0, 1] (guards against round-off just outside)."""
+    return min(1.0, max(0.0, float(value))) if math.isfinite(value) else 0.0
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Console script ``lit_planner_node`` (ROS arguments: ``--ros-args -p policy:=training``)."""
+    return spin_node(PlannerNode, sys.argv if args is None else args, threads=8)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

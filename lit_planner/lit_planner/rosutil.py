@@ -1,0 +1,168 @@
+"""Small ROS 2 helpers shared by the planner node, the learner node, ``lit up`` and ``lit call``.
+
+Everything here follows ``PLATFORM_FACTS.md``: discovery stays on this host unless the user says
+otherwise, service calls wait on a future with a deadline (never ``spin_until_future_complete`` in a
+loop), and shutdown tolerates the race between SIGTERM and a spinning executor.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+from collections.abc import Callable, Sequence
+from typing import Any
+
+LOCALHOST_ENV = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+"""Environment every entry point sets unless the user already chose: DDS discovery on loopback."""
+DEFAULT_DOMAIN_ID = 42
+"""``ROS_DOMAIN_ID`` of ``lit up`` / ``lit demo`` / ``lit call`` when the user has not set one."""
+DECIDE_SERVICE = "/lit/learner/decide"
+"""The learner's decision service (absolute: one learner serves planners in any namespace)."""
+EXPORT_SERVICE = "/lit/learner/export"
+"""The learner's export service (``std_srvs/srv/Trigger``)."""
+PLAN_SERVICE = "lit/planner/plan"
+"""The planner's plan service, relative to the planner node's namespace."""
+TOPICS = {
+    "observation": "lit/observation",
+    "decision": "lit/decision",
+    "solution": "lit/solution",
+    "episode": "lit/episode",
+    "path": "lit/path",
+}
+"""The planner node's topics, relative to its namespace."""
+STATS_TOPIC = "/lit/learner/stats"
+"""The learner's training-progress topic."""
+
+
+def localhost_environment() -> None:
+    """Keep DDS discovery on this host unless the user set a range; set a domain id if unset."""
+    for key, value in LOCALHOST_ENV.items():
+        os.environ.setdefault(key, value)
+    os.environ.setdefault("ROS_DOMAIN_ID", str(DEFAULT_DOMAIN_ID))
+
+
+def json_qos() -> Any:
+    """QoS of the JSON topics: reliable, keep-all, volatile (keep-last drops in bursts)."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_ALL,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.VOLATILE,
+    )
+
+
+class ServiceCaller:
+    """Calls one ``diagnostic_msgs/srv/AddDiagnostics`` service with a deadline.
+
+    The node must be spun by an executor in another thread; ``call`` blocks the calling thread only.
+    """
+
+    def __init__(self, node: Any, name: str, callback_group: Any = None) -> None:
+        from diagnostic_msgs.srv import AddDiagnostics
+
+        self._type = AddDiagnostics
+        self.client = node.create_client(AddDiagnostics, name, callback_group=callback_group)
+        self.name = name
+
+    def wait(self, timeout: float) -> bool:
+        """Whether the service appeared within ``timeout`` seconds (DDS discovery)."""
+        return bool(self.client.wait_for_service(timeout_sec=timeout))
+
+    def call(self, text: str, timeout: float) -> tuple[bool, str] | None:
+        """Send ``text`` as ``load_namespace``; ``(success, message)``, or None after ``timeout``."""
+        request = self._type.Request()
+        request.load_namespace = text
+        done = threading.Event()
+        future = self.client.call_async(request)
+        future.add_done_callback(lambda _: done.set())
+        if not done.wait(timeout):
+            self.client.remove_pending_request(future)
+            return None
+        response = future.result()
+        if response is None:
+            return None
+        return bool(response.success), str(response.message)
+
+
+def spin_node(
+    make_owner: Callable[[], Any],
+    args: Sequence[str] | None = None,
+    threads: int = 4,
+) -> int:
+    """Run a node until SIGINT/SIGTERM (or until its owner sets ``finished``), then shut down.
+
+    Args:
+        make_owner: builds the object that owns the node (called after ``rclpy.init``); it has a
+            ``node`` attribute, optionally a ``finished`` flag and a ``shutdown()`` method, which
+            runs after the signal and before the executor stops.
+        args: command line (ROS arguments after ``--ros-args``).
+        threads: executor threads.
+
+    Returns:
+        0 after a clean shutdown.
+    """
+    localhost_environment()
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    # Our own handlers: finish the current work and shut down in order (rclpy's would raise
+    # inside whatever thread happens to run).
+    rclpy.init(
+        args=list(args) if args is not None else None,
+        signal_handler_options=SignalHandlerOptions.NO,
+    )
+    stop = threading.Event()
+
+    def request_stop(*_: object) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGTERM, request_stop)
+    signal.signal(signal.SIGINT, request_stop)
+    owner = make_owner()
+    node = owner.node
+    executor = MultiThreadedExecutor(num_threads=threads)
+    executor.add_node(node)
+    spinner = threading.Thread(target=_spin, args=(executor, stop), name="executor", daemon=True)
+    spinner.start()
+    try:
+        while not stop.wait(0.2):
+            if getattr(owner, "finished", False):
+                break
+    finally:
+        if hasattr(owner, "shutdown"):
+            try:
+                owner.shutdown()
+            except Exception as exc:  # shutdown work must not hide the clean exit
+                node.get_logger().error(f"shutdown: {exc}")
+        executor.shutdown(timeout_sec=2.0)
+        spinner.join(timeout=2.0)
+        try:
+            node.destroy_node()
+        except Exception:  # noqa: BLE001 - a node half torn down by the signal race
+            pass
+        if rclpy.ok():
+            try:
+                rclpy.shutdown()
+            except (ExternalShutdownException, RuntimeError):
+                pass
+    return 0
+
+
+def _spin(executor: Any, stop: threading.Event) -> None:
+    from rclpy.executors import ExternalShutdownException
+
+    try:
+        executor.spin()
+    except (ExternalShutdownException, KeyboardInterrupt):
+        pass
+    except Exception as exc:  # RCLError when shutdown races the spin (PLATFORM_FACTS)
+        import rclpy
+
+        if rclpy.ok():
+            raise
+        del exc
+    finally:
+        stop.set()
