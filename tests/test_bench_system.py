@@ -47,6 +47,7 @@ def bench_run(
         "--runs", "2",
         "--time-scale", "0.25",
         "--out", str(out),
+        "--bag-dir", str(out.parent / "bags"),
         env={"LIT_TENSORS": str(no_tensors)},
     )  # fmt: skip
     return out, result

@@ -36,29 +36,28 @@ class LearnerNode:
 
     def __init__(self) -> None:
         from diagnostic_msgs.srv import AddDiagnostics
+        from lit_msgs_json.envelope import Publisher
         from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
         from rclpy.node import Node
         from std_msgs.msg import String
         from std_srvs.srv import Trigger
 
-        from lit_msgs_json.envelope import Publisher
-
         self.node = node = Node(NODE_NAME)
         self.log = node.get_logger()
         p = {}
-        for name, default in dict(
-            checkpoint="runs/learner/checkpoint.pt",
-            fresh=False,
-            seed=0,
-            train="both",
-            checkpoint_every=50,
-            checkpoint_period=30.0,
-            export_dir="runs/learner/tensors",
-            max_episodes=0,
-            stats_period=1.0,
-            run_id="",
-            service=DECIDE_SERVICE,
-        ).items():
+        for name, default in {
+            "checkpoint": "runs/learner/checkpoint.pt",
+            "fresh": False,
+            "seed": 0,
+            "train": "both",
+            "checkpoint_every": 50,
+            "checkpoint_period": 30.0,
+            "export_dir": "runs/learner/tensors",
+            "max_episodes": 0,
+            "stats_period": 1.0,
+            "run_id": "",
+            "service": DECIDE_SERVICE,
+        }.items():
             node.declare_parameter(name, default)
             p[name] = node.get_parameter(name).value
         self.params = p
@@ -120,9 +119,10 @@ class LearnerNode:
     # ------------------------------------------------------------------ service
 
     def _serve(self, request: Any, response: Any) -> Any:
+        from lit_msgs_json.envelope import MessageError, decode
+
         from lit_learner.errors import MessageError as CoreMessageError
         from lit_learner.messages import DecisionRequest, EpisodeEnd
-        from lit_msgs_json.envelope import MessageError, decode
 
         try:
             message = decode(request.load_namespace, accept=("DecideRequest", "EpisodeEnd"))
@@ -220,7 +220,7 @@ class LearnerNode:
         del request
         try:
             paths = self.export("request")
-        except Exception as exc:  # report, keep serving
+        except Exception as exc:  # noqa: BLE001 - report, keep serving
             response.success, response.message = False, f"export failed: {exc}"
             return response
         response.success = True

@@ -41,6 +41,18 @@ COMMANDS: dict[str, Command] = {
         "lit_planner.arena",
         "turn a bench run folder's runs.jsonl into OMPL benchmark logs and a Planner Arena database",
     ),
+    "replay": Command(
+        "lit_planner.replay",
+        "read recorded bags: info, verify paths, salvage a killed bag, regenerate bench outputs",
+    ),
+    "up": Command(
+        "lit_planner.up",
+        "start the learner and a planner node as two ROS 2 processes; Ctrl-C stops both",
+    ),
+    "call": Command(
+        "lit_planner.call",
+        "call the planner's plan service or the learner's decide/export services; print JSON",
+    ),
     "crosscheck": Command(
         "lit_planner.crosscheck",
         "independent cross-check: LIT*'s paths and costs against OMPL 2.0.1 (PyPI ompl) planners",

@@ -88,12 +88,11 @@ class PlannerNode:
     """Builds the ROS node; the planning itself lives in :mod:`lit_planner.planning`."""
 
     def __init__(self) -> None:
+        from lit_msgs_json.envelope import Publisher
         from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
         from rclpy.node import Node
         from std_msgs.msg import String
         from trajectory_msgs.msg import JointTrajectory
-
-        from lit_msgs_json.envelope import Publisher
 
         self.node = node = Node(NODE_NAME)
         self.log = node.get_logger()
@@ -180,7 +179,7 @@ class PlannerNode:
                 tensors[output] = (
                     planning.load_tensor(path, output) if os.path.exists(path) else None
                 )
-            except Exception as exc:  # a defective tensor: say so, fall back to the fixed values
+            except Exception as exc:  # noqa: BLE001 - defective tensor: fixed values instead
                 self.log.error(f"fallback tensor {path} unusable ({exc}); using fixed values")
                 tensors[output] = None
         return tensors
@@ -328,7 +327,6 @@ class PlannerNode:
 
         if p["policy"] == "training":
             import numpy as np
-
             from lit_learner.train import TrainingDistribution
 
             names = [name.strip() for name in p["training_scenarios"].split(",") if name.strip()]
@@ -367,7 +365,7 @@ class PlannerNode:
                 return
             try:
                 self._run(job)
-            except Exception as exc:  # reported to the requester; the node keeps serving
+            except Exception as exc:  # noqa: BLE001 - reported; the node keeps serving
                 job.error = exc
                 self.log.error(f"{job.kind} query {job.episode_id} failed: {exc!r}")
             finally:

@@ -135,13 +135,13 @@ def spin_node(
         if hasattr(owner, "shutdown"):
             try:
                 owner.shutdown()
-            except Exception as exc:  # shutdown work must not hide the clean exit
+            except Exception as exc:  # noqa: BLE001 - must not hide the clean exit
                 node.get_logger().error(f"shutdown: {exc}")
         executor.shutdown(timeout_sec=2.0)
         spinner.join(timeout=2.0)
         try:
             node.destroy_node()
-        except Exception:  # noqa: BLE001 - a node half torn down by the signal race
+        except Exception:  # noqa: BLE001, S110 - a node half torn down by the signal race
             pass
         if rclpy.ok():
             try:

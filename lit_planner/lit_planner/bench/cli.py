@@ -8,7 +8,10 @@
 
 Writes into the run folder (``--out``, default ``results/<timestamp>``): ``runs.jsonl`` (one
 ``BenchRun`` record per line, appended scenario by scenario), ``summary.json`` (a validated
-``BenchSummary``), ``summary.md`` (the tables) and ``plots/<scenario>.png|.pdf``.
+``BenchSummary``), ``summary.md`` (the tables) and ``plots/<scenario>.png|.pdf``. It also records
+a bag ``bags/<run folder name>/`` (``--bag-dir``, ``--no-bag``): a ``/lit/bench/config`` message,
+then one ``/lit/bench/run`` message per record, from which ``lit replay bench`` regenerates the
+outputs.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from lit_planner import planning, scenarios
+from lit_planner import bag, planning, scenarios
 from lit_planner.bench import runner
 from lit_planner.errors import LitPlannerError
 
@@ -82,6 +85,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="N",
         help="processes for the independent path checks between scenarios (default: all cores)",
     )
+    parser.add_argument(
+        "--bag-dir",
+        type=Path,
+        metavar="DIR",
+        help="record the bag into DIR/<run folder name> (default: the repository's bags/)",
+    )
+    parser.add_argument("--no-bag", action="store_true", help="do not record a bag")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -105,6 +115,14 @@ def run(args: argparse.Namespace) -> int:
     clock = time.perf_counter()
     runs_path = out / RUNS_FILE
     runs_path.touch()
+    recording = None
+    if not args.no_bag:
+        try:
+            recording = _start_recording(args, out, config, preset, requested, started, estimate)
+        except (bag.BagError, OSError) as error:
+            print(f"lit bench: {error}", file=sys.stderr)
+            return 2
+        print(f"lit bench: recording the bag {recording.recorder.path}", file=sys.stderr)
 
     def append(records: list[dict[str, Any]]) -> None:
         from lit_msgs_json import codec
@@ -112,6 +130,8 @@ def run(args: argparse.Namespace) -> int:
         with runs_path.open("a", encoding="utf-8") as handle:
             for record in records:
                 handle.write(codec.dumps(runner.RUN_SCHEMA, record) + "\n")
+        if recording is not None:
+            recording.add_runs(records)
 
     try:
         records = runner.run_benchmark(config, on_scenario_done=append)
@@ -121,6 +141,9 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 130
+    finally:
+        if recording is not None:
+            recording.close()
     duration = time.perf_counter() - clock
     finished = datetime.now(UTC)
 
@@ -141,8 +164,10 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         export = arena.export_arena(out, records)
-        print(f"lit bench: Planner Arena database {export.database} ({len(export.logs)} OMPL logs)",
-              file=sys.stderr)
+        print(
+            f"lit bench: Planner Arena database {export.database} ({len(export.logs)} OMPL logs)",
+            file=sys.stderr,
+        )
     except (arena.ArenaError, ompl2.Ompl2Error) as error:
         print(f"lit bench: Planner Arena export failed: {error}", file=sys.stderr)
         return 1
@@ -167,8 +192,13 @@ def write_outputs(
     duration: float,
     estimate: tuple[float, str],
     argv: list[str] | None = None,
+    recorded: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """Compute the statistics, draw the plots, validate and write summary.json and summary.md."""
+    """Compute the statistics, draw the plots, validate and write summary.json and summary.md.
+
+    ``recorded`` (``lit replay bench``): the recorded run's ``cwd``, ``machine``, ``versions`` and
+    ``planners`` instead of this process's.
+    """
     from lit_msgs_json import codec
     from lit_planner.bench import environment, plots, report, stats
 
@@ -199,33 +229,17 @@ def write_outputs(
         "duration_s": duration,
         "command": {
             "argv": argv if argv is not None else ["lit", *sys.argv[1:]],
-            "cwd": os.getcwd(),
+            "cwd": recorded["cwd"] if recorded else os.getcwd(),
             "preset": preset,
         },
-        "config": {
-            "scenarios": list(config.scenarios),
-            "planners_requested": requested,
-            "planners": list(config.planners),
-            "runs": config.runs,
-            "first_seed": config.first_seed,
-            "instance": config.instance,
-            "time_scale": config.time_scale,
-            "confidence": stats.CONFIDENCE,
-            "ompl_global_seed": config.first_seed,
-            "shuffle": f"random.Random({runner.SHUFFLE_KEY!r}).shuffle(planners) per run",
-            "check_jobs": config.check_jobs,
-            "tensors_dir": str(config.tensors_dir or planning.default_tensors_dir()),
-        },
+        "config": summary_config(config, requested),
         "estimate": {"planning_s": estimate[0], "formula": estimate[1]},
         "skipped": [
             {"planner": s.planner, "reason": s.reason, "detail": s.detail} for s in config.skipped
         ],
-        "machine": environment.machine(),
-        "versions": environment.versions(root),
-        "planners": {
-            name: runner.planner_setup(name, config.tensors_dir).to_dict()
-            for name in config.planners
-        },
+        "machine": recorded["machine"] if recorded else environment.machine(),
+        "versions": recorded["versions"] if recorded else environment.versions(root),
+        "planners": recorded["planners"] if recorded else planner_setups(config),
         "scenarios": summaries,
         "comparisons": report.comparisons(
             summaries, config.planners, [s.planner for s in config.skipped]
@@ -243,6 +257,64 @@ def write_outputs(
     )
     (out / SUMMARY_MD).write_text(report.markdown(summary), encoding="utf-8")
     return summary
+
+
+def summary_config(config: runner.BenchConfig, requested: list[str]) -> dict[str, Any]:
+    """The ``config`` section of summary.json (also the core of the recorded BenchConfig)."""
+    from lit_planner.bench import stats
+
+    return {
+        "scenarios": list(config.scenarios),
+        "planners_requested": requested,
+        "planners": list(config.planners),
+        "runs": config.runs,
+        "first_seed": config.first_seed,
+        "instance": config.instance,
+        "time_scale": config.time_scale,
+        "confidence": stats.CONFIDENCE,
+        "ompl_global_seed": config.first_seed,
+        "shuffle": f"random.Random({runner.SHUFFLE_KEY!r}).shuffle(planners) per run",
+        "check_jobs": config.check_jobs,
+        "tensors_dir": str(config.tensors_dir or planning.default_tensors_dir()),
+    }
+
+
+def planner_setups(config: runner.BenchConfig) -> dict[str, Any]:
+    """The ``planners`` section of summary.json: every planner's configuration."""
+    return {
+        name: runner.planner_setup(name, config.tensors_dir).to_dict() for name in config.planners
+    }
+
+
+def _start_recording(
+    args: argparse.Namespace,
+    out: Path,
+    config: runner.BenchConfig,
+    preset: str | None,
+    requested: list[str],
+    started: datetime,
+    estimate: float,
+) -> bag.BenchRecording:
+    """Open the run's bag and record its BenchConfig: everything ``lit replay bench`` needs
+    besides the run records (the summary's config, command and environment)."""
+    from lit_planner.bench import environment
+
+    payload = {
+        "config": summary_config(config, requested),
+        "preset": preset,
+        "argv": ["lit", *sys.argv[1:]],
+        "cwd": os.getcwd(),
+        "started": started.isoformat(timespec="seconds"),
+        "estimate": {"planning_s": estimate, "formula": _estimate_formula(config, estimate)},
+        "skipped": [
+            {"planner": s.planner, "reason": s.reason, "detail": s.detail} for s in config.skipped
+        ],
+        "machine": environment.machine(),
+        "versions": environment.versions(Path(__file__).resolve().parents[3]),
+        "planners": planner_setups(config),
+    }
+    parent = args.bag_dir if args.bag_dir is not None else bag.default_bag_root()
+    return bag.BenchRecording(bag.unique_directory(parent, out.name), out.name, payload)
 
 
 def _config(args: argparse.Namespace) -> tuple[runner.BenchConfig, str | None, list[str]]:

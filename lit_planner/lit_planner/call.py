@@ -1,0 +1,219 @@
+"""``lit call``: call the planner's and the learner's services as any other robot program would.
+
+Examples::
+
+    lit call plan --scenario np8 --time 0.5
+    lit call plan --world world.json --time 1 --policy fit
+    lit call decide --agent psi_K --rho-global 0.2 --rho-local 0.1 --measure 0.6
+    lit call export
+    lit call raw /lit/planner/plan '{"not": "an envelope"}'
+
+Prints the response as JSON on stdout (the envelope's payload with ``--payload-only``). Exit code
+0 for a successful response, 1 for an Error response, 2 when the service is not found or does not
+answer in time, or the arguments are wrong.
+
+A world file is JSON: ``{"lower": [...], "upper": [...], "boxes": [{"lower": [...], "upper":
+[...]}, ...], "resolution": 0.001, "start": [...], "goal": [...]}`` (``resolution`` optional), or
+a whole PlanRequest payload.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+import time
+import uuid
+from pathlib import Path
+from typing import Any
+
+from lit_planner.rosutil import (
+    DECIDE_SERVICE,
+    EXPORT_SERVICE,
+    PLAN_SERVICE,
+    ServiceCaller,
+    localhost_environment,
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``lit call {plan,decide,export,raw}``."""
+    parser.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the service")
+    parser.add_argument(
+        "--timeout", type=float, default=60.0, help="seconds to wait for the answer"
+    )
+    parser.add_argument(
+        "--payload-only", action="store_true", help="print only the response's payload"
+    )
+    commands = parser.add_subparsers(dest="service", required=True)
+    plan = commands.add_parser("plan", help="call <namespace>/lit/planner/plan")
+    where = plan.add_mutually_exclusive_group(required=True)
+    where.add_argument("--scenario", help="registered scenario, e.g. np8 or rrd8/3")
+    where.add_argument("--world", type=Path, help="JSON file with an explicit world")
+    plan.add_argument("--time", type=float, help="time budget, s (default: the scenario's)")
+    plan.add_argument("--planner", help="litstar (default) or an OMPL baseline, e.g. aitstar")
+    plan.add_argument("--policy", choices=("fixed", "fit", "tensor"), help="LIT*'s policy")
+    plan.add_argument("--seed", type=int)
+    plan.add_argument("--start", type=_vector, help="override the start, e.g. 0.1,0.2,...")
+    plan.add_argument("--goal", type=_vector, help="override the goal")
+    plan.add_argument("--namespace", default="/", help="the planner node's namespace")
+    plan.add_argument("--request-id", help="echoed in the response")
+    decide = commands.add_parser("decide", help="call /lit/learner/decide")
+    decide.add_argument("--agent", choices=("B", "psi_K"), default="B")
+    decide.add_argument("--episode-id", default=None)
+    decide.add_argument("--rho-global", type=float, default=0.1)
+    decide.add_argument("--rho-local", type=float, default=0.1)
+    decide.add_argument("--measure", type=float, default=0.5)
+    decide.add_argument("--planning-time", type=float, default=0.0)
+    decide.add_argument("--time-budget", type=float, default=1.0)
+    decide.add_argument("--cost", type=float, default=None)
+    decide.add_argument("--minimum-cost", type=float, default=1.0)
+    decide.add_argument("--improvements", type=int, default=0)
+    decide.add_argument("--path-states", type=int, default=0)
+    decide.add_argument("--explore", action="store_true", help="exploration noise on")
+    decide.add_argument("--service-name", default=DECIDE_SERVICE)
+    commands.add_parser("export", help="call /lit/learner/export (write the lookup tensors)")
+    raw = commands.add_parser("raw", help="send TEXT unchanged to an AddDiagnostics service")
+    raw.add_argument("name", help="service name, e.g. /lit/planner/plan")
+    raw.add_argument("text", help="the request text ('-': read standard input)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Build the request, call the service, print the answer."""
+    try:
+        name, text = _request(args)
+    except (OSError, ValueError) as exc:
+        print(f"lit call: error: {exc}", file=sys.stderr)
+        return 2
+    localhost_environment()
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    rclpy.init()
+    node = rclpy.create_node(f"lit_call_{uuid.uuid4().hex[:8]}")
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    try:
+        if args.service == "export":
+            return _call_export(node, args)
+        caller = ServiceCaller(node, name)
+        if not caller.wait(args.wait):
+            print(f"lit call: error: service {name} not found within {args.wait:g} s "
+                  f"(ROS_DOMAIN_ID={_domain()})", file=sys.stderr)
+            return 2
+        started = time.perf_counter()
+        answer = caller.call(text, args.timeout)
+        elapsed = time.perf_counter() - started
+        if answer is None:
+            print(f"lit call: error: {name} did not answer within {args.timeout:g} s",
+                  file=sys.stderr)
+            return 2
+        success, message = answer
+        _print(message, args.payload_only)
+        print(f"lit call: {name} answered in {elapsed * 1e3:.1f} ms "
+              f"({'success' if success else 'error'})", file=sys.stderr)
+        return 0 if success else 1
+    finally:
+        # Stop the spinning thread before tearing down (a joinable C++ thread at exit aborts).
+        executor.shutdown(timeout_sec=1.0)
+        if rclpy.ok():
+            rclpy.shutdown()
+        spinner.join(timeout=2.0)
+        node.destroy_node()
+
+
+def _request(args: argparse.Namespace) -> tuple[str, str]:
+    from lit_msgs_json.envelope import Publisher
+
+    publisher = Publisher("lit_call", f"call-{uuid.uuid4().hex[:8]}")
+    if args.service == "plan":
+        payload: dict[str, Any] = {}
+        if args.world is not None:
+            document = json.loads(args.world.read_text(encoding="utf-8"))
+            if not isinstance(document, dict):
+                raise ValueError(f"{args.world}: expected a JSON object")
+            if "world" in document:
+                payload.update(document)
+            else:
+                payload["world"] = {
+                    k: document[k] for k in ("lower", "upper", "boxes", "resolution")
+                    if k in document
+                }
+                for key in ("start", "goal"):
+                    if key in document:
+                        payload[key] = document[key]
+        else:
+            payload["scenario"] = args.scenario
+        for key in ("time", "planner", "policy", "seed", "start", "goal", "request_id"):
+            value = getattr(args, key)
+            if value is not None:
+                payload[key] = value
+        name = args.namespace.rstrip("/") + "/" + PLAN_SERVICE
+        if not name.startswith("/"):
+            name = "/" + name
+        return name, publisher.encode("PlanRequest", payload)
+    if args.service == "decide":
+        payload = {
+            "agent": args.agent,
+            "episode_id": args.episode_id or f"call-{uuid.uuid4().hex[:8]}",
+            "rho_global": args.rho_global,
+            "rho_local": args.rho_local,
+            "measure": args.measure,
+            "planning_time": args.planning_time,
+            "time_budget": args.time_budget,
+            "cost": args.cost,
+            "minimum_cost": args.minimum_cost,
+            "improvements": args.improvements,
+            "path_states": args.path_states,
+            "explore": args.explore,
+        }
+        return args.service_name, publisher.encode("DecideRequest", payload)
+    if args.service == "export":
+        return EXPORT_SERVICE, ""
+    text = sys.stdin.read() if args.text == "-" else args.text
+    return args.name, text
+
+
+def _call_export(node: Any, args: argparse.Namespace) -> int:
+    from std_srvs.srv import Trigger
+
+    client = node.create_client(Trigger, EXPORT_SERVICE)
+    if not client.wait_for_service(timeout_sec=args.wait):
+        print(f"lit call: error: service {EXPORT_SERVICE} not found", file=sys.stderr)
+        return 2
+    done = threading.Event()
+    future = client.call_async(Trigger.Request())
+    future.add_done_callback(lambda _: done.set())
+    if not done.wait(args.timeout):
+        print(f"lit call: error: {EXPORT_SERVICE} did not answer", file=sys.stderr)
+        return 2
+    response = future.result()
+    print(response.message)
+    return 0 if response.success else 1
+
+
+def _print(message: str, payload_only: bool) -> None:
+    try:
+        document = json.loads(message)
+    except ValueError:
+        print(message)
+        return
+    if payload_only and isinstance(document, dict) and "payload" in document:
+        document = document["payload"]
+    print(json.dumps(document, indent=2))
+
+
+def _vector(text: str) -> list[float]:
+    try:
+        return [float(x) for x in text.split(",")]
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from exc
+
+
+def _domain() -> str:
+    import os
+
+    return os.environ.get("ROS_DOMAIN_ID", "0")

@@ -1,0 +1,1243 @@
+"""``lit replay``: read recorded bags back — summary, path re-check, salvage, benchmark outputs.
+
+::
+
+    lit replay info BAG [--json]           # topics, time span, run metadata, seq accounting
+    lit replay verify BAG...               # re-check every recorded path against its world
+    lit replay salvage BAG [-o OUT]        # rescue a bag whose writer died or whose file is damaged
+    lit replay bench BAG... [--out DIR]    # regenerate lit bench's summary, tables and plots
+
+A BAG is a rosbag2 bag directory or one of its ``.mcap`` files. Messages on ``/lit/*`` topics
+(optionally below a namespace, e.g. ``/robot1/lit/observation``) are ``std_msgs/msg/String``
+envelopes ``{"schema", "version", "seq", "stamp_ns", "source", "run_id", "payload"}`` or, on
+``/lit/path``, ``trajectory_msgs/msg/JointTrajectory``. ``seq`` rises by one per publisher, that
+is per (topic, source): ``info`` counts, per publisher, the gaps (runs of missing numbers), the
+missing messages and the duplicates, and ``leading`` (the numbers before the first recorded one,
+when a publisher started at 0 before the recording did).
+
+What cannot be used is skipped and counted, never fatal: messages on other topics, envelopes of an
+unknown schema or an unsupported version, text that is not an envelope, undecodable messages, and
+payloads that fail their schema. A bag that cannot be read at all (a missing path, an empty
+directory or file, a writer killed before ``close()``, a truncated or damaged file) is a one-line
+error with exit status 2; ``salvage`` then recovers what is readable.
+"""
+
+from __future__ import annotations
+
+import argparse
+import bisect
+import itertools
+import json
+import math
+import os
+import re
+import sys
+from collections import Counter
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from functools import cache
+from pathlib import Path
+from typing import Any, Self
+
+from lit_planner import bag, scenarios
+from lit_planner.errors import LitPlannerError
+
+PROG = "lit replay"
+"""Prefix of every message."""
+ENVELOPE_KEYS = ("schema", "version", "seq", "stamp_ns", "source", "run_id", "payload")
+"""Keys of a JSON envelope."""
+SCHEMA_PREFIX = "lit_msgs_json/"
+"""Every envelope schema name starts with this."""
+SUPPORTED_VERSIONS = frozenset({1})
+"""Envelope versions this replay reads."""
+MESSAGE_SCHEMAS = frozenset({"BenchConfig", "BenchRun"})
+"""Envelope schemas besides those that ``lit_msgs_json`` ships (BenchConfig is read only here)."""
+EPISODE_SCHEMA = "lit_msgs_json/EpisodeSummary"
+"""Schema of ``/lit/episode`` messages."""
+PATH_TOPIC = "/lit/path"
+"""Topic (below any namespace) of the typed paths."""
+SALVAGED_SUFFIX = "-salvaged"
+"""Default output of ``salvage``: the bag's path with this suffix."""
+REPLAY_DIR = "replay"
+"""Default output folder of ``bench``, inside the (first) bag."""
+_LIT_TOPIC = re.compile(r"(?P<namespace>(?:/[^/]+)*?)(?P<base>/lit(?:/[^/]+)+)")
+_MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+class ReplayError(LitPlannerError, ValueError):
+    """A bag or an argument that replay cannot use; the message is one line naming the input."""
+
+
+# --- Reading bags ----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TopicSummary:
+    """A topic of a bag."""
+
+    topic: str
+    msgtype: str
+    messages: int
+
+
+@dataclass(frozen=True)
+class BagFacts:
+    """What a bag's metadata says."""
+
+    path: Path
+    storage: str | None
+    version: int | None
+    ros_distro: str | None
+    compression: str | None
+    custom_data: dict[str, str]
+    topics: list[TopicSummary]
+    messages: int
+
+
+@dataclass(frozen=True)
+class RawMessage:
+    """One serialized message as read from a bag."""
+
+    topic: str
+    msgtype: str
+    log_ns: int
+    data: bytes
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """A decoded JSON envelope and where it was recorded."""
+
+    topic: str
+    log_ns: int
+    schema: str
+    version: int
+    seq: int
+    stamp_ns: int
+    source: str
+    run_id: str
+    payload: Any
+
+    @property
+    def namespace(self) -> str:
+        """The topic's namespace ('' for ``/lit/...``)."""
+        return split_topic(self.topic)[0]
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A decoded ``/lit/path`` message."""
+
+    topic: str
+    log_ns: int
+    frame_id: str
+    """The planner node writes the episode's ``episode_id`` here."""
+    joint_names: list[str]
+    path: list[list[float]]
+
+
+@dataclass
+class Skipped:
+    """Messages left out, counted by reason, with the first few examples."""
+
+    counts: Counter[str] = field(default_factory=Counter)
+    examples: list[str] = field(default_factory=list)
+    max_examples: int = 5
+
+    def add(self, reason: str, where: str, detail: str = "") -> None:
+        """Count one message skipped for ``reason`` (``where``: topic and seq)."""
+        self.counts[reason] += 1
+        if len(self.examples) < self.max_examples:
+            self.examples.append(f"{where}: {reason}" + (f" ({detail})" if detail else ""))
+
+    @property
+    def total(self) -> int:
+        """Messages skipped."""
+        return sum(self.counts.values())
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form."""
+        return {"total": self.total, "reasons": dict(self.counts), "examples": self.examples}
+
+    def line(self) -> str:
+        """One line: ``3 skipped: 2 foreign topic, 1 unknown schema``."""
+        parts = ", ".join(f"{count} {reason}" for reason, count in self.counts.most_common())
+        return f"{self.total} skipped" + (f": {parts}" if parts else "")
+
+
+def split_topic(topic: str) -> tuple[str, str] | tuple[None, None]:
+    """(namespace, ``/lit/...`` base) of a LIT* topic; (None, None) for any other topic."""
+    match = _LIT_TOPIC.fullmatch(topic)
+    if match is None:
+        return None, None
+    return match["namespace"], match["base"]
+
+
+def known_schema(name: str) -> bool:
+    """Whether ``name`` is one of the system's envelope schemas (``lit_msgs_json/<Name>``)."""
+    if not name.startswith(SCHEMA_PREFIX):
+        return False
+    return name.removeprefix(SCHEMA_PREFIX) in _schema_names()
+
+
+@cache
+def _schema_names() -> frozenset[str]:
+    try:
+        from lit_msgs_json import codec
+
+        shipped = set(codec.schema_names())
+    except Exception:  # noqa: BLE001 -- replay must work without the schemas package
+        shipped = set()
+    return MESSAGE_SCHEMAS | shipped
+
+
+class BagReader:
+    """A bag opened for reading with rosbags' ``Reader``; every failure is a :class:`ReplayError`.
+
+    Args:
+        path: a bag directory (with ``metadata.yaml``) or an ``.mcap`` file.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        from rosbags.rosbag2 import Reader
+
+        self.path = Path(path)
+        """The bag as given."""
+        _check_readable(self.path)
+        try:
+            self._reader = Reader(self.path)
+            self._reader.open()
+        except Exception as error:  # noqa: BLE001 -- damaged files raise anything
+            raise ReplayError(
+                f"cannot read bag {self.path}: {_describe(error)}; if its writer was killed or the "
+                f"file is damaged, recover it with `lit replay salvage {self.path}`"
+            ) from None
+        try:
+            self.facts = self._facts()
+            """Its metadata."""
+        except BaseException:
+            self.close()
+            raise
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Close the reader."""
+        try:
+            self._reader.close()
+        except Exception:  # noqa: BLE001, S110 -- closing a damaged bag must not mask the cause
+            pass
+
+    def messages(self) -> Iterator[RawMessage]:
+        """Every message in time order.
+
+        Raises:
+            ReplayError: the data cannot be read on (names how many messages were read).
+        """
+        read = 0
+        iterator = self._reader.messages()
+        while True:
+            try:
+                connection, stamp, data = next(iterator)
+            except StopIteration:
+                return
+            except Exception as error:  # noqa: BLE001 -- damaged files raise anything
+                raise ReplayError(
+                    f"bag {self.path} is damaged after {read} messages: {_describe(error)}; "
+                    f"recover it with `lit replay salvage {self.path}`"
+                ) from None
+            read += 1
+            yield RawMessage(connection.topic, connection.msgtype, stamp, bytes(data))
+
+    def _facts(self) -> BagFacts:
+        reader = self._reader
+        meta = getattr(reader.storage, "metadata", None)
+        custom = dict(getattr(meta, "custom", None) or {})
+        version, storage = None, None
+        metadata_file = self.path / "metadata.yaml"
+        if self.path.is_dir() and metadata_file.is_file():
+            info = _load_metadata(metadata_file)
+            version = info.get("version")
+            storage = info.get("storage_identifier")
+            custom = dict(info.get("custom_data") or custom)
+        elif self.path.suffix == ".mcap":
+            storage = "mcap"
+        compression = " ".join(
+            filter(None, (reader.compression_mode or "", reader.compression_format or ""))
+        )
+        topics = [
+            TopicSummary(topic, info.msgtype or "?", info.msgcount)
+            for topic, info in sorted(reader.topics.items())
+        ]
+        return BagFacts(
+            path=self.path,
+            storage=storage,
+            version=version,
+            ros_distro=reader.ros_distro,
+            compression=compression or None,
+            custom_data={str(k): str(v) for k, v in custom.items()},
+            topics=topics,
+            messages=reader.message_count,
+        )
+
+
+def _check_readable(path: Path) -> None:
+    """Clear errors for paths that are no bag at all."""
+    if not path.exists():
+        raise ReplayError(f"{path}: no such file or directory")
+    if path.is_dir():
+        entries = list(path.iterdir())
+        if not entries:
+            raise ReplayError(f"{path} is an empty directory, not a bag")
+        if not (path / "metadata.yaml").is_file():
+            if any(entry.suffix == ".mcap" for entry in entries):
+                raise ReplayError(
+                    f"{path} has no metadata.yaml: its writer did not finish (killed?); recover it "
+                    f"with `lit replay salvage {path}`"
+                )
+            raise ReplayError(f"{path} is not a bag: no metadata.yaml and no .mcap file")
+        return
+    if path.stat().st_size == 0:
+        raise ReplayError(f"{path} is an empty file")
+    if path.suffix != ".mcap":
+        raise ReplayError(f"{path} is not a bag: expected a bag directory or an .mcap file")
+
+
+def _load_metadata(path: Path) -> dict[str, Any]:
+    from ruamel.yaml import YAML
+
+    try:
+        document = YAML(typ="safe").load(path.read_text(encoding="utf-8"))
+        info = document["rosbag2_bagfile_information"]
+    except Exception as error:  # noqa: BLE001 -- YAML errors, a damaged file
+        raise ReplayError(f"{path}: not a rosbag2 metadata file: {_describe(error)}") from None
+    if not isinstance(info, dict):
+        raise ReplayError(f"{path}: not a rosbag2 metadata file")
+    return info
+
+
+def _describe(error: BaseException) -> str:
+    text = " ".join(str(error).split()).rstrip(".") or "no details"
+    if len(text) > 200:
+        text = text[:200] + "…"
+    return f"{type(error).__name__}: {text}"
+
+
+def decode(message: RawMessage, skipped: Skipped) -> Envelope | Trajectory | None:
+    """The envelope or trajectory a message holds; None (and counted in ``skipped``) otherwise."""
+    _, base = split_topic(message.topic)
+    if base is None:
+        skipped.add("foreign topic", message.topic)
+        return None
+    if message.msgtype == bag.TRAJECTORY_TYPE and base == PATH_TOPIC:
+        return _decode_trajectory(message, skipped)
+    if message.msgtype != bag.STRING_TYPE:
+        skipped.add("unexpected type", message.topic, message.msgtype)
+        return None
+    try:
+        text = bag.typestore().deserialize_cdr(message.data, bag.STRING_TYPE).data
+    except Exception as error:  # noqa: BLE001 -- damaged CDR raises anything
+        skipped.add("undecodable", message.topic, _describe(error))
+        return None
+    return parse_envelope(text, message.topic, message.log_ns, skipped)
+
+
+def parse_envelope(text: str, topic: str, log_ns: int, skipped: Skipped) -> Envelope | None:
+    """Check an envelope's fields, schema name and version; None (counted) when it does not fit."""
+    try:
+        document = json.loads(text)
+    except ValueError:
+        skipped.add("not JSON", topic)
+        return None
+    if not isinstance(document, dict) or any(key not in document for key in ENVELOPE_KEYS):
+        skipped.add("not an envelope", topic, "missing " + ", ".join(
+            key for key in ENVELOPE_KEYS if not isinstance(document, dict) or key not in document
+        ))  # fmt: skip
+        return None
+    schema, version, seq = document["schema"], document["version"], document["seq"]
+    where = f"{topic} seq {seq}"
+    if not isinstance(schema, str) or not known_schema(schema):
+        skipped.add("unknown schema", where, str(schema))
+        return None
+    if type(version) is not int or version not in SUPPORTED_VERSIONS:
+        skipped.add("unsupported version", where, f"{schema} version {version!r}")
+        return None
+    integers = (seq, document["stamp_ns"])
+    if any(type(value) is not int or value < 0 for value in integers):
+        skipped.add("not an envelope", where, "seq and stamp_ns must be integers >= 0")
+        return None
+    if not isinstance(document["source"], str) or not isinstance(document["run_id"], str):
+        skipped.add("not an envelope", where, "source and run_id must be strings")
+        return None
+    return Envelope(
+        topic=topic,
+        log_ns=log_ns,
+        schema=schema,
+        version=version,
+        seq=seq,
+        stamp_ns=document["stamp_ns"],
+        source=document["source"],
+        run_id=document["run_id"],
+        payload=document["payload"],
+    )
+
+
+def _decode_trajectory(message: RawMessage, skipped: Skipped) -> Trajectory | None:
+    try:
+        decoded = bag.typestore().deserialize_cdr(message.data, bag.TRAJECTORY_TYPE)
+        path = [[float(x) for x in point.positions] for point in decoded.points]
+    except Exception as error:  # noqa: BLE001 -- damaged CDR raises anything
+        skipped.add("undecodable", message.topic, _describe(error))
+        return None
+    return Trajectory(
+        message.topic, message.log_ns, decoded.header.frame_id, list(decoded.joint_names), path
+    )
+
+
+# --- info ------------------------------------------------------------------------------------
+
+
+@dataclass
+class SeqAccount:
+    """The sequence numbers of one publisher (topic, source)."""
+
+    topic: str
+    source: str
+    seqs: list[int] = field(default_factory=list)
+    run_ids: set[str] = field(default_factory=set)
+    schemas: Counter[str] = field(default_factory=Counter)
+
+    def to_dict(self) -> dict[str, Any]:
+        """First/last seq, count, gaps, missing, duplicates, leading, run ids and schemas."""
+        unique = sorted(set(self.seqs))
+        steps = [b - a for a, b in itertools.pairwise(unique)]
+        reordered = sum(1 for a, b in itertools.pairwise(self.seqs) if b < a)
+        return {
+            "topic": self.topic,
+            "source": self.source,
+            "run_ids": sorted(self.run_ids),
+            "first_seq": unique[0],
+            "last_seq": unique[-1],
+            "count": len(self.seqs),
+            "gaps": sum(1 for step in steps if step > 1),
+            "missing": sum(step - 1 for step in steps if step > 1),
+            "duplicates": len(self.seqs) - len(unique),
+            "reordered": reordered,
+            "leading": unique[0],
+            "schemas": dict(self.schemas),
+        }
+
+
+def bag_info(path: str | Path) -> dict[str, Any]:
+    """Everything ``lit replay info`` reports, as JSON-ready data."""
+    skipped = Skipped()
+    accounts: dict[tuple[str, str], SeqAccount] = {}
+    schemas: Counter[str] = Counter()
+    counts: Counter[str] = Counter()
+    trajectories = 0
+    first_ns, last_ns = None, None
+    with BagReader(path) as reader:
+        facts = reader.facts
+        for message in reader.messages():
+            counts[message.topic] += 1
+            first_ns = message.log_ns if first_ns is None else min(first_ns, message.log_ns)
+            last_ns = message.log_ns if last_ns is None else max(last_ns, message.log_ns)
+            item = decode(message, skipped)
+            if isinstance(item, Trajectory):
+                trajectories += 1
+            elif isinstance(item, Envelope):
+                key = (item.topic, item.source)
+                account = accounts.setdefault(key, SeqAccount(item.topic, item.source))
+                account.seqs.append(item.seq)
+                account.run_ids.add(item.run_id)
+                account.schemas[item.schema] += 1
+                schemas[item.schema] += 1
+    types = {t.topic: t.msgtype for t in facts.topics}
+    return {
+        "bag": str(facts.path),
+        "storage": facts.storage,
+        "rosbag2_version": facts.version,
+        "ros_distro": facts.ros_distro,
+        "compression": facts.compression,
+        "custom_data": facts.custom_data,
+        "messages": sum(counts.values()),
+        "start_ns": first_ns,
+        "end_ns": last_ns,
+        "start": _iso(first_ns),
+        "end": _iso(last_ns),
+        "duration_s": None if first_ns is None else (last_ns - first_ns) / 1e9,
+        "topics": [
+            {"topic": t.topic, "type": t.msgtype, "messages": counts.get(t.topic, 0)}
+            for t in facts.topics
+        ]
+        + [
+            {"topic": topic, "type": "?", "messages": count}
+            for topic, count in sorted(counts.items())
+            if topic not in types
+        ],
+        "publishers": [accounts[key].to_dict() for key in sorted(accounts)],
+        "schemas": dict(sorted(schemas.items())),
+        "trajectories": trajectories,
+        "skipped": skipped.to_dict(),
+    }
+
+
+def _iso(stamp_ns: int | None) -> str | None:
+    if stamp_ns is None:
+        return None
+    moment = datetime.fromtimestamp(stamp_ns / 1e9, UTC)
+    return moment.isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def format_info(info: dict[str, Any]) -> str:
+    """``info`` as text for people."""
+    lines = [
+        f"bag         {info['bag']}",
+        (
+            f"storage     {info['storage'] or '?'}, rosbag2 version "
+            f"{info['rosbag2_version'] or '?'}, ros_distro {info['ros_distro'] or '?'}, "
+            f"compression {info['compression'] or 'none'}"
+        ),
+    ]
+    if info["start_ns"] is None:
+        lines.append("messages    0")
+    else:
+        lines.append(
+            f"messages    {info['messages']} from {info['start']} to {info['end']} "
+            f"(duration {info['duration_s']:.3f} s)"
+        )
+    lines.append("run         " + (", ".join(
+        f"{key}={value}" for key, value in sorted(info["custom_data"].items())
+    ) or "no metadata"))  # fmt: skip
+    lines.append("topics")
+    width = max([len(t["topic"]) for t in info["topics"]] + [5])
+    for topic in info["topics"]:
+        lines.append(f"  {topic['topic']:<{width}}  {topic['type']:<38} {topic['messages']:>8}")
+    lines.append("publishers (seq per topic and source)")
+    if not info["publishers"]:
+        lines.append("  none")
+    for pub in info["publishers"]:
+        problems = [
+            f"{pub[key]} {key}"
+            for key in ("gaps", "missing", "duplicates", "reordered")
+            if pub[key]
+        ]
+        lines.append(
+            f"  {pub['topic']} from {pub['source']} (run {', '.join(pub['run_ids'])}): "
+            f"seq {pub['first_seq']}..{pub['last_seq']}, {pub['count']} messages, "
+            + (", ".join(problems) if problems else "no gaps")
+            + (f", {pub['leading']} before the first" if pub["leading"] else "")
+            + f"; {', '.join(pub['schemas'])}"
+        )
+    skipped = info["skipped"]
+    lines.append(f"skipped     {Skipped(Counter(skipped['reasons'])).line()}")
+    lines.extend(f"  {example}" for example in skipped["examples"])
+    return "\n".join(lines)
+
+
+# --- verify ----------------------------------------------------------------------------------
+
+
+@dataclass
+class VerifyReport:
+    """Counts of ``verify``."""
+
+    checked: int = 0
+    valid: int = 0
+    invalid: list[str] = field(default_factory=list)
+    disagreements: list[str] = field(default_factory=list)
+    unsolved: int = 0
+    unchecked: Skipped = field(default_factory=Skipped)
+
+
+def verify_bag(path: str | Path, report: VerifyReport) -> Skipped:
+    """Re-check every path of a bag (BenchRun records; episodes with their ``/lit/path``)."""
+    skipped = Skipped()
+    episodes: list[Envelope] = []
+    trajectories: list[Trajectory] = []
+    with BagReader(path) as reader:
+        for message in reader.messages():
+            item = decode(message, skipped)
+            if isinstance(item, Trajectory):
+                trajectories.append(item)
+            elif isinstance(item, Envelope) and item.schema == bag.BENCH_RUN_SCHEMA:
+                _verify_bench_run(item, report)
+            elif isinstance(item, Envelope) and item.schema == EPISODE_SCHEMA:
+                episodes.append(item)
+    for episode, path_item in _pair_episodes(episodes, trajectories, report):
+        payload = episode.payload
+        where = f"{episode.topic} seq {episode.seq}"
+        if path_item is None:
+            report.unsolved += 1
+            continue
+        scenario, instance = _episode_scenario(payload)
+        _check(report, where, scenario, instance, path_item, payload.get("path_valid"))
+    return skipped
+
+
+def _verify_bench_run(item: Envelope, report: VerifyReport) -> None:
+    record = item.payload
+    where = f"{item.topic} seq {item.seq}"
+    if not isinstance(record, dict):
+        report.unchecked.add("payload not an object", where)
+        return
+    if not record.get("solved") or not record.get("path"):
+        report.unsolved += 1
+        return
+    label = f"{where} ({record.get('planner')} run {record.get('run')})"
+    _check(
+        report,
+        label,
+        record.get("scenario"),
+        record.get("instance"),
+        record.get("path"),
+        record.get("path_valid"),
+    )
+
+
+def _episode_scenario(payload: dict[str, Any]) -> tuple[Any, Any]:
+    key = payload.get("scenario_key") or payload.get("scenario")
+    return key, (None if isinstance(key, str) and "/" in key else payload.get("instance"))
+
+
+def _pair_episodes(
+    episodes: list[Envelope], trajectories: list[Trajectory], report: VerifyReport
+) -> Iterator[tuple[Envelope, Any]]:
+    """Each episode with its path, or None when it has none (unsolved).
+
+    An episode's path is the ``/lit/path`` message of the same namespace whose ``frame_id`` is the
+    episode's ``episode_id`` (what the planner node writes), else the one recorded closest in time
+    among those not claimed by another episode's id; each path serves one episode.
+    """
+    by_namespace: dict[str, list[Trajectory]] = {}
+    for trajectory in sorted(trajectories, key=lambda t: t.log_ns):
+        namespace, _ = split_topic(trajectory.topic)
+        by_namespace.setdefault(namespace or "", []).append(trajectory)
+    ids = {
+        (e.namespace, e.payload.get("episode_id"))
+        for e in episodes
+        if isinstance(e.payload, dict) and e.payload.get("episode_id")
+    }
+    used: set[int] = set()
+    for episode in episodes:
+        payload = episode.payload
+        where = f"{episode.topic} seq {episode.seq}"
+        if not isinstance(payload, dict):
+            report.unchecked.add("payload not an object", where)
+            continue
+        candidates = by_namespace.get(episode.namespace, [])
+        episode_id = payload.get("episode_id")
+        match = next(
+            (
+                t
+                for t in candidates
+                if episode_id and t.frame_id == episode_id and id(t) not in used
+            ),
+            None,
+        )
+        if match is None:
+            free = [t for t in candidates if (episode.namespace, t.frame_id) not in ids]
+            index = _nearest_unused([t.log_ns for t in free], episode.log_ns, used, free)
+            match = None if index is None else free[index]
+        if match is not None:
+            used.add(id(match))
+        if payload.get("solved") is False:  # an approximate path is no solution to check
+            yield episode, None
+        elif match is not None and match.path:
+            yield episode, match.path
+        elif payload.get("solved"):
+            report.unchecked.add("solved episode without a recorded path", where)
+        else:
+            yield episode, None
+    for namespace, candidates in by_namespace.items():
+        for trajectory in candidates:
+            if id(trajectory) not in used and trajectory.path:
+                report.unchecked.add("path without an episode", f"{namespace}{PATH_TOPIC}")
+
+
+def _nearest_unused(
+    times: list[int], target: int, used: set[int], items: Sequence[object]
+) -> int | None:
+    position = bisect.bisect_left(times, target)
+    left, right = position - 1, position
+    while left >= 0 or right < len(times):
+        left_gap = target - times[left] if left >= 0 else math.inf
+        right_gap = times[right] - target if right < len(times) else math.inf
+        index = left if left_gap <= right_gap else right
+        if id(items[index]) not in used:
+            return index
+        if index == left:
+            left -= 1
+        else:
+            right += 1
+    return None
+
+
+def _check(
+    report: VerifyReport,
+    where: str,
+    scenario_name: Any,
+    instance: Any,
+    path: Any,
+    recorded_valid: Any,
+) -> None:
+    if not isinstance(scenario_name, str):
+        report.unchecked.add("no scenario name", where)
+        return
+    try:
+        world = scenarios.get(scenario_name, instance if isinstance(instance, int) else None)
+        check = scenarios.check_path(world, path)
+    except (LitPlannerError, ValueError, TypeError) as error:
+        report.unchecked.add("cannot check", where, _describe(error))
+        return
+    report.checked += 1
+    if check.ok:
+        report.valid += 1
+    else:
+        if not check.valid:
+            reason = (
+                f"segment {check.first_invalid_index} leaves the free space at "
+                f"({', '.join(f'{x:.4g}' for x in check.first_invalid_point or ())})"
+            )
+        else:
+            reason = "does not start at the start" if not check.starts_at_start else ""
+            reason = reason or "does not end at the goal"
+        report.invalid.append(f"{where}: {world.key}: {reason}")
+    if isinstance(recorded_valid, bool) and recorded_valid != check.ok:
+        report.disagreements.append(
+            f"{where}: recorded path_valid={recorded_valid}, re-check says {check.ok}"
+        )
+
+
+# --- salvage ---------------------------------------------------------------------------------
+
+
+@dataclass
+class SalvageResult:
+    """What ``salvage`` read from one MCAP file."""
+
+    file: Path
+    """The file."""
+    size: int
+    """Its size in bytes."""
+    stopped_at: int = 0
+    """Byte offset where reading stopped: the end of the last readable record."""
+    complete: bool = False
+    """The footer was reached."""
+    reason: str = ""
+    """Why reading stopped."""
+    messages: dict[str, int] = field(default_factory=dict)
+    """Messages recovered per topic."""
+    dropped: int = 0
+    """Messages read but dropped: no channel or schema, a type unknown to the typestore, or
+    bytes that do not deserialize."""
+    damaged_chunks: list[str] = field(default_factory=list)
+    """Chunks whose inner records broke off (the records before the break are kept)."""
+
+
+class _StrictStream:
+    """A read-only file wrapper that counts bytes and raises on a short read (truncation)."""
+
+    def __init__(self, handle: Any) -> None:
+        self._handle = handle
+        self.position = 0
+
+    def read(self, size: int = -1) -> bytes:
+        data = self._handle.read(size)
+        self.position += len(data)
+        if size > 0 and len(data) < size:
+            raise EOFError(
+                f"end of file at byte {self.position} inside a record ({size} bytes wanted)"
+                if data
+                else f"end of file at byte {self.position}"
+            )
+        return bytes(data)
+
+
+@dataclass
+class _Salvaged:
+    """Records gathered from the files; messages are resolved against the channels at the end
+    (a damaged first chunk loses the channel records that the summary section repeats)."""
+
+    schemas: dict[int, Any] = field(default_factory=dict)
+    channels: dict[int, Any] = field(default_factory=dict)
+    messages: list[tuple[SalvageResult, int, int, bytes]] = field(default_factory=list)
+
+    def take(self, record: object, result: SalvageResult) -> None:
+        from mcap.records import Channel, Message, Schema
+
+        if isinstance(record, Schema):
+            self.schemas[record.id] = record
+        elif isinstance(record, Channel):
+            self.channels[record.id] = record
+        elif isinstance(record, Message):
+            self.messages.append((result, record.channel_id, record.log_time, record.data))
+
+
+def salvage(source: str | Path, out: str | Path | None = None) -> tuple[Path, list[SalvageResult]]:
+    """Read everything readable from a bag's MCAP file(s) and write it as a new, valid bag.
+
+    Each file is read with ``mcap``'s ``StreamReader`` up to the first record that cannot be
+    read (a truncation, a damaged record header); a chunk whose inner records break off keeps the
+    records before the break and reading goes on with the next chunk. Every message must belong to
+    a known channel and deserialize as its type.
+
+    Returns:
+        The new bag and, per file, where reading stopped and the messages recovered per topic.
+
+    Raises:
+        ReplayError: no bag there, the output exists, or nothing could be recovered.
+    """
+    source = Path(source)
+    files = _mcap_files(source)
+    if out is not None:
+        target = Path(out)
+    elif source.is_dir():
+        target = source.with_name(source.name + SALVAGED_SUFFIX)
+    else:
+        target = source.with_name(source.stem + SALVAGED_SUFFIX)
+    if target.exists():
+        raise ReplayError(f"{target} exists already; choose another output with -o")
+    gathered = _Salvaged()
+    results = [SalvageResult(path, path.stat().st_size) for path in files]
+    for result in results:
+        _read_mcap(result, gathered)
+    kept: list[tuple[Any, Any, int, bytes]] = []
+    for result, channel_id, log_ns, data in gathered.messages:
+        channel = gathered.channels.get(channel_id)
+        schema = gathered.schemas.get(channel.schema_id) if channel is not None else None
+        if channel is None or schema is None or not _cdr_ok(schema.name, data):
+            result.dropped += 1
+            continue
+        kept.append((channel, schema, log_ns, data))
+        result.messages[channel.topic] = result.messages.get(channel.topic, 0) + 1
+    if not kept:
+        where = "; ".join(f"{r.file}: stopped at byte {r.stopped_at}: {r.reason}" for r in results)
+        raise ReplayError(f"nothing to salvage from {source} ({where})")
+    _write_salvaged(target, source, kept, results)
+    return target, results
+
+
+def _mcap_files(source: Path) -> list[Path]:
+    if not source.exists():
+        raise ReplayError(f"{source}: no such file or directory")
+    if source.is_dir():
+        if not any(source.iterdir()):
+            raise ReplayError(f"{source} is an empty directory, not a bag")
+        files = sorted(source.glob("*.mcap"))
+        if not files:
+            raise ReplayError(f"{source} holds no .mcap file to salvage")
+    else:
+        files = [source]
+    for path in files:
+        if path.stat().st_size == 0:
+            raise ReplayError(f"{path} is an empty file")
+    return files
+
+
+def _read_mcap(result: SalvageResult, gathered: _Salvaged) -> None:
+    """Gather every readable record of ``result.file``; note where and why reading stopped."""
+    from mcap.records import Chunk, Footer
+    from mcap.stream_reader import StreamReader
+
+    with result.file.open("rb") as handle:
+        stream = _StrictStream(handle)
+        # The size limit keeps a damaged length field from allocating gigabytes.
+        source: Any = stream  # StreamReader only calls read(); its annotation lists file types
+        reader = StreamReader(source, emit_chunks=True, record_size_limit=max(1, result.size))
+        try:
+            for record in reader.records:
+                if isinstance(record, Chunk):
+                    try:
+                        for inner in _chunk_records(record):
+                            gathered.take(inner, result)
+                    except Exception as error:  # noqa: BLE001 -- damaged chunk content
+                        result.damaged_chunks.append(
+                            f"chunk ending at byte {stream.position}: {_describe(error)}"
+                        )
+                else:
+                    gathered.take(record, result)
+                result.stopped_at = stream.position
+                if isinstance(record, Footer):
+                    result.complete = True
+        except Exception as error:  # noqa: BLE001 -- truncation, bit flips: anything
+            if result.stopped_at == 0 and stream.position >= len(_MCAP_MAGIC):
+                result.stopped_at = _magic_length(result.file)
+            at_boundary = isinstance(error, EOFError) and stream.position == result.stopped_at
+            result.reason = (
+                "end of file without footer (the writer did not finish)"
+                if at_boundary
+                else _describe(error)
+            )
+            return
+        result.stopped_at = stream.position
+    result.reason = "complete file"
+
+
+def _magic_length(path: Path) -> int:
+    """8 when the file starts with the MCAP magic (read successfully), else 0."""
+    with path.open("rb") as handle:
+        return len(_MCAP_MAGIC) if handle.read(len(_MCAP_MAGIC)) == _MCAP_MAGIC else 0
+
+
+def _chunk_records(chunk: Any) -> Iterator[object]:
+    """The schema, channel and message records of a chunk, checked as they are read."""
+    import struct
+
+    from mcap.data_stream import ReadDataStream
+    from mcap.opcode import Opcode
+    from mcap.records import Channel, Message, Schema
+
+    if chunk.compression == "":
+        data = chunk.data
+    elif chunk.compression == "zstd":
+        import zstandard
+
+        data = zstandard.decompress(chunk.data, chunk.uncompressed_size)
+    else:
+        raise ValueError(f"chunk compression {chunk.compression!r} is not supported")
+    offset = 0
+    while offset < len(data):
+        if offset + 9 > len(data):
+            raise ValueError(f"record header cut off at chunk byte {offset}")
+        opcode, length = struct.unpack_from("<BQ", data, offset)
+        body = data[offset + 9 : offset + 9 + length]
+        if len(body) != length:
+            raise ValueError(f"record of {length} bytes at chunk byte {offset} overruns the chunk")
+        offset += 9 + length
+        stream = ReadDataStream(_StrictStream(_Bytes(body)))  # type: ignore[arg-type]
+        if opcode == Opcode.MESSAGE:
+            if length < 22:
+                raise ValueError(f"message record of {length} bytes is too short")
+            record = Message.read(stream, length)
+            if not chunk.message_start_time <= record.log_time <= chunk.message_end_time:
+                raise ValueError(f"message time {record.log_time} outside its chunk's range")
+            yield record
+        elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
+            parsed = Schema.read(stream) if opcode == Opcode.SCHEMA else Channel.read(stream)
+            if stream.count != length:
+                raise ValueError(f"{type(parsed).__name__} record length mismatch")
+            yield parsed
+
+
+class _Bytes:
+    def __init__(self, data: bytes) -> None:
+        self._data = memoryview(data)
+        self._offset = 0
+
+    def read(self, size: int = -1) -> bytes:
+        end = len(self._data) if size < 0 else self._offset + size
+        piece = bytes(self._data[self._offset : end])
+        self._offset += len(piece)
+        return piece
+
+
+def _cdr_ok(msgtype: str, data: bytes) -> bool:
+    """Whether ``data`` deserializes as ``msgtype`` (which the Jazzy typestore must know)."""
+    store = bag.typestore()
+    if msgtype not in store.types:
+        return False
+    try:
+        message = store.deserialize_cdr(data, msgtype)
+        if msgtype == bag.STRING_TYPE:
+            message.data.encode("utf-8")
+    except Exception:  # noqa: BLE001 -- damaged CDR raises anything
+        return False
+    return True
+
+
+def _write_salvaged(
+    target: Path, source: Path, kept: list[tuple[Any, Any, int, bytes]], results: list[Any]
+) -> None:
+    from rosbags.rosbag2.metadata import parse_qos
+
+    run_ids: set[str] = set()
+    for channel, schema, _, data in kept:
+        if schema.name == bag.STRING_TYPE and split_topic(channel.topic)[1]:
+            try:
+                text = bag.typestore().deserialize_cdr(data, bag.STRING_TYPE).data
+                run_ids.add(str(json.loads(text)["run_id"]))
+            except Exception:  # noqa: BLE001, S112 -- not an envelope: no run id from it
+                continue
+    custom = _salvaged_custom_data(source)
+    custom.setdefault(bag.RUN_ID_KEY, ",".join(sorted(run_ids)) or "unknown")
+    custom["lit.salvaged_from"] = str(source)
+    custom["lit.salvage"] = "; ".join(
+        f"{r.file.name}: {r.reason}, read {r.stopped_at} of {r.size} bytes" for r in results
+    )
+    writer = bag.ChunkedWriter(target)
+    for key, value in custom.items():
+        writer.set_custom_data(key, value)
+    try:
+        writer.open()
+    except Exception as error:  # noqa: BLE001 -- rosbags' WriterError, OSError
+        raise ReplayError(f"cannot create {target}: {_describe(error)}") from None
+    connections: dict[int, Any] = {}
+    try:
+        for channel, schema, log_ns, data in kept:
+            connection = connections.get(channel.id)
+            if connection is None:
+                qos_text = channel.metadata.get("offered_qos_profiles", "")
+                try:
+                    profiles = parse_qos(qos_text) if qos_text else []
+                except Exception:  # noqa: BLE001 -- a damaged profile: the default instead
+                    profiles = [bag.parse_qos(bag.DEFAULT_QOS)]
+                connection = writer.add_connection(
+                    channel.topic,
+                    schema.name,
+                    typestore=bag.typestore(),
+                    offered_qos_profiles=profiles,
+                )
+                connections[channel.id] = connection
+            writer.write(connection, log_ns, data)
+        writer.close()
+    except BaseException:
+        writer.abort()
+        raise
+
+
+def _salvaged_custom_data(source: Path) -> dict[str, str]:
+    metadata = (source if source.is_dir() else source.parent) / "metadata.yaml"
+    if not metadata.is_file():
+        return {}
+    try:
+        custom = _load_metadata(metadata).get("custom_data") or {}
+        return {str(k): str(v) for k, v in custom.items()}
+    except (ReplayError, AttributeError):
+        return {}
+
+
+# --- bench -----------------------------------------------------------------------------------
+
+
+@dataclass
+class BenchBag:
+    """The BenchConfig and BenchRun envelopes of the bags of one ``lit bench`` run."""
+
+    config: Envelope
+    runs: list[Envelope]
+    skipped: Skipped
+    missing: int
+
+
+def read_bench(paths: Sequence[str | Path]) -> BenchBag:
+    """The recorded config and run records, runs in recording order (bag order, then seq).
+
+    Raises:
+        ReplayError: no BenchConfig, configs that differ between bags, or no run record.
+    """
+    from lit_msgs_json import codec
+
+    skipped = Skipped()
+    config: Envelope | None = None
+    runs: list[Envelope] = []
+    missing = 0
+    for path in paths:
+        bag_config, bag_runs = None, []
+        with BagReader(path) as reader:
+            for message in reader.messages():
+                item = decode(message, skipped)
+                if not isinstance(item, Envelope):
+                    continue
+                if item.schema == bag.BENCH_CONFIG_SCHEMA and bag_config is None:
+                    bag_config = item
+                elif item.schema == bag.BENCH_RUN_SCHEMA:
+                    try:
+                        codec.validate("BenchRun", item.payload)
+                    except Exception as error:  # noqa: BLE001 -- SchemaError and kin
+                        skipped.add("invalid BenchRun", f"{item.topic} seq {item.seq}", str(error))
+                        continue
+                    bag_runs.append(item)
+        if bag_config is None:
+            raise ReplayError(f"{path}: no {bag.BENCH_CONFIG_TOPIC} message: not a lit bench bag")
+        if not isinstance(bag_config.payload, dict):
+            raise ReplayError(f"{path}: the {bag.BENCH_CONFIG_TOPIC} payload is not an object")
+        if config is not None and bag_config.payload.get("config") != config.payload.get("config"):
+            raise ReplayError(f"{path}: its bench configuration differs from that of {paths[0]}")
+        config = config or bag_config
+        bag_runs.sort(key=lambda e: e.seq)
+        seqs = [e.seq for e in bag_runs]
+        missing += sum(b - a - 1 for a, b in itertools.pairwise(seqs) if b > a + 1)
+        runs.extend(bag_runs)
+    assert config is not None
+    if not runs:
+        raise ReplayError(f"no usable {bag.BENCH_RUN_TOPIC} record in {', '.join(map(str, paths))}")
+    return BenchBag(config, runs, skipped, missing)
+
+
+def replay_bench(paths: Sequence[str | Path], out: Path) -> tuple[dict[str, Any], BenchBag]:
+    """Regenerate summary.json, summary.md and the plots of a recorded ``lit bench`` run.
+
+    Calls the very functions ``lit bench`` uses (:func:`lit_planner.bench.cli.write_outputs`), so
+    the same records give the same statistics.
+    """
+    from lit_planner.bench import cli as bench_cli
+    from lit_planner.bench import runner
+
+    recorded = read_bench(paths)
+    payload = recorded.config.payload
+    try:
+        settings = payload["config"]
+        config = runner.BenchConfig(
+            scenarios=tuple(settings["scenarios"]),
+            planners=tuple(settings["planners"]),
+            runs=int(settings["runs"]),
+            first_seed=int(settings["first_seed"]),
+            instance=int(settings["instance"]),
+            time_scale=float(settings["time_scale"]),
+            tensors_dir=Path(settings["tensors_dir"]),
+            check_jobs=int(settings["check_jobs"]),
+            skipped=tuple(runner.Skip(**skip) for skip in payload["skipped"]),
+        )
+        started = datetime.fromisoformat(payload["started"])
+        estimate = payload["estimate"]
+        environment = {key: payload[key] for key in ("cwd", "machine", "versions", "planners")}
+        requested = list(settings["planners_requested"])
+    except (KeyError, TypeError, ValueError) as error:
+        raise ReplayError(
+            f"{paths[0]}: malformed {bag.BENCH_CONFIG_TOPIC} payload: {_describe(error)}"
+        ) from None
+    last_ns = max(run.stamp_ns for run in recorded.runs)
+    finished = datetime.fromtimestamp(last_ns / 1e9, UTC)
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        summary = bench_cli.write_outputs(
+            out,
+            [run.payload for run in recorded.runs],
+            config,
+            preset=payload.get("preset"),
+            requested=requested,
+            started=started,
+            finished=finished,
+            duration=max(0.0, (last_ns - recorded.config.stamp_ns) / 1e9),
+            estimate=(float(estimate["planning_s"]), str(estimate["formula"])),
+            argv=list(payload["argv"]),
+            recorded=environment,
+        )
+    except LitPlannerError as error:
+        raise ReplayError(f"cannot regenerate the outputs: {error}") from None
+    return summary, recorded
+
+
+# --- command line ----------------------------------------------------------------------------
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Subcommands of ``lit replay``."""
+    sub = parser.add_subparsers(dest="replay_command", metavar="SUBCOMMAND", required=True)
+    info = sub.add_parser("info", help="topics, counts, time span, run metadata, seq accounting")
+    info.add_argument("bag", type=Path, metavar="BAG", help="bag directory or .mcap file")
+    info.add_argument("--json", action="store_true", help="print JSON")
+    verify = sub.add_parser("verify", help="re-check every recorded path against its world")
+    verify.add_argument("bags", type=Path, nargs="+", metavar="BAG")
+    rescue = sub.add_parser(
+        "salvage", help="recover the readable messages of a killed or damaged bag into a new bag"
+    )
+    rescue.add_argument("bag", type=Path, metavar="BAG")
+    rescue.add_argument(
+        "-o", "--out", type=Path, metavar="OUT", help=f"new bag (default: BAG{SALVAGED_SUFFIX})"
+    )
+    bench = sub.add_parser(
+        "bench", help="regenerate lit bench's summary.json, tables and plots from its bag(s)"
+    )
+    bench.add_argument("bags", type=Path, nargs="+", metavar="BAG")
+    bench.add_argument(
+        "--out", type=Path, metavar="DIR", help=f"output folder (default: <first BAG>/{REPLAY_DIR})"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run a ``lit replay`` subcommand: 0 success, 1 invalid paths (verify), 2 bad input."""
+    commands = {"info": _info, "verify": _verify, "salvage": _salvage, "bench": _bench}
+    try:
+        return commands[args.replay_command](args)
+    except ReplayError as error:
+        print(f"{PROG}: error: {error}", file=sys.stderr)
+        return 2
+    except Exception as error:  # bad input must never end in a traceback
+        if os.environ.get("LIT_REPLAY_DEBUG"):
+            raise
+        print(
+            f"{PROG}: error: {_describe(error)} (LIT_REPLAY_DEBUG=1 shows the traceback)",
+            file=sys.stderr,
+        )
+        return 2
+
+
+def _info(args: argparse.Namespace) -> int:
+    info = bag_info(args.bag)
+    if args.json:
+        print(json.dumps(info, indent=1))
+    else:
+        print(format_info(info))
+    return 0
+
+
+def _verify(args: argparse.Namespace) -> int:
+    report = VerifyReport()
+    skipped = Skipped()
+    for path in args.bags:
+        bag_skipped = verify_bag(path, report)
+        skipped.counts.update(bag_skipped.counts)
+        skipped.examples.extend(bag_skipped.examples[: skipped.max_examples])
+    for line in report.invalid:
+        print(f"INVALID  {line}")
+    for line in report.disagreements:
+        print(f"DIFFERS  {line}")
+    print(
+        f"{PROG} verify: {report.checked} paths checked: {report.valid} valid, "
+        f"{len(report.invalid)} invalid; {report.unsolved} runs without a path (unsolved); "
+        f"{report.unchecked.line().replace('skipped', 'not checkable')}; messages "
+        f"{skipped.line()}"
+    )
+    for example in report.unchecked.examples + skipped.examples[: skipped.max_examples]:
+        print(f"  {example}")
+    return 1 if report.invalid else 0
+
+
+def _salvage(args: argparse.Namespace) -> int:
+    target, results = salvage(args.bag, args.out)
+    total = 0
+    for result in results:
+        print(
+            f"{PROG} salvage: {result.file}: read {result.stopped_at} of {result.size} bytes; "
+            + (
+                "complete file"
+                if result.complete
+                else f"stopped at byte {result.stopped_at}: {result.reason}"
+            )
+            + (f"; {result.dropped} unusable messages dropped" if result.dropped else "")
+        )
+        for damage in result.damaged_chunks:
+            print(f"  damaged {damage}")
+        for topic, count in sorted(result.messages.items()):
+            print(f"  {topic}: {count} messages recovered")
+            total += count
+    print(f"{PROG} salvage: wrote {target} ({total} messages)")
+    return 0
+
+
+def _bench(args: argparse.Namespace) -> int:
+    first = Path(args.bags[0])
+    out = args.out
+    if out is None:
+        out = first / REPLAY_DIR if first.is_dir() else first.with_name(first.stem + "-replay")
+    summary, recorded = replay_bench(args.bags, Path(out))
+    if recorded.skipped.total:
+        print(f"{PROG} bench: {recorded.skipped.line()}", file=sys.stderr)
+    if recorded.missing:
+        print(
+            f"{PROG} bench: warning: {recorded.missing} run records missing (seq gaps); the "
+            "statistics cover the recorded ones only",
+            file=sys.stderr,
+        )
+    print(
+        f"{PROG} bench: {len(recorded.runs)} run records -> {out}/summary.json, summary.md, "
+        f"plots ({', '.join(summary['outputs']['plots']) or 'none'})"
+    )
+    return 0

@@ -1,0 +1,563 @@
+"""Bags and ``lit replay``: recording, reading back, seq accounting, salvage after SIGKILL,
+damaged files, bad input, path re-checks and the regeneration of ``lit bench``'s summary.
+
+Bags here are written by :class:`lit_planner.bag.BagRecorder`, except the checked-in sample
+``bags/samples/bench_np4`` (a real ``lit bench`` run).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import pytest
+from lit_planner.bag import BagRecorder, envelope
+
+from lit_planner import bag, replay, scenarios
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLE = ROOT / "bags" / "samples" / "bench_np4"
+ENV = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID="57")
+OBSERVATION = "lit_msgs_json/Observation"
+# The statistics of the live `lit bench` run that recorded SAMPLE (its summary.json).
+SAMPLE_STATISTICS = {
+    "runs": 2,
+    "solved": 2,
+    "success_rate": 1.0,
+    "invalid_paths": 0,
+    "t_init": {"median": 0.0028275515, "ci": None, "min": 0.002539694, "max": 0.003115409},
+    "c_init": {
+        "median": 1.3915876761360226,
+        "ci": None,
+        "min": 1.333767928493597,
+        "max": 1.4494074237784482,
+    },
+    "c_final": {
+        "median": 0.4978017366028667,
+        "ci": None,
+        "min": 0.49205873076239326,
+        "max": 0.5035447424433401,
+    },
+}
+
+
+def _replay(*args: str | Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "replay", *map(str, args)],
+        cwd=ROOT,
+        env=ENV,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+
+
+def _assert_clean_error(result: subprocess.CompletedProcess[str], fragment: str = "") -> None:
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert "Traceback" not in result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("lit replay: error: "), lines[0]
+    assert fragment in lines[0], lines[0]
+
+
+def _obs(seq: int, source: str = "planner", run_id: str = "r1", **fields: Any) -> str:
+    return envelope(OBSERVATION, seq, source, run_id, {"n": seq, **fields}, stamp_ns=seq)
+
+
+def _mcap(directory: Path) -> Path:
+    return directory / f"{directory.name}.mcap"
+
+
+def _numbered_bag(path: Path, count: int, *, chunk_bytes: int = 16 * 1024) -> Path:
+    """``count`` 1 KB observations with seq 0 … count-1, closed normally."""
+    with BagRecorder(path, run_id="numbered", chunk_bytes=chunk_bytes) as recorder:
+        recorder.add_topic("/lit/observation", bag.STRING_TYPE)
+        for seq in range(count):
+            recorder.write_string("/lit/observation", _obs(seq, filler="x" * 900), 10**9 + seq)
+    return path
+
+
+def _recovered(stdout: str) -> int:
+    return sum(int(n) for n in re.findall(r"(\d+) messages recovered", stdout))
+
+
+# --- recording and reading back ------------------------------------------------------------
+
+
+@pytest.fixture
+def mixed_bag(tmp_path: Path) -> Path:
+    """Seq gaps and duplicates, a namespaced topic, a path, and three messages to skip."""
+    path = tmp_path / "mixed"
+    with BagRecorder(path, run_id="r1", metadata={"lit.note": "test"}) as recorder:
+        recorder.add_topic("/lit/observation", bag.STRING_TYPE)
+        recorder.add_topic("/robot1/lit/decision", bag.STRING_TYPE, qos="reliable-keep-last-10")
+        recorder.add_topic("/lit/path", bag.TRAJECTORY_TYPE)
+        recorder.add_topic("/chatter", bag.STRING_TYPE)
+        for seq in (0, 1, 2, 4):  # one gap, one missing message
+            recorder.write_string("/lit/observation", _obs(seq), 100 + seq)
+        for seq in (0, 1, 1, 2):  # one duplicate
+            text = envelope("lit_msgs_json/Decision", seq, "planner", "r1", {}, stamp_ns=seq)
+            recorder.write_string("/robot1/lit/decision", text, 200 + seq)
+        recorder.write_trajectory("/lit/path", [[0.0, 0.1], [0.2, 0.3]], 300)
+        recorder.write_string("/chatter", "hello", 301)  # foreign topic
+        unknown = envelope("lit_msgs_json/NoSuchThing", 0, "planner", "r1", {}, stamp_ns=1)
+        recorder.write_string("/lit/observation", unknown, 302)
+        newer = json.loads(_obs(5))
+        newer["version"] = 2
+        recorder.write_string("/lit/observation", json.dumps(newer), 303)
+        assert recorder.messages == 12
+    return path
+
+
+def test_info_counts_topics_and_seq_gaps(mixed_bag: Path) -> None:
+    result = _replay("info", mixed_bag, "--json")
+    assert result.returncode == 0, result.stderr
+    info = json.loads(result.stdout)
+    counts = {t["topic"]: (t["type"], t["messages"]) for t in info["topics"]}
+    assert counts == {
+        "/chatter": (bag.STRING_TYPE, 1),
+        "/lit/observation": (bag.STRING_TYPE, 6),
+        "/lit/path": (bag.TRAJECTORY_TYPE, 1),
+        "/robot1/lit/decision": (bag.STRING_TYPE, 4),
+    }
+    assert info["messages"] == 12
+    assert (info["start_ns"], info["end_ns"]) == (100, 303)
+    assert info["rosbag2_version"] == 9 and info["storage"] == "mcap"
+    assert info["custom_data"]["lit.run_id"] == "r1"
+    assert info["custom_data"]["lit.note"] == "test"
+    assert {"lit.command", "lit.git_commit"} <= set(info["custom_data"])
+    publishers = {p["topic"]: p for p in info["publishers"]}
+    observation = publishers["/lit/observation"]
+    assert (observation["first_seq"], observation["last_seq"], observation["count"]) == (0, 4, 4)
+    assert (observation["gaps"], observation["missing"], observation["duplicates"]) == (1, 1, 0)
+    decision = publishers["/robot1/lit/decision"]
+    assert (decision["gaps"], decision["missing"], decision["duplicates"]) == (0, 0, 1)
+    assert info["schemas"] == {"lit_msgs_json/Decision": 4, OBSERVATION: 4}
+    assert info["trajectories"] == 1
+    assert info["skipped"]["reasons"] == {
+        "foreign topic": 1,
+        "unknown schema": 1,
+        "unsupported version": 1,
+    }
+    text = _replay("info", mixed_bag)
+    assert text.returncode == 0, text.stderr
+    assert "seq 0..4, 4 messages, 1 gaps, 1 missing" in text.stdout
+    assert "3 skipped" in text.stdout
+
+
+def test_bag_reads_with_rosbags_mcap_and_metadata(mixed_bag: Path) -> None:
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    from rosbags.rosbag2 import Reader
+    from ruamel.yaml import YAML
+
+    store = bag.typestore()
+    with Reader(mixed_bag) as reader:
+        texts = [
+            store.deserialize_cdr(raw, c.msgtype).data
+            for c, _, raw in reader.messages()
+            if c.topic == "/lit/observation"
+        ]
+    assert [json.loads(t)["seq"] for t in texts[:4]] == [0, 1, 2, 4]
+    with _mcap(mixed_bag).open("rb") as handle:
+        decoded = {
+            channel.topic: message
+            for _, channel, _, message in make_reader(
+                handle, decoder_factories=[DecoderFactory()]
+            ).iter_decoded_messages()
+        }
+    assert list(decoded["/lit/path"].points[1].positions) == [0.2, 0.3]
+    assert decoded["/lit/path"].joint_names == ["q0", "q1"]
+    assert decoded["/chatter"].data == "hello"
+    meta = YAML(typ="safe").load((mixed_bag / "metadata.yaml").read_text())
+    info = meta["rosbag2_bagfile_information"]
+    assert info["version"] == 9 and info["storage_identifier"] == "mcap"
+    assert info["compression_mode"] == "" and info["custom_data"]["lit.run_id"] == "r1"
+    qos = {
+        t["topic_metadata"]["name"]: t["topic_metadata"]["offered_qos_profiles"][0]
+        for t in info["topics_with_message_count"]
+    }
+    assert qos["/lit/observation"]["history"] == "keep_all"
+    assert qos["/lit/observation"]["reliability"] == "reliable"
+    assert qos["/lit/observation"]["durability"] == "volatile"
+    assert (qos["/robot1/lit/decision"]["history"], qos["/robot1/lit/decision"]["depth"]) == (
+        "keep_last",
+        10,
+    )
+
+
+def test_recorder_rejects_bad_use(tmp_path: Path) -> None:
+    with BagRecorder(tmp_path / "b", run_id="r") as recorder:
+        with pytest.raises(ValueError, match="not supported"):
+            recorder.add_topic("/lit/x", "sensor_msgs/msg/Image")
+        with pytest.raises(bag.BagError, match="QoS"):
+            recorder.add_topic("/lit/x", bag.STRING_TYPE, qos="sometimes")
+        with pytest.raises(bag.BagError, match="not added"):
+            recorder.write_string("/lit/y", "{}", 1)
+    recorder.close()  # idempotent
+    with pytest.raises(bag.BagError, match="exists already"):
+        BagRecorder(tmp_path / "b", run_id="r")
+
+
+def test_recorder_is_thread_safe(tmp_path: Path) -> None:
+    import threading
+
+    with BagRecorder(tmp_path / "threads", run_id="t", chunk_bytes=4096) as recorder:
+        recorder.add_topic("/lit/observation", bag.STRING_TYPE)
+
+        def publish(source: str) -> None:
+            for seq in range(500):
+                recorder.write_string("/lit/observation", _obs(seq, source), 10**9 + seq)
+
+        threads = [threading.Thread(target=publish, args=(f"p{i}",)) for i in range(4)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    assert recorder.messages == 2000
+    info = replay.bag_info(tmp_path / "threads")
+    assert [(p["source"], p["count"], p["gaps"]) for p in info["publishers"]] == [
+        (f"p{i}", 500, 0) for i in range(4)
+    ]
+
+
+# --- crash loss and salvage ----------------------------------------------------------------
+
+WRITER = textwrap.dedent(
+    """
+    import sys, time
+    from lit_planner.bag import BagRecorder, envelope
+
+    recorder = BagRecorder(sys.argv[1], run_id="killed")
+    recorder.add_topic("/lit/observation", "std_msgs/msg/String")
+    seq = 0
+    while True:
+        text = envelope("lit_msgs_json/Observation", seq, "planner", "killed", {"f": "x" * 900})
+        recorder.write_string("/lit/observation", text, time.time_ns())
+        seq += 1
+        print(seq, flush=True)  # confirmed: write_string returned
+        time.sleep(0.0002)
+    """
+)
+
+
+def test_salvage_after_sigkill(tmp_path: Path) -> None:
+    confirmed_target = 300
+    script = tmp_path / "writer.py"
+    script.write_text(WRITER)
+    killed = tmp_path / "killed"
+    child = subprocess.Popen(
+        [sys.executable, str(script), str(killed)],
+        stdout=subprocess.PIPE,
+        text=True,
+        env=ENV,
+        cwd=ROOT,
+    )
+    try:
+        confirmed = 0
+        assert child.stdout is not None
+        for line in child.stdout:
+            confirmed = int(line)
+            if confirmed >= confirmed_target:
+                break
+        os.kill(child.pid, signal.SIGKILL)
+    finally:
+        child.kill()
+        child.wait(timeout=30)
+    assert confirmed >= confirmed_target
+    assert not (killed / "metadata.yaml").exists()
+    _assert_clean_error(_replay("info", killed), "lit replay salvage")
+
+    result = _replay("salvage", killed)
+    assert result.returncode == 0, result.stderr
+    recovered = _recovered(result.stdout)
+    record = len(_obs(0, filler="x" * 900)) + 31  # message record: CDR (about the text) + header
+    per_chunk = bag.DEFAULT_CHUNK_BYTES // record + 1
+    assert recovered >= confirmed - per_chunk, result.stdout
+    assert "the writer did not finish" in result.stdout
+    salvaged = tmp_path / "killed-salvaged"
+    from rosbags.rosbag2 import Reader
+
+    with Reader(salvaged) as reader:
+        assert reader.message_count == recovered
+    info = replay.bag_info(salvaged)
+    (publisher,) = info["publishers"]
+    assert (publisher["first_seq"], publisher["last_seq"]) == (0, recovered - 1)
+    assert publisher["gaps"] == 0
+    assert info["custom_data"]["lit.run_id"] == "killed"
+    assert "lit.salvaged_from" in info["custom_data"]
+
+
+def test_salvage_truncated_and_bit_flipped(tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+
+    source = _numbered_bag(tmp_path / "source", 300)
+    with _mcap(source).open("rb") as handle:
+        chunks = sorted(
+            c.chunk_start_offset for c in make_reader(handle).get_summary().chunk_indexes
+        )
+    data = _mcap(source).read_bytes()
+    assert len(chunks) >= 5
+
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) // 2])
+    result = _replay("salvage", cut)
+    assert result.returncode == 0, result.stderr
+    recovered = _recovered(result.stdout)
+    assert 0 < recovered < 300
+    stopped = int(re.search(r"stopped at byte (\d+)", result.stdout).group(1))  # type: ignore[union-attr]
+    assert stopped <= len(data) // 2
+    info = replay.bag_info(tmp_path / "cut-salvaged")
+    assert info["publishers"][0]["last_seq"] == recovered - 1
+
+    # A damaged length inside chunk 2: that chunk is lost, reading goes on.
+    inner = bytearray(data)
+    inner[chunks[1] + 49 + 8] ^= 0x40  # high byte of the first inner record's length
+    (tmp_path / "inner.mcap").write_bytes(bytes(inner))
+    result = _replay("salvage", tmp_path / "inner.mcap")
+    assert result.returncode == 0, result.stderr
+    assert "damaged chunk" in result.stdout and "complete file" in result.stdout
+    assert 200 < _recovered(result.stdout) < 300
+
+    # A damaged length of chunk 3's record: reading stops there.
+    outer = bytearray(data)
+    outer[chunks[2] + 8] ^= 0x01  # high byte of the record length
+    (tmp_path / "outer.mcap").write_bytes(bytes(outer))
+    result = _replay("salvage", tmp_path / "outer.mcap")
+    assert result.returncode == 0, result.stderr
+    assert f"stopped at byte {chunks[2]}" in result.stdout
+    before = replay.bag_info(tmp_path / "outer-salvaged")["publishers"][0]
+    assert (before["first_seq"], before["gaps"]) == (0, 0)
+    assert 0 < before["count"] < 300
+
+    # A damaged MCAP footer: the normal readers fail cleanly, salvage gets everything.
+    footer = bytearray(data)
+    footer[-8 - 20 + 7] ^= 0x01  # high byte of the footer's summary offset
+    (tmp_path / "footer.mcap").write_bytes(bytes(footer))
+    assert _replay("info", tmp_path / "footer.mcap").returncode == 2
+    result = _replay("salvage", tmp_path / "footer.mcap")
+    assert result.returncode == 0 and _recovered(result.stdout) == 300, result.stdout
+
+
+# --- bad input -----------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def bad_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    base = tmp_path_factory.mktemp("bad")
+    good = _numbered_bag(base / "good", 50, chunk_bytes=8 * 1024)
+    data = _mcap(good).read_bytes()
+    (base / "empty_dir").mkdir()
+    (base / "empty.mcap").touch()
+    (base / "cut.mcap").write_bytes(data[:20])
+    flipped = bytearray(data)
+    flipped[15] ^= 0x01  # high byte of the MCAP header record's length
+    (base / "flipped.mcap").write_bytes(bytes(flipped))
+    (base / "notes.txt").write_text("not a bag")
+    return {
+        "missing": base / "missing",
+        "empty directory": base / "empty_dir",
+        "empty file": base / "empty.mcap",
+        "truncated": base / "cut.mcap",
+        "bit flip": base / "flipped.mcap",
+        "not a bag": base / "notes.txt",
+    }
+
+
+@pytest.mark.parametrize("command", ["info", "verify", "bench", "salvage"])
+def test_bad_input_is_one_line_exit_2(command: str, bad_inputs: dict[str, Path]) -> None:
+    expected = {
+        "missing": "no such file or directory",
+        "empty directory": "empty directory",
+        "empty file": "empty file",
+        "truncated": "",
+        "bit flip": "",
+        "not a bag": "",
+    }
+    for case, path in bad_inputs.items():
+        result = _replay(command, path)
+        try:
+            _assert_clean_error(result, expected[case])
+        except AssertionError as error:
+            raise AssertionError(f"{command} {case}: {error}") from None
+
+
+def test_killed_bag_without_mcap_or_metadata(tmp_path: Path) -> None:
+    (tmp_path / "x").mkdir()
+    (tmp_path / "x" / "readme").write_text("hi")
+    _assert_clean_error(_replay("info", tmp_path / "x"), "not a bag")
+    _assert_clean_error(_replay("salvage", tmp_path / "x"), "no .mcap file")
+    (tmp_path / "out").mkdir()
+    good = _numbered_bag(tmp_path / "good", 3)
+    _assert_clean_error(_replay("salvage", good, "-o", tmp_path / "out"), "exists already")
+
+
+# --- verify --------------------------------------------------------------------------------
+
+
+def test_verify_flags_invalid_paths(tmp_path: Path) -> None:
+    world = scenarios.get("np4")
+    through_wall = [list(world.start), list(world.goal)]  # straight through the wall
+    x1 = 0.1  # inside the passage's free x1 interval (0.05, 0.15)
+    around = [
+        list(world.start),
+        [-0.15, x1, 0.0, 0.0],
+        [0.15, x1, 0.0, 0.0],
+        list(world.goal),
+    ]
+    assert scenarios.check_path(world, around).ok
+    record = {"scenario": "np4", "instance": 0, "solved": True, "planner": "x", "run": 0}
+    bench_bag = tmp_path / "bench"
+    with BagRecorder(bench_bag, run_id="v") as recorder:
+        recorder.add_topic(bag.BENCH_RUN_TOPIC, bag.STRING_TYPE)
+        for seq, (path, claimed) in enumerate([(through_wall, True), (around, True)]):
+            payload = {**record, "path": path, "path_valid": claimed}
+            text = envelope(bag.BENCH_RUN_SCHEMA, seq, "lit_bench", "v", payload, stamp_ns=seq)
+            recorder.write_string(bag.BENCH_RUN_TOPIC, text, 10 + seq)
+    episode_bag = tmp_path / "episodes"
+    with BagRecorder(episode_bag, run_id="e") as recorder:
+        recorder.add_topic("/robot1/lit/episode", bag.STRING_TYPE)
+        recorder.add_topic("/robot1/lit/path", bag.TRAJECTORY_TYPE)
+        # As the planner node publishes: the summary, then the path with frame_id = episode_id.
+        # Episode 2 is unsolved: its (approximate) path is not a solution to check.
+        for seq, (path, solved) in enumerate(
+            [(around, True), (through_wall, True), (around, False)]
+        ):
+            stamp = 1_000_000_000 * (seq + 1)
+            payload = {"episode_id": f"e/{seq}", "scenario": "np4", "instance": 0, "solved": solved}
+            text = envelope(replay.EPISODE_SCHEMA, seq, "planner", "e", payload, stamp_ns=stamp)
+            recorder.write_string("/robot1/lit/episode", text, stamp)
+            recorder.write_trajectory("/robot1/lit/path", path, stamp + 1000, frame_id=f"e/{seq}")
+    result = _replay("verify", bench_bag, episode_bag)
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "4 paths checked: 2 valid, 2 invalid; 1 runs without a path" in result.stdout
+    assert result.stdout.count("INVALID") == 2
+    assert "/lit/bench/run seq 0 (x run 0): np4: segment 0 leaves the free space" in result.stdout
+    assert "/robot1/lit/episode seq 1" in result.stdout
+    assert "DIFFERS  /lit/bench/run seq 0" in result.stdout  # recorded path_valid=True was wrong
+
+    sample = _replay("verify", SAMPLE)
+    assert sample.returncode == 0, sample.stdout + sample.stderr
+    assert "2 paths checked: 2 valid, 0 invalid" in sample.stdout
+
+
+# --- lit bench: record and replay ----------------------------------------------------------
+
+# Fields of summary.json that legitimately differ between the live run and its replay: the
+# bag holds no end-of-run message, so `finished` and `duration_s` (wall clock) come from the time
+# of the last run record. Everything else (statistics, curves, comparisons, runs, command, cwd,
+# machine, versions, planner setups, start time) is recorded in the bag and must be equal.
+WALL_CLOCK_FIELDS = ("finished", "duration_s")
+
+
+def _without(summary: dict[str, Any], fields: Sequence[str]) -> dict[str, Any]:
+    return {k: v for k, v in summary.items() if k not in fields}
+
+
+def test_bench_replay_reproduces_live_summary(tmp_path: Path) -> None:
+    out, bags = tmp_path / "live", tmp_path / "bags"
+    bench = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "bench",
+         "--scenarios", "np4", "--planners", "litstar-fixed,rrtconnect", "--runs", "2",
+         "--time-scale", "0.1", "--check-jobs", "1", "--out", str(out), "--bag-dir", str(bags)],
+        cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=300, check=False,
+    )  # fmt: skip
+    assert bench.returncode == 0, bench.stderr
+    recorded = bags / "live"
+    assert (recorded / "metadata.yaml").is_file()
+    info = replay.bag_info(recorded)
+    runs = next(p for p in info["publishers"] if p["topic"] == bag.BENCH_RUN_TOPIC)
+    assert (runs["first_seq"], runs["last_seq"], runs["gaps"]) == (0, 3, 0)
+    assert info["custom_data"]["lit.run_id"] == "live"
+
+    result = _replay("bench", recorded, "--out", tmp_path / "replayed")
+    assert result.returncode == 0, result.stderr
+    live = json.loads((out / "summary.json").read_text())
+    again = json.loads((tmp_path / "replayed" / "summary.json").read_text())
+    assert _without(again, WALL_CLOCK_FIELDS) == _without(live, WALL_CLOCK_FIELDS)
+    assert (tmp_path / "replayed" / "plots" / "np4.png").is_file()
+    live_md = (out / "summary.md").read_text().splitlines()
+    again_md = (tmp_path / "replayed" / "summary.md").read_text().splitlines()
+    assert [a for a, b in zip(live_md, again_md, strict=True) if a != b] == [live_md[4]]
+
+    # The default folder: <bag>/replay.
+    assert _replay("bench", recorded).returncode == 0
+    assert (recorded / "replay" / "summary.json").is_file()
+
+
+def test_sample_bag_info_and_bench_replay(tmp_path: Path) -> None:
+    assert sum(f.stat().st_size for f in SAMPLE.iterdir()) < 200_000
+    info = replay.bag_info(SAMPLE)
+    assert {t["topic"]: t["messages"] for t in info["topics"]} == {
+        bag.BENCH_CONFIG_TOPIC: 1,
+        bag.BENCH_RUN_TOPIC: 2,
+    }
+    assert all(p["gaps"] == 0 and p["duplicates"] == 0 for p in info["publishers"])
+    assert info["skipped"]["total"] == 0
+
+    result = _replay("bench", SAMPLE, "--out", tmp_path / "out")
+    assert result.returncode == 0, result.stderr
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["scenarios"]["np4"]["planners"]["litstar-fixed"] == SAMPLE_STATISTICS
+
+
+def test_bench_replay_counts_skipped_messages(tmp_path: Path) -> None:
+    """A bench bag with a foreign topic, an unknown schema and a newer version: skipped, counted,
+    and the statistics stay those of the recorded runs."""
+    from rosbags.rosbag2 import Reader
+
+    extended = tmp_path / "extended"
+    with Reader(SAMPLE) as reader, BagRecorder(extended, run_id="x") as recorder:
+        for connection in reader.connections:
+            recorder.add_topic(connection.topic, connection.msgtype)
+        recorder.add_topic("/tf", bag.STRING_TYPE)
+        for connection, stamp, raw in reader.messages():
+            recorder.write_raw(connection.topic, raw, stamp)
+        recorder.write_string("/tf", "{}", stamp + 1)
+        strange = envelope("lit_msgs_json/Unheard", 9, "lit_bench", "x", {}, stamp_ns=1)
+        recorder.write_string(bag.BENCH_RUN_TOPIC, strange, stamp + 2)
+        newer = json.loads(envelope(bag.BENCH_RUN_SCHEMA, 2, "lit_bench", "x", {}, stamp_ns=1))
+        newer["version"] = 7
+        recorder.write_string(bag.BENCH_RUN_TOPIC, json.dumps(newer), stamp + 3)
+    result = _replay("bench", extended, "--out", tmp_path / "out")
+    assert result.returncode == 0, result.stderr
+    assert "3 skipped" in result.stderr and "unsupported version" in result.stderr
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["scenarios"]["np4"]["planners"]["litstar-fixed"] == SAMPLE_STATISTICS
+    info = _replay("info", extended)
+    assert "3 skipped: " in info.stdout
+    verify = _replay("verify", extended)
+    assert verify.returncode == 0 and "messages 3 skipped" in verify.stdout
+
+    # Not a bench bag at all.
+    plain = _numbered_bag(tmp_path / "plain", 3)
+    _assert_clean_error(_replay("bench", plain), "not a lit bench bag")
+
+
+def test_killed_bench_bag_is_recoverable(tmp_path: Path) -> None:
+    """Bench records are flushed per scenario: a bag never closed still salvages to the records."""
+    salvaged = tmp_path / "sample-salvaged"
+    copy = tmp_path / SAMPLE.name
+    shutil.copytree(SAMPLE, copy)
+    (copy / "metadata.yaml").unlink()
+    data = _mcap(copy).read_bytes()
+    summary_start = int.from_bytes(data[-28:-20], "little")  # the footer's first field
+    _mcap(copy).write_bytes(data[: summary_start - 13])  # no DataEnd, summary or footer
+    _assert_clean_error(_replay("bench", copy), "lit replay salvage")
+    result = _replay("salvage", copy, "-o", salvaged)
+    assert result.returncode == 0, result.stderr
+    assert _recovered(result.stdout) == 3
+    assert "the writer did not finish" in result.stdout
+    replayed = _replay("bench", salvaged, "--out", tmp_path / "out")
+    assert replayed.returncode == 0, replayed.stderr
