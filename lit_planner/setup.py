@@ -28,6 +28,7 @@ setup(
             # on a ROS install).
             "lit = lit_planner.cli:main",
             "lit_planner_node = lit_planner.node:main",
+            "lit_recorder_node = lit_planner.recorder:main",
         ],
     },
 )

@@ -101,20 +101,27 @@ def run(args: argparse.Namespace) -> int:
             return _call_export(node, args)
         caller = ServiceCaller(node, name)
         if not caller.wait(args.wait):
-            print(f"lit call: error: service {name} not found within {args.wait:g} s "
-                  f"(ROS_DOMAIN_ID={_domain()})", file=sys.stderr)
+            print(
+                f"lit call: error: service {name} not found within {args.wait:g} s "
+                f"(ROS_DOMAIN_ID={_domain()})",
+                file=sys.stderr,
+            )
             return 2
         started = time.perf_counter()
         answer = caller.call(text, args.timeout)
         elapsed = time.perf_counter() - started
         if answer is None:
-            print(f"lit call: error: {name} did not answer within {args.timeout:g} s",
-                  file=sys.stderr)
+            print(
+                f"lit call: error: {name} did not answer within {args.timeout:g} s", file=sys.stderr
+            )
             return 2
         success, message = answer
         _print(message, args.payload_only)
-        print(f"lit call: {name} answered in {elapsed * 1e3:.1f} ms "
-              f"({'success' if success else 'error'})", file=sys.stderr)
+        print(
+            f"lit call: {name} answered in {elapsed * 1e3:.1f} ms "
+            f"({'success' if success else 'error'})",
+            file=sys.stderr,
+        )
         return 0 if success else 1
     finally:
         # Stop the spinning thread before tearing down (a joinable C++ thread at exit aborts).
@@ -139,7 +146,8 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
                 payload.update(document)
             else:
                 payload["world"] = {
-                    k: document[k] for k in ("lower", "upper", "boxes", "resolution")
+                    k: document[k]
+                    for k in ("lower", "upper", "boxes", "resolution")
                     if k in document
                 }
                 for key in ("start", "goal"):

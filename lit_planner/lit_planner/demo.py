@@ -1,18 +1,30 @@
-"""``lit demo``: the main job. For now: plan the default scenario (narrow passage in R^8) with LIT*
-and print what happened: times, costs against the known optimum, counts, and the independent
-re-check of the path.
+"""``lit demo``: the main job, as the distributed system a user would run.
 
-Later issues extend the job (planner and learner nodes, a recorded bag, a summary table); each
-step is one small function called from :func:`run`.
+1. The bag recorder, the learner and a planner start as three ROS 2 processes (:mod:`lit_up`'s
+   :class:`~lit_planner.up.System`; localhost discovery, their own domain id).
+2. The planner runs a few training episodes over ROS: each B / psi_K decision is a call to the
+   learner's ``/lit/learner/decide``; the learner trains at episode ends.
+3. This process then calls ``/lit/planner/plan`` as any robot program would: inference plans on the
+   default scenario (narrow passage in R^8) with the shipped tensors, and re-checks each returned
+   path itself.
+4. Everything is stopped in order; the bag under ``bags/<run>/`` is summarised with
+   ``lit replay info`` and the results are printed as a table.
+
+``--local`` runs the single-process version instead (plan once with the C++ core, no ROS).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
+import math
+import os
 import sys
-from typing import Any
-
-import lit_core
+import threading
+import time
+from pathlib import Path
+from typing import Any, Self
 
 from lit_planner import plan_cli, planning, scenarios
 from lit_planner.errors import LitPlannerError
@@ -20,6 +32,8 @@ from lit_planner.scenarios import Scenario
 
 DEMO_PLANNER = planning.LITSTAR
 """The planner the demo runs."""
+DEMO_DOMAIN_ID = 91
+"""Default ROS domain of the demo (its own, so it does not meet a running ``lit up``)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,36 +41,50 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--scenario",
         default=scenarios.DEFAULT_SCENARIO,
-        help="scenario name (default: %(default)s, the narrow passage in R^8)",
+        help="scenario of the inference plans (default: %(default)s, the narrow passage in R^8)",
     )
     parser.add_argument(
         "--policy",
-        default=planning.DEFAULT_POLICY,
+        default="tensor",
         choices=planning.NAMED_POLICIES,
-        help="LIT*'s parameter policy (default: %(default)s)",
+        help="LIT*'s policy for the inference plans (default: %(default)s)",
     )
-    parser.add_argument("--seed", type=int, default=1, help="seed (default: %(default)s)")
+    parser.add_argument("--seed", type=int, default=1, help="first seed (default: %(default)s)")
     parser.add_argument(
-        "--time", type=float, metavar="SECONDS", help="time budget (default: the scenario's)"
+        "--time", type=float, metavar="SECONDS", help="inference time budget (default: scenario's)"
     )
+    parser.add_argument("--training-episodes", type=int, default=4)
+    parser.add_argument("--training-budget", type=float, default=0.3, metavar="SECONDS")
+    parser.add_argument("--plans", type=int, default=3, help="inference plans (default 3)")
+    parser.add_argument(
+        "--domain-id",
+        type=int,
+        default=int(os.environ.get("ROS_DOMAIN_ID", DEMO_DOMAIN_ID)),
+        help="ROS domain of the run (default: $ROS_DOMAIN_ID, else %(default)s)",
+    )
+    parser.add_argument("--local", action="store_true", help="one process, no ROS: plan once")
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the demo; 0 when the plan is solved and its path passes the re-check."""
+    """Run the demo; 0 when every inference plan is solved and its path passes the re-check."""
     try:
         scenario = scenarios.get(args.scenario)
-        result = plan_scenario(scenario, args.policy, args.seed, args.time)
+        planning.check_seed(args.seed)
     except LitPlannerError as error:
         print(f"lit demo: {error}", file=sys.stderr)
         return plan_cli.EXIT_BAD_INPUT
-    print_summary(result, scenario)
-    check = result["path_check"]
-    return 0 if result["solved"] and check is not None and check["ok"] else 1
+    if args.local:
+        result = plan_scenario(scenario, args.policy, args.seed, args.time)
+        print_summary(result, scenario)
+        check = result["path_check"]
+        return 0 if result["solved"] and check is not None and check["ok"] else 1
+    return run_distributed(args, scenario)
 
 
 def plan_scenario(scenario: Scenario, policy: str, seed: int, time: float | None) -> dict[str, Any]:
     """Plan ``scenario`` with LIT* and ``policy`` on the scenario's budget unless ``time`` is set."""
-    planning.check_seed(seed)
+    import lit_core
+
     planning.quiet_ompl(DEMO_PLANNER)
     lit_core.set_global_seed(seed)
     return planning.plan(scenario, DEMO_PLANNER, policy, time=time, seed=seed)
@@ -66,3 +94,241 @@ def print_summary(result: dict[str, Any], scenario: Scenario) -> None:
     """The plan in a few lines."""
     print(f"LIT* demo: {result['planner']} on {scenario.key}")
     print("\n".join(plan_cli.summary_lines(result, scenario)))
+
+
+# ---------------------------------------------------------------------------- distributed
+
+
+def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
+    """Steps 1-4 of the module docstring."""
+    from lit_planner.bag import default_bag_root
+    from lit_planner.up import System
+
+    run_id = time.strftime("demo-%Y%m%d-%H%M%S")
+    runs = Path("runs") / run_id
+    bag = default_bag_root() / run_id
+    system = System(args.domain_id, Path.cwd(), echo=_quiet_echo)
+    print(f"lit demo: run {run_id}, ROS_DOMAIN_ID={args.domain_id} (localhost discovery)")
+    print("  starting recorder, learner and planner as three processes ...", flush=True)
+    training: list[dict[str, Any]] = []
+    plans: list[tuple[int, dict[str, Any] | None, str]] = []
+    started = time.monotonic()
+    try:
+        system.start("recorder", "lit_recorder_node", {"bag": str(bag), "run_id": run_id})
+        system.wait_ready("recorder")
+        system.start(
+            "learner",
+            "lit_learner_node",
+            {
+                "checkpoint": str(runs / "learner" / "checkpoint.pt"),
+                "export_dir": str(runs / "learner" / "tensors"),
+                "run_id": run_id,
+            },
+        )
+        system.start(
+            "planner",
+            "lit_planner_node",
+            {
+                "policy": "training",
+                "episodes": args.training_episodes,
+                "time_budget": float(args.training_budget),
+                "run_id": run_id,
+                "learner_wait": 60.0,
+            },
+        )
+        system.wait_ready("learner")
+        system.wait_ready("planner")
+        with _Client(system) as client:
+            print(
+                f"  training: {args.training_episodes} episodes over ROS "
+                f"({args.training_budget:g} s planner time each) ...",
+                flush=True,
+            )
+            training = client.wait_episodes(args.training_episodes, timeout=600.0)
+            for i in range(args.plans):
+                seed = args.seed + i
+                payload = {"scenario": scenario.key, "policy": args.policy, "seed": seed}
+                if args.time is not None:
+                    payload["time"] = args.time
+                print(f"  inference: /lit/planner/plan {json.dumps(payload)}", flush=True)
+                plans.append((seed, *client.plan(payload)))
+    except (RuntimeError, TimeoutError) as error:
+        print(f"lit demo: {error}", file=sys.stderr)
+        system.stop()
+        return 1
+    finally:
+        codes = system.stop()
+    wall = time.monotonic() - started
+    return _report(scenario, training, plans, codes, bag, wall)
+
+
+def _quiet_echo(line: str) -> None:
+    """Show the nodes' warnings and errors only (the demo prints its own account)."""
+    if "[WARN]" in line or "[ERROR]" in line or "Traceback" in line:
+        print(f"    {line}", flush=True)
+
+
+class _Client:
+    """This process's own node: subscribes to episodes, calls the plan service."""
+
+    def __init__(self, system: Any) -> None:
+        self.system = system
+
+    def __enter__(self) -> Self:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from std_msgs.msg import String
+
+        from lit_planner.rosutil import PLAN_SERVICE, ServiceCaller, json_qos
+
+        os.environ.update({k: v for k, v in self.system.env.items() if k.startswith("ROS_")})
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node("lit_demo", context=self.context)
+        self.episodes: list[dict[str, Any]] = []
+        self.changed = threading.Condition()
+        self.node.create_subscription(String, "/lit/episode", self._on_episode, json_qos())
+        self.caller = ServiceCaller(self.node, "/" + PLAN_SERVICE)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
+        self.spinner.start()
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self.executor.shutdown(timeout_sec=1.0)
+        self.context.try_shutdown()
+        self.spinner.join(timeout=2.0)
+        self.node.destroy_node()
+
+    def _on_episode(self, message: Any) -> None:
+        from lit_msgs_json.envelope import MessageError, decode
+
+        try:
+            payload = decode(message.data, accept="EpisodeSummary").payload
+        except MessageError:
+            return
+        with self.changed:
+            self.episodes.append(payload)
+            self.changed.notify_all()
+
+    def wait_episodes(self, count: int, timeout: float) -> list[dict[str, Any]]:
+        deadline = time.monotonic() + timeout
+        with self.changed:
+            while sum(e["mode"] == "training" for e in self.episodes) < count:
+                if self.system.children["planner"].process.poll() is not None:
+                    raise RuntimeError("the planner node exited during training")
+                if not self.changed.wait(min(1.0, max(0.0, deadline - time.monotonic()))):
+                    if time.monotonic() > deadline:
+                        raise TimeoutError(f"training did not finish {count} episodes in time")
+                    continue
+                done = sum(e["mode"] == "training" for e in self.episodes)
+                last = self.episodes[-1]
+                cost = f"cost {last['cost']:.3f}" if last["cost"] else "no solution"
+                print(
+                    f"    episode {done}/{count}: {last['scenario']}, {cost}, "
+                    f"{last['learner_calls']} learner decisions",
+                    flush=True,
+                )
+            return [e for e in self.episodes if e["mode"] == "training"]
+
+    def plan(self, payload: dict[str, Any]) -> tuple[dict[str, Any] | None, str]:
+        from lit_msgs_json.envelope import Publisher, decode
+
+        if not self.caller.wait(30.0):
+            raise RuntimeError("the plan service did not appear")
+        text = Publisher("lit_demo", "demo").encode("PlanRequest", payload)
+        answer = self.caller.call(text, 600.0)
+        if answer is None:
+            return None, "no answer"
+        success, message = answer
+        reply = decode(message, accept=("PlanResponse", "Error"))
+        if not success:
+            return None, reply.payload["message"]
+        return reply.payload, ""
+
+
+def _report(
+    scenario: Scenario,
+    training: list[dict[str, Any]],
+    plans: list[tuple[int, dict[str, Any] | None, str]],
+    codes: dict[str, int | None],
+    bag: Path,
+    wall: float,
+) -> int:
+    print()
+    print(f"Training over ROS ({len(training)} episodes; learner decided every B and psi_K):")
+    print("| episode | scenario | solved | c_final | learner decisions | fallbacks |")
+    print("|---|---|---|---|---|---|")
+    for i, e in enumerate(training):
+        cost = f"{e['cost']:.3f}" if e["cost"] else "-"
+        print(
+            f"| {i} | {e['scenario']} | {e['solved']} | {cost} | {e['learner_calls']} | "
+            f"{e['fallback_decisions']} |"
+        )
+    optimum = scenario.optimal_cost
+    print()
+    print(f"Inference on {scenario.key} ({scenario.description}) through /lit/planner/plan:")
+    print("| seed | status | t_init | c_init | c_final | c_final / optimum | path re-check |")
+    print("|---|---|---|---|---|---|---|")
+    ok = bool(plans)
+    first: dict[str, Any] | None = None
+    for seed, response, error in plans:
+        if response is None:
+            print(f"| {seed} | error: {error} | | | | | |")
+            ok = False
+            continue
+        check = scenarios.check_path(scenario, response["path"]) if response["path"] else None
+        passed = bool(check and check.ok)
+        ok = ok and response["solved"] and passed
+        ratio = f"{response['cost'] / optimum:.3f}" if response["cost"] and optimum else "-"
+        print(
+            f"| {seed} | {response['status']} | {_ms(response['t_init'])} | "
+            f"{_num(response['c_init'])} | {_num(response['cost'])} | {ratio} | "
+            f"{'passed' if passed else 'FAILED'} |"
+        )
+        if first is None:
+            first = dict(response)
+            first["path_check"] = None if check is None else dataclasses.asdict(check)
+            first["optimal_cost"] = optimum
+    if first is not None:
+        print()
+        print(f"First inference plan in detail (seed {plans[0][0]}):")
+        first["improvements"] = [tuple(x) for x in first["improvements"]]
+        first.setdefault("time_budget", None)
+        try:
+            print("\n".join(plan_cli.summary_lines(first, scenario)))
+        except (KeyError, TypeError):
+            pass
+    print()
+    _print_bag(bag)
+    clean = all(code == 0 for code in codes.values())
+    print(
+        f"Processes stopped: {', '.join(f'{n} exit {c}' for n, c in codes.items())}; "
+        f"wall time {wall:.1f} s"
+    )
+    return 0 if ok and clean else 1
+
+
+def _print_bag(bag: Path) -> None:
+    from lit_planner import replay
+
+    try:
+        info = replay.bag_info(bag)
+    except Exception as error:  # noqa: BLE001 - the demo reports; replay has the details
+        print(f"Bag {bag}: unreadable ({error})")
+        return
+    print(f"Bag {bag} (MCAP, rosbag2 v9) — inspect with `lit replay info {bag}`:")
+    for topic in info["topics"]:
+        print(f"  {topic['topic']} ({topic['type']}): {topic['messages']} messages")
+    publishers = info.get("publishers", [])
+    missing = sum(int(p["missing"]) for p in publishers)
+    print(f"  seq accounting over {len(publishers)} publishers: {missing} messages missing")
+
+
+def _ms(value: float | None) -> str:
+    return "-" if value is None else f"{value * 1e3:.1f} ms"
+
+
+def _num(value: float | None) -> str:
+    return "-" if value is None or not math.isfinite(value) else f"{value:.3f}"

@@ -1,0 +1,113 @@
+"""``lit_recorder_node``: records every ``/lit/*`` topic of a run into a rosbag2 MCAP bag.
+
+Subscribes with the publishers' QoS (reliable, keep-all: reliable keep-last drops in bursts) to the
+root namespace's contract topics at start and to every other topic whose name contains ``/lit/``
+(planners in namespaces, e.g. ``/robot1/lit/episode``) as soon as discovery shows it. Messages
+arrive serialized (``raw=True``) and go into the bag unchanged, stamped with their receive time, so
+the recorder never parses or re-encodes anything. The bag (``BagRecorder``: rosbag2 version 9,
+MCAP, run metadata in ``custom_data``) is closed on SIGTERM/SIGINT, which writes its
+``metadata.yaml``; a crash loses at most the last open chunk (``chunk_bytes``), and
+``lit replay salvage`` recovers the rest.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from lit_planner.rosutil import STATS_TOPIC, TOPICS, json_qos, spin_node
+
+NODE_NAME = "lit_recorder"
+TYPES = {
+    "std_msgs/msg/String": ("std_msgs.msg", "String"),
+    "trajectory_msgs/msg/JointTrajectory": ("trajectory_msgs.msg", "JointTrajectory"),
+}
+"""Topic types the recorder takes (the contract's)."""
+DISCOVERY_PERIOD = 0.5
+"""Seconds between scans of the ROS graph for new ``/lit/`` topics."""
+
+
+class Recorder:
+    """Owns the node and the bag."""
+
+    def __init__(self) -> None:
+        import importlib
+
+        from rclpy.node import Node
+
+        from lit_planner.bag import BagRecorder, default_bag_root
+
+        self.node = node = Node(NODE_NAME)
+        self.log = node.get_logger()
+        node.declare_parameter("bag", "")
+        node.declare_parameter("run_id", "")
+        node.declare_parameter("chunk_bytes", 64 * 1024)
+        run_id = node.get_parameter("run_id").value or time.strftime("run-%Y%m%d-%H%M%S")
+        bag = node.get_parameter("bag").value or str(default_bag_root() / run_id)
+        self.bag = BagRecorder(
+            Path(bag),
+            run_id=run_id,
+            metadata={"lit.recorder": "lit_recorder_node"},
+            chunk_bytes=int(node.get_parameter("chunk_bytes").value),
+        )
+        self._importlib = importlib
+        self._lock = threading.Lock()
+        self._subscriptions: dict[str, Any] = {}
+        self.counts: dict[str, int] = {}
+        for name in TOPICS.values():
+            topic = "/" + name
+            self._subscribe(topic, _topic_type(name))
+        self._subscribe(STATS_TOPIC, "std_msgs/msg/String")
+        node.create_timer(DISCOVERY_PERIOD, self._discover)
+        self.log.info(f"ready: recording /lit/ topics to {self.bag.path}")
+
+    def _subscribe(self, topic: str, msgtype: str) -> None:
+        with self._lock:
+            if topic in self._subscriptions or msgtype not in TYPES:
+                return
+            module, name = TYPES[msgtype]
+            cls = getattr(self._importlib.import_module(module), name)
+            self.bag.add_topic(topic, msgtype, qos="reliable-keep-all")
+            self.counts[topic] = 0
+            self._subscriptions[topic] = self.node.create_subscription(
+                cls, topic, lambda data, t=topic: self._write(t, data), json_qos(), raw=True
+            )
+
+    def _discover(self) -> None:
+        for topic, types in self.node.get_topic_names_and_types():
+            if "/lit/" in topic or topic.startswith("/lit/"):
+                for msgtype in types:
+                    if msgtype in TYPES:
+                        self._subscribe(topic, msgtype)
+
+    def _write(self, topic: str, data: bytes) -> None:
+        self.bag.write_raw(topic, bytes(data), time.time_ns())
+        self.counts[topic] += 1
+
+    def shutdown(self) -> None:
+        """Close the bag (writes metadata.yaml) and log what it holds."""
+        self.bag.close()
+        total = sum(self.counts.values())
+        self.log.info(
+            f"closed {self.bag.path}: {total} messages on "
+            f"{sum(1 for n in self.counts.values() if n)} topics"
+        )
+
+
+def _topic_type(name: str) -> str:
+    return (
+        "trajectory_msgs/msg/JointTrajectory" if name.endswith("/path") else "std_msgs/msg/String"
+    )
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Console script ``lit_recorder_node`` (``--ros-args -p bag:=DIR -p run_id:=ID``)."""
+    return spin_node(Recorder, sys.argv if args is None else args, threads=2)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,228 @@
+"""``lit up``: the learner, a planner and the bag recorder as separate ROS 2 processes.
+
+Discovery stays on this host (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` unless set) on the domain
+``--domain-id`` (default: ``$ROS_DOMAIN_ID``, else 42). Each process's log lines are streamed with a
+``[learner]`` / ``[planner]`` / ``[recorder]`` prefix. Ctrl-C (or SIGTERM) stops the planner, then
+the learner (which checkpoints and exports), then the recorder (which closes the bag), each by its
+PID with SIGTERM, and SIGKILL only after a grace period.
+
+:class:`System` is the same machinery as a library: ``lit demo`` and the system tests use it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO
+
+from lit_planner.rosutil import DEFAULT_DOMAIN_ID, LOCALHOST_ENV
+
+STOP_ORDER = ("planner", "learner", "recorder")
+"""Processes stop in this order: the recorder last, so it keeps the final messages."""
+GRACE_SECONDS = 20.0
+"""SIGTERM → SIGKILL grace period per process (the learner may be exporting tensors)."""
+
+
+@dataclass
+class Child:
+    """One started process."""
+
+    name: str
+    process: subprocess.Popen[str]
+    lines: list[str] = field(default_factory=list)
+    ready: threading.Event = field(default_factory=threading.Event)
+
+
+class System:
+    """Start, watch and stop the node processes (by their PIDs only)."""
+
+    def __init__(
+        self,
+        domain_id: int,
+        cwd: Path,
+        echo: Callable[[str], None] | None = print,
+    ) -> None:
+        self.env = dict(os.environ)
+        for key, value in LOCALHOST_ENV.items():
+            self.env.setdefault(key, value)
+        self.env["ROS_DOMAIN_ID"] = str(domain_id)
+        self.env["PYTHONUNBUFFERED"] = "1"
+        self.cwd = cwd
+        self.echo = echo
+        self.children: dict[str, Child] = {}
+
+    def start(
+        self,
+        name: str,
+        executable: str,
+        params: Mapping[str, object] = (),
+        namespace: str | None = None,
+    ) -> Child:
+        """Start ``executable`` (a console script next to this Python) with ROS parameters."""
+        command = [_script(executable), "--ros-args"]
+        if namespace:
+            command += ["-r", f"__ns:={namespace}"]
+        for key, value in dict(params).items():
+            command += ["-p", f"{key}:={_ros_value(value)}"]
+        process = subprocess.Popen(
+            command,
+            cwd=self.cwd,
+            env=self.env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            start_new_session=True,  # our Ctrl-C reaches them only through stop()
+        )
+        child = Child(name, process)
+        self.children[name] = child
+        threading.Thread(target=self._pump, args=(child, process.stdout), daemon=True).start()
+        return child
+
+    def _pump(self, child: Child, stream: IO[str] | None) -> None:
+        assert stream is not None
+        for line in stream:
+            line = line.rstrip("\n")
+            child.lines.append(line)
+            if "ready:" in line:
+                child.ready.set()
+            if self.echo is not None:
+                self.echo(f"[{child.name}] {line}")
+
+    def wait_ready(self, name: str, timeout: float = 60.0) -> None:
+        """Block until the child logs ``ready:``; RuntimeError if it exits or times out."""
+        child = self.children[name]
+        deadline = time.monotonic() + timeout
+        while not child.ready.wait(0.1):
+            if child.process.poll() is not None:
+                raise RuntimeError(
+                    f"{name} exited with code {child.process.returncode} before it was ready:\n"
+                    + "\n".join(child.lines[-20:])
+                )
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"{name} not ready after {timeout:g} s")
+
+    def stop(self) -> dict[str, int | None]:
+        """SIGTERM each child (planner, learner, recorder order), SIGKILL after the grace."""
+        codes: dict[str, int | None] = {}
+        order = [n for n in STOP_ORDER if n in self.children]
+        order += [n for n in self.children if n not in order]
+        for name in order:
+            process = self.children[name].process
+            if process.poll() is None:
+                process.send_signal(signal.SIGTERM)
+                try:
+                    process.wait(GRACE_SECONDS)
+                except subprocess.TimeoutExpired:
+                    process.kill()
+                    process.wait()
+            codes[name] = process.returncode
+        return codes
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``lit up``."""
+    parser.add_argument(
+        "--domain-id", type=int, default=int(os.environ.get("ROS_DOMAIN_ID", DEFAULT_DOMAIN_ID))
+    )
+    parser.add_argument(
+        "--policy", default="training", choices=("training", "tensor", "fit", "fixed")
+    )
+    parser.add_argument("--episodes", type=int, default=20, help="planner episodes (0: serve)")
+    parser.add_argument("--scenario", default="np8")
+    parser.add_argument("--time-budget", type=float, default=0.0, help="0: the scenario's")
+    parser.add_argument("--run-id", default=None)
+    parser.add_argument("--checkpoint", default=None, help="learner checkpoint (resumed if found)")
+    parser.add_argument("--no-record", action="store_true", help="do not record a bag")
+    parser.add_argument("--bag", type=Path, default=None, help="bag directory (default bags/RUN)")
+    parser.add_argument(
+        "--planner-param",
+        action="append",
+        default=[],
+        metavar="NAME:=VALUE",
+        help="extra planner node parameter (repeatable)",
+    )
+    parser.add_argument(
+        "--learner-param",
+        action="append",
+        default=[],
+        metavar="NAME:=VALUE",
+        help="extra learner node parameter (repeatable)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Start everything, stream logs, stop on Ctrl-C; 0 when every process exited cleanly."""
+    run_id = args.run_id or time.strftime("up-%Y%m%d-%H%M%S")
+    runs = Path("runs") / run_id
+    runs.mkdir(parents=True, exist_ok=True)
+    system = System(args.domain_id, Path.cwd())
+    stop = threading.Event()
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    print(
+        f"lit up: run {run_id} on ROS_DOMAIN_ID={args.domain_id} (localhost discovery); "
+        "Ctrl-C stops everything",
+        flush=True,
+    )
+    try:
+        if not args.no_record:
+            from lit_planner.bag import default_bag_root
+
+            bag = args.bag or default_bag_root() / run_id
+            system.start("recorder", "lit_recorder_node", {"bag": str(bag), "run_id": run_id})
+            system.wait_ready("recorder")
+        learner = {
+            "checkpoint": args.checkpoint or str(runs / "learner" / "checkpoint.pt"),
+            "export_dir": str(runs / "learner" / "tensors"),
+            "run_id": run_id,
+            **_params(args.learner_param),
+        }
+        system.start("learner", "lit_learner_node", learner)
+        planner = {
+            "policy": args.policy,
+            "episodes": args.episodes,
+            "scenario": args.scenario,
+            "time_budget": args.time_budget,
+            "run_id": run_id,
+            **_params(args.planner_param),
+        }
+        system.start("planner", "lit_planner_node", planner)
+        while not stop.wait(0.2):
+            if any(c.process.poll() is not None for c in system.children.values()):
+                dead = [n for n, c in system.children.items() if c.process.poll() is not None]
+                print(f"lit up: {', '.join(dead)} exited; stopping the others", flush=True)
+                break
+    finally:
+        codes = system.stop()
+    print("lit up: stopped " + ", ".join(f"{n} (exit {c})" for n, c in codes.items()), flush=True)
+    return 0 if all(code == 0 for code in codes.values()) else 1
+
+
+def _params(items: Sequence[str]) -> dict[str, str]:
+    result = {}
+    for item in items:
+        if ":=" not in item:
+            raise SystemExit(f"lit up: expected NAME:=VALUE, got {item!r}")
+        name, value = item.split(":=", 1)
+        result[name] = value
+    return result
+
+
+def _ros_value(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
+def _script(name: str) -> str:
+    """A console script of this environment (beside the running interpreter)."""
+    candidate = Path(sys.executable).parent / name
+    return str(candidate) if candidate.exists() else name
