@@ -338,7 +338,7 @@ def _finite_number(value: object) -> bool:
 
 def main(args: Sequence[str] | None = None) -> int:
     """Console script ``lit_learner_node`` (ROS arguments: ``--ros-args -p checkpoint:=...``)."""
-    return spin_node(LearnerNode, sys.argv if args is None else args, threads=4)
+    return spin_node(LearnerNode, sys.argv if args is None else args, threads=1)
 
 
 if __name__ == "__main__":

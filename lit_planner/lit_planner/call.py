@@ -73,6 +73,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     decide.add_argument("--path-states", type=int, default=0)
     decide.add_argument("--explore", action="store_true", help="exploration noise on")
     decide.add_argument("--service-name", default=DECIDE_SERVICE)
+    decide.add_argument(
+        "--repeat",
+        type=int,
+        default=1,
+        metavar="N",
+        help="benchmark: send N requests one after another (after 20 warm-up calls) and print "
+        "the round-trip median and p99",
+    )
     commands.add_parser("export", help="call /lit/learner/export (write the lookup tensors)")
     raw = commands.add_parser("raw", help="send TEXT unchanged to an AddDiagnostics service")
     raw.add_argument("name", help="service name, e.g. /lit/planner/plan")
@@ -107,6 +115,8 @@ def run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return 2
+        if args.service == "decide" and args.repeat > 1:
+            return _repeat(caller, text, args)
         started = time.perf_counter()
         answer = caller.call(text, args.timeout)
         elapsed = time.perf_counter() - started
@@ -183,6 +193,36 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
         return EXPORT_SERVICE, ""
     text = sys.stdin.read() if args.text == "-" else args.text
     return args.name, text
+
+
+def _repeat(caller: ServiceCaller, text: str, args: argparse.Namespace) -> int:
+    """Round trips of one decide request: warm-up, then ``--repeat`` timed calls."""
+    import numpy as np
+
+    times = []
+    for index in range(20 + args.repeat):
+        started = time.perf_counter()
+        answer = caller.call(text, args.timeout)
+        elapsed = time.perf_counter() - started
+        if answer is None or not answer[0]:
+            print(f"lit call: error: call {index} failed: {answer}", file=sys.stderr)
+            return 2 if answer is None else 1
+        if index >= 20:
+            times.append(elapsed * 1e3)
+    ms = np.asarray(times)
+    print(
+        json.dumps(
+            {
+                "calls": len(times),
+                "median_ms": float(np.median(ms)),
+                "p99_ms": float(np.percentile(ms, 99)),
+                "mean_ms": float(ms.mean()),
+                "max_ms": float(ms.max()),
+            },
+            indent=2,
+        )
+    )
+    return 0
 
 
 def _call_export(node: Any, args: argparse.Namespace) -> int:

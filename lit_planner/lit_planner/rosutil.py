@@ -105,7 +105,11 @@ def spin_node(
     """
     localhost_environment()
     import rclpy
-    from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+    from rclpy.executors import (
+        ExternalShutdownException,
+        MultiThreadedExecutor,
+        SingleThreadedExecutor,
+    )
     from rclpy.signals import SignalHandlerOptions
 
     # Our own handlers: finish the current work and shut down in order (rclpy's would raise
@@ -123,7 +127,9 @@ def spin_node(
     signal.signal(signal.SIGINT, request_stop)
     owner = make_owner()
     node = owner.node
-    executor = MultiThreadedExecutor(num_threads=threads)
+    # One thread: rclpy's single-threaded executor has a much shorter callback path (a service
+    # round trip of about 0.3 ms against several ms with the thread pool).
+    executor = SingleThreadedExecutor() if threads == 1 else MultiThreadedExecutor(threads)
     executor.add_node(node)
     spinner = threading.Thread(target=_spin, args=(executor, stop), name="executor", daemon=True)
     spinner.start()
