@@ -210,7 +210,8 @@ class PlannerNode:
             self.log.warning(f"plan request rejected: {exc}")
             return response
         with self._queue_lock:
-            if self._queued >= self.params["queue_limit"]:
+            # One query runs, up to queue_limit wait: refuse only when the waiting places are full.
+            if self._queued > self.params["queue_limit"]:
                 response.success = False
                 response.message = reply.error(
                     MessageError(

@@ -1,0 +1,557 @@
+"""System tests of the ROS 2 nodes, each a set of real processes talking over DDS.
+
+The planner node (``lit_planner_node``), the learner node (``lit_learner_node``), ``lit call`` and a
+topic recorder (``tests/ros_helpers.py``) run as separate processes, in a ROS domain of their own
+per test with discovery on loopback; every process is stopped by PID when the test ends, also when
+it fails. Budgets are small and timeouts generous: no assertion depends on the machine's speed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from lit_msgs_json.envelope import MAX_MESSAGE_BYTES, Publisher
+from ros_helpers import (
+    LEARNER_NODE,
+    PLANNER_NODE,
+    Child,
+    RosSystem,
+    children_of,
+    finish_call,
+    live_pids,
+    session_members,
+)
+
+from lit_planner import scenarios
+
+pytestmark = pytest.mark.skipif(
+    not (Path(PLANNER_NODE).exists() and Path(LEARNER_NODE).exists()),
+    reason="the node console scripts are not installed in this environment",
+)
+
+NODE_START = 120.0
+"""Seconds a node may take to log ``ready:`` (the learner imports torch)."""
+EPISODE = "/lit/episode"
+STATS = "/lit/learner/stats"
+TRAINING = {
+    "policy": "training",
+    "time_budget": 0.2,
+    "training_scenarios": "np4,np8",
+    # Generous: a loaded machine must not turn learner decisions into fallbacks here.
+    "decision_timeout": 1.0,
+    "learner_wait": 300.0,
+}
+"""Planner parameters of a short training run."""
+
+
+@pytest.fixture
+def ros(tmp_path: Path) -> Iterator[RosSystem]:
+    """The processes of one test, in a domain of their own, stopped by PID at the end."""
+    system = RosSystem(tmp_path)
+    try:
+        yield system
+    finally:
+        system.close()
+
+
+def _ready(*children: Child) -> None:
+    for child in children:
+        child.wait_for_log(r"ready:", timeout=NODE_START)
+
+
+def _no_traceback(*children: Child) -> None:
+    for child in children:
+        assert "Traceback" not in child.text(), f"{child.name} raised:\n{child.tail(60)}"
+
+
+def _checkpoint(ros: RosSystem) -> Path:
+    return ros.workdir / "learner" / "checkpoint.pt"
+
+
+def _learned(summary: dict[str, Any]) -> bool:
+    """A training episode whose every decision came from the learner."""
+    return summary["learner_calls"] > 0 and summary["fallback_decisions"] == 0
+
+
+def _avoids_obstacles(scenario: scenarios.Scenario, path: list[list[float]]) -> bool:
+    """Whether ``path`` runs from start to goal clear of the obstacles, up to the resolution.
+
+    The planner checks motions at its resolution, so a path may clip a box corner by less than a
+    step (it then reports ``path_valid: false``); the dense re-check runs against boxes shrunk by
+    two steps.
+    """
+    margin = 2.0 * scenario.resolution * scenario.max_extent
+    shrunk = scenarios.custom(
+        scenario.lower,
+        scenario.upper,
+        [([x + margin for x in low], [x - margin for x in high]) for low, high in scenario.boxes],
+        scenario.start,
+        scenario.goal,
+        resolution=scenario.resolution,
+    )
+    return scenarios.check_path(shrunk, path).ok
+
+
+# ---------------------------------------------------------------------- 1. the plan service
+
+
+def test_plan_service_round_trip(ros: RosSystem, tmp_path: Path) -> None:
+    """A separate client plans on a registered scenario and on an explicit world."""
+    planner = ros.planner()
+    _ready(planner)
+
+    result = ros.call("--payload-only", "plan", "--scenario", "np4", "--time", "0.2")
+    assert result.returncode == 0, result
+    response = result.json()
+    scenario = scenarios.get("np4")
+    assert response["solved"] is True
+    assert response["scenario"] == "np4" and response["dimension"] == scenario.dim
+    assert response["path"][0] == pytest.approx(list(scenario.start))
+    assert response["path"][-1] == pytest.approx(list(scenario.goal))
+    assert response["cost"] > 0
+    assert response["cost"] >= math.dist(scenario.start, scenario.goal) - 1e-9
+    assert _avoids_obstacles(scenario, response["path"])
+
+    world = {
+        "lower": [0.0, 0.0],
+        "upper": [1.0, 1.0],
+        "boxes": [{"lower": [0.4, 0.1], "upper": [0.6, 0.9]}],
+        "start": [0.1, 0.5],
+        "goal": [0.9, 0.5],
+    }
+    world_file = tmp_path / "world.json"
+    world_file.write_text(json.dumps(world), encoding="utf-8")
+    result = ros.call("--payload-only", "plan", "--world", str(world_file), "--time", "0.5")
+    assert result.returncode == 0, result
+    response = result.json()
+    assert response["solved"] is True and response["dimension"] == 2
+    assert response["path"][0] == pytest.approx(world["start"])
+    assert response["path"][-1] == pytest.approx(world["goal"])
+    explicit = scenarios.custom(
+        world["lower"],
+        world["upper"],
+        [(box["lower"], box["upper"]) for box in world["boxes"]],
+        world["start"],
+        world["goal"],
+    )
+    assert _avoids_obstacles(explicit, response["path"])
+    assert response["cost"] > 0.8  # around the wall, never through it
+    assert planner.running()
+    _no_traceback(planner)
+
+
+def test_plan_requests_wait_in_the_queue_then_busy(ros: RosSystem) -> None:
+    """A request arriving during a long one waits its turn; one beyond ``queue_limit`` is refused.
+
+    With ``queue_limit: 1`` one request runs and one waits; of two short requests sent while a long
+    one runs, one is answered after the long one and the other gets ``busy`` at once.
+    """
+    recording = ros.recorder(["/lit/solution"])
+    planner = ros.planner(queue_limit=1)
+    _ready(planner)
+    recording.wait_for_publishers("/lit/solution")
+    long = ros.call_start(
+        "--payload-only", "plan", "--scenario", "np4", "--time", "6.0", "--request-id", "long"
+    )
+    # The long request runs once its first solution is published.
+    recording.wait_until(
+        "/lit/solution",
+        lambda updates: any(update["episode_id"] == "long" for update in updates),
+        timeout=60.0,
+        what="solution of the long request",
+        watch=[planner],
+    )
+    shorts = [
+        ros.call_start(
+            "--payload-only", "plan", "--scenario", "np4", "--time", "0.2", "--request-id", name
+        )
+        for name in ("short-a", "short-b")
+    ]
+    results = [finish_call(call) for call in (long, *shorts)]
+
+    assert results[0].returncode == 0, results[0]
+    assert results[0].json()["solved"] is True
+    assert results[0].json()["request_id"] == "long"
+    codes = sorted(result.returncode for result in results[1:])
+    assert codes == [0, 1], "\n\n".join(map(str, results))
+    answered = next(result for result in results[1:] if result.returncode == 0).json()
+    refused = next(result for result in results[1:] if result.returncode == 1).json()
+    assert answered["solved"] is True and answered["request_id"] in ("short-a", "short-b")
+    assert refused["code"] == "busy", refused
+    assert refused["request_schema"] == "PlanRequest"
+    assert "queue_limit 1" in refused["message"]
+    assert planner.running()
+    _no_traceback(planner)
+
+
+# ---------------------------------------------------------------------- 2., 3. training over ROS
+
+
+def test_training_episodes_reach_the_learner(ros: RosSystem) -> None:
+    """Planner (policy training) and learner: every decision and both episode ends over ROS."""
+    recording = ros.recorder([EPISODE, STATS])
+    # The planner first: its episodes wait for the learner, by then the recorder listens.
+    planner = ros.planner(episodes=2, exit_when_done=True, **TRAINING)
+    _ready(planner)
+    recording.wait_for_publishers(EPISODE)
+    learner = ros.learner()
+    _ready(learner)
+    assert planner.wait(timeout=300.0) == 0, planner.tail()
+
+    summaries = recording.wait_until(
+        EPISODE, lambda found: len(found) >= 2, timeout=30.0, what="two EpisodeSummary messages"
+    )
+    assert len(summaries) == 2
+    for summary in summaries:
+        assert summary["mode"] == "training" and summary["policy"] == "training"
+        assert _learned(summary), summary
+        assert summary["dimension"] in (4, 8)
+    stats = recording.wait_until(
+        STATS,
+        lambda found: any(
+            item["episodes"] >= 2 and any(n > 0 for n in item["transitions"].values())
+            for item in found
+        ),
+        timeout=30.0,
+        what="LearnerStats with two episodes and stored transitions",
+        watch=[learner],
+    )
+    assert "/lit_planner" in stats[-1]["planners"]
+    assert stats[-1]["decisions"] >= sum(s["learner_calls"] for s in summaries)
+    assert "use the fallback policy" not in planner.text()
+    _no_traceback(planner, learner)
+
+
+def test_two_planners_train_one_learner(ros: RosSystem) -> None:
+    """Planners in ``/robot1`` and ``/robot2`` train the same learner at the same time."""
+    topics = ["/robot1" + EPISODE, "/robot2" + EPISODE]
+    recording = ros.recorder([*topics, STATS])
+    planners = [
+        ros.planner(
+            f"planner{robot}",
+            namespace=f"/robot{robot}",
+            episodes=2,
+            exit_when_done=True,
+            training_seed=robot,
+            **TRAINING,
+        )
+        for robot in (1, 2)
+    ]
+    _ready(*planners)
+    for topic in topics:
+        recording.wait_for_publishers(topic)
+    learner = ros.learner()
+    _ready(learner)
+    for planner in planners:
+        assert planner.wait(timeout=300.0) == 0, planner.tail()
+
+    stats = recording.wait_until(
+        STATS,
+        lambda found: bool(found) and found[-1]["episodes"] >= 4,
+        timeout=30.0,
+        what="LearnerStats with four episodes",
+        watch=[learner],
+    )
+    assert {"/robot1/lit_planner", "/robot2/lit_planner"} <= set(stats[-1]["planners"])
+    for topic in topics:
+        summaries = recording.payloads(topic)
+        assert len(summaries) == 2, (topic, summaries)
+        assert all(_learned(summary) for summary in summaries), summaries
+    _no_traceback(learner, *planners)
+
+
+# ---------------------------------------------------------------------- 4. a learner crash
+
+
+def test_planner_survives_a_killed_learner_and_resumes(ros: RosSystem) -> None:
+    """SIGKILL the learner mid-training: fallback decisions, then training resumes on restart."""
+    recording = ros.recorder([EPISODE])
+    checkpoint = _checkpoint(ros)
+    learner_params = {"checkpoint_every": 1, "checkpoint_period": 1.0}
+    learner = ros.learner(**learner_params)
+    _ready(learner)
+    planner = ros.planner(
+        episodes=10_000,  # stopped by the test
+        policy="training",
+        time_budget=0.5,
+        training_scenarios="np4,np8",
+        decision_timeout=0.3,
+        learner_retry=0.5,
+    )
+    _ready(planner)
+
+    recording.wait_until(
+        EPISODE,
+        lambda found: any(_learned(summary) for summary in found),
+        timeout=120.0,
+        what="an episode trained by the learner",
+        watch=[planner, learner],
+    )
+    learner.wait_for_log(r"checkpoint \S+ \([1-9]\d* episodes\)", timeout=60.0)
+    assert checkpoint.is_file()
+
+    before_kill = len(recording.payloads(EPISODE))
+    log_at_kill = len(planner.text())
+    assert ros.stop(learner, signal.SIGKILL) == -signal.SIGKILL
+    planner.wait_for_log(r"use the fallback policy", timeout=60.0, start=log_at_kill)
+    recording.wait_until(
+        EPISODE,
+        lambda found: any(summary["fallback_decisions"] > 0 for summary in found[before_kill:]),
+        timeout=60.0,
+        what="an episode with fallback decisions",
+        watch=[planner],
+    )
+
+    restarted = ros.learner("learner-restarted", **learner_params)
+    resumed = restarted.wait_for_log(r"resumed from \S+: (\d+) episodes", timeout=NODE_START)
+    assert int(resumed.group(1)) >= 1
+    _ready(restarted)
+    after_restart = len(recording.payloads(EPISODE))
+    recording.wait_until(
+        EPISODE,
+        lambda found: any(_learned(summary) for summary in found[after_restart:]),
+        timeout=120.0,
+        what="an episode trained by the restarted learner",
+        watch=[planner, restarted],
+    )
+
+    assert planner.running(), planner.tail()
+    assert ros.stop(planner, timeout=60.0) == 0, planner.tail()
+    assert ros.stop(restarted, timeout=60.0) == 0, restarted.tail()
+    _no_traceback(planner, restarted)
+
+
+# ---------------------------------------------------------------------- 5. bad input
+
+
+def _envelope(name: str, payload: dict[str, Any], **changes: Any) -> dict[str, Any]:
+    envelope = Publisher("/test_client", "bad-input").envelope(name, payload)
+    envelope.update(changes)
+    return envelope
+
+
+def _decide_payload(**changes: Any) -> dict[str, Any]:
+    payload: dict[str, Any] = {
+        "agent": "B",
+        "episode_id": "bad-input",
+        "rho_global": 0.1,
+        "rho_local": 0.1,
+        "measure": 0.5,
+        "planning_time": 0.0,
+        "time_budget": 1.0,
+        "cost": None,
+        "minimum_cost": 1.0,
+        "improvements": 0,
+        "path_states": 0,
+    }
+    payload.update(changes)
+    return payload
+
+
+def _bad_payload(name: str, payload: dict[str, Any], **changes: Any) -> str:
+    """A valid envelope of ``payload`` whose payload then gets ``changes`` (schema violations)."""
+    envelope = _envelope(name, payload)
+    envelope["payload"].update(changes)
+    return json.dumps(envelope)
+
+
+def _nan_text(name: str, payload: dict[str, Any], key: str) -> str:
+    envelope = _envelope(name, payload)
+    envelope["payload"][key] = float("nan")
+    text = json.dumps(envelope)  # allow_nan: the literal NaN, which JSON does not have
+    assert "NaN" in text
+    return text
+
+
+PLAN = "/lit/planner/plan"
+DECIDE = "/lit/learner/decide"
+OVERSIZE = ('{"text": "' + "x" * (MAX_MESSAGE_BYTES + 16) + '"}').encode()
+BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
+    # (case, lit call arguments, standard input, code, field, words of the message)
+    ("plan: malformed JSON", ["raw", PLAN, '{"schema": '], None, "json", "$", "not valid JSON"),
+    (
+        "plan: a DecideRequest",
+        ["raw", PLAN, json.dumps(_envelope("DecideRequest", _decide_payload()))],
+        None,
+        "unexpected-schema",
+        "$.schema",
+        "DecideRequest is not accepted",
+    ),
+    (
+        "plan: version 2",
+        ["raw", PLAN, json.dumps(_envelope("PlanRequest", {"scenario": "np4"}, version=2))],
+        None,
+        "version",
+        "$.version",
+        "got version 2",
+    ),
+    (
+        "plan: NaN",
+        ["raw", PLAN, _nan_text("PlanRequest", {"scenario": "np4", "time": 0.1}, "time")],
+        None,
+        "json",
+        "$",
+        "NaN",
+    ),
+    ("plan: oversize", ["raw", PLAN, "-"], OVERSIZE, "oversize", "$", "more than the limit"),
+    (
+        "plan: payload violates the schema",
+        ["raw", PLAN, _bad_payload("PlanRequest", {"scenario": "np4"}, time="soon")],
+        None,
+        "payload",
+        "$.payload.time",
+        "soon",
+    ),
+    (
+        "plan: start out of bounds",
+        ["plan", "--scenario", "np4", "--start", "5,5,5,5"],
+        None,
+        "invalid-request",
+        None,
+        "start coordinate 0 = 5.0 is outside",
+    ),
+    (
+        "plan: start inside an obstacle",
+        ["plan", "--scenario", "np4", "--start", "0,0.3,0,0"],
+        None,
+        "invalid-request",
+        None,
+        "inside an obstacle",
+    ),
+    (
+        "plan: start of the wrong dimension",
+        ["plan", "--scenario", "np4", "--start", "0,0"],
+        None,
+        "invalid-request",
+        None,
+        "start has 2 coordinates",
+    ),
+    (
+        "plan: unknown scenario",
+        ["plan", "--scenario", "zz9"],
+        None,
+        "invalid-request",
+        None,
+        "zz9",
+    ),
+    ("decide: malformed JSON", ["raw", DECIDE, "[1, 2"], None, "json", "$", "not valid JSON"),
+    (
+        "decide: a PlanRequest",
+        ["raw", DECIDE, json.dumps(_envelope("PlanRequest", {"scenario": "np4"}))],
+        None,
+        "unexpected-schema",
+        "$.schema",
+        "PlanRequest is not accepted",
+    ),
+    (
+        "decide: version 2",
+        ["raw", DECIDE, json.dumps(_envelope("DecideRequest", _decide_payload(), version=2))],
+        None,
+        "version",
+        "$.version",
+        "got version 2",
+    ),
+    (
+        "decide: NaN",
+        ["raw", DECIDE, _nan_text("DecideRequest", _decide_payload(), "rho_global")],
+        None,
+        "json",
+        "$",
+        "NaN",
+    ),
+    ("decide: oversize", ["raw", DECIDE, "-"], OVERSIZE, "oversize", "$", "more than the limit"),
+    (
+        "decide: feature out of range",
+        ["raw", DECIDE, _bad_payload("DecideRequest", _decide_payload(), rho_global=1.5)],
+        None,
+        "payload",
+        "$.payload.rho_global",
+        "1.5",
+    ),
+]
+
+
+def test_bad_input_is_answered_with_errors(ros: RosSystem) -> None:
+    """Every kind of bad request gets an Error naming the problem; both nodes keep serving."""
+    planner = ros.planner()
+    learner = ros.learner()
+    _ready(planner, learner)
+    calls = [
+        ros.call_start("--payload-only", *arguments, stdin=stdin)
+        for _, arguments, stdin, *_ in BAD_INPUT
+    ]
+    for (case, _, _, code, field, words), call in zip(BAD_INPUT, calls, strict=True):
+        result = finish_call(call)
+        assert result.returncode == 1, f"{case}: {result}"
+        error = result.json()
+        assert error["code"] == code, f"{case}: {error}"
+        assert error["field"] == field, f"{case}: {error}"
+        assert words in error["message"], f"{case}: {error}"
+
+    result = ros.call("--payload-only", "plan", "--scenario", "np4", "--time", "0.2")
+    assert result.returncode == 0, result
+    assert result.json()["solved"] is True
+    result = ros.call("--payload-only", "decide", "--agent", "psi_K", "--measure", "0.3")
+    assert result.returncode == 0, result
+    assert result.json()["agent"] == "psi_K" and math.isfinite(result.json()["value"])
+    assert planner.running() and learner.running()
+    _no_traceback(planner, learner)
+
+
+# ---------------------------------------------------------------------- 6. domains
+
+
+def test_domains_are_isolated(ros: RosSystem) -> None:
+    """A planner in one ROS domain is invisible from another one."""
+    planner = ros.planner()
+    _ready(planner)
+    other = ros.other_domain()
+    assert other != ros.domain
+    result = ros.call("--wait", "3", "plan", "--scenario", "np4", "--time", "0.1", domain=other)
+    assert result.returncode == 2, result
+    assert "not found" in result.stderr and f"ROS_DOMAIN_ID={other}" in result.stderr
+    result = ros.call(
+        "--wait", "30", "--payload-only", "plan", "--scenario", "np4", "--time", "0.1"
+    )
+    assert result.returncode == 0, result
+
+
+# ---------------------------------------------------------------------- 7. shutdown
+
+
+def test_sigterm_shuts_both_nodes_down_cleanly(ros: RosSystem) -> None:
+    """SIGTERM mid-training: exit code 0, no processes left behind, a checkpoint written."""
+    recording = ros.recorder([EPISODE])
+    checkpoint = _checkpoint(ros)
+    # No periodic checkpoint: the file can only come from the shutdown.
+    learner = ros.learner(checkpoint_every=1_000_000, checkpoint_period=1e6)
+    _ready(learner)
+    planner = ros.planner(episodes=10_000, **TRAINING | {"decision_timeout": 0.5})
+    recording.wait_until(
+        EPISODE,
+        lambda found: len(found) >= 1,
+        timeout=120.0,
+        what="a training episode",
+        watch=[planner, learner],
+    )
+    assert not checkpoint.exists()
+    nodes = {"planner": planner, "learner": learner}
+    spawned = {name: children_of(node.pid) for name, node in nodes.items()}
+
+    for name, node in nodes.items():  # planner first: its episode ends while the learner runs
+        assert ros.stop(node, signal.SIGTERM, timeout=60.0) == 0, f"{name}:\n{node.tail()}"
+        # Nothing it started lives on: no child, nothing else in its session (orphans are
+        # adopted by another parent, but keep the session).
+        assert children_of(node.pid) == [], f"{name} left children behind"
+        assert session_members(node.pid) == [], f"{name} left processes behind"
+        assert not set(spawned[name]) & live_pids(), f"{name}'s children {spawned[name]} live on"
+    assert checkpoint.is_file()
+    assert "checkpoint" in learner.text()
+    assert any((ros.workdir / "learner" / "tensors").iterdir())  # trained: exported on shutdown
+    _no_traceback(planner, learner)
