@@ -23,7 +23,6 @@ waits for the publishers before anything it must see is published.
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import itertools
 import json
 import os
@@ -31,12 +30,13 @@ import re
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
+
+from lit_planner.testing import reserve_ros_domain
 
 ROOT = Path(__file__).resolve().parents[1]
 """The repository."""
@@ -55,29 +55,10 @@ _domains = itertools.count()
 
 
 def reserve_domain() -> tuple[int, IO[str] | None]:
-    """A ``ROS_DOMAIN_ID`` for one test, and the lock reserving it (None: none could be had).
-
-    The search starts at an id derived from the PID and a per-process counter; a lock file per
-    domain (``lit-ros-domain-N.lock`` in the temporary directory, as ``lit test`` does for its
-    range) keeps concurrent tests on this host out of each other's domain until it is closed.
-    """
+    """A ``ROS_DOMAIN_ID`` for one test from :data:`DOMAIN_RANGE`, and the lock reserving it
+    (``lit test``'s own reservation, searched from the PID and a per-process counter)."""
     low, high = DOMAIN_RANGE
-    span = high - low + 1
-    first = (os.getpid() * 37 + next(_domains)) % span
-    for offset in range(span):
-        domain = low + (first + offset) % span
-        path = Path(tempfile.gettempdir()) / f"lit-ros-domain-{domain}.lock"
-        try:
-            lock = open(path, "w")  # noqa: SIM115 - held until the test ends
-        except OSError:
-            continue
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            lock.close()
-            continue
-        return domain, lock
-    return low + first, None  # every domain taken: share one rather than refuse to test
+    return reserve_ros_domain(range(low, high + 1), os.getpid() * 37 + next(_domains))
 
 
 @dataclass

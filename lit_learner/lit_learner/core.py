@@ -75,13 +75,28 @@ class LearnerCore:
         agent = self.agents[request.agent]
         if self.trains(request.agent):
             value, a_norm = agent.act(request.features, request.explore)
-            closed = self.pairing.step(request, a_norm)
+            self._step(request, a_norm)
         else:
             value = agent.executed(agent.normalise(agent.policy(request.features)))
-            closed = self.pairing.step(request, None)
+            self._step(request, None)
+        return value
+
+    def record(self, request: DecisionRequest, executed: float) -> None:
+        """A decision that was already taken (``executed`` is the value the planner applied):
+        pairs and stores it exactly as :meth:`decide` would have, without choosing an action.
+        Offline training from recorded runs (``lit replay tensors``) feeds decisions this way;
+        DDPG learns off-policy, so actions of other policies (fallbacks) are usable too."""
+        request.validate()
+        agent = self.agents[request.agent]
+        if self.trains(request.agent):
+            self._step(request, min(max(agent.normalise(executed), 0.0), 1.0))
+        else:
+            self._step(request, None)
+
+    def _step(self, request: DecisionRequest, a_norm: float | None) -> None:
+        closed = self.pairing.step(request, a_norm)
         if closed is not None:
             self._store(closed)
-        return value
 
     def end_episode(self, end: EpisodeEnd) -> dict[str, float]:
         """Close the episode's pending steps, then run one gradient step per transition stored

@@ -26,7 +26,14 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from lit_planner.rosutil import DECIDE_SERVICE, EXPORT_SERVICE, STATS_TOPIC, json_qos, spin_node
+from lit_planner.rosutil import (
+    DECIDE_SERVICE,
+    EXPORT_SERVICE,
+    STATS_TOPIC,
+    flush_publishers,
+    json_qos,
+    spin_node,
+)
 
 NODE_NAME = "lit_learner"
 
@@ -246,29 +253,26 @@ class LearnerNode:
                 time.sleep(0.0001)  # let waiting decisions in (the lock is not fair)
 
     def _due(self) -> bool:
-        p = self.params
-        episodes = self.core.episodes - self._episodes_at_checkpoint
-        if episodes and (
-            episodes >= p["checkpoint_every"]
-            or time.monotonic() - self._last_checkpoint >= p["checkpoint_period"]
-        ):
-            return True
-        return bool(
-            p["max_episodes"]
-            and self.core.episodes >= p["max_episodes"]
-            and not self._exported_at_end
+        """Whether a checkpoint or the end-of-training export is owed (caller holds the lock)."""
+        return self._checkpoint_due(self.core.episodes) or self._export_due(self.core.episodes)
+
+    def _checkpoint_due(self, episodes: int) -> bool:
+        new = episodes - self._episodes_at_checkpoint
+        return bool(new) and (
+            new >= self.params["checkpoint_every"]
+            or time.monotonic() - self._last_checkpoint >= self.params["checkpoint_period"]
         )
 
+    def _export_due(self, episodes: int) -> bool:
+        limit = self.params["max_episodes"]
+        return bool(limit) and episodes >= limit and not self._exported_at_end
+
     def _maintain(self) -> None:
-        p = self.params
         with self._lock:
             episodes = self.core.episodes
-        if episodes != self._episodes_at_checkpoint and (
-            episodes - self._episodes_at_checkpoint >= p["checkpoint_every"]
-            or time.monotonic() - self._last_checkpoint >= p["checkpoint_period"]
-        ):
+        if self._checkpoint_due(episodes):
             self.checkpoint()
-        if p["max_episodes"] and episodes >= p["max_episodes"] and not self._exported_at_end:
+        if self._export_due(episodes):
             self._exported_at_end = True
             self.export("end of training")
 
@@ -328,6 +332,8 @@ class LearnerNode:
         self.checkpoint()
         if self.core.episodes != self._episodes_at_export:
             self.export("shutdown")
+        self._publish_stats()  # the final state, then wait until the recorder has it
+        flush_publishers([self.stats_publisher])
 
 
 def _finite_number(value: object) -> bool:

@@ -228,17 +228,14 @@ def _repeat(caller: ServiceCaller, text: str, args: argparse.Namespace) -> int:
 def _call_export(node: Any, args: argparse.Namespace) -> int:
     from std_srvs.srv import Trigger
 
-    client = node.create_client(Trigger, EXPORT_SERVICE)
-    if not client.wait_for_service(timeout_sec=args.wait):
+    caller = ServiceCaller(node, EXPORT_SERVICE, srv_type=Trigger)
+    if not caller.wait(args.wait):
         print(f"lit call: error: service {EXPORT_SERVICE} not found", file=sys.stderr)
         return 2
-    done = threading.Event()
-    future = client.call_async(Trigger.Request())
-    future.add_done_callback(lambda _: done.set())
-    if not done.wait(args.timeout):
+    response = caller.request(Trigger.Request(), args.timeout)
+    if response is None:
         print(f"lit call: error: {EXPORT_SERVICE} did not answer", file=sys.stderr)
         return 2
-    response = future.result()
     print(response.message)
     return 0 if response.success else 1
 

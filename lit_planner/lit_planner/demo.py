@@ -102,43 +102,46 @@ def print_summary(result: dict[str, Any], scenario: Scenario) -> None:
 def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
     """Steps 1-4 of the module docstring."""
     from lit_planner.bag import default_bag_root
-    from lit_planner.up import System
+    from lit_planner.up import System, stop_on_sigterm
 
     run_id = time.strftime("demo-%Y%m%d-%H%M%S")
     runs = Path("runs") / run_id
     bag = default_bag_root() / run_id
     system = System(args.domain_id, Path.cwd(), echo=_quiet_echo)
     print(f"lit demo: run {run_id}, ROS_DOMAIN_ID={args.domain_id} (localhost discovery)")
-    print("  starting recorder, learner and planner as three processes ...", flush=True)
+    print("  starting recorder, planner and learner as three processes ...", flush=True)
     training: list[dict[str, Any]] = []
     plans: list[tuple[int, dict[str, Any] | None, str]] = []
     started = time.monotonic()
+    stop_on_sigterm()
     try:
         system.start("recorder", "lit_recorder_node", {"bag": str(bag), "run_id": run_id})
         system.wait_ready("recorder")
-        system.start(
-            "learner",
-            "lit_learner_node",
-            {
-                "checkpoint": str(runs / "learner" / "checkpoint.pt"),
-                "export_dir": str(runs / "learner" / "tensors"),
-                "run_id": run_id,
-            },
-        )
-        system.start(
-            "planner",
-            "lit_planner_node",
-            {
-                "policy": "training",
-                "episodes": args.training_episodes,
-                "time_budget": float(args.training_budget),
-                "run_id": run_id,
-                "learner_wait": 60.0,
-            },
-        )
-        system.wait_ready("learner")
-        system.wait_ready("planner")
-        with _Client(system) as client:
+        with _Client(system, run_id) as client:
+            # Episodes wait for this process and the recorder to subscribe (volatile topics).
+            system.start(
+                "planner",
+                "lit_planner_node",
+                {
+                    "policy": "training",
+                    "episodes": args.training_episodes,
+                    "time_budget": float(args.training_budget),
+                    "run_id": run_id,
+                    "learner_wait": 120.0,
+                    "wait_for_subscribers": 2,
+                },
+            )
+            system.start(
+                "learner",
+                "lit_learner_node",
+                {
+                    "checkpoint": str(runs / "learner" / "checkpoint.pt"),
+                    "export_dir": str(runs / "learner" / "tensors"),
+                    "run_id": run_id,
+                },
+            )
+            system.wait_ready("planner")
+            system.wait_ready("learner")
             print(
                 f"  training: {args.training_episodes} episodes over ROS "
                 f"({args.training_budget:g} s planner time each) ...",
@@ -152,8 +155,8 @@ def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
                     payload["time"] = args.time
                 print(f"  inference: /lit/planner/plan {json.dumps(payload)}", flush=True)
                 plans.append((seed, *client.plan(payload)))
-    except (RuntimeError, TimeoutError) as error:
-        print(f"lit demo: {error}", file=sys.stderr)
+    except (RuntimeError, TimeoutError, KeyboardInterrupt) as error:
+        print(f"lit demo: {error or 'interrupted'}; stopping the nodes", file=sys.stderr)
         system.stop()
         return 1
     finally:
@@ -168,18 +171,24 @@ def _quiet_echo(line: str) -> None:
         print(f"    {line}", flush=True)
 
 
+def _ignore(_: object) -> None:
+    """Callback of the subscriptions that only need to exist."""
+
+
 class _Client:
     """This process's own node: subscribes to episodes, calls the plan service."""
 
-    def __init__(self, system: Any) -> None:
+    def __init__(self, system: Any, run_id: str) -> None:
         self.system = system
+        self.run_id = run_id
 
     def __enter__(self) -> Self:
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from std_msgs.msg import String
+        from trajectory_msgs.msg import JointTrajectory
 
-        from lit_planner.rosutil import PLAN_SERVICE, ServiceCaller, json_qos
+        from lit_planner.rosutil import PLAN_SERVICE, TOPICS, ServiceCaller, json_qos
 
         os.environ.update({k: v for k, v in self.system.env.items() if k.startswith("ROS_")})
         self.context = rclpy.Context()
@@ -188,6 +197,11 @@ class _Client:
         self.episodes: list[dict[str, Any]] = []
         self.changed = threading.Condition()
         self.node.create_subscription(String, "/lit/episode", self._on_episode, json_qos())
+        # The other topics too (ignored), so that the planner's ``wait_for_subscribers: 2``
+        # (this process and the recorder on every topic) holds its episodes until we listen.
+        for topic in ("observation", "decision", "solution"):
+            self.node.create_subscription(String, "/" + TOPICS[topic], _ignore, json_qos())
+        self.node.create_subscription(JointTrajectory, "/" + TOPICS["path"], _ignore, json_qos())
         self.caller = ServiceCaller(self.node, "/" + PLAN_SERVICE)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
@@ -205,9 +219,12 @@ class _Client:
         from lit_msgs_json.envelope import MessageError, decode
 
         try:
-            payload = decode(message.data, accept="EpisodeSummary").payload
+            envelope = decode(message.data, accept="EpisodeSummary")
         except MessageError:
             return
+        if envelope.run_id != self.run_id:
+            return
+        payload = envelope.payload
         with self.changed:
             self.episodes.append(payload)
             self.changed.notify_all()
@@ -322,7 +339,8 @@ def _print_bag(bag: Path) -> None:
     for topic in info["topics"]:
         print(f"  {topic['topic']} ({topic['type']}): {topic['messages']} messages")
     publishers = info.get("publishers", [])
-    missing = sum(int(p["missing"]) for p in publishers)
+    # Leading: numbers before the first recorded one (a recording that started late).
+    missing = sum(int(p["missing"]) + int(p["leading"]) for p in publishers)
     print(f"  seq accounting over {len(publishers)} publishers: {missing} messages missing")
 
 

@@ -15,6 +15,9 @@
   ``learner_retry`` s no call is tried; then training resumes with the learner.
 - Other policies with ``episodes > 0``: that many inference queries on ``scenario`` (seeds
   ``seed``, ``seed + 1``, ...), then the node keeps serving.
+- ``wait_for_subscribers: N`` holds the episodes back until every topic has N matched
+  subscriptions (``lit up`` and ``lit demo`` set it for their recorder), so a recording starts
+  with the first message.
 
 The C++ planner's clock is paused while the learner answers, so training and inference see the
 same planning time.
@@ -39,6 +42,7 @@ from lit_planner.rosutil import (
     PLAN_SERVICE,
     TOPICS,
     ServiceCaller,
+    flush_publishers,
     json_qos,
     spin_node,
 )
@@ -48,8 +52,8 @@ MODES = ("tensor", "fit", "fixed", "training")
 """Values of the ``policy`` parameter."""
 FIXED_BATCH, FIXED_FACTOR = 100.0, math.e
 """The fixed policy's values (the fallback when no tensors are available)."""
-BATCH_RANGE = (20.0, 200.0)
-"""B range of the learner; fallback tensor values are clamped to it."""
+INVALID_TERMINAL = {"invalid_start": "start", "invalid_goal": "goal"}
+"""Core statuses that mean the request gave an unusable start or goal."""
 
 
 @dataclass
@@ -114,6 +118,7 @@ class PlannerNode:
             run_id="",
             explore=True,
             exit_when_done=False,
+            wait_for_subscribers=0,
         )
         self.params = p
         if p["policy"] not in MODES:
@@ -237,7 +242,6 @@ class PlannerNode:
 
     def _job_from_request(self, payload: dict[str, Any]) -> Job:
         from lit_planner import scenarios
-        from lit_planner.errors import ScenarioError
 
         if "world" in payload:
             world = payload["world"]
@@ -262,20 +266,6 @@ class PlannerNode:
                     time_budget=problem.time_budget,
                     resolution=problem.resolution,
                 )
-        for label in ("start", "goal"):
-            vector = getattr(problem, label)
-            outside = [
-                i
-                for i, (x, lo, hi) in enumerate(zip(vector, problem.lower, problem.upper))
-                if not lo <= x <= hi
-            ]
-            if outside:
-                raise ScenarioError(
-                    f"{label} coordinate {outside[0]} = {vector[outside[0]]} is outside the "
-                    f"bounds [{problem.lower[outside[0]]}, {problem.upper[outside[0]]}]"
-                )
-            if not scenarios.is_valid(problem, [vector])[0]:
-                raise ScenarioError(f"{label} {list(vector)} lies inside an obstacle")
         planner = payload.get("planner", "litstar")
         policy = payload.get(
             "policy", "tensor" if self.params["policy"] == "training" else self.params["policy"]
@@ -326,6 +316,12 @@ class PlannerNode:
             return
         from lit_planner import scenarios
 
+        if not self._wait_for_subscribers(p["wait_for_subscribers"], p["learner_wait"]):
+            self.log.warning(
+                f"fewer than {p['wait_for_subscribers']} subscribers on every topic after "
+                f"{p['learner_wait']} s; starting the episodes anyway"
+            )
+
         if p["policy"] == "training":
             import numpy as np
             from lit_learner.train import TrainingDistribution
@@ -359,6 +355,17 @@ class PlannerNode:
         if p["exit_when_done"]:
             self.finished = True
 
+    def _wait_for_subscribers(self, count: int, timeout: float) -> bool:
+        """Until each topic has ``count`` matched subscriptions (a recorder, a client): topics are
+        volatile, so episodes published before they match would not reach them."""
+        publishers = [*self.publishers.values(), self.path_publisher]
+        deadline = time.monotonic() + timeout
+        while min(p.get_subscription_count() for p in publishers) < count:
+            if time.monotonic() > deadline or self._stopping.is_set():
+                return False
+            time.sleep(0.05)
+        return True
+
     def _work(self) -> None:
         while True:
             job = self._jobs.get()
@@ -376,6 +383,7 @@ class PlannerNode:
 
     def _run(self, job: Job) -> None:
         import lit_core
+        from lit_msgs_json.envelope import MessageError
 
         from lit_planner import planning
 
@@ -405,6 +413,17 @@ class PlannerNode:
             params=params,
             listener=listener,
         )
+        if result["status"] in INVALID_TERMINAL:
+            # The core's own start/goal check (bounds, obstacles): the request's fault.
+            label = INVALID_TERMINAL[result["status"]]
+            job.error = MessageError(
+                "invalid-request",
+                result["message"],
+                field=f"$.payload.{label}" if job.kind == "service" else None,
+                rule="valid-state",
+                request_schema="PlanRequest" if job.kind == "service" else None,
+            )
+            return
         job.result = result
         if job.policy == "training":
             self._end_episode(job, episode, result)
@@ -471,12 +490,11 @@ class PlannerNode:
             return FIXED_BATCH if kind == "B" else FIXED_FACTOR
         episode.sources.append("fallback-tensor")
         episode.latencies.append(None)
-        value = float(tensor.trilinear(context.rho_global, context.rho_local, context.measure))
-        if kind == "B":
-            value = float(min(max(math.floor(value + 0.5), BATCH_RANGE[0]), BATCH_RANGE[1]))
-        return value
+        # The core rounds B half away from zero and clamps both, as for any external answer.
+        return float(tensor.trilinear(context.rho_global, context.rho_local, context.measure))
 
     def _end_episode(self, job: Job, episode: EpisodeLog, result: dict[str, Any]) -> None:
+        from lit_learner.train import BUDGET_TOLERANCE, minimum_cost
         from lit_msgs_json.envelope import MessageError, decode
 
         problem = job.scenario
@@ -486,10 +504,10 @@ class PlannerNode:
             "planning_time": float(result["time"]),
             "time_budget": float(budget),
             "cost": _finite(result["cost"]) if result["solved"] else None,
-            "minimum_cost": math.dist(problem.start, problem.goal),
+            "minimum_cost": minimum_cost(problem),
             "improvements": len(result["improvements"]),
             "path_states": len(result["path"]),
-            "truncated": bool(result["time"] >= budget * (1.0 - 1e-3)),
+            "truncated": bool(result["time"] >= budget * (1.0 - BUDGET_TOLERANCE)),
             "fallback_decisions": episode.fallbacks,
         }
         answer = self.learner.call(
@@ -619,6 +637,8 @@ class PlannerNode:
         self._stopping.set()
         self._jobs.put(None)
         self._worker.join(timeout=30.0)
+        if not flush_publishers([*self.publishers.values(), self.path_publisher]):
+            self.log.warning("some subscribers did not acknowledge the last messages")
 
 
 class _Listener:

@@ -11,7 +11,7 @@ A BAG is a rosbag2 bag directory or one of its ``.mcap`` files. Messages on ``/l
 (optionally below a namespace, e.g. ``/robot1/lit/observation``) are ``std_msgs/msg/String``
 envelopes ``{"schema", "version", "seq", "stamp_ns", "source", "run_id", "payload"}`` or, on
 ``/lit/path``, ``trajectory_msgs/msg/JointTrajectory``. ``seq`` rises by one per publisher, that
-is per (topic, source): ``info`` counts, per publisher, the gaps (runs of missing numbers), the
+is per (topic, source, run id): ``info`` counts, per publisher, the gaps (runs of missing numbers), the
 missing messages and the duplicates, and ``leading`` (the numbers before the first recorded one,
 when a publisher started at 0 before the recording did).
 
@@ -404,7 +404,8 @@ def _decode_trajectory(message: RawMessage, skipped: Skipped) -> Trajectory | No
 
 @dataclass
 class SeqAccount:
-    """The sequence numbers of one publisher (topic, source)."""
+    """The sequence numbers of one publisher: (topic, source, run id). A node restarted under the
+    same name starts a new run id and counts from 0 again, so it is a publisher of its own."""
 
     topic: str
     source: str
@@ -436,7 +437,7 @@ class SeqAccount:
 def bag_info(path: str | Path) -> dict[str, Any]:
     """Everything ``lit replay info`` reports, as JSON-ready data."""
     skipped = Skipped()
-    accounts: dict[tuple[str, str], SeqAccount] = {}
+    accounts: dict[tuple[str, str, str], SeqAccount] = {}
     schemas: Counter[str] = Counter()
     counts: Counter[str] = Counter()
     trajectories = 0
@@ -451,7 +452,7 @@ def bag_info(path: str | Path) -> dict[str, Any]:
             if isinstance(item, Trajectory):
                 trajectories += 1
             elif isinstance(item, Envelope):
-                key = (item.topic, item.source)
+                key = (item.topic, item.source, item.run_id)
                 account = accounts.setdefault(key, SeqAccount(item.topic, item.source))
                 account.seqs.append(item.seq)
                 account.run_ids.add(item.run_id)
@@ -1142,6 +1143,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     rescue.add_argument(
         "-o", "--out", type=Path, metavar="OUT", help=f"new bag (default: BAG{SALVAGED_SUFFIX})"
     )
+    from lit_planner import bag_measure
+
+    tensors = sub.add_parser(
+        "tensors", help="train Fuzzy-DDPG offline on the recorded transitions; export tensors"
+    )
+    _offline().add_arguments(tensors)
+    measure = sub.add_parser(
+        "measure", help="the recorder's write rate and its loss when the writer is SIGKILLed"
+    )
+    bag_measure.add_arguments(measure)
     bench = sub.add_parser(
         "bench", help="regenerate lit bench's summary.json, tables and plots from its bag(s)"
     )
@@ -1153,7 +1164,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run a ``lit replay`` subcommand: 0 success, 1 invalid paths (verify), 2 bad input."""
-    commands = {"info": _info, "verify": _verify, "salvage": _salvage, "bench": _bench}
+    from lit_planner import bag_measure
+
+    commands = {
+        "info": _info,
+        "verify": _verify,
+        "salvage": _salvage,
+        "bench": _bench,
+        "measure": bag_measure.run,
+        "tensors": lambda arguments: _offline().run(arguments),
+    }
     try:
         return commands[args.replay_command](args)
     except ReplayError as error:
@@ -1167,6 +1187,13 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
+
+
+def _offline() -> Any:
+    """``lit_learner.offline`` (imported only for ``tensors``: it brings torch)."""
+    import importlib
+
+    return importlib.import_module("lit_learner.offline")
 
 
 def _info(args: argparse.Namespace) -> int:

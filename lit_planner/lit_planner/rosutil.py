@@ -53,34 +53,59 @@ def json_qos() -> Any:
     )
 
 
-class ServiceCaller:
-    """Calls one ``diagnostic_msgs/srv/AddDiagnostics`` service with a deadline.
+def flush_publishers(publishers: Sequence[Any], timeout: float = 5.0) -> bool:
+    """Wait until every matched reliable subscriber has acknowledged everything published, at
+    most ``timeout`` s per publisher. Call before a node exits: the last messages still queued in
+    DDS would otherwise die with the process (``seq`` accounting cannot see a lost tail).
 
-    The node must be spun by an executor in another thread; ``call`` blocks the calling thread only.
+    Returns:
+        True when everything was acknowledged.
+    """
+    from rclpy.duration import Duration
+
+    return all(
+        publisher.wait_for_all_acked(Duration(nanoseconds=int(timeout * 1e9)))
+        for publisher in publishers
+    )
+
+
+class ServiceCaller:
+    """Calls one service with a deadline (``diagnostic_msgs/srv/AddDiagnostics`` unless
+    ``srv_type`` says otherwise).
+
+    The node must be spun by an executor in another thread; a call blocks the calling thread only.
     """
 
-    def __init__(self, node: Any, name: str, callback_group: Any = None) -> None:
-        from diagnostic_msgs.srv import AddDiagnostics
+    def __init__(
+        self, node: Any, name: str, callback_group: Any = None, srv_type: Any = None
+    ) -> None:
+        if srv_type is None:
+            from diagnostic_msgs.srv import AddDiagnostics
 
-        self._type = AddDiagnostics
-        self.client = node.create_client(AddDiagnostics, name, callback_group=callback_group)
+            srv_type = AddDiagnostics
+        self.srv_type = srv_type
+        self.client = node.create_client(srv_type, name, callback_group=callback_group)
         self.name = name
 
     def wait(self, timeout: float) -> bool:
         """Whether the service appeared within ``timeout`` seconds (DDS discovery)."""
         return bool(self.client.wait_for_service(timeout_sec=timeout))
 
-    def call(self, text: str, timeout: float) -> tuple[bool, str] | None:
-        """Send ``text`` as ``load_namespace``; ``(success, message)``, or None after ``timeout``."""
-        request = self._type.Request()
-        request.load_namespace = text
+    def request(self, request: Any, timeout: float) -> Any:
+        """Send ``request``; the response, or None after ``timeout``."""
         done = threading.Event()
         future = self.client.call_async(request)
         future.add_done_callback(lambda _: done.set())
         if not done.wait(timeout):
             self.client.remove_pending_request(future)
             return None
-        response = future.result()
+        return future.result()
+
+    def call(self, text: str, timeout: float) -> tuple[bool, str] | None:
+        """Send ``text`` as ``load_namespace``; ``(success, message)``, or None after ``timeout``."""
+        request = self.srv_type.Request()
+        request.load_namespace = text
+        response = self.request(request, timeout)
         if response is None:
             return None
         return bool(response.success), str(response.message)

@@ -22,6 +22,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
@@ -83,15 +84,20 @@ def repo_root() -> Path:
     raise SystemExit("lit test: cannot locate the LIT* checkout; set LIT_ROOT")
 
 
-def reserve_ros_domain() -> tuple[int, IO[str] | None]:
-    """Pick this run's ROS_DOMAIN_ID, starting from one derived from the PID.
+def reserve_ros_domain(
+    domains: Sequence[int] = ROS_DOMAIN_IDS, start: int | None = None
+) -> tuple[int, IO[str] | None]:
+    """Pick a free ROS_DOMAIN_ID from ``domains``, searching from index ``start`` (default:
+    derived from the PID).
 
-    A lock file per domain (held until the returned file is closed) keeps two concurrent test runs
-    on this host out of each other's domain.
+    A lock file per domain (``lit-ros-domain-N.lock`` in the temporary directory, held until the
+    returned file is closed) keeps concurrent test runs on this host out of each other's domain.
+    Returns the domain and its lock, or the first candidate and None when every one is taken
+    (share one rather than refuse to test).
     """
-    first = os.getpid() % len(ROS_DOMAIN_IDS)
-    for offset in range(len(ROS_DOMAIN_IDS)):
-        domain = ROS_DOMAIN_IDS[(first + offset) % len(ROS_DOMAIN_IDS)]
+    first = (os.getpid() if start is None else start) % len(domains)
+    for offset in range(len(domains)):
+        domain = domains[(first + offset) % len(domains)]
         lock_path = Path(tempfile.gettempdir()) / f"lit-ros-domain-{domain}.lock"
         try:
             lock = open(lock_path, "w")  # noqa: SIM115 -- held for the whole run
@@ -103,7 +109,7 @@ def reserve_ros_domain() -> tuple[int, IO[str] | None]:
             lock.close()
             continue
         return domain, lock
-    return ROS_DOMAIN_IDS[first], None  # every domain busy: share one rather than refuse to test
+    return domains[first], None
 
 
 def child_environment(root: Path, domain: int) -> dict[str, str]:

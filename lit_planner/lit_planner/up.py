@@ -12,6 +12,7 @@ PID with SIGTERM, and SIGKILL only after a grace period.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import os
 import signal
 import subprocess
@@ -80,6 +81,8 @@ class System:
             stderr=subprocess.STDOUT,
             text=True,
             start_new_session=True,  # our Ctrl-C reaches them only through stop()
+            # Only a prctl call, bound before the fork (no imports or allocation in the child).
+            preexec_fn=_terminate_with_parent,  # noqa: PLW1509
         )
         child = Child(name, process)
         self.children[name] = child
@@ -192,6 +195,8 @@ def run(args: argparse.Namespace) -> int:
             "scenario": args.scenario,
             "time_budget": args.time_budget,
             "run_id": run_id,
+            # Hold the episodes until the recorder is subscribed to every topic.
+            "wait_for_subscribers": 0 if args.no_record else 1,
             **_params(args.planner_param),
         }
         system.start("planner", "lit_planner_node", planner)
@@ -204,6 +209,25 @@ def run(args: argparse.Namespace) -> int:
         codes = system.stop()
     print("lit up: stopped " + ", ".join(f"{n} (exit {c})" for n, c in codes.items()), flush=True)
     return 0 if all(code == 0 for code in codes.values()) else 1
+
+
+_PRCTL = ctypes.CDLL(None, use_errno=True).prctl
+_PR_SET_PDEATHSIG = 1
+
+
+def _terminate_with_parent() -> None:
+    """In the child before exec: SIGTERM it when the process that started it dies, even by
+    SIGKILL (Linux ``PR_SET_PDEATHSIG``), so a killed ``lit up``/``lit demo`` leaves no nodes."""
+    _PRCTL(_PR_SET_PDEATHSIG, int(signal.SIGTERM))
+
+
+def stop_on_sigterm() -> None:
+    """Turn SIGTERM into KeyboardInterrupt, so ``finally`` blocks stop the children in order."""
+
+    def interrupt(*_: object) -> None:
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, interrupt)
 
 
 def _params(items: Sequence[str]) -> dict[str, str]:
