@@ -198,6 +198,7 @@ def run_episode(
     b_range: tuple[float, float] = (20.0, 200.0),
     explore: bool = True,
     time_budget: float | None = None,
+    recording: Any = None,
 ) -> EpisodeOutcome:
     """Plan one training query with the learner deciding, then close the episode.
 
@@ -211,12 +212,15 @@ def run_episode(
         b_tensor: ``lit_core.LookupTensor`` answering B in :data:`PHASE_K`.
         explore: exploration noise on (training) or off (evaluation).
         time_budget: planner seconds; the scenario's budget when None.
+        recording: a :class:`lit_planner.bag.EpisodeRecording` that gets the query's messages
+            (solution updates, observations, decisions, summary, path), or None.
 
     Raises:
         TrainingError: the callback raised (the planner would otherwise silently fall back to the
             fixed values) or the phase needs a tensor that is missing.
     """
     import lit_core
+    from lit_planner.episode_messages import DecisionSources, EventLog
 
     from lit_learner.messages import DecisionRequest, EpisodeEnd
     from lit_planner import planning, scenarios
@@ -230,13 +234,19 @@ def run_episode(
     interrupts: list[bool] = []
     learner_seconds = [0.0]
 
+    events = EventLog(episode_id)
+    sources = DecisionSources()
+
     def answer(context: lit_core.DecisionContext) -> float:
         if context.kind == "B" and phase == PHASE_K:
+            sources.add("tensor")
             value = round_batch_size(
                 b_tensor.trilinear(context.rho_global, context.rho_local, context.measure),
                 *b_range,
             )
         else:
+            sources.add("learner")
+            sources.learner_calls += 1
             value = core.decide(
                 DecisionRequest(
                     agent=context.kind,
@@ -279,6 +289,7 @@ def run_episode(
         time=budget,
         seed=spec.seed,
         params={"decision_interval": decision_interval},
+        listener=events,
         check_path=False,
     )
     if errors:
@@ -306,6 +317,10 @@ def run_episode(
         )
     )
     finished = time.perf_counter()
+    if recording is not None:
+        recording.write_query(
+            episode_id, "training", problem, spec.seed, "training", result, events, sources
+        )
     return EpisodeOutcome(
         spec=spec,
         phase=phase,
@@ -515,6 +530,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"checkpoint every N episodes, the last {KEEP_CHECKPOINTS} kept (0: final only)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--bag-dir",
+        type=Path,
+        default=None,
+        help="record every episode's messages to BAG_DIR/<run folder name> (default: bags/)",
+    )
+    parser.add_argument("--no-bag", action="store_true", help="do not record a bag")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -632,6 +654,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
         histogram_column(agent, index) for agent in ranges for index in range(HISTOGRAM_BINS)
     ]
     log = MetricsLog(run_dir / METRICS_FILE, columns)
+    recording = None if args.no_bag else _open_bag(args, state, run_dir)
     progress = _progress(state, disable=args.no_progress)
     session_start = time.perf_counter() - state.elapsed
     periodic: list[Path] = []
@@ -651,6 +674,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
                 decision_interval=state.decision_interval,
                 b_tensor=b_tensor,
                 b_range=b_range,
+                recording=recording,
             )
             state.episode += 1
             state.elapsed = time.perf_counter() - session_start
@@ -673,6 +697,8 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
         interrupted = True
     finally:
         progress.close()
+        if recording is not None:
+            recording.close()
     final = _checkpoint(core, state, rng, run_dir, "final")
     curves = plot_training_curves(run_dir / METRICS_FILE, run_dir / CURVES_FILE, HISTOGRAM_BINS)
     record = provenance(state, run_dir)
@@ -685,6 +711,8 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
         ),
         f"  checkpoint {final}, metrics {run_dir / METRICS_FILE}, curves {curves}",
     ]
+    if recording is not None:
+        lines.append(f"  bag {recording.recorder.path} (lit replay info / tensors)")
     if args.export is not None:
         written = export(core, Path(args.export), record, curves)
         lines.append(f"  tensors {', '.join(str(path) for path in written.values())}")
@@ -699,6 +727,20 @@ def export(core: Any, directory: Path, record: dict[str, Any], curves: Path | No
     if curves is not None and curves.exists():
         shutil.copyfile(curves, directory / CURVES_FILE)
     return written
+
+
+def _open_bag(args: argparse.Namespace, state: DriverState, run_dir: Path) -> Any:
+    """The run's bag (a resumed run records a new one beside the first: ``<name>-2``, ...)."""
+    from lit_planner.bag import EpisodeRecording, default_bag_root, unique_directory
+
+    parent = args.bag_dir if args.bag_dir is not None else default_bag_root()
+    parent.mkdir(parents=True, exist_ok=True)
+    return EpisodeRecording(
+        unique_directory(parent, run_dir.resolve().name),
+        state.run_id,
+        "lit_train",
+        metadata={"lit.run_folder": str(run_dir)},
+    )
 
 
 def _switch_to_k(core: Any, state: DriverState, run_dir: Path) -> Any:

@@ -34,7 +34,8 @@ def small_config(seed: int = 0) -> LearnerConfig:
 def arguments(out: Path, **overrides: object) -> argparse.Namespace:
     parser = argparse.ArgumentParser()
     train.add_arguments(parser)
-    args = parser.parse_args(["--out", str(out), "--no-progress"])
+    # The bag goes beside the run folder, not into the repository's bags/.
+    args = parser.parse_args(["--out", str(out), "--no-progress", "--bag-dir", str(out.parent)])
     for name, value in overrides.items():
         setattr(args, name, value)
     return args
@@ -74,6 +75,21 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path
 
     # b-then-k: B first (psi_K fixed), then psi_K with B from the exported B tensor.
     assert phases == [train.PHASE_B] * 6 + [train.PHASE_K] * 6
+
+    # The run's bag holds every episode's messages, unbroken, in the planner node's format.
+    from lit_learner.offline import read_episodes
+    from lit_planner import replay
+
+    bag = tmp_path / "run-bag"
+    (bag_dir,) = [p for p in tmp_path.iterdir() if (p / "metadata.yaml").exists()]
+    bag_dir.rename(bag)
+    info = replay.bag_info(bag)
+    assert all(p["missing"] == 0 and p["leading"] == 0 for p in info["publishers"])
+    episodes, _ = read_episodes([bag])
+    assert len(episodes) == 12
+    assert all(e.summary is not None and e.summary["mode"] == "training" for e in episodes)
+    sources = {d["source"] for e in episodes for d in e.decisions}
+    assert sources == {"learner", "tensor"}  # psi_K phase: B from the B-phase tensor
     assert (run_dir / train.B_PHASE_TENSORS / "b_tensor.npy").exists()
 
     with (run_dir / METRICS_FILE).open(newline="") as handle:

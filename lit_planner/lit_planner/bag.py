@@ -451,6 +451,76 @@ class BenchRecording:
         self._seq[topic] = seq + 1
 
 
+class EpisodeRecording:
+    """A bag of planning queries written by the process that plans (``lit train``): the same
+    ``/lit/*`` messages the planner node publishes, one :class:`~lit_msgs_json.envelope.Publisher`
+    (one ``seq``) per topic, so ``lit replay info``/``verify``/``tensors`` read it like a recorded
+    ROS run.
+
+    Args:
+        directory: the bag directory (new).
+        run_id: envelope ``run_id`` and ``custom_data["lit.run_id"]``.
+        source: envelope ``source`` (the writing program's name).
+        metadata: more ``custom_data`` entries.
+    """
+
+    TOPICS = ("/lit/observation", "/lit/decision", "/lit/solution", "/lit/episode")
+
+    def __init__(
+        self,
+        directory: Path,
+        run_id: str,
+        source: str,
+        metadata: Mapping[str, str] | None = None,
+    ) -> None:
+        from lit_msgs_json.envelope import Publisher
+
+        self.recorder = BagRecorder(
+            directory, run_id=run_id, metadata={"lit.source": source, **(metadata or {})}
+        )
+        """The bag."""
+        self._publishers = {topic: Publisher(source, run_id) for topic in self.TOPICS}
+        for topic in self.TOPICS:
+            self.recorder.add_topic(topic, STRING_TYPE)
+        self.recorder.add_topic("/lit/path", "trajectory_msgs/msg/JointTrajectory")
+
+    def write_query(
+        self,
+        episode_id: str,
+        mode: str,
+        scenario: Any,
+        seed: int,
+        policy: str,
+        result: dict[str, Any],
+        log: Any,
+        sources: Any = None,
+    ) -> None:
+        """One query: its solution updates, observations and decisions, summary and path (see
+        :mod:`lit_planner.episode_messages`), then a flush."""
+        from lit_planner.episode_messages import decision_payloads, summary_payload
+
+        for payload in log.solutions:
+            self._write("/lit/solution", "SolutionUpdate", payload)
+        for observation, decision in decision_payloads(episode_id, result, log, policy, sources):
+            self._write("/lit/observation", "Observation", observation)
+            self._write("/lit/decision", "Decision", decision)
+        summary = summary_payload(episode_id, mode, scenario, seed, policy, result, sources)
+        self._write("/lit/episode", "EpisodeSummary", summary)
+        if result["path"]:
+            self.recorder.write_trajectory(
+                "/lit/path", result["path"], time.time_ns(), frame_id=episode_id
+            )
+        self.recorder.flush()
+
+    def close(self) -> None:
+        """Finish the bag (idempotent)."""
+        self.recorder.close()
+
+    def _write(self, topic: str, schema: str, payload: dict[str, Any]) -> None:
+        text = self._publishers[topic].encode(schema, payload)
+        self.recorder.write_string(topic, text, time.time_ns())
+
+
 def _git_commit() -> str:
     try:
         answer = subprocess.run(

@@ -25,7 +25,6 @@ same planning time.
 
 from __future__ import annotations
 
-import bisect
 import math
 import os
 import queue
@@ -37,6 +36,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from lit_planner.episode_messages import (
+    DecisionSources,
+    EventLog,
+    decision_payloads,
+    finite,
+    path_timing,
+    summary_payload,
+    unit,
+)
 from lit_planner.rosutil import (
     DECIDE_SERVICE,
     PLAN_SERVICE,
@@ -75,17 +83,6 @@ class Job:
     done: threading.Event = field(default_factory=threading.Event)
     result: dict[str, Any] | None = None
     error: BaseException | None = None
-
-
-class EpisodeLog:
-    """What one query's decisions went through (training mode)."""
-
-    def __init__(self) -> None:
-        self.sources: list[str] = []
-        self.latencies: list[float | None] = []
-        self.fallbacks = 0
-        self.learner_calls = 0
-        self.warned = False
 
 
 class PlannerNode:
@@ -297,9 +294,9 @@ class PlannerNode:
             "planner": result["planner"],
             "policy": result.get("policy"),
             "seed": job.seed,
-            "cost": _finite(result["cost"]),
-            "t_init": _finite(result["t_init"]),
-            "c_init": _finite(result["c_init"]),
+            "cost": finite(result["cost"]),
+            "t_init": finite(result["t_init"]),
+            "c_init": finite(result["c_init"]),
             "time": float(result["time"]),
             "improvements": [[float(t), float(c)] for t, c in result["improvements"]],
             "path": [list(map(float, state)) for state in result["path"]],
@@ -387,8 +384,10 @@ class PlannerNode:
 
         from lit_planner import planning
 
-        listener = _Listener(self, job)
-        episode = EpisodeLog()
+        listener = EventLog(
+            job.episode_id, lambda payload: self.publish("solution", "SolutionUpdate", payload)
+        )
+        episode = DecisionSources()
         params: dict[str, object] = {}
         if job.planner == "litstar":
             params["decision_interval"] = self.params["decision_interval"]
@@ -431,7 +430,7 @@ class PlannerNode:
 
     # ------------------------------------------------------------------ learner calls
 
-    def _decide(self, job: Job, episode: EpisodeLog, budget: float, context: Any) -> float:
+    def _decide(self, job: Job, episode: DecisionSources, budget: float, context: Any) -> float:
         from lit_msgs_json.envelope import MessageError, decode
 
         kind = context.kind
@@ -440,9 +439,9 @@ class PlannerNode:
             payload = {
                 "agent": kind,
                 "episode_id": job.episode_id,
-                "rho_global": _unit(context.rho_global),
-                "rho_local": _unit(context.rho_local),
-                "measure": _unit(context.measure),
+                "rho_global": unit(context.rho_global),
+                "rho_local": unit(context.rho_local),
+                "measure": unit(context.measure),
                 "planning_time": max(0.0, float(context.planning_time)),
                 "time_budget": float(budget),
                 "cost": float(context.cost) if context.has_solution else None,
@@ -467,8 +466,7 @@ class PlannerNode:
                     reason = f"unreadable learner answer ({exc})"
                 else:
                     if success and reply.name == "DecideResponse":
-                        episode.sources.append("learner")
-                        episode.latencies.append(latency)
+                        episode.add("learner", latency)
                         return float(reply.payload["value"])
                     reason = f"learner error: {reply.payload.get('message', '?')}"
             else:
@@ -485,15 +483,13 @@ class PlannerNode:
         episode.fallbacks += 1
         tensor = self._fallback.get(kind)
         if tensor is None:
-            episode.sources.append("fallback-fixed")
-            episode.latencies.append(None)
+            episode.add("fallback-fixed")
             return FIXED_BATCH if kind == "B" else FIXED_FACTOR
-        episode.sources.append("fallback-tensor")
-        episode.latencies.append(None)
+        episode.add("fallback-tensor")
         # The core rounds B half away from zero and clamps both, as for any external answer.
         return float(tensor.trilinear(context.rho_global, context.rho_local, context.measure))
 
-    def _end_episode(self, job: Job, episode: EpisodeLog, result: dict[str, Any]) -> None:
+    def _end_episode(self, job: Job, episode: DecisionSources, result: dict[str, Any]) -> None:
         from lit_learner.train import BUDGET_TOLERANCE, minimum_cost
         from lit_msgs_json.envelope import MessageError, decode
 
@@ -503,7 +499,7 @@ class PlannerNode:
             "episode_id": job.episode_id,
             "planning_time": float(result["time"]),
             "time_budget": float(budget),
-            "cost": _finite(result["cost"]) if result["solved"] else None,
+            "cost": finite(result["cost"]) if result["solved"] else None,
             "minimum_cost": minimum_cost(problem),
             "improvements": len(result["improvements"]),
             "path_states": len(result["path"]),
@@ -536,94 +532,28 @@ class PlannerNode:
             self.publishers[topic].publish(message)
 
     def _publish_episode(
-        self, job: Job, episode: EpisodeLog, listener: _Listener, result: dict[str, Any]
+        self, job: Job, episode: DecisionSources, listener: EventLog, result: dict[str, Any]
     ) -> None:
         from builtin_interfaces.msg import Duration
         from trajectory_msgs.msg import JointTrajectoryPoint
 
-        solutions = result["improvements"]
-        solution_times = [float(t) for t, _ in solutions]
-        batch_times = [event[0] for event in listener.batches]
-        decisions = result.get("decisions", [])
-        counts = {"B": 0, "psi_K": 0}
-        for index, decision in enumerate(decisions):
-            kind = decision["kind"]
-            counts[kind] = counts.get(kind, 0) + 1
-            at = float(decision["time"])
-            solved = bisect.bisect_right(solution_times, at)
-            batch = bisect.bisect_right(batch_times, at) - 1
-            _, batches, valid, invalid = listener.batches[batch] if batch >= 0 else (0, 0, 0, 0)
-            self.publish(
-                "observation",
-                "Observation",
-                {
-                    "episode_id": job.episode_id,
-                    "kind": kind,
-                    "rho_global": _unit(decision["rho_global"]),
-                    "rho_local_b": _unit(decision["rho_local_b"]),
-                    "rho_local_k": _unit(decision["rho_local_k"]),
-                    "measure": _unit(decision["measure"]),
-                    "planning_time": max(0.0, at),
-                    "iteration": int(decision["iteration"]),
-                    "batches": int(batches),
-                    "valid_samples": int(valid),
-                    "invalid_samples": int(invalid),
-                    "has_solution": solved > 0,
-                    "cost": float(solutions[solved - 1][1]) if solved else None,
-                },
-            )
-            source = _source(job.policy, episode, index)
-            payload = {
-                "episode_id": job.episode_id,
-                "kind": kind,
-                "value": float(decision["value"]),
-                "neighbours": int(decision["neighbours"]),
-                "policy": job.policy,
-                "source": source,
-                "planning_time": max(0.0, at),
-            }
-            if index < len(episode.latencies) and episode.latencies[index] is not None:
-                payload["latency_ms"] = float(episode.latencies[index])
-            self.publish("decision", "Decision", payload)
-        check = result.get("path_check")
+        sources = episode if job.policy == "training" else None
+        for observation, decision in decision_payloads(
+            job.episode_id, result, listener, job.policy, sources
+        ):
+            self.publish("observation", "Observation", observation)
+            self.publish("decision", "Decision", decision)
         self.publish(
             "episode",
             "EpisodeSummary",
-            {
-                "episode_id": job.episode_id,
-                "mode": job.kind,
-                "scenario": job.scenario.key,
-                "instance": int(job.scenario.instance),
-                "dimension": int(job.scenario.dim),
-                "planner": result["planner"],
-                "policy": job.policy or "none",
-                "seed": int(job.seed),
-                "status": result["status"],
-                "solved": bool(result["solved"]),
-                "cost": _finite(result["cost"]),
-                "t_init": _finite(result["t_init"]),
-                "c_init": _finite(result["c_init"]),
-                "optimal_cost": job.scenario.optimal_cost,
-                "time": float(result["time"]),
-                "time_budget": result.get("time_budget"),
-                "improvements": len(solutions),
-                "decisions": counts,
-                "fallback_decisions": episode.fallbacks,
-                "learner_calls": episode.learner_calls,
-                "path_states": len(result["path"]),
-                "path_valid": None if check is None else bool(check["ok"]),
-                "counters": {k: int(v) for k, v in result["counters"].items()},
-            },
+            summary_payload(
+                job.episode_id, job.kind, job.scenario, job.seed, job.policy, result, episode
+            ),
         )
         trajectory = self._trajectory()
         trajectory.header.frame_id = job.episode_id
         trajectory.joint_names = [f"q{i}" for i in range(job.scenario.dim)]
-        elapsed = 0.0
-        previous = None
-        for state in result["path"]:
-            if previous is not None:
-                elapsed += math.dist(previous, state)  # unit speed along the path
-            previous = state
+        for state, elapsed in zip(result["path"], path_timing(result["path"]), strict=True):
             point = JointTrajectoryPoint()
             point.positions = [float(x) for x in state]
             seconds = int(elapsed)
@@ -639,54 +569,6 @@ class PlannerNode:
         self._worker.join(timeout=30.0)
         if not flush_publishers([*self.publishers.values(), self.path_publisher]):
             self.log.warning("some subscribers did not acknowledge the last messages")
-
-
-class _Listener:
-    """The core's live events: solutions are published at once, batches kept for observations."""
-
-    def __init__(self, owner: PlannerNode, job: Job) -> None:
-        self.owner = owner
-        self.job = job
-        self.batches: list[tuple[float, int, int, int]] = []
-
-    def on_solution(self, event: Any) -> None:
-        self.owner.publish(
-            "solution",
-            "SolutionUpdate",
-            {
-                "episode_id": self.job.episode_id,
-                "planning_time": max(0.0, float(event.time)),
-                "cost": float(event.cost),
-                "path_states": int(event.path_states),
-                "improvement": max(1, int(event.improvement)),
-                "iteration": int(event.iteration),
-            },
-        )
-
-    def on_batch(self, event: Any) -> None:
-        self.batches.append(
-            (
-                float(event.time),
-                int(event.batch),
-                int(event.valid_samples),
-                int(event.invalid_samples),
-            )
-        )
-
-
-def _source(policy: str, episode: EpisodeLog, index: int) -> str:
-    if policy == "training":
-        return episode.sources[index] if index < len(episode.sources) else "learner"
-    return policy if policy in ("tensor", "fixed", "fit") else "fixed"
-
-
-def _finite(value: float | None) -> float | None:
-    return float(value) if value is not None and math.isfinite(value) else None
-
-
-def _unit(value: float) -> float:
-    """A feature clamped into [0, 1] (guards against round-off just outside)."""
-    return min(1.0, max(0.0, float(value))) if math.isfinite(value) else 0.0
 
 
 def main(args: Sequence[str] | None = None) -> int:
