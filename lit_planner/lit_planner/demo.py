@@ -62,6 +62,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=int(os.environ.get("ROS_DOMAIN_ID", DEMO_DOMAIN_ID)),
         help="ROS domain of the run (default: $ROS_DOMAIN_ID, else %(default)s)",
     )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="folder for the bag and the learner's files (default: bags/<run> and runs/<run>)",
+    )
     parser.add_argument("--local", action="store_true", help="one process, no ROS: plan once")
 
 
@@ -105,8 +111,8 @@ def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
     from lit_planner.up import System, stop_on_sigterm
 
     run_id = time.strftime("demo-%Y%m%d-%H%M%S")
-    runs = Path("runs") / run_id
-    bag = default_bag_root() / run_id
+    runs = (args.out or Path("runs")) / run_id
+    bag = (args.out or default_bag_root()) / (f"{run_id}-bag" if args.out else run_id)
     system = System(args.domain_id, Path.cwd(), echo=_quiet_echo)
     print(f"lit demo: run {run_id}, ROS_DOMAIN_ID={args.domain_id} (localhost discovery)")
     print("  starting recorder, planner and learner as three processes ...", flush=True)

@@ -26,7 +26,7 @@ def lit(*args: str) -> subprocess.CompletedProcess[str]:
         [sys.executable, "-m", "lit_planner.cli", *args],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=300,
         check=False,
     )
 
@@ -126,9 +126,14 @@ def test_plan_bad_input_is_one_line(args: list[str], message: str) -> None:
     assert len(lines) == 1 and lines[0].startswith("lit plan: ") and message in lines[0]
 
 
-def test_demo_solves_the_default_scenario() -> None:
-    process = lit("demo")
+def test_demo_solves_the_default_scenario(tmp_path: Path) -> None:
+    process = lit("demo", "--out", str(tmp_path))
     assert process.returncode == 0, process.stderr
+    # Two ROS processes trained over ROS, the plan service answered, the bag accounts for all.
+    assert "4 episodes over ROS" in process.stdout
+    assert "0 messages missing" in process.stdout
+    (bag,) = tmp_path.glob("*-bag")
+    assert (bag / "metadata.yaml").is_file()
     assert "solved" in process.stdout
     assert scenarios.get(scenarios.DEFAULT_SCENARIO).description in process.stdout
     for words in ("t_init", "c_init", "ratio", "improvement", "batches", "collision checks",
