@@ -49,6 +49,10 @@ COMMANDS: dict[str, Command] = {
         "lit_planner.up",
         "start the learner and a planner node as two ROS 2 processes; Ctrl-C stops both",
     ),
+    "system-bench": Command(
+        "lit_planner.system_bench",
+        "measure the ROS system: decide round trip, training vs tensor throughput, dead learner",
+    ),
     "call": Command(
         "lit_planner.call",
         "call the planner's plan service or the learner's decide/export services; print JSON",

@@ -15,6 +15,10 @@
   ``learner_retry`` s no call is tried; then training resumes with the learner.
 - Other policies with ``episodes > 0``: that many inference queries on ``scenario`` (seeds
   ``seed``, ``seed + 1``, ...), then the node keeps serving.
+- ``episodes_from``: ``training`` draws the episodes from the training distribution
+  (``training_scenarios``, ``training_seed``) whatever the policy, ``scenario`` plans ``scenario``;
+  empty: the distribution in training mode, the scenario otherwise. The same draws with two
+  policies are the same problems (``lit system-bench`` compares them).
 - ``wait_for_subscribers: N`` holds the episodes back until every topic has N matched
   subscriptions (``lit up`` and ``lit demo`` set it for their recorder), so a recording starts
   with the first message.
@@ -116,6 +120,7 @@ class PlannerNode:
             explore=True,
             exit_when_done=False,
             wait_for_subscribers=0,
+            episodes_from="",
         )
         self.params = p
         if p["policy"] not in MODES:
@@ -319,27 +324,29 @@ class PlannerNode:
                 f"{p['learner_wait']} s; starting the episodes anyway"
             )
 
-        if p["policy"] == "training":
+        training = p["policy"] == "training"
+        drawn = p["episodes_from"] == "training" or (training and p["episodes_from"] != "scenario")
+        if drawn:
             import numpy as np
             from lit_learner.train import TrainingDistribution
 
             names = [name.strip() for name in p["training_scenarios"].split(",") if name.strip()]
             distribution = TrainingDistribution(names, np.random.default_rng(p["training_seed"]))
-            if not self.learner.wait(p["learner_wait"]):
-                self.log.warning(
-                    f"learner service {p['learner_service']} not found within "
-                    f"{p['learner_wait']} s; training starts with fallback decisions"
-                )
+        if training and not self.learner.wait(p["learner_wait"]):
+            self.log.warning(
+                f"learner service {p['learner_service']} not found within "
+                f"{p['learner_wait']} s; training starts with fallback decisions"
+            )
+        mode = "training" if training else "inference"
         for index in range(p["episodes"]):
             if self._stopping.is_set():
                 return
-            if p["policy"] == "training":
+            if drawn:
                 spec = distribution.draw(index)
-                problem = scenarios.get(spec.scenario, spec.instance)
-                job = Job("training", problem, "training", seed=spec.seed)
+                problem, seed = scenarios.get(spec.scenario, spec.instance), spec.seed
             else:
-                problem = scenarios.get(p["scenario"])
-                job = Job("inference", problem, p["policy"], seed=p["seed"] + index)
+                problem, seed = scenarios.get(p["scenario"]), p["seed"] + index
+            job = Job(mode, problem, p["policy"], seed=seed)
             job.time = p["time_budget"] or None
             job.episode_id = f"{self.run_id}/{index}"
             with self._queue_lock:

@@ -1,0 +1,222 @@
+"""``lit system-bench``: the distributed system's own numbers, measured in one run.
+
+1. **Decide round trip** across processes: ``lit call decide --repeat N`` (a separate client
+   process) against a running ``lit_learner_node``, for both agents: median and p99.
+2. **Planning throughput** in training mode against the tensor policy on the same problems: the
+   planner node plans ``--episodes`` draws of the training distribution (same ``--seed``) once
+   asking the learner at every decision and once with the tensor policy; wall seconds per
+   episode, and the planner clock (which excludes the learner's time) for comparison.
+3. **Noticing a dead learner**: during training the learner is SIGKILLed ``--kills`` times (and
+   restarted from its checkpoint in between); the time from the kill to the planner's fallback
+   warning (its log timestamp) is how long the planner needs to notice.
+
+Every process runs on its own ROS domain with discovery on this host, and is stopped by its PID.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lit_planner.up import System
+
+DEFAULT_DOMAIN_ID = 94
+_LOG_STAMP = re.compile(r"\[(?:WARN|INFO|ERROR)\] \[(\d+\.\d+)\]")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``lit system-bench``."""
+    parser.add_argument("--episodes", type=int, default=12, help="episodes per policy")
+    parser.add_argument("--budget", type=float, default=0.3, help="planner seconds per episode")
+    parser.add_argument("--scenarios", default="np4,np8,rrd4,rrd8", help="training mix")
+    parser.add_argument("--seed", type=int, default=7, help="seed of the episode draws")
+    parser.add_argument("--calls", type=int, default=2000, help="decide round trips per agent")
+    parser.add_argument("--kills", type=int, default=3, help="learner SIGKILLs")
+    parser.add_argument(
+        "--domain-id",
+        type=int,
+        default=int(os.environ.get("ROS_DOMAIN_ID", DEFAULT_DOMAIN_ID)),
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the three measurements and print them as tables."""
+    with tempfile.TemporaryDirectory(prefix="lit-system-bench-") as folder:
+        work = Path(folder)
+        system = System(args.domain_id, work, echo=None)
+        try:
+            _start_learner(system, work)
+            print("## Decide round trip (lit call decide --repeat, separate process)\n")
+            print("| agent | calls | median | p99 | max |")
+            print("|---|---|---|---|---|")
+            for agent in ("psi_K", "B"):
+                stats = _round_trips(system, agent, args.calls)
+                print(
+                    f"| {agent} | {stats['calls']} | {stats['median_ms']:.2f} ms | "
+                    f"{stats['p99_ms']:.2f} ms | {stats['max_ms']:.2f} ms |",
+                    flush=True,
+                )
+            print("\n## Planning throughput on the same problems\n")
+            print("| policy | episodes | wall s / episode | planner s / episode | learner calls |")
+            print("|---|---|---|---|---|")
+            rows = {}
+            for policy in ("training", "tensor"):
+                rows[policy] = _throughput(system, work, policy, args)
+                row = rows[policy]
+                print(
+                    f"| {policy} | {row['episodes']} | {row['wall']:.3f} | {row['planner']:.3f} | "
+                    f"{row['learner_calls']} |",
+                    flush=True,
+                )
+            ratio = rows["training"]["wall"] / rows["tensor"]["wall"]
+            print(f"\ntraining / tensor wall time per episode: {ratio:.2f}x")
+            print("\n## Time for the planner to notice a dead learner (SIGKILL → fallback)\n")
+            delays = _dead_learner(system, work, args)
+            for i, delay in enumerate(delays):
+                print(f"kill {i + 1}: {delay * 1e3:.0f} ms")
+            if delays:
+                print(
+                    f"median {np.median(delays) * 1e3:.0f} ms, max {max(delays) * 1e3:.0f} ms "
+                    f"(decision_timeout 50 ms)"
+                )
+        finally:
+            system.stop()
+    return 0
+
+
+def _start_learner(system: System, work: Path) -> None:
+    system.start(
+        "learner",
+        "lit_learner_node",
+        {
+            "checkpoint": str(work / "learner" / "checkpoint.pt"),
+            "export_dir": str(work / "learner" / "tensors"),
+            "checkpoint_every": 1,
+            "checkpoint_period": 1.0,
+        },
+    )
+    system.wait_ready("learner")
+
+
+def _round_trips(system: System, agent: str, calls: int) -> dict[str, Any]:
+    process = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "call", "decide", "--agent", agent,
+         "--repeat", str(calls)],
+        env=system.env, capture_output=True, text=True, timeout=600, check=False,
+    )  # fmt: skip
+    if process.returncode != 0:
+        raise SystemExit(f"lit system-bench: lit call decide failed: {process.stderr.strip()}")
+    return json.loads(process.stdout)  # type: ignore[no-any-return]
+
+
+def _throughput(system: System, work: Path, policy: str, args: argparse.Namespace) -> dict:
+    from lit_planner import replay
+
+    bag = work / f"bag-{policy}"
+    system.start("recorder", "lit_recorder_node", {"bag": str(bag), "run_id": policy})
+    system.wait_ready("recorder")
+    planner = system.start(
+        "planner",
+        "lit_planner_node",
+        {
+            "policy": policy,
+            "episodes_from": "training",
+            "training_scenarios": args.scenarios,
+            "training_seed": args.seed,
+            "episodes": args.episodes,
+            "time_budget": float(args.budget),
+            "exit_when_done": True,
+            "wait_for_subscribers": 1,
+            "run_id": policy,
+        },
+    )
+    if planner.process.wait(3600) != 0:
+        raise SystemExit("lit system-bench: the planner failed:\n" + "\n".join(planner.lines[-20:]))
+    _stop(system, "recorder")
+    envelopes = _envelopes(replay, bag)
+    summaries = [e.payload for e in envelopes if e.schema == "lit_msgs_json/EpisodeSummary"]
+    # From the planner's ready line to its last message: startup excluded, all episodes included.
+    wall = (max(e.stamp_ns for e in envelopes) - _first_stamp(planner)) / 1e9
+    return {
+        "episodes": len(summaries),
+        "wall": wall / max(1, len(summaries)),
+        "planner": float(np.mean([s["time"] for s in summaries])),
+        "learner_calls": sum(s["learner_calls"] for s in summaries),
+    }
+
+
+def _first_stamp(child: Any) -> int:
+    """The ROS log time of the planner's ``ready:`` line, in ns (its episodes start after it)."""
+    for line in child.lines:
+        match = _LOG_STAMP.search(line)
+        if match and "ready:" in line:
+            return int(float(match.group(1)) * 1e9)
+    raise SystemExit("lit system-bench: no ready line in the planner's log")
+
+
+def _envelopes(replay: Any, bag: Path) -> list[Any]:
+    skipped = replay.Skipped()
+    with replay.BagReader(bag) as reader:
+        items = [replay.decode(message, skipped) for message in reader.messages()]
+    return [item for item in items if isinstance(item, replay.Envelope)]
+
+
+def _dead_learner(system: System, work: Path, args: argparse.Namespace) -> list[float]:
+    planner = system.start(
+        "planner",
+        "lit_planner_node",
+        {
+            "policy": "training",
+            "training_scenarios": args.scenarios,
+            "training_seed": args.seed + 1,
+            "episodes": 100_000,
+            "time_budget": 1.0,
+            "learner_retry": 0.5,
+            "run_id": "kills",
+        },
+    )
+    system.wait_ready("planner")
+    delays = []
+    for _ in range(args.kills):
+        time.sleep(3.0)  # training under way, the learner answering
+        seen = len(planner.lines)
+        learner = system.children["learner"]
+        killed = time.time()
+        learner.process.send_signal(signal.SIGKILL)
+        learner.process.wait()
+        warned = _wait_for_warning(planner, seen, timeout=60.0)
+        if warned is not None:
+            delays.append(warned - killed)
+        _start_learner(system, work)  # resumes from its checkpoint
+    _stop(system, "planner")
+    return delays
+
+
+def _wait_for_warning(child: Any, start: int, timeout: float) -> float | None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        for line in child.lines[start:]:
+            if "[WARN]" in line and "learner" in line:  # the fallback warning
+                match = _LOG_STAMP.search(line)
+                if match:
+                    return float(match.group(1))
+        time.sleep(0.05)
+    return None
+
+
+def _stop(system: System, name: str) -> None:
+    child = system.children.pop(name)
+    if child.process.poll() is None:
+        child.process.send_signal(signal.SIGTERM)
+        child.process.wait(60)
