@@ -341,7 +341,10 @@ def _print_bag(bag: Path) -> None:
     except Exception as error:  # noqa: BLE001 - the demo reports; replay has the details
         print(f"Bag {bag}: unreadable ({error})")
         return
-    print(f"Bag {bag} (MCAP, rosbag2 v9) — inspect with `lit replay info {bag}`:")
+    print(
+        f"Bag {bag} (MCAP, rosbag2 v9) — `lit replay info {bag}` lists it, "
+        f"`lit replay bench {bag}` tables its queries:"
+    )
     for topic in info["topics"]:
         print(f"  {topic['topic']} ({topic['type']}): {topic['messages']} messages")
     publishers = info.get("publishers", [])

@@ -33,12 +33,14 @@ import os
 import re
 import sys
 from collections import Counter
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from functools import cache
 from pathlib import Path
 from typing import Any, Self
+
+import numpy as np
 
 from lit_planner import bag, scenarios
 from lit_planner.errors import LitPlannerError
@@ -1249,12 +1251,93 @@ def _salvage(args: argparse.Namespace) -> int:
     return 0
 
 
+def read_episode_summaries(paths: Sequence[str | Path]) -> list[dict[str, Any]]:
+    """Every EpisodeSummary payload in the bags (a ROS run's queries), in recording order."""
+    skipped = Skipped()
+    summaries = []
+    for path in paths:
+        with BagReader(path) as reader:
+            for message in reader.messages():
+                item = decode(message, skipped)
+                if isinstance(item, Envelope) and item.schema == SCHEMA_PREFIX + "EpisodeSummary":
+                    summaries.append(item.payload)
+    return summaries
+
+
+def episode_table(summaries: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str, Any]], str]:
+    """Per (mode, scenario, planner, policy): queries, solved, medians of t_init, c_init, c_final
+    and c_final / optimum (an unsolved query counts as infinite, as in ``lit bench``), fallback
+    decisions and independently re-checked paths. Returns the rows and a markdown table."""
+    groups: dict[tuple[str, str, str, str], list[Mapping[str, Any]]] = {}
+    for summary in summaries:
+        key = (summary["mode"], summary["scenario"], summary["planner"], summary["policy"])
+        groups.setdefault(key, []).append(summary)
+
+    def median(values: list[float | None]) -> float | None:
+        finite = [math.inf if v is None else float(v) for v in values]
+        value = float(np.median(finite)) if finite else math.inf
+        return value if math.isfinite(value) else None
+
+    rows = []
+    for (mode, scenario, planner, policy), group in sorted(groups.items()):
+        ratios = [
+            s["cost"] / s["optimal_cost"] if s["cost"] and s["optimal_cost"] else None
+            for s in group
+        ]
+        rows.append({
+            "mode": mode, "scenario": scenario, "planner": planner, "policy": policy,
+            "queries": len(group),
+            "solved": sum(bool(s["solved"]) for s in group),
+            "median_t_init": median([s["t_init"] for s in group]),
+            "median_c_init": median([s["c_init"] for s in group]),
+            "median_c_final": median([s["cost"] for s in group]),
+            "median_ratio": median(ratios) if any(r is not None for r in ratios) else None,
+            "fallback_decisions": sum(int(s["fallback_decisions"]) for s in group),
+            "paths_rechecked_ok": sum(s.get("path_valid") is True for s in group),
+        })  # fmt: skip
+
+    def cell(value: float | None, scale: float = 1.0, unit: str = "") -> str:
+        return "-" if value is None else f"{value * scale:.3f}{unit}"
+
+    lines = [
+        (
+            "| mode | scenario | planner | policy | queries | solved | median t_init | "
+            "median c_init | median c_final | c_final / optimum | fallbacks | paths re-checked |"
+        ),
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        lines.append(
+            f"| {row['mode']} | {row['scenario']} | {row['planner']} | {row['policy']} | "
+            f"{row['queries']} | {row['solved']} | {cell(row['median_t_init'], 1e3, ' ms')} | "
+            f"{cell(row['median_c_init'])} | {cell(row['median_c_final'])} | "
+            f"{cell(row['median_ratio'])} | {row['fallback_decisions']} | "
+            f"{row['paths_rechecked_ok']}/{row['queries']} |"
+        )
+    return rows, "\n".join(lines) + "\n"
+
+
 def _bench(args: argparse.Namespace) -> int:
     first = Path(args.bags[0])
     out = args.out
     if out is None:
         out = first / REPLAY_DIR if first.is_dir() else first.with_name(first.stem + "-replay")
-    summary, recorded = replay_bench(args.bags, Path(out))
+    try:
+        summary, recorded = replay_bench(args.bags, Path(out))
+    except ReplayError as error:
+        # Not a lit bench bag: summarise the planning queries of a ROS run (lit up, lit demo).
+        summaries = read_episode_summaries(args.bags)
+        if not summaries:
+            raise ReplayError(f"{error}; nor any EpisodeSummary of a ROS run") from error
+        rows, table = episode_table(summaries)
+        Path(out).mkdir(parents=True, exist_ok=True)
+        (Path(out) / "episodes.json").write_text(json.dumps(rows, indent=1) + "\n")
+        (Path(out) / "episodes.md").write_text(table)
+        print(table, end="")
+        print(
+            f"{PROG} bench: {len(summaries)} planning queries -> {out}/episodes.json, episodes.md"
+        )
+        return 0
     if recorded.skipped.total:
         print(f"{PROG} bench: {recorded.skipped.line()}", file=sys.stderr)
     if recorded.missing:
