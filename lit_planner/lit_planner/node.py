@@ -127,6 +127,11 @@ class PlannerNode:
             raise SystemExit(
                 f"lit_planner_node: policy must be one of {MODES}, got {p['policy']!r}"
             )
+        if p["episodes_from"] not in ("", "training", "scenario"):
+            raise SystemExit(
+                "lit_planner_node: episodes_from must be training, scenario or empty, got "
+                f"{p['episodes_from']!r}"
+            )
         self.run_id = p["run_id"] or f"{time.strftime('%Y%m%d-%H%M%S')}-{uuid.uuid4().hex[:6]}"
         self.source = node.get_fully_qualified_name()
         self.finished = False
