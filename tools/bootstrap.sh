@@ -154,6 +154,7 @@ PYEOF
   for tool in "$SHARED"/bin/*; do
     name="$(basename "$tool")"
     case "$name" in python*|activate*|Activate*) continue ;; esac
+    [ -f "$tool" ] || continue  # bin/__pycache__ and the like
     [ -e "$VENV/bin/$name" ] && continue
     if [ "$(head -c "${#shebang}" "$tool" | tr -d '\0')" = "$shebang" ]; then
       sed "1s|^#!.*|#!$VENV/bin/python|" "$tool" >"$VENV/bin/$name"

@@ -18,7 +18,7 @@ import torch.nn.functional as F
 from lit_learner.config import AgentConfig
 from lit_learner.fuzzy import fuzzify
 from lit_learner.messages import Features
-from lit_learner.networks import Actor, Critic, polyak_update
+from lit_learner.networks import Actor, ActorSnapshot, Critic, polyak_update
 from lit_learner.replay import PrioritizedReplay, beta_at
 
 
@@ -59,6 +59,9 @@ class DDPGAgent:
         """Gradient steps taken."""
         self.transitions = 0
         """Transitions ever stored."""
+        self._snapshot: ActorSnapshot | None = None
+        self._snapshot_key: tuple[int, ...] = ()
+        self._snapshot_params: tuple[Actor, tuple[torch.Tensor, ...]] | None = None
 
     # ------------------------------------------------------------------ actions
 
@@ -66,11 +69,27 @@ class DDPGAgent:
         """Fuzzy 9-vectors of raw (..., 3) features."""
         return fuzzify(features, self.config.fuzzy_centres, self.config.fuzzy_sigma)
 
-    @torch.no_grad()
     def policy(self, features: Features) -> float:
-        """Noise-free z*(features) in action units, before rounding."""
-        x = torch.tensor([features], dtype=torch.float32)
-        return float(self.actor(self.state(x))[0])
+        """Noise-free z*(features) in action units, before rounding.
+
+        Evaluated by an :class:`ActorSnapshot` of the current actor weights (rebuilt whenever a
+        parameter has changed: an optimiser step, a loaded checkpoint), not by torch: a single
+        decision is on the planner's critical path.
+        """
+        return self.snapshot()(features)
+
+    def snapshot(self) -> ActorSnapshot:
+        """The snapshot of the actor as it is now (cached until its parameters change)."""
+        # Every in-place change of a tensor (optimiser steps, load_state_dict) bumps its _version.
+        if self._snapshot_params is None or self._snapshot_params[0] is not self.actor:
+            self._snapshot_params = (self.actor, tuple(self.actor.parameters()))
+        key = tuple([p._version for p in self._snapshot_params[1]])
+        if self._snapshot is None or self._snapshot_key != key:
+            self._snapshot = ActorSnapshot(
+                self.actor, self.config.fuzzy_centres, self.config.fuzzy_sigma
+            )
+            self._snapshot_key = key
+        return self._snapshot
 
     @property
     def warming_up(self) -> bool:
@@ -143,7 +162,13 @@ class DDPGAgent:
         self.critic_optimizer.step()
         self.replay.update_priorities(batch.index, (target - q).detach().double().numpy())
 
-        actor_loss = -self.critic(state, self.actor.normalised(state)).mean()
+        logits = self.actor.logits(state)
+        a_pi = torch.softmax(logits, dim=-1) @ self.actor.consequents_norm
+        actor_loss = -self.critic(state, a_pi).mean()
+        if c.logit_penalty:
+            # Keeps the softmax out of its saturated corners, where dz*/dlogits vanishes and an
+            # actor pushed there by an early, rough critic could never come back.
+            actor_loss = actor_loss + c.logit_penalty * (logits * logits).mean()
         self.actor_optimizer.zero_grad()
         actor_loss.backward()
         self.actor_optimizer.step()

@@ -60,6 +60,10 @@ class AgentConfig:
     """Hidden widths of the actor's and the critic's MLP (ReLU)."""
     actor_last_init: float = 3e-3
     """Half-width of the uniform init of the actor's last layer, so z* starts mid-range (ours)."""
+    logit_penalty: float = 1e-2
+    """Weight of the mean squared rule logit in the actor's loss (ours; 0 turns it off): without
+    it the softmax can saturate at a rule corner, where the actor's gradient vanishes for good
+    (seen as the B agent stuck at B = 20, and as 2 of 8 seeds of the one-step bandit at 1.0)."""
 
     def __post_init__(self) -> None:
         if self.name not in AGENT_NAMES:

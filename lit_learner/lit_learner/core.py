@@ -9,10 +9,12 @@ is one actor forward pass (plus pairing and a replay insert).
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import os
 import random
 from collections.abc import Sequence
+from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 from typing import Any
 
@@ -281,9 +283,14 @@ class LearnerCore:
         directory: str | Path,
         provenance: dict[str, Any],
         agents: Sequence[str] = AGENT_NAMES,
+        lock: AbstractContextManager[Any] | None = None,
     ) -> dict[str, Path]:
         """Write ``checkpoint.pt`` and each agent's lookup tensor with its sidecar into
         ``directory``.
+
+        ``lock`` (held by whoever else uses the core, e.g. the learner node's decision service)
+        is taken only while the checkpoint is written and the actors are copied; the lookup
+        grids, which take seconds, are computed from those copies without it.
 
         Returns:
             Paths keyed ``B`` (b_tensor.npy), ``psi_K`` (k_tensor.npy) and ``checkpoint``.
@@ -296,30 +303,39 @@ class LearnerCore:
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
         checkpoint = directory / CHECKPOINT_FILE
-        self.save_checkpoint(checkpoint)
+        with lock if lock is not None else nullcontext():
+            self.save_checkpoint(checkpoint)
+            frozen = {
+                name: (
+                    copy.deepcopy(self.agents[name].actor),
+                    {
+                        "agent": self.agents[name].config.to_dict(),
+                        "seed": self.config.seed,
+                        "trained": self.trains(name),
+                        "updates": self.agents[name].updates,
+                        "transitions": self.agents[name].transitions,
+                        "episodes": self.episodes,
+                    },
+                )
+                for name in agents
+            }
+            policy_version = self._policy_version
         checkpoint_sha256 = _sha256(checkpoint)
         paths: dict[str, Path] = {"checkpoint": checkpoint}
-        for name in agents:
-            agent = self.agents[name]
+        for name, (actor, training) in frozen.items():
+            config = self.agents[name].config  # immutable
             path = directory / TENSOR_FILES[name]
             write_tensor(
                 path,
-                policy_grid(agent),
+                policy_grid(actor, config),
                 name,
                 interpolation="trilinear",
-                consequents=agent.config.consequents,
-                fuzzy_centres=agent.config.fuzzy_centres,
-                fuzzy_sigma=agent.config.fuzzy_sigma,
+                consequents=config.consequents,
+                fuzzy_centres=config.fuzzy_centres,
+                fuzzy_sigma=config.fuzzy_sigma,
                 reward=self.config.reward.to_dict(),
-                training={
-                    "agent": agent.config.to_dict(),
-                    "seed": self.config.seed,
-                    "trained": self.trains(name),
-                    "updates": agent.updates,
-                    "transitions": agent.transitions,
-                    "episodes": self.episodes,
-                },
-                policy_version=self._policy_version,
+                training=training,
+                policy_version=policy_version,
                 checkpoint_sha256=checkpoint_sha256,
                 provenance=provenance,
             )

@@ -12,7 +12,9 @@ import torch
 from lit_planner.tensor_files import GRID_SIZE, TENSOR_SHAPE
 from numpy.typing import NDArray
 
-from lit_learner.agent import DDPGAgent
+from lit_learner.config import AgentConfig
+from lit_learner.fuzzy import fuzzify
+from lit_learner.networks import Actor
 
 EXPORT_CHUNK = 1 << 16
 """Grid points per actor forward pass during export."""
@@ -30,12 +32,15 @@ def grid_features() -> NDArray[np.float32]:
 
 
 @torch.no_grad()
-def policy_grid(agent: DDPGAgent) -> NDArray[np.float32]:
-    """The agent's noise-free z* on the grid, shape (101, 101, 101), clipped to [min f, max f]
+def policy_grid(actor: Actor, config: AgentConfig) -> NDArray[np.float32]:
+    """The actor's noise-free z* on the grid, shape (101, 101, 101), clipped to [min f, max f]
     (softmax arithmetic can overshoot an extreme consequent by an ulp)."""
     points = torch.from_numpy(grid_features())
     values = torch.cat(
-        [agent.actor(agent.state(chunk)) for chunk in torch.split(points, EXPORT_CHUNK)]
+        [
+            actor(fuzzify(chunk, config.fuzzy_centres, config.fuzzy_sigma))
+            for chunk in torch.split(points, EXPORT_CHUNK)
+        ]
     )
     out = values.numpy().astype(np.float32).reshape(TENSOR_SHAPE)
-    return np.clip(out, agent.config.action_min, agent.config.action_max)
+    return np.clip(out, config.action_min, config.action_max)

@@ -44,7 +44,8 @@ class LearnerNode:
     def __init__(self) -> None:
         from diagnostic_msgs.srv import AddDiagnostics
         from lit_msgs_json.envelope import Publisher
-        from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+        from rclpy.callback_groups import ReentrantCallbackGroup
+        from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
         from std_msgs.msg import String
         from std_srvs.srv import Trigger
@@ -73,6 +74,7 @@ class LearnerNode:
         self.core = self._load_core()
         self._lock = threading.Lock()
         self._work = threading.Condition(self._lock)
+        self._export_lock = threading.Lock()
         self._stopping = False
         self._planners: set[str] = set()
         self._decisions = 0
@@ -91,12 +93,16 @@ class LearnerNode:
         node.create_service(
             AddDiagnostics, p["service"], self._serve, callback_group=ReentrantCallbackGroup()
         )
-        node.create_service(
-            Trigger,
-            EXPORT_SERVICE,
-            self._serve_export,
-            callback_group=MutuallyExclusiveCallbackGroup(),
+        # The export service lives on a helper node with its own executor thread: an export takes
+        # seconds, and the decision service must keep answering meanwhile.
+        self._export_node = Node(f"{NODE_NAME}_export", start_parameter_services=False)
+        self._export_node.create_service(Trigger, EXPORT_SERVICE, self._serve_export)
+        self._export_executor = SingleThreadedExecutor()
+        self._export_executor.add_node(self._export_node)
+        self._export_thread = threading.Thread(
+            target=_spin_quietly, args=(self._export_executor,), name="export", daemon=True
         )
+        self._export_thread.start()
         node.create_timer(p["stats_period"], self._publish_stats)
         self._trainer = threading.Thread(target=self._train, name="trainer", daemon=True)
         self._trainer.start()
@@ -296,9 +302,9 @@ class LearnerNode:
             "episodes": self.core.episodes,
             "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         }
-        with self._lock:
-            paths = self.core.export_tensors(self.params["export_dir"], record)
-            self._episodes_at_export = self.core.episodes
+        with self._export_lock:  # one export at a time; decisions go on meanwhile
+            paths = self.core.export_tensors(self.params["export_dir"], record, lock=self._lock)
+            self._episodes_at_export = record["episodes"]
         self.log.info(f"exported tensors to {self.params['export_dir']} ({why})")
         return paths
 
@@ -329,11 +335,29 @@ class LearnerNode:
             self._stopping = True
             self._work.notify_all()
         self._trainer.join(timeout=30.0)
+        self._export_executor.shutdown(timeout_sec=2.0)
+        self._export_thread.join(timeout=30.0)
+        self._export_node.destroy_node()
         self.checkpoint()
         if self.core.episodes != self._episodes_at_export:
             self.export("shutdown")
         self._publish_stats()  # the final state, then wait until the recorder has it
         flush_publishers([self.stats_publisher])
+
+
+def _spin_quietly(executor: Any) -> None:
+    """Spin until the executor is shut down (or the context is, racing a signal)."""
+    from rclpy.executors import ExternalShutdownException
+
+    try:
+        executor.spin()
+    except (ExternalShutdownException, KeyboardInterrupt):
+        pass
+    except Exception:  # RCLError when shutdown races the spin (PLATFORM_FACTS)
+        import rclpy
+
+        if rclpy.ok():
+            raise
 
 
 def _finite_number(value: object) -> bool:

@@ -37,6 +37,9 @@ class SumTree:
 
     def set(self, index: NDArray[np.intp] | int, value: NDArray[np.float64] | float) -> None:
         """Set leaves (a repeated index keeps its last value) and recompute their ancestors."""
+        if isinstance(index, (int, np.integer)) and np.ndim(value) == 0:
+            self._set_one(int(index), float(value))
+            return
         index = np.atleast_1d(np.asarray(index, dtype=np.intp))
         if index.size == 0:
             return
@@ -50,6 +53,19 @@ class SumTree:
             node = np.unique(node // 2)
             if node[0] == 0:
                 break
+
+    def _set_one(self, index: int, value: float) -> None:
+        """One leaf: the same float64 additions as :meth:`set`, without its array overhead (a
+        replay insert happens inside every decision the learner answers)."""
+        if not 0 <= index < self.capacity:
+            raise ReplayError(f"sum tree index outside [0, {self.capacity})")
+        nodes = self.nodes
+        node = self.leaves + index
+        nodes[node] = value
+        node //= 2
+        while node >= 1:
+            nodes[node] = nodes[2 * node] + nodes[2 * node + 1]
+            node //= 2
 
     def find(self, value: NDArray[np.float64]) -> NDArray[np.intp]:
         """Leaf indices whose cumulative range [prefix, prefix + leaf) holds each ``value``."""

@@ -70,3 +70,44 @@ def test_polyak_update(tau: float) -> None:
             assert torch.equal(t, s)
         else:
             assert torch.allclose(t, tau * s + (1 - tau) * b)
+
+
+@pytest.mark.parametrize("kernels", [(3, 5, 7), (1, 3)])
+def test_snapshot_computes_what_the_actor_computes(kernels: tuple[int, ...]) -> None:
+    from lit_learner.networks import ActorSnapshot
+
+    torch.manual_seed(3)
+    actor = Actor(B_CONSEQUENTS, kernels=kernels, last_init=1.0)  # far from uniform firing
+    for layer in actor.head:  # larger weights, so a wrong index or order would show
+        if isinstance(layer, torch.nn.Linear):
+            torch.nn.init.normal_(layer.weight, std=0.2)
+    snapshot = ActorSnapshot(actor, (0.0, 0.5, 1.0), 0.2123)
+    raw = torch.cat([torch.rand(200, 3, generator=torch.Generator().manual_seed(1)),
+                     torch.tensor([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.0, 1.0, 0.5]])])  # fmt: skip
+    with torch.no_grad():
+        expected = actor(fuzzify(raw))
+    got = torch.tensor([snapshot(tuple(row.tolist())) for row in raw], dtype=torch.float64)
+    assert torch.allclose(got, expected.double(), rtol=0, atol=1e-4)
+    assert got.std() > 0.1  # the outputs really vary over the states
+
+
+def test_agent_policy_follows_every_weight_change() -> None:
+    from lit_learner.agent import DDPGAgent
+    from lit_learner.config import LearnerConfig
+
+    agent = DDPGAgent(LearnerConfig().b, seed=0)
+    features = (0.2, 0.7, 0.4)
+
+    def torch_policy() -> float:
+        with torch.no_grad():
+            return float(agent.actor(agent.state(torch.tensor([features])))[0])
+
+    before = agent.policy(features)
+    assert before == pytest.approx(torch_policy(), abs=1e-4)
+    with torch.no_grad():
+        agent.actor.head[-1].bias.add_(torch.tensor([2.0, 0.0, -2.0]))  # in place, like Adam
+    after = agent.policy(features)
+    assert after != pytest.approx(before, abs=1.0)
+    assert after == pytest.approx(torch_policy(), abs=1e-4)
+    agent.actor.load_state_dict(DDPGAgent(LearnerConfig().b, seed=0).actor.state_dict())
+    assert agent.policy(features) == pytest.approx(before, abs=1e-6)

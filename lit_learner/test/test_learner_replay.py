@@ -101,3 +101,15 @@ def test_beta_rises_linearly_and_stops_at_the_end() -> None:
     assert beta_at(50, 0.4, 1.0, 100) == pytest.approx(0.7)
     assert beta_at(100, 0.4, 1.0, 100) == 1.0
     assert beta_at(10_000, 0.4, 1.0, 100) == 1.0
+
+
+def test_single_leaf_updates_equal_vectorised_ones_bit_for_bit() -> None:
+    rng = np.random.default_rng(1)
+    one, many = SumTree(777), SumTree(777)
+    for _ in range(300):
+        index, value = int(rng.integers(0, 777)), float(rng.uniform(0.0, 3.0))
+        one.set(index, value)  # the scalar path
+        many.set(np.array([index]), np.array([value]))  # the array path
+    np.testing.assert_array_equal(one.nodes, many.nodes)
+    with pytest.raises(ReplayError, match=r"outside \[0, 777\)"):
+        one.set(-1, 1.0)

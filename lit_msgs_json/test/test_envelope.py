@@ -813,3 +813,18 @@ def test_decode_raises_only_message_errors(
     for weird in (None, 5, {"schema": "x"}):
         with pytest.raises(MessageError, match=r"\(json\)"):
             decode(weird)  # type: ignore[arg-type]
+
+
+def test_fast_validator_is_never_more_lenient_than_jsonschema() -> None:
+    """The compiled validator only short-cuts documents the reference accepts: it accepts every
+    example (so the hot path is really taken) and rejects every payload failure case."""
+    from lit_msgs_json import codec
+
+    for name, payload in EXAMPLES.items():
+        reference = Draft202012Validator(load_schema(name), registry=codec._registry())
+        assert reference.is_valid(payload), name
+        assert codec._fast_validator(name).is_valid(payload), name
+    for case_id, name, payload, _field, _rule in PAYLOAD_FAILURES:
+        reference = Draft202012Validator(load_schema(name), registry=codec._registry())
+        if not reference.is_valid(payload):  # NaN cases are the finite check's, not the schema's
+            assert not codec._fast_validator(name).is_valid(payload), case_id

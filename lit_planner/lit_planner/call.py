@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         if args.service == "export":
             return _call_export(node, args)
-        caller = ServiceCaller(node, name)
+        caller = ServiceCaller(node, name, private=True)
         if not caller.wait(args.wait):
             print(
                 f"lit call: error: service {name} not found within {args.wait:g} s "

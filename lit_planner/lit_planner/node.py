@@ -94,7 +94,7 @@ class PlannerNode:
 
     def __init__(self) -> None:
         from lit_msgs_json.envelope import Publisher
-        from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+        from rclpy.callback_groups import ReentrantCallbackGroup
         from rclpy.node import Node
         from std_msgs.msg import String
         from trajectory_msgs.msg import JointTrajectory
@@ -149,8 +149,9 @@ class PlannerNode:
         }
         self._publish_lock = threading.Lock()
         self._fallback = self._fallback_values()
-        self._learner_group = MutuallyExclusiveCallbackGroup()
-        self.learner = ServiceCaller(node, p["learner_service"], self._learner_group)
+        # Only the planning thread calls the learner: it spins the client's own node while it
+        # waits, so answers do not queue behind the plan service on the shared executor.
+        self.learner = ServiceCaller(node, p["learner_service"], private=True, suffix="learner")
         self._learner_down_until = 0.0
         self._jobs: queue.Queue[Job | None] = queue.Queue()
         self._queued = 0
@@ -579,6 +580,8 @@ class PlannerNode:
         self._stopping.set()
         self._jobs.put(None)
         self._worker.join(timeout=30.0)
+        if not self._worker.is_alive():
+            self.learner.destroy()
         if not flush_publishers([*self.publishers.values(), self.path_publisher]):
             self.log.warning("some subscribers did not acknowledge the last messages")
 
