@@ -561,3 +561,29 @@ def test_killed_bench_bag_is_recoverable(tmp_path: Path) -> None:
     assert "the writer did not finish" in result.stdout
     replayed = _replay("bench", salvaged, "--out", tmp_path / "out")
     assert replayed.returncode == 0, replayed.stderr
+
+
+def test_compact_keeps_every_message_and_compresses(mixed_bag: Path, tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+    from rosbags.rosbag2 import Reader
+
+    out = tmp_path / "compact"
+    result = _replay("compact", mixed_bag, out)
+    assert result.returncode == 0, result.stderr
+    assert "messages" in result.stdout and " MB -> " in result.stdout
+
+    def everything(path: Path) -> list[tuple[str, str, int, bytes]]:
+        with Reader(path) as reader:
+            return [(c.topic, c.msgtype, t, bytes(d)) for c, t, d in reader.messages()]
+
+    assert everything(out) == everything(mixed_bag)
+    with Reader(out) as reader, Reader(mixed_bag) as original:
+        qos = {c.topic: c.ext.offered_qos_profiles for c in original.connections}
+        assert {c.topic: c.ext.offered_qos_profiles for c in reader.connections} == qos
+    (mcap_file,) = out.glob("*.mcap")
+    with mcap_file.open("rb") as stream:
+        chunks = list(make_reader(stream).get_summary().chunk_indexes)
+    assert chunks and {c.compression for c in chunks} == {"zstd"}
+    info = replay.bag_info(out)
+    assert info["custom_data"]["lit.compacted_from"] == mixed_bag.name
+    assert _replay("compact", mixed_bag, out).returncode == 2  # never overwrites

@@ -58,7 +58,7 @@ from rosbags.interfaces import (
     QosTime,
 )
 from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.rosbag2.enums import CompressionMode
+from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
@@ -175,10 +175,16 @@ class ChunkedMcapWriter(McapWriter):
 class ChunkedWriter(Writer):
     """A rosbag2 version-9 MCAP bag writer (rosbags' ``Writer``) with :class:`ChunkedMcapWriter`."""
 
-    def __init__(self, path: Path | str, *, chunk_bytes: int = DEFAULT_CHUNK_BYTES) -> None:
+    def __init__(
+        self, path: Path | str, *, chunk_bytes: int = DEFAULT_CHUNK_BYTES, compress: bool = False
+    ) -> None:
         if not 1 <= chunk_bytes <= MAX_CHUNK_BYTES:
             raise BagError(f"chunk_bytes must be within 1..{MAX_CHUNK_BYTES}, got {chunk_bytes}")
         super().__init__(path, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
+        if compress:
+            # zstd inside the MCAP chunks (rosbag2's MCAP storage compression): metadata.yaml
+            # still says no compression, every MCAP reader decompresses the chunks itself.
+            self.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
         # Writer.open() instantiates STORAGE_PLUGINS[plugin](path, compression): give this
         # instance a table whose MCAP entry carries the chunk size.
         self.STORAGE_PLUGINS = {

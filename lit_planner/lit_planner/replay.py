@@ -1015,6 +1015,55 @@ def _salvaged_custom_data(source: Path) -> dict[str, str]:
         return {}
 
 
+# --- compact ---------------------------------------------------------------------------------
+
+
+def compact(source: str | Path, out: str | Path) -> dict[str, Any]:
+    """Rewrite a complete bag with zstd-compressed 1 MiB MCAP chunks (for bags kept in the
+    repository): the same connections with their QoS, the same timestamps and message bytes, its
+    ``custom_data`` plus ``lit.compacted_from``.
+
+    Returns:
+        ``messages``, ``bytes_before`` and ``bytes_after``.
+    """
+    from rosbags.rosbag2 import Reader
+
+    source, target = Path(source), Path(out)
+    _check_readable(source)
+    if target.exists():
+        raise ReplayError(f"{target} exists; choose a new folder")
+    custom = _salvaged_custom_data(source)
+    custom["lit.compacted_from"] = source.name
+    writer = bag.ChunkedWriter(target, chunk_bytes=bag.MAX_CHUNK_BYTES, compress=True)
+    for key, value in custom.items():
+        writer.set_custom_data(key, value)
+    count = 0
+    try:
+        with Reader(source) as reader:
+            writer.open()
+            connections = {
+                c.id: writer.add_connection(
+                    c.topic,
+                    c.msgtype,
+                    typestore=bag.typestore(),
+                    offered_qos_profiles=c.ext.offered_qos_profiles,
+                )
+                for c in reader.connections
+            }
+            for connection, stamp, data in reader.messages():
+                writer.write(connections[connection.id], stamp, data)
+                count += 1
+        writer.close()
+    except BaseException:
+        writer.abort()
+        raise
+
+    def size(path: Path) -> int:
+        return sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
+
+    return {"messages": count, "bytes_before": size(source), "bytes_after": size(target)}
+
+
 # --- bench -----------------------------------------------------------------------------------
 
 
@@ -1145,6 +1194,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     rescue.add_argument(
         "-o", "--out", type=Path, metavar="OUT", help=f"new bag (default: BAG{SALVAGED_SUFFIX})"
     )
+    squeeze = sub.add_parser(
+        "compact", help="rewrite a bag with zstd-compressed MCAP chunks (smaller, same messages)"
+    )
+    squeeze.add_argument("bag", type=Path, metavar="BAG")
+    squeeze.add_argument("out", type=Path, metavar="OUT", help="new bag folder")
     from lit_planner import bag_measure
 
     tensors = sub.add_parser(
@@ -1172,6 +1226,7 @@ def run(args: argparse.Namespace) -> int:
         "info": _info,
         "verify": _verify,
         "salvage": _salvage,
+        "compact": _compact,
         "bench": _bench,
         "measure": bag_measure.run,
         "tensors": lambda arguments: _offline().run(arguments),
@@ -1227,6 +1282,15 @@ def _verify(args: argparse.Namespace) -> int:
     for example in report.unchecked.examples + skipped.examples[: skipped.max_examples]:
         print(f"  {example}")
     return 1 if report.invalid else 0
+
+
+def _compact(args: argparse.Namespace) -> int:
+    result = compact(args.bag, args.out)
+    print(
+        f"{PROG} compact: wrote {args.out}: {result['messages']} messages, "
+        f"{result['bytes_before'] / 1e6:.2f} MB -> {result['bytes_after'] / 1e6:.2f} MB"
+    )
+    return 0
 
 
 def _salvage(args: argparse.Namespace) -> int:
