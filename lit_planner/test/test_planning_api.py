@@ -30,7 +30,7 @@ from lit_planner.planning import (
 from lit_planner import scenarios
 from lit_planner import tensor_files as tf
 
-ITERATIONS = 2000
+ITERATIONS = 3000
 """LIT*'s iteration budget in these tests: a few milliseconds, enough to solve np4 and rrd4."""
 BASELINE_TIME = 0.3
 """Wall-time budget of each OMPL baseline run (they need 2-110 ms on np4 / rrd4)."""

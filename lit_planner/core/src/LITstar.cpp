@@ -430,10 +430,40 @@ namespace lit
             if (other != nullptr && std::find(out.begin(), out.end(), other) == out.end())
                 out.push_back(other);
         };
+        // The k-nearest relation is not symmetric; the graph is. Without the reverse direction the reverse search
+        // (which expands from the goal side) and the forward search would search each other's transposed graph, and
+        // the cost-to-go of the reverse search would not bound the forward search's paths.
+        for (State *other : graph_->incomingNeighbours(state))
+            addUnique(other);
         addUnique(state->forwardParent_);
         for (State *child : state->forwardChildren_)
             addUnique(child);
         addUnique(state->reverseParent(reverseTag_));
+    }
+
+    void LITstar::connectExpandedNeighbours(State *state, const std::vector<State *> &neighbours)
+    {
+        for (State *other : neighbours)
+        {
+            if (isBlacklisted(state, other))
+                continue;
+            const double distance = graph_->distance(state, other);
+            // Reverse search: other -> state (towards the goal through other).
+            if (!state->isGoal_ && other != state->reverseParent(reverseTag_))
+            {
+                const double costToGo = other->reverseCost(reverseTag_) + distance;
+                const double key = costToGo + state->costToComeLowerBound_;
+                if (costToGo < state->reverseCost(reverseTag_) && key < bestCost_)
+                    reverseQueue_.push(ReverseEdge{key, costToGo, other, state});
+            }
+            // Forward search: other -> state (from the start through other).
+            if (!state->isStart_ && !other->isGoal_ && other != state->forwardParent_ && other->isInForwardTree())
+            {
+                const double costToCome = other->costToCome_ + distance;
+                if (costToCome < state->costToCome_ && costToCome + state->costToGoLowerBound_ < bestCost_)
+                    forwardQueue_->insert(other, state);
+            }
+        }
     }
 
     void LITstar::restartReverseSearch()
@@ -459,6 +489,7 @@ namespace lit
             return;  // the reverse search only has to reach the start
         std::vector<State *> neighbours;
         collectNeighbours(state, neighbours);
+        connectExpandedNeighbours(state, neighbours);
         const double costToGo = state->reverseCost_;
         for (State *other : neighbours)
         {
@@ -510,6 +541,7 @@ namespace lit
         currentK_ = adaptiveNeighborSize(state);
         std::vector<State *> neighbours;
         collectNeighbours(state, neighbours);
+        connectExpandedNeighbours(state, neighbours);
         for (State *other : neighbours)
         {
             if (other == state->forwardParent_ || other->isStart_ || isBlacklisted(state, other))

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <tuple>
@@ -114,4 +115,37 @@ TEST(Features, PruningRemovesWhatCannotImproveAndKeepsTerminals)
     EXPECT_EQ(graph.numInvalid(), 1u);
     EXPECT_NE(graph.start(), nullptr);
     EXPECT_EQ(graph.goals().size(), 1u);
+}
+
+TEST(Features, IncomingNeighboursMakeTheKNearestGraphSymmetric)
+{
+    BoxProblem problem = test::narrowPassage(2);
+    auto owner = handBuilt(problem);
+    RandomGeometricGraph &graph = *owner;
+    // A tight cluster near the start and one far sample: the far sample's nearest are in the cluster, but no
+    // cluster member has the far sample among its nearest.
+    litstar::State *a = graph.addValidSample({-0.30, 0.30});
+    litstar::State *b = graph.addValidSample({-0.31, 0.30});
+    litstar::State *c = graph.addValidSample({-0.30, 0.31});
+    litstar::State *far = graph.addValidSample({0.45, -0.45});
+    const auto contains = [](const std::vector<litstar::State *> &list, const litstar::State *s) {
+        return std::find(list.begin(), list.end(), s) != list.end();
+    };
+    EXPECT_TRUE(graph.incomingNeighbours(a).empty());  // nothing computed yet
+    const auto &nearest = graph.neighbours(far, 2u);
+    ASSERT_EQ(nearest.size(), 2u);
+    for (litstar::State *s : {a, b, c})
+        EXPECT_EQ(contains(nearest, s), contains(graph.incomingNeighbours(s), far));
+    for (litstar::State *s : {a, b, c})
+        EXPECT_FALSE(contains(graph.neighbours(s, 2u), far));
+    // A recomputed list with a smaller k drops the entry from the incoming side too.
+    const auto &closest = graph.neighbours(far, 1u);
+    ASSERT_EQ(closest.size(), 1u);
+    for (litstar::State *s : {a, b, c})
+        EXPECT_EQ(s == closest.front(), contains(graph.incomingNeighbours(s), far));
+    // Pruning the far sample (heuristic 1.30; the cluster's is about 0.9) clears the incoming lists, which would
+    // otherwise name it.
+    EXPECT_EQ(graph.prune(1.0, [](litstar::State *) {}), 1u);
+    for (litstar::State *s : {a, b, c})
+        EXPECT_TRUE(graph.incomingNeighbours(s).empty());
 }

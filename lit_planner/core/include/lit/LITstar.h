@@ -144,8 +144,14 @@ namespace lit
         void detachFromForwardTree(litstar::State *state);
         void checkForImprovedSolution();
         void registerSolution(litstar::State *goal);
-        /** \brief Neighbours for either search: k nearest plus tree relatives. */
+        /** \brief Neighbours for either search: the k nearest, the samples that have \e state among their k nearest,
+         *  and its tree relatives. */
         void collectNeighbours(litstar::State *state, std::vector<litstar::State *> &out);
+        /** \brief Hands the edges between \e state and its \e neighbours to the searches in the direction towards
+         *  \e state: a neighbour already in the reverse tree may lower state's cost-to-go, one already in the forward
+         *  tree may lower its cost-to-come. Needed because an edge becomes known only when one of its endpoints'
+         *  neighbour list is computed, possibly after the other endpoint was expanded. */
+        void connectExpandedNeighbours(litstar::State *state, const std::vector<litstar::State *> &neighbours);
         /** \brief Algorithm 1's decisions. */
         void adaptiveBatchsize();
         std::size_t adaptiveNeighborSize(litstar::State *centre);

@@ -171,6 +171,9 @@ namespace lit::litstar
         invalid_ = std::move(keptInvalid);
         if (removed > 0u)
         {
+            // Incoming lists may hold removed states; they are rebuilt as the neighbour lists are recomputed.
+            for (auto &state : states_)
+                state->incomingNeighbours_.clear();
             ++pruneEpoch_;  // cached neighbour lists may hold removed states and their positions shifted
             ++version_;
         }
@@ -215,6 +218,24 @@ namespace lit::litstar
             state->neighbourDistances_.push_back(d);
         }
         state->neighboursScanned_ = states_.size();
+        for (State *other : state->neighbours_)
+        {
+            auto &incoming = other->incomingNeighbours_;
+            if (std::find(incoming.begin(), incoming.end(), state) == incoming.end())
+                incoming.push_back(state);
+        }
+    }
+
+    const std::vector<State *> &RandomGeometricGraph::incomingNeighbours(State *state)
+    {
+        auto &incoming = state->incomingNeighbours_;
+        incoming.erase(std::remove_if(incoming.begin(), incoming.end(),
+                                      [state](const State *other) {
+                                          return std::find(other->neighbours_.begin(), other->neighbours_.end(),
+                                                           state) == other->neighbours_.end();
+                                      }),
+                       incoming.end());
+        return incoming;
     }
 
     const std::vector<State *> &RandomGeometricGraph::neighbours(State *state, std::size_t k)

@@ -54,6 +54,10 @@ namespace lit::litstar
          *  updated incrementally with the samples added since, until a prune or a new k invalidates it. */
         const std::vector<State *> &neighbours(State *state, std::size_t k);
 
+        /** \brief The samples that have \e state among their k nearest as last computed (the reverse direction of
+         *  neighbours()); together they make the k-nearest graph undirected. */
+        const std::vector<State *> &incomingNeighbours(State *state);
+
         /** \brief Euclidean distance between two samples. */
         double distance(const State *a, const State *b) const
         {

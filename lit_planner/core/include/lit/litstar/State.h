@@ -72,6 +72,10 @@ namespace lit::litstar
         std::size_t neighboursEpoch_{std::numeric_limits<std::size_t>::max()};
         std::size_t neighboursK_{0u};
         std::size_t neighboursScanned_{0u};
+        /** \brief Samples whose k-nearest list (as last computed) contains this sample: with them the neighbour
+         *  relation is symmetric, so the reverse and the forward search see the same (undirected) graph. Entries
+         *  whose list has dropped this sample since are removed when read. */
+        std::vector<State *> incomingNeighbours_;
 
         /** \brief Forward-queue edges leaving / entering this state (for re-keying). */
         std::vector<ForwardQueueElement *> outgoing_;
