@@ -545,11 +545,22 @@ def run(args: argparse.Namespace) -> int:
 
     from lit_learner.errors import LearnerError
 
+    import signal
+
+    # `kill PID` stops like Ctrl-C (the running query finishes, then the final checkpoint, curves
+    # and provenance); SIGINT too when a non-interactive shell started us in the background with
+    # SIGINT ignored.
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    for sig in previous:
+        signal.signal(sig, signal.default_int_handler)
     try:
         summary = train(args, hooks=None)
     except (TrainingError, LearnerError, LitPlannerError) as error:
         print(f"lit train: {error}", file=sys.stderr)
         return 2
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     print(summary)
     return 0
 
