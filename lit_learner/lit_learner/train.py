@@ -461,6 +461,7 @@ def provenance(state: DriverState, run_dir: Path) -> dict[str, Any]:
         "command": shlex.join(state.command),
         "resumed_with": [shlex.join(command) for command in state.resumed_with],
         "run_folder": str(run_dir),
+        "run_id": state.run_id,
         "git_commit": git_commit(),
         "started_utc": state.started_utc,
         "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
