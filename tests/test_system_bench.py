@@ -28,7 +28,8 @@ def test_system_bench_prints_all_three_measurements() -> None:
             lock.close()
     assert process.returncode == 0, process.stdout[-2000:] + process.stderr[-2000:]
     out = process.stdout
-    assert "| psi_K | 30 |" in out and "| B | 30 |" in out
+    assert "| decide psi_K | 30 |" in out and "| decide B | 30 |" in out
+    assert "| echo (baseline) | 30 |" in out
     assert "| training | 2 |" in out and "| tensor | 2 |" in out
     assert "training / tensor wall time per episode" in out
     assert "kill 1:" in out and "median" in out

@@ -85,6 +85,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     raw = commands.add_parser("raw", help="send TEXT unchanged to an AddDiagnostics service")
     raw.add_argument("name", help="service name, e.g. /lit/planner/plan")
     raw.add_argument("text", help="the request text ('-': read standard input)")
+    raw.add_argument("--repeat", type=int, default=1, metavar="N", help="benchmark, as for decide")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -115,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return 2
-        if args.service == "decide" and args.repeat > 1:
+        if args.service in ("decide", "raw") and args.repeat > 1:
             return _repeat(caller, text, args)
         started = time.perf_counter()
         answer = caller.call(text, args.timeout)
@@ -196,13 +197,28 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
 
 
 def _repeat(caller: ServiceCaller, text: str, args: argparse.Namespace) -> int:
-    """Round trips of one decide request: warm-up, then ``--repeat`` timed calls."""
-    import numpy as np
+    """Round trips: 20 warm-up calls, then ``--repeat`` timed ones.
 
+    ``decide`` times what the planner pays per decision: encoding a new request (its own seq),
+    the call, and decoding and validating the answer. ``raw`` sends ``text`` as it is and times
+    the call only.
+    """
+    import numpy as np
+    from lit_msgs_json.envelope import MessageError, Publisher, decode
+
+    request = json.loads(text) if args.service == "decide" else None
+    publisher = Publisher("lit_call", f"call-{uuid.uuid4().hex[:8]}")
     times = []
     for index in range(20 + args.repeat):
         started = time.perf_counter()
+        if request is not None:
+            text = publisher.encode("DecideRequest", request["payload"])
         answer = caller.call(text, args.timeout)
+        if answer is not None and answer[0] and request is not None:
+            try:
+                decode(answer[1], accept="DecideResponse")
+            except MessageError as exc:
+                answer = (False, str(exc))
         elapsed = time.perf_counter() - started
         if answer is None or not answer[0]:
             print(f"lit call: error: call {index} failed: {answer}", file=sys.stderr)

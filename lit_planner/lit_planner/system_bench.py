@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from lit_planner.echo_node import ECHO_SERVICE
 from lit_planner.up import System
 
 DEFAULT_DOMAIN_ID = 94
@@ -57,16 +58,29 @@ def run(args: argparse.Namespace) -> int:
         system = System(args.domain_id, work, echo=None)
         try:
             _start_learner(system, work)
+            system.start("echo", [sys.executable, "-m", "lit_planner.echo_node"])
+            system.wait_ready("echo")
             print("## Decide round trip (lit call decide --repeat, separate process)\n")
-            print("| agent | calls | median | p99 | max |")
-            print("|---|---|---|---|---|")
-            for agent in ("psi_K", "B"):
-                stats = _round_trips(system, agent, args.calls)
+            print(
+                "Baseline, same run: an AddDiagnostics server that echoes the request and does "
+                "nothing else (`lit_planner.echo_node`), called with a decide request's text.\n"
+            )
+            print("| service | calls | median | p99 | max | median / echo median |")
+            print("|---|---|---|---|---|---|")
+            rows = [
+                (f"decide {agent}", _round_trips(system, ["decide", "--agent", agent], args.calls))
+                for agent in ("psi_K", "B")
+            ]
+            echo = _round_trips(system, ["raw", ECHO_SERVICE, _decide_text()], args.calls)
+            rows.append(("echo (baseline)", echo))
+            for name, stats in rows:
                 print(
-                    f"| {agent} | {stats['calls']} | {stats['median_ms']:.2f} ms | "
-                    f"{stats['p99_ms']:.2f} ms | {stats['max_ms']:.2f} ms |",
+                    f"| {name} | {stats['calls']} | {stats['median_ms']:.3f} ms | "
+                    f"{stats['p99_ms']:.2f} ms | {stats['max_ms']:.2f} ms | "
+                    f"{stats['median_ms'] / echo['median_ms']:.2f}x |",
                     flush=True,
                 )
+            _stop(system, "echo")
             print("\n## Planning throughput on the same problems\n")
             print("| policy | episodes | wall s / episode | planner s / episode | learner calls |")
             print("|---|---|---|---|---|")
@@ -109,15 +123,26 @@ def _start_learner(system: System, work: Path) -> None:
     system.wait_ready("learner")
 
 
-def _round_trips(system: System, agent: str, calls: int) -> dict[str, Any]:
+def _round_trips(system: System, call: list[str], calls: int) -> dict[str, Any]:
     process = subprocess.run(
-        [sys.executable, "-m", "lit_planner.cli", "call", "decide", "--agent", agent,
-         "--repeat", str(calls)],
+        [sys.executable, "-m", "lit_planner.cli", "call", *call, "--repeat", str(calls)],
         env=system.env, capture_output=True, text=True, timeout=600, check=False,
     )  # fmt: skip
     if process.returncode != 0:
-        raise SystemExit(f"lit system-bench: lit call decide failed: {process.stderr.strip()}")
+        raise SystemExit(f"lit system-bench: lit call {call[0]} failed: {process.stderr.strip()}")
     return json.loads(process.stdout)  # type: ignore[no-any-return]
+
+
+def _decide_text() -> str:
+    """A decide request as ``lit call decide`` sends it (the echo's payload: same size)."""
+    from lit_msgs_json.envelope import Publisher
+
+    payload = {
+        "agent": "psi_K", "episode_id": "echo", "rho_global": 0.1, "rho_local": 0.1,
+        "measure": 0.5, "planning_time": 0.0, "time_budget": 1.0, "cost": None,
+        "minimum_cost": 1.0, "improvements": 0, "path_states": 0, "explore": False,
+    }  # fmt: skip
+    return Publisher("lit_call", "echo").encode("DecideRequest", payload)
 
 
 def _throughput(system: System, work: Path, policy: str, args: argparse.Namespace) -> dict:

@@ -63,12 +63,14 @@ class System:
     def start(
         self,
         name: str,
-        executable: str,
+        executable: str | Sequence[str],
         params: Mapping[str, object] = (),
         namespace: str | None = None,
     ) -> Child:
-        """Start ``executable`` (a console script next to this Python) with ROS parameters."""
-        command = [_script(executable), "--ros-args"]
+        """Start ``executable`` (a console script next to this Python, or a whole command line)
+        with ROS parameters."""
+        prefix = [_script(executable)] if isinstance(executable, str) else list(executable)
+        command = [*prefix, "--ros-args"]
         if namespace:
             command += ["-r", f"__ns:={namespace}"]
         for key, value in dict(params).items():
