@@ -209,6 +209,7 @@ class LearnerConfig:
         """Inverse of :meth:`to_dict`."""
 
         def agent(d: dict[str, Any]) -> AgentConfig:
+            d = {"logit_penalty": 0.0, **d}  # configs from before the penalty trained without it
             return AgentConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
 
         rest = {k: v for k, v in doc.items() if k not in ("b", "k", "reward")}

@@ -95,7 +95,12 @@ class LearnerNode:
         )
         # The export service lives on a helper node with its own executor thread: an export takes
         # seconds, and the decision service must keep answering meanwhile.
-        self._export_node = Node(f"{NODE_NAME}_export", start_parameter_services=False)
+        self._export_node = Node(
+            f"{NODE_NAME}_export",
+            namespace=node.get_namespace(),
+            start_parameter_services=False,
+            use_global_arguments=False,  # a process-wide __node:= remap is the main node's
+        )
         self._export_node.create_service(Trigger, EXPORT_SERVICE, self._serve_export)
         self._export_executor = SingleThreadedExecutor()
         self._export_executor.add_node(self._export_node)

@@ -32,6 +32,7 @@ import shlex
 import shutil
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -542,18 +543,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Train, checkpoint, plot and (with ``--export``) export; returns the exit code."""
+    import signal
+
     from lit_planner.errors import LitPlannerError
 
     from lit_learner.errors import LearnerError
 
-    import signal
-
     # `kill PID` stops like Ctrl-C (the running query finishes, then the final checkpoint, curves
     # and provenance); SIGINT too when a non-interactive shell started us in the background with
     # SIGINT ignored.
-    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-    for sig in previous:
-        signal.signal(sig, signal.default_int_handler)
+    previous: dict[int, Any] = {}
+    if threading.current_thread() is threading.main_thread():  # signals: main thread only
+        previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+        for sig in previous:
+            signal.signal(sig, signal.default_int_handler)
     try:
         summary = train(args, hooks=None)
     except (TrainingError, LearnerError, LitPlannerError) as error:
@@ -561,7 +564,8 @@ def run(args: argparse.Namespace) -> int:
         return 2
     finally:
         for sig, handler in previous.items():
-            signal.signal(sig, handler)
+            if handler is not None:  # None: installed outside Python, cannot be restored
+                signal.signal(sig, handler)
     print(summary)
     return 0
 

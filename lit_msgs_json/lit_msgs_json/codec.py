@@ -7,9 +7,10 @@ cannot carry and which numeric bounds do not catch (every comparison with NaN is
 may ``$ref`` another shipped schema by its ``$id`` (``BenchSummary`` holds ``BenchRun`` records).
 
 Two validators: ``jsonschema_rs`` (compiled, about 2 µs for a decision request) answers "valid?"
-on the hot path; the reference ``jsonschema`` validator decides every document the fast one does
-not accept and explains the violation (so errors and the accepted language are jsonschema's; the
-fast path can only ever be stricter, never more lenient, and a test checks both agree).
+on the hot path, for documents made only of JSON's own types (what ``json.loads`` returns); the
+reference ``jsonschema`` validator decides everything else and every document the fast one does
+not accept, and explains the violation. So errors and the accepted language are jsonschema's: the
+fast path can only ever be stricter, never more lenient (tests check both agree).
 """
 
 from __future__ import annotations
@@ -60,11 +61,12 @@ def validate(name: str, obj: object) -> None:
     """
     short = name.removeprefix("lit_msgs_json/")
     validator = _validator(short)
-    if not _all_finite(obj):
+    if _plain_json(obj):
+        if _fast_validator(short).is_valid(obj):
+            return
+    else:
         for json_path, value in _non_finite_numbers(obj, "$"):
             raise SchemaError(short, json_path, "finite", f"{value!r} is not a finite number")
-    if _fast_validator(short).is_valid(obj):
-        return
     error = best_match(validator.iter_errors(obj))
     if error is not None:
         raise SchemaError(short, error.json_path, str(error.validator), error.message)
@@ -128,30 +130,31 @@ def _registry() -> Registry:
     )
 
 
-def _all_finite(obj: object) -> bool:
-    """Whether every float in ``obj`` is finite: the quick check on the hot path, which builds no
-    paths (:func:`_non_finite_numbers` names the culprit when there is one)."""
+def _plain_json(obj: object) -> bool:
+    """Whether ``obj`` is built only of what ``json.loads`` returns (dict with str keys, list, str,
+    int, bool, None) and finite floats, exact types only. Only such documents take the compiled
+    validator: it treats a tuple as an array and rejects numpy scalars with a ValueError, where
+    jsonschema (the reference) rejects the first and explains the second."""
     kind = type(obj)
     if kind is float:
         return math.isfinite(obj)  # type: ignore[arg-type]
     if kind is dict:
-        values: Any = obj.values()  # type: ignore[attr-defined]
-    elif kind is list or kind is tuple:
-        values = obj
-    elif isinstance(obj, (dict, list, tuple, float)):  # subclasses: the general walk decides
-        return not any(True for _ in _non_finite_numbers(obj, "$"))
-    else:
-        return True
-    for value in values:
-        kind = type(value)
-        if kind is float:
-            if not math.isfinite(value):
+        for key, value in obj.items():  # type: ignore[attr-defined]
+            if type(key) is not str or not _plain_value(value):
                 return False
-        elif (
-            kind is not str and kind is not int and kind is not bool and value is not None
-        ) and not _all_finite(value):
-            return False
-    return True
+        return True
+    if kind is list:
+        return all(_plain_value(value) for value in obj)  # type: ignore[attr-defined]
+    return kind is str or kind is int or kind is bool or obj is None
+
+
+def _plain_value(value: object) -> bool:
+    kind = type(value)
+    if kind is float:
+        return math.isfinite(value)  # type: ignore[arg-type]
+    if kind is str or kind is int or kind is bool or value is None:
+        return True
+    return _plain_json(value)
 
 
 def _non_finite_numbers(obj: object, path: str) -> Iterator[tuple[str, float]]:

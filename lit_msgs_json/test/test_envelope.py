@@ -828,3 +828,20 @@ def test_fast_validator_is_never_more_lenient_than_jsonschema() -> None:
         reference = Draft202012Validator(load_schema(name), registry=codec._registry())
         if not reference.is_valid(payload):  # NaN cases are the finite check's, not the schema's
             assert not codec._fast_validator(name).is_valid(payload), case_id
+
+
+def test_documents_json_cannot_carry_get_the_reference_answer() -> None:
+    """Tuples are no JSON arrays for jsonschema, numpy scalars no JSON numbers: the compiled
+    validator (which would take the first and raise ValueError on the second) never sees them."""
+    import numpy as np
+
+    payload = copy.deepcopy(EXAMPLES["DecideRequest"])
+    payload["improvements"] = np.int64(2)
+    with pytest.raises(MessageError) as info:
+        Publisher("lit_call", "x").encode("DecideRequest", payload)
+    assert info.value.code == "payload"
+    plan = {"scenario": "np8", "start": (0.1, 0.1), "goal": [0.9, 0.9]}
+    reference = Draft202012Validator(load_schema("PlanRequest"))
+    assert not reference.is_valid(plan)
+    with pytest.raises(lit_msgs_json.SchemaError):
+        validate("PlanRequest", plan)

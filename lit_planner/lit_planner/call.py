@@ -105,6 +105,7 @@ def run(args: argparse.Namespace) -> int:
     executor.add_node(node)
     spinner = threading.Thread(target=executor.spin, daemon=True)
     spinner.start()
+    caller: ServiceCaller | None = None
     try:
         if args.service == "export":
             return _call_export(node, args)
@@ -135,6 +136,8 @@ def run(args: argparse.Namespace) -> int:
         )
         return 0 if success else 1
     finally:
+        if caller is not None:
+            caller.destroy()
         # Stop the spinning thread before tearing down (a joinable C++ thread at exit aborts).
         executor.shutdown(timeout_sec=1.0)
         if rclpy.ok():

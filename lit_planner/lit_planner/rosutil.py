@@ -115,6 +115,7 @@ class ServiceCaller:
                 context=node.context,
                 start_parameter_services=False,
                 enable_rosout=False,
+                use_global_arguments=False,  # a process-wide __node:= remap is the main node's
             )
             self._executor = SingleThreadedExecutor(context=node.context)
             self._executor.add_node(self._owner)
@@ -127,7 +128,7 @@ class ServiceCaller:
 
     def request(self, request: Any, timeout: float) -> Any:
         """Send ``request``; the response, or None after ``timeout``."""
-        if self._executor is not None:
+        if self._owner is not None:
             return self._request_spinning(request, timeout)
         done = threading.Event()
         future = self.client.call_async(request)
@@ -139,6 +140,8 @@ class ServiceCaller:
 
     def _request_spinning(self, request: Any, timeout: float) -> Any:
         with self._lock:
+            if self._executor is None:
+                raise RuntimeError(f"the client of {self.name} was destroyed")
             deadline = time.monotonic() + timeout
             future = self.client.call_async(request)
             while not future.done():
