@@ -1,0 +1,43 @@
+"""The shipped tensors (``tensors/``) trace back to the bag of the training run that made them.
+
+``tensors/provenance.json`` names the run folder; exactly one bag under ``bags/`` was recorded by
+that run (``lit.run_folder`` in its metadata). The bag holds one episode summary per trained
+episode with every publisher's ``seq`` unbroken, and both sidecars carry the same provenance.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import yaml
+
+from lit_planner import replay, tensor_files
+
+ROOT = Path(__file__).resolve().parents[1]
+TENSORS = ROOT / "tensors"
+
+
+def _bags_of(run_folder: str) -> list[Path]:
+    found = []
+    for metadata in sorted((ROOT / "bags").glob("**/metadata.yaml")):
+        info = yaml.safe_load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+        if (info.get("custom_data") or {}).get("lit.run_folder") == run_folder:
+            found.append(metadata.parent)
+    return found
+
+
+def test_shipped_tensors_trace_to_their_training_bag() -> None:
+    provenance = json.loads((TENSORS / "provenance.json").read_text(encoding="utf-8"))
+    (bag,) = _bags_of(provenance["run_folder"])
+    info = replay.bag_info(bag)
+    assert info["custom_data"]["lit.source"] == "lit_train"
+    if "run_id" in provenance:
+        assert info["custom_data"]["lit.run_id"] == provenance["run_id"]
+    counts = {topic["topic"]: topic["messages"] for topic in info["topics"]}
+    assert counts["/lit/episode"] == provenance["episodes"]
+    assert all(p["gaps"] == 0 and p["missing"] == 0 for p in info["publishers"])
+    assert info["skipped"]["total"] == 0
+    for name in ("b_tensor.npy", "k_tensor.npy"):
+        _, sidecar = tensor_files.read_tensor(TENSORS / name)
+        assert sidecar.provenance == provenance
