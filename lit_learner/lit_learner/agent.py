@@ -163,8 +163,7 @@ class DDPGAgent:
         self.replay.update_priorities(batch.index, (target - q).detach().double().numpy())
 
         logits = self.actor.logits(state)
-        a_pi = torch.softmax(logits, dim=-1) @ self.actor.consequents_norm
-        actor_loss = -self.critic(state, a_pi).mean()
+        actor_loss = -self.critic(state, self.actor.normalised_from_logits(logits)).mean()
         if c.logit_penalty:
             # Keeps the softmax out of its saturated corners, where dz*/dlogits vanishes and an
             # actor pushed there by an early, rough critic could never come back.

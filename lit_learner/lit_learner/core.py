@@ -173,7 +173,9 @@ class LearnerCore:
             if self.trains(name) and self._pending_updates[name] > 0:
                 self._pending_updates[name] -= 1
                 self._policy_version += 1
-                return self.agents[name].update()
+                record = self.agents[name].update()
+                self.agents[name].snapshot()  # rebuilt here, not in the next decision
+                return record
         return None
 
     def counters(self) -> dict[str, float]:

@@ -78,7 +78,11 @@ class Actor(nn.Module):
 
     def normalised(self, state: torch.Tensor) -> torch.Tensor:
         """a_norm = (z* - min f) / (max f - min f), shape (batch,); the same TSK on normalised f."""
-        return self.firing_strengths(state) @ self.consequents_norm
+        return self.normalised_from_logits(self.logits(state))
+
+    def normalised_from_logits(self, logits: torch.Tensor) -> torch.Tensor:
+        """a_norm of given rule logits (for a loss that also needs the logits)."""
+        return torch.softmax(logits, dim=-1) @ self.consequents_norm
 
 
 class ActorSnapshot:
@@ -94,24 +98,22 @@ class ActorSnapshot:
         with torch.no_grad():
             self.centres = np.asarray(centres, dtype=np.float64)
             self.scale = -1.0 / (2.0 * sigma * sigma)
-            rows, biases = [], []
+            weights, biases = [], []
+            position = np.arange(STATE_SIZE)
             for conv in actor.trunk.convs:
                 assert isinstance(conv, nn.Conv1d) and conv.bias is not None
-                weight = conv.weight.detach().double().numpy()  # (channels, 1, k)
-                bias = conv.bias.detach().double().numpy()
+                weight = conv.weight.detach().double().numpy()[:, 0, :]  # (channels, k)
                 k = weight.shape[-1]
-                pad = (k - 1) // 2  # padding="same" with an odd kernel
-                for channel in range(weight.shape[0]):
-                    for i in range(STATE_SIZE):  # output position i reads x[i + j - pad]
-                        row = np.zeros(STATE_SIZE)
-                        for j in range(k):
-                            t = i + j - pad
-                            if 0 <= t < STATE_SIZE:
-                                row[t] = weight[channel, 0, j]
-                        rows.append(row)
-                        biases.append(bias[channel])
-            self.trunk_weight = np.asarray(rows)  # (channels * kernels * 9, 9), torch's order
-            self.trunk_bias = np.asarray(biases)
+                # Output position i reads input i + j - (k - 1) / 2 (padding="same", odd k).
+                out, tap = np.meshgrid(position, np.arange(k), indexing="ij")
+                source = out + tap - (k - 1) // 2
+                inside = (source >= 0) & (source < STATE_SIZE)
+                folded = np.zeros((weight.shape[0], STATE_SIZE, STATE_SIZE))
+                folded[:, out[inside], source[inside]] = weight[:, tap[inside]]
+                weights.append(folded.reshape(-1, STATE_SIZE))  # rows: channel-major, as torch
+                biases.append(np.repeat(conv.bias.detach().double().numpy(), STATE_SIZE))
+            self.trunk_weight = np.concatenate(weights)  # (channels * kernels * 9, 9)
+            self.trunk_bias = np.concatenate(biases)
             self.layers = [
                 (layer.weight.detach().double().numpy(), layer.bias.detach().double().numpy())
                 for layer in actor.head

@@ -31,9 +31,10 @@ import json
 import math
 import os
 import re
+import shutil
 import sys
 from collections import Counter
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from functools import cache
@@ -973,35 +974,57 @@ def _write_salvaged(
     custom["lit.salvage"] = "; ".join(
         f"{r.file.name}: {r.reason}, read {r.stopped_at} of {r.size} bytes" for r in results
     )
-    writer = bag.ChunkedWriter(target)
+
+    def profiles(channel: Any) -> list[Any]:
+        qos_text = channel.metadata.get("offered_qos_profiles", "")
+        try:
+            return parse_qos(qos_text) if qos_text else []
+        except Exception:  # noqa: BLE001 -- a damaged profile: the default instead
+            return [bag.parse_qos(bag.DEFAULT_QOS)]
+
+    _write_bag(
+        bag.ChunkedWriter(target),
+        custom,
+        (
+            (channel.id, channel.topic, schema.name, lambda c=channel: profiles(c), log_ns, data)
+            for channel, schema, log_ns, data in kept
+        ),
+    )
+
+
+def _write_bag(
+    writer: Any,
+    custom: dict[str, str],
+    messages: Iterable[tuple[Any, str, str, Callable[[], list[Any]], int, bytes]],
+) -> int:
+    """Write ``messages`` — (connection key, topic, type, offered QoS profiles (called once per
+    connection), log time, serialized data) — into the unopened ``writer`` with ``custom`` as its
+    ``custom_data``, and close it; on a failure the half-written bag folder is removed. Returns the
+    number of messages written."""
     for key, value in custom.items():
         writer.set_custom_data(key, value)
     try:
         writer.open()
     except Exception as error:  # noqa: BLE001 -- rosbags' WriterError, OSError
-        raise ReplayError(f"cannot create {target}: {_describe(error)}") from None
-    connections: dict[int, Any] = {}
+        raise ReplayError(f"cannot create {writer.path}: {_describe(error)}") from None
+    connections: dict[Any, Any] = {}
+    count = 0
     try:
-        for channel, schema, log_ns, data in kept:
-            connection = connections.get(channel.id)
+        for key, topic, msgtype, profiles, log_ns, data in messages:
+            connection = connections.get(key)
             if connection is None:
-                qos_text = channel.metadata.get("offered_qos_profiles", "")
-                try:
-                    profiles = parse_qos(qos_text) if qos_text else []
-                except Exception:  # noqa: BLE001 -- a damaged profile: the default instead
-                    profiles = [bag.parse_qos(bag.DEFAULT_QOS)]
                 connection = writer.add_connection(
-                    channel.topic,
-                    schema.name,
-                    typestore=bag.typestore(),
-                    offered_qos_profiles=profiles,
+                    topic, msgtype, typestore=bag.typestore(), offered_qos_profiles=profiles()
                 )
-                connections[channel.id] = connection
+                connections[key] = connection
             writer.write(connection, log_ns, data)
+            count += 1
         writer.close()
     except BaseException:
         writer.abort()
+        shutil.rmtree(writer.path, ignore_errors=True)  # open() created it: no half bag left
         raise
+    return count
 
 
 def _salvaged_custom_data(source: Path) -> dict[str, str]:
@@ -1020,8 +1043,8 @@ def _salvaged_custom_data(source: Path) -> dict[str, str]:
 
 def compact(source: str | Path, out: str | Path) -> dict[str, Any]:
     """Rewrite a complete bag with zstd-compressed 1 MiB MCAP chunks (for bags kept in the
-    repository): the same connections with their QoS, the same timestamps and message bytes, its
-    ``custom_data`` plus ``lit.compacted_from``.
+    repository): every connection that has messages with its QoS, the same timestamps and
+    message bytes, its ``custom_data`` plus ``lit.compacted_from``.
 
     Returns:
         ``messages``, ``bytes_before`` and ``bytes_after``.
@@ -1034,29 +1057,15 @@ def compact(source: str | Path, out: str | Path) -> dict[str, Any]:
         raise ReplayError(f"{target} exists; choose a new folder")
     custom = _salvaged_custom_data(source)
     custom["lit.compacted_from"] = source.name
-    writer = bag.ChunkedWriter(target, chunk_bytes=bag.MAX_CHUNK_BYTES, compress=True)
-    for key, value in custom.items():
-        writer.set_custom_data(key, value)
-    count = 0
-    try:
-        with Reader(source) as reader:
-            writer.open()
-            connections = {
-                c.id: writer.add_connection(
-                    c.topic,
-                    c.msgtype,
-                    typestore=bag.typestore(),
-                    offered_qos_profiles=c.ext.offered_qos_profiles,
-                )
-                for c in reader.connections
-            }
-            for connection, stamp, data in reader.messages():
-                writer.write(connections[connection.id], stamp, data)
-                count += 1
-        writer.close()
-    except BaseException:
-        writer.abort()
-        raise
+    with Reader(source) as reader:
+        count = _write_bag(
+            bag.ChunkedWriter(target, chunk_bytes=bag.MAX_CHUNK_BYTES, compress=True),
+            custom,
+            (
+                (c.id, c.topic, c.msgtype, lambda c=c: c.ext.offered_qos_profiles, stamp, data)
+                for c, stamp, data in reader.messages()
+            ),
+        )
 
     def size(path: Path) -> int:
         return sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
