@@ -145,6 +145,9 @@ class RewardConfig:
     """B: penalty per solution improvement so far."""
     w_s: float = 0.1
     """K: penalty per 50 states on the current best path."""
+    w_search: float = 30.0
+    """K: cost per time budget of planner time spent before the first solution (ours: the paper's
+    R_K rewards speed only in the step that improves, which one decision out of hundreds earns)."""
     nu: float = 1.0
     """Scale of kappa(n) = nu * log2(6.8 - n)."""
     nu_min: float = 0.1
@@ -213,9 +216,8 @@ class LearnerConfig:
             return AgentConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
 
         rest = {k: v for k, v in doc.items() if k not in ("b", "k", "reward")}
-        return cls(
-            b=agent(doc["b"]), k=agent(doc["k"]), reward=RewardConfig(**doc["reward"]), **rest
-        )
+        reward = {"w_search": 0.0, **doc["reward"]}  # likewise without the K search cost
+        return cls(b=agent(doc["b"]), k=agent(doc["k"]), reward=RewardConfig(**reward), **rest)
 
 
 def _jsonable(value: Any) -> Any:

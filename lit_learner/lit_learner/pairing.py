@@ -42,6 +42,8 @@ class PendingStep:
     action: float
     improvements: int
     """Improvements when the decision was taken."""
+    time: float = 0.0
+    """Planner time when the decision was taken."""
 
 
 @dataclass
@@ -107,7 +109,7 @@ class Pairing:
             )
         if action is not None:
             episode.pending[request.agent] = PendingStep(
-                request.features, float(action), request.improvements
+                request.features, float(action), request.improvements, request.planning_time
             )
         return closed
 
@@ -167,6 +169,8 @@ class Pairing:
                 self.reward,
             )
         else:
+            # Planner time this step spent before the first solution existed (the search cost).
+            searching = info.planning_time - pending.time if pending.improvements == 0 else 0.0
             reward = neighbour_reward(
                 improved,
                 step_time,
@@ -175,6 +179,7 @@ class Pairing:
                 info.minimum_cost,
                 info.path_states,
                 self.reward,
+                search_time=max(0.0, searching),
             )
         episode.returns[agent] = episode.returns.get(agent, 0.0) + reward.total
         return Transition(
@@ -193,7 +198,9 @@ class Pairing:
             episode_id: {
                 "improvement_times": dict(e.improvement_times),
                 "last_time": e.last_time,
-                "pending": {a: (p.state, p.action, p.improvements) for a, p in e.pending.items()},
+                "pending": {
+                    a: (p.state, p.action, p.improvements, p.time) for a, p in e.pending.items()
+                },
                 "returns": dict(e.returns),
             }
             for episode_id, e in self.episodes.items()
@@ -204,7 +211,9 @@ class Pairing:
             episode_id: EpisodeProgress(
                 improvement_times=dict(e["improvement_times"]),
                 last_time=e["last_time"],
-                pending={a: PendingStep(tuple(p[0]), p[1], p[2]) for a, p in e["pending"].items()},
+                pending={
+                    a: PendingStep(tuple(p[0]), *p[1:]) for a, p in e["pending"].items()
+                },
                 returns=dict(e["returns"]),
             )
             for episode_id, e in state.items()

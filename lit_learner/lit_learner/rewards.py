@@ -18,7 +18,8 @@ class RewardTerms:
     """One step's reward, term by term; ``total`` is their sum."""
 
     time: float
-    """Speed term: w_t * kappa(n) / t_hat (B) or w_t / t_hat (K); 0 without an improvement."""
+    """Speed term: w_t * kappa(n) / t_hat (B) or w_t / t_hat (K), 0 without an improvement; for K
+    minus the search cost w_search * (planner time of the step before the first solution) / T."""
     cost: float
     """Cost term: w_c * kappa(n) * c_ratio (B) or w_c * c_ratio (K); 0 without an improvement."""
     penalty: float
@@ -79,12 +80,16 @@ def neighbour_reward(
     minimum_cost: float,
     path_states: int,
     config: RewardConfig,
+    search_time: float = 0.0,
 ) -> RewardTerms:
-    """R_K of a K step: only a step with an improvement earns (or pays) anything."""
+    """R_K of a K step: an improvement earns the paper's terms; every step pays for the planner time
+    it spent before the first solution (``search_time``), so the return before the first solution
+    is minus w_search * t_init / T plus the discounted first-solution reward."""
+    search = -config.w_search * search_time / time_budget
     if not improved:
-        return RewardTerms(0.0, 0.0, 0.0)
+        return RewardTerms(search, 0.0, 0.0)
     return RewardTerms(
-        time=config.w_t / t_hat(step_time, time_budget, config),
+        time=config.w_t / t_hat(step_time, time_budget, config) + search,
         cost=config.w_c * cost_ratio(cost, minimum_cost),
         penalty=-config.w_s * path_states / config.path_states_scale,
     )

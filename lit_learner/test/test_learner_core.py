@@ -184,3 +184,14 @@ def test_resume_from_checkpoint_is_exact(tmp_path: Path) -> None:
             assert torch.equal(a[key], b[key]), key  # bitwise
         else:
             assert a[key] == b[key], key
+
+
+def test_configs_from_before_the_logit_penalty_and_search_cost_keep_training_without_them() -> None:
+    doc = LearnerConfig().to_dict()
+    for agent in ("b", "k"):
+        del doc[agent]["logit_penalty"]
+    del doc["reward"]["w_search"]
+    old = LearnerConfig.from_dict(doc)
+    assert old.b.logit_penalty == 0.0 and old.k.logit_penalty == 0.0
+    assert old.reward.w_search == 0.0
+    assert LearnerConfig.from_dict(LearnerConfig().to_dict()) == LearnerConfig()

@@ -50,7 +50,20 @@ def test_consecutive_requests_of_one_agent_form_a_transition() -> None:
         (0.4, 0.4, 0.4),
     )
     assert not t.terminated and not t.truncated
-    assert t.reward == neighbour_reward(True, 1.5, 10.0, 4.0, 2.0, 25, REWARD)
+    # The step ran from t = 0 without a solution until 1.5: all of it was search time.
+    assert t.reward == neighbour_reward(True, 1.5, 10.0, 4.0, 2.0, 25, REWARD, search_time=1.5)
+
+
+def test_only_steps_taken_before_the_first_solution_pay_search_time() -> None:
+    pairing = Pairing(REWARD)
+    pairing.step(request("psi_K", "e", 0.5, 0.1), 0.3)
+    t1 = pairing.step(request("psi_K", "e", 0.75, 0.1), 0.3)
+    t2 = pairing.step(request("psi_K", "e", 2.0, 0.1, improvements=1, cost=4.0), 0.3)
+    t3 = pairing.step(request("psi_K", "e", 3.0, 0.1, improvements=1, cost=4.0), 0.3)
+    assert t1 is not None and t2 is not None and t3 is not None
+    assert t1.reward.total == pytest.approx(-REWARD.w_search * 0.25 / 10.0)
+    assert t2.reward.time == pytest.approx(REWARD.w_t / 0.2 - REWARD.w_search * 1.25 / 10.0)
+    assert t3.reward.total == 0.0
 
 
 def test_step_time_runs_from_the_previous_improvement() -> None:

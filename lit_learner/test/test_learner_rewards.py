@@ -52,3 +52,13 @@ def test_neighbour_reward_with_and_without_improvement() -> None:
     assert r.cost == pytest.approx(0.75)
     assert r.penalty == pytest.approx(-0.1 * 2.0)  # fewer path states is better
     assert neighbour_reward(False, 0.5, 10.0, 4.0, 3.0, 100, CONFIG).total == 0.0
+
+
+def test_neighbour_reward_charges_search_time_before_the_first_solution() -> None:
+    # 0.02 s of a 0.4 s budget spent searching: -w_search * 0.05 whether or not the step improved.
+    quiet = neighbour_reward(False, 0.0, 0.4, None, 3.0, 0, CONFIG, search_time=0.02)
+    assert quiet.time == pytest.approx(-CONFIG.w_search * 0.05)
+    assert quiet.total == pytest.approx(quiet.time)
+    found = neighbour_reward(True, 0.1, 0.4, 4.0, 3.0, 50, CONFIG, search_time=0.02)
+    assert found.time == pytest.approx(0.01 / 0.25 - CONFIG.w_search * 0.05)
+    assert found.cost == pytest.approx(0.75)

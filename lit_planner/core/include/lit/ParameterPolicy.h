@@ -92,7 +92,7 @@ namespace lit
             return true;
         }
 
-        /** \brief Batch size before the first solution. */
+        /** \brief Batch size before the first solution (B is decided at solution improvements). */
         virtual int initialBatchSize() const
         {
             return 100;
@@ -199,6 +199,12 @@ namespace lit
         {
             return "tensor";
         }
+        /** \brief The top of the B range (200) with a B tensor, as FIT* starts at m_max (the policy was
+         *  trained that way); 100 (the fixed value) without one. */
+        int initialBatchSize() const override
+        {
+            return batchTensor_ ? ParameterLimits::maxBatchSize : 100;
+        }
         bool decidesNeighbourFactor() const override
         {
             return static_cast<bool>(neighbourTensor_);
@@ -233,6 +239,11 @@ namespace lit
         bool pausesClock() const override
         {
             return true;
+        }
+        /** \brief The top of the B range (200), like the tensor policy it trains. */
+        int initialBatchSize() const override
+        {
+            return ParameterLimits::maxBatchSize;
         }
         double decide(const DecisionContext &context) override;
 
