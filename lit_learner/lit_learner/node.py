@@ -30,6 +30,7 @@ from lit_planner.rosutil import (
     DECIDE_SERVICE,
     EXPORT_SERVICE,
     STATS_TOPIC,
+    DirectService,
     flush_publishers,
     json_qos,
     spin_node,
@@ -44,7 +45,6 @@ class LearnerNode:
     def __init__(self) -> None:
         from diagnostic_msgs.srv import AddDiagnostics
         from lit_msgs_json.envelope import Publisher
-        from rclpy.callback_groups import ReentrantCallbackGroup
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
         from std_msgs.msg import String
@@ -90,8 +90,10 @@ class LearnerNode:
         self.stats = Publisher(self.source, self.run_id)
         self._string = String
         self.stats_publisher = node.create_publisher(String, STATS_TOPIC, json_qos())
-        node.create_service(
-            AddDiagnostics, p["service"], self._serve, callback_group=ReentrantCallbackGroup()
+        # Decisions are served from a thread and node of their own, outside the executor: the
+        # round trip is on the planner's critical path (see DirectService).
+        self._decide = DirectService(
+            node, f"{NODE_NAME}_decide", AddDiagnostics, p["service"], self._serve
         )
         # The export service lives on a helper node with its own executor thread: an export takes
         # seconds, and the decision service must keep answering meanwhile.
@@ -335,7 +337,9 @@ class LearnerNode:
         self.stats_publisher.publish(message)
 
     def shutdown(self) -> None:
-        """Stop training, then checkpoint (and export if trained since the last export)."""
+        """Stop serving decisions and training, then checkpoint (and export if trained since the
+        last export)."""
+        self._decide.shutdown()
         with self._work:
             self._stopping = True
             self._work.notify_all()
@@ -373,6 +377,9 @@ def _finite_number(value: object) -> bool:
 
 def main(args: Sequence[str] | None = None) -> int:
     """Console script ``lit_learner_node`` (ROS arguments: ``--ros-args -p checkpoint:=...``)."""
+    # The trainer thread runs Python between torch calls; a decision that arrives then waits for
+    # the GIL up to the switch interval (5 ms by default), which showed in the round trip's p99.
+    sys.setswitchinterval(0.0005)
     return spin_node(LearnerNode, sys.argv if args is None else args, threads=1)
 
 

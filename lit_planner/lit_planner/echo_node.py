@@ -1,6 +1,7 @@
 """A bare ``diagnostic_msgs/srv/AddDiagnostics`` server that answers every request with its own
 text: the transport's floor for ``lit system-bench``, measured in the same run as the learner's
-decide round trip (same message type, same executor kind as ``lit_learner_node``, no work).
+decide round trip (same message type, served the same way as ``lit_learner_node``'s decide:
+a :class:`~lit_planner.rosutil.DirectService`; no work).
 
 Run: ``python -m lit_planner.echo_node --ros-args -p service:=/lit/bench/echo``.
 """
@@ -11,7 +12,7 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from lit_planner.rosutil import spin_node
+from lit_planner.rosutil import DirectService, spin_node
 
 ECHO_SERVICE = "/lit/bench/echo"
 """Default service name."""
@@ -27,8 +28,14 @@ class EchoNode:
         self.node = Node("lit_echo")
         self.node.declare_parameter("service", ECHO_SERVICE)
         name = self.node.get_parameter("service").value
-        self.node.create_service(AddDiagnostics, name, self._serve)
+        self._service = DirectService(
+            self.node, "lit_echo_service", AddDiagnostics, name, self._serve
+        )
         self.node.get_logger().info(f"ready: {name}")
+
+    def shutdown(self) -> None:
+        """Stop serving (before the node goes)."""
+        self._service.shutdown()
 
     @staticmethod
     def _serve(request: Any, response: Any) -> Any:
@@ -38,7 +45,7 @@ class EchoNode:
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    """Serve until SIGINT/SIGTERM (single-threaded executor, like the learner)."""
+    """Serve until SIGINT/SIGTERM."""
     return spin_node(EchoNode, sys.argv if args is None else args, threads=1)
 
 

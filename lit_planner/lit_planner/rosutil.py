@@ -79,10 +79,12 @@ class ServiceCaller:
     - shared (default): the client lives on ``node``, which an executor spins in another thread;
       a call blocks the calling thread only.
     - ``private=True``: the client lives on a small node of its own (``<node>_<suffix>``, no
-      parameter services, no rosout) with its own single-threaded executor, which the *calling*
-      thread spins until the answer or the deadline. The response then takes no detour through
-      another thread's executor: this halves the round trip (``PLATFORM_FACTS.md``: 0.29 ms
-      median spinning in the caller, about 0.5 ms through an executor thread). Calls must come
+      parameter services, no rosout) that no executor spins: the *calling* thread sends the
+      request and waits on an rcl wait set holding just this client until the answer or the
+      deadline. Neither another thread nor rclpy's executor machinery (which rebuilds its wait
+      set and dispatches through generators on every spin) sits on the path; that machinery was
+      most of the round trip (``lit system-bench`` measures it against a bare echo). Answers to
+      requests that already timed out are taken and dropped by sequence number. Calls must come
       from one thread at a time (a lock enforces it).
     """
 
@@ -102,12 +104,11 @@ class ServiceCaller:
             srv_type = AddDiagnostics
         self.srv_type = srv_type
         self.name = name
-        self._executor: Any = None
         self._owner: Any = None
+        self._wait_set: Any = None
         self._lock = threading.Lock()
         if private:
             import rclpy
-            from rclpy.executors import SingleThreadedExecutor
 
             self._owner = rclpy.create_node(
                 f"{node.get_name()}_{suffix}",
@@ -117,10 +118,13 @@ class ServiceCaller:
                 enable_rosout=False,
                 use_global_arguments=False,  # a process-wide __node:= remap is the main node's
             )
-            self._executor = SingleThreadedExecutor(context=node.context)
-            self._executor.add_node(self._owner)
             node = self._owner
         self.client = node.create_client(srv_type, name, callback_group=callback_group)
+        if private:
+            from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+            with node.context.handle:
+                self._wait_set = _rclpy.WaitSet(0, 0, 0, 1, 0, 0, node.context.handle)
 
     def wait(self, timeout: float) -> bool:
         """Whether the service appeared within ``timeout`` seconds (DDS discovery)."""
@@ -129,7 +133,7 @@ class ServiceCaller:
     def request(self, request: Any, timeout: float) -> Any:
         """Send ``request``; the response, or None after ``timeout``."""
         if self._owner is not None:
-            return self._request_spinning(request, timeout)
+            return self._request_waiting(request, timeout)
         done = threading.Event()
         future = self.client.call_async(request)
         future.add_done_callback(lambda _: done.set())
@@ -138,19 +142,27 @@ class ServiceCaller:
             return None
         return future.result()
 
-    def _request_spinning(self, request: Any, timeout: float) -> Any:
+    def _request_waiting(self, request: Any, timeout: float) -> Any:
         with self._lock:
-            if self._executor is None:
+            if self._wait_set is None:
                 raise RuntimeError(f"the client of {self.name} was destroyed")
             deadline = time.monotonic() + timeout
-            future = self.client.call_async(request)
-            while not future.done():
-                remaining = deadline - time.monotonic()
-                if remaining <= 0.0:
-                    self.client.remove_pending_request(future)
-                    return None
-                self._executor.spin_once(timeout_sec=remaining)
-            return future.result()
+            handle = self.client.handle
+            wait_set = self._wait_set
+            with self._owner.context.handle, handle:
+                sequence = handle.send_request(request)
+                while True:
+                    remaining = deadline - time.monotonic()
+                    if remaining <= 0.0:
+                        return None
+                    wait_set.clear_entities()
+                    wait_set.add_client(handle)
+                    wait_set.wait(int(remaining * 1e9))
+                    if handle.pointer not in wait_set.get_ready_entities("client"):
+                        continue
+                    header, response = handle.take_response(self.srv_type.Response)
+                    if header is not None and header.request_id.sequence_number == sequence:
+                        return response
 
     def call(self, text: str, timeout: float) -> tuple[bool, str] | None:
         """Send ``text`` as ``load_namespace``; ``(success, message)``, or None after ``timeout``."""
@@ -162,12 +174,97 @@ class ServiceCaller:
         return bool(response.success), str(response.message)
 
     def destroy(self) -> None:
-        """Release the private node and executor (nothing to do for a shared client)."""
-        if self._executor is not None:
+        """Release the private node (nothing to do for a shared client)."""
+        if self._owner is not None:
             with self._lock:
-                self._executor.shutdown(timeout_sec=1.0)
-                self._owner.destroy_node()
-                self._executor = None
+                if self._wait_set is not None:
+                    self._wait_set = None
+                    self._owner.destroy_node()
+
+
+class DirectService:
+    """Serves one service from a thread of its own on a small node of its own (``name`` of the
+    node, no parameter services, no rosout) that no executor spins: the thread waits on an rcl
+    wait set holding the service and a stop guard, takes each request, runs ``callback(request,
+    response)`` and sends its answer. For a latency-critical service (the learner's decide): no
+    executor machinery on the path, and nothing else of the process's node (timers, parameter
+    services, other services) can delay it. A callback that raises is logged and answered with
+    the empty response, and the thread keeps serving.
+    """
+
+    def __init__(
+        self, node: Any, node_name: str, srv_type: Any, service: str, callback: Callable
+    ) -> None:
+        import rclpy
+        from rclpy.guard_condition import GuardCondition
+        from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+        self._log = node.get_logger()
+        self._srv_type = srv_type
+        self._callback = callback
+        self._owner = rclpy.create_node(
+            node_name,
+            namespace=node.get_namespace(),
+            context=node.context,
+            start_parameter_services=False,
+            enable_rosout=False,
+            use_global_arguments=False,  # a process-wide __node:= remap is the main node's
+        )
+        self._service = self._owner.create_service(srv_type, service, callback)
+        self._stop = GuardCondition(None, None, context=node.context)
+        self._stopping = False
+        context = node.context
+        with context.handle:
+            self._wait_set = _rclpy.WaitSet(0, 1, 0, 0, 1, 0, context.handle)
+        self._thread = threading.Thread(target=self._serve, name=f"{node_name}", daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        from rclpy.executors import ExternalShutdownException
+
+        service, stop, wait_set = self._service, self._stop, self._wait_set
+        context = self._owner.context
+        try:
+            while not self._stopping:
+                with context.handle, service.handle, stop.handle:
+                    wait_set.clear_entities()
+                    wait_set.add_service(service.handle)
+                    wait_set.add_guard_condition(stop.handle)
+                    wait_set.wait(-1)
+                    if self._stopping or not context.ok():
+                        return
+                    if service.handle.pointer not in wait_set.get_ready_entities("service"):
+                        continue
+                    taken = service.handle.service_take_request(self._srv_type.Request)
+                if taken is None or taken[1] is None:
+                    continue
+                request, header = taken
+                try:
+                    response = self._callback(request, self._srv_type.Response())
+                except Exception as exc:  # noqa: BLE001 - keep serving
+                    self._log.error(f"{service.srv_name}: callback failed: {exc!r}")
+                    response = self._srv_type.Response()
+                service.send_response(response, header)
+        except ExternalShutdownException:
+            return
+        except Exception as exc:  # noqa: BLE001 - RCLError when the context shuts down under the wait
+            if context.ok() and not self._stopping:
+                self._log.error(f"{service.srv_name}: serving stopped: {exc!r}")
+
+    def shutdown(self, timeout: float = 2.0) -> None:
+        """Stop the thread and destroy the node."""
+        if self._stopping:
+            return
+        self._stopping = True
+        try:
+            self._stop.trigger()
+        except Exception:  # noqa: BLE001, S110 - the context is already gone: the wait ended
+            pass
+        self._thread.join(timeout=timeout)
+        try:
+            self._owner.destroy_node()
+        except Exception:  # noqa: BLE001, S110 - a node half torn down by the signal race
+            pass
 
 
 def spin_node(
