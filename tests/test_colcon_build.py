@@ -1,8 +1,10 @@
-"""``ros2_ws/`` builds the three ament_python packages with colcon (no ROS install needed).
+"""``ros2_ws/`` builds the three ament_python packages and the C++ core (``lit_core``, a cmake
+package) with colcon (no ROS install needed).
 
 What a ROS user gets from ``colcon build``: each package installed under ``install/<pkg>``, its
-marker in the ament resource index, its ``package.xml`` in ``share/<pkg>``, and the node
-executables in ``lib/<pkg>`` where ``ros2 run <pkg> <exe>`` looks for them.
+marker in the ament resource index, its ``package.xml`` in ``share/<pkg>``, the node executables in
+``lib/<pkg>`` where ``ros2 run <pkg> <exe>`` looks for them, and the ``lit_core`` extension module
+that ``source install/setup.bash`` puts on the Python path.
 """
 
 from __future__ import annotations
@@ -30,12 +32,15 @@ def test_colcon_builds_the_workspace(tmp_path: Path) -> None:
             "--base-paths", str(ROOT / "ros2_ws" / "src"),
             "--build-base", str(tmp_path / "build"),
             "--install-base", str(tmp_path / "install"),
+            # The GoogleTest binaries are ctest's business (lit test builds them); the interpreter
+            # is this one, whose pip pybind11 the core's CMake finds by asking it.
+            "--cmake-args", "-DLIT_BUILD_TESTS=OFF", f"-DPython_EXECUTABLE={sys.executable}",
         ],
-        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600, check=False,
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=1200, check=False,
     )  # fmt: skip
     assert process.returncode == 0, process.stdout[-3000:] + process.stderr[-3000:]
     output = process.stdout + process.stderr
-    for package in PACKAGES:
+    for package in [*PACKAGES, "lit_core"]:
         assert f"Finished <<< {package}" in output, output[-2000:]
     install = tmp_path / "install"
     for package, executables in PACKAGES.items():
@@ -48,6 +53,16 @@ def test_colcon_builds_the_workspace(tmp_path: Path) -> None:
             script = prefix / "lib" / package / executable
             assert script.is_file() and os.access(script, os.X_OK), script
             assert f"'{executable}'" in script.read_text()  # the console-script entry
+    # The C++ core: its module under site-packages, found after sourcing the workspace (colcon
+    # from PyPI writes setup.sh; a ROS install adds setup.bash).
+    assert list((install / "lit_core").glob("lib/python3*/site-packages/lit_core*.so"))
+    probe = subprocess.run(
+        ["sh", "-c", f". {install}/setup.sh && {sys.executable} -c "
+         "'import lit_core; print(lit_core.__file__); print(lit_core.LookupTensor)'"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert probe.returncode == 0, probe.stdout + probe.stderr
+    assert probe.stdout.startswith(str(install / "lit_core")), probe.stdout
     # The build works on copies: the source tree is left as it was.
     status = subprocess.run(
         ["git", "status", "--porcelain", "--", "ros2_ws", *PACKAGES],
