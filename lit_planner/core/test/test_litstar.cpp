@@ -239,7 +239,7 @@ TEST(LITstar, PoliciesDecideBatchSizeAndNeighbourFactor)
     EXPECT_EQ(neighbourCalls, counters.neighbourDecisions);
     EXPECT_EQ(counters.neighbourDecisions, (counters.expansions + 3u) / 4u);
     ASSERT_GE(recorder->batches.size(), 2u);
-    EXPECT_EQ(recorder->batches.front().batchSize, 100u);  // B_init until the first solution
+    EXPECT_EQ(recorder->batches.front().batchSize, 200u);  // B_init (the top of the range) until the first solution
     EXPECT_EQ(recorder->batches.back().batchSize, 37u);
     EXPECT_DOUBLE_EQ(planner->currentNeighbourFactor(), 5.0);
     for (const auto &d : recorder->decisions)

@@ -123,6 +123,9 @@ TEST(TensorPolicy, LooksUpRawFeaturesAndClamps)
     context.kind = DecisionKind::NeighbourFactor;
     EXPECT_DOUBLE_EQ(policy.decide(context), M_E);
 
+    EXPECT_EQ(policy.initialBatchSize(), 200);  // with a B tensor: the top of the range, as FIT*
+    EXPECT_EQ(TensorPolicy(nullptr, b, Interpolation::Nearest).initialBatchSize(), 100);  // fixed B
+
     TensorPolicy both(b, b, Interpolation::Nearest);
     EXPECT_TRUE(both.decidesNeighbourFactor());
     EXPECT_DOUBLE_EQ(both.decide(context), 15.0);  // affine values >= 20 clamp to psi_K's maximum
