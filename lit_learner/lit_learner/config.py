@@ -145,9 +145,12 @@ class RewardConfig:
     """B: penalty per solution improvement so far."""
     w_s: float = 0.1
     """K: penalty per 50 states on the current best path."""
-    w_search: float = 30.0
-    """K: cost per time budget of planner time spent before the first solution (ours: the paper's
-    R_K rewards speed only in the step that improves, which one decision out of hundreds earns)."""
+    w_search: float = 1.0
+    """K: weight of the search cost, w_search * ln(t_end / t_start) per step before the first
+    solution (ours: the paper's R_K rewards speed only in the step that improves, which one
+    decision out of hundreds earns; the log makes a relative speed-up count alike everywhere)."""
+    search_floor: float = 1e-3
+    """K: planner times below search_floor * T_budget are free (the log's floor)."""
     nu: float = 1.0
     """Scale of kappa(n) = nu * log2(6.8 - n)."""
     nu_min: float = 0.1

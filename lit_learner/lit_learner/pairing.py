@@ -169,8 +169,9 @@ class Pairing:
                 self.reward,
             )
         else:
-            # Planner time this step spent before the first solution existed (the search cost).
-            searching = info.planning_time - pending.time if pending.improvements == 0 else 0.0
+            # A step that began without a solution searched from its decision to its end (the
+            # first solution, if it came in this step, ends the step too).
+            searching = (pending.time, info.planning_time) if pending.improvements == 0 else None
             reward = neighbour_reward(
                 improved,
                 step_time,
@@ -179,7 +180,7 @@ class Pairing:
                 info.minimum_cost,
                 info.path_states,
                 self.reward,
-                search_time=max(0.0, searching),
+                search=searching,
             )
         episode.returns[agent] = episode.returns.get(agent, 0.0) + reward.total
         return Transition(
@@ -211,9 +212,7 @@ class Pairing:
             episode_id: EpisodeProgress(
                 improvement_times=dict(e["improvement_times"]),
                 last_time=e["last_time"],
-                pending={
-                    a: PendingStep(tuple(p[0]), *p[1:]) for a, p in e["pending"].items()
-                },
+                pending={a: PendingStep(tuple(p[0]), *p[1:]) for a, p in e["pending"].items()},
                 returns=dict(e["returns"]),
             )
             for episode_id, e in state.items()

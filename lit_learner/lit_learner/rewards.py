@@ -19,7 +19,7 @@ class RewardTerms:
 
     time: float
     """Speed term: w_t * kappa(n) / t_hat (B) or w_t / t_hat (K), 0 without an improvement; for K
-    minus the search cost w_search * (planner time of the step before the first solution) / T."""
+    minus the search cost of the step (:func:`search_cost`)."""
     cost: float
     """Cost term: w_c * kappa(n) * c_ratio (B) or w_c * c_ratio (K); 0 without an improvement."""
     penalty: float
@@ -72,6 +72,16 @@ def batch_size_reward(
     )
 
 
+def search_cost(start: float, end: float, time_budget: float, config: RewardConfig) -> float:
+    """What a K step pays for planner time spent before the first solution, from ``start`` to
+    ``end``: w_search * ln(max(end, f) / max(start, f)) with the floor f = search_floor * T. The
+    costs of consecutive steps add up to w_search * ln(t_init / f) (times below f are free), so
+    the same relative speed-up of the first solution is worth the same in every scenario:
+    a first solution in 4 ms of a 0.4 s budget and one in 40 ms of 0.3 s both matter."""
+    floor = config.search_floor * time_budget
+    return config.w_search * math.log(max(end, floor) / max(start, floor))
+
+
 def neighbour_reward(
     improved: bool,
     step_time: float,
@@ -80,16 +90,15 @@ def neighbour_reward(
     minimum_cost: float,
     path_states: int,
     config: RewardConfig,
-    search_time: float = 0.0,
+    search: tuple[float, float] | None = None,
 ) -> RewardTerms:
-    """R_K of a K step: an improvement earns the paper's terms; every step pays for the planner time
-    it spent before the first solution (``search_time``), so the return before the first solution
-    is minus w_search * t_init / T plus the discounted first-solution reward."""
-    search = -config.w_search * search_time / time_budget
+    """R_K of a K step: an improvement earns the paper's terms; a step taken before the first
+    solution also pays :func:`search_cost` for its planner time ``search`` = (start, end)."""
+    paid = -search_cost(search[0], search[1], time_budget, config) if search else 0.0
     if not improved:
-        return RewardTerms(search, 0.0, 0.0)
+        return RewardTerms(paid, 0.0, 0.0)
     return RewardTerms(
-        time=config.w_t / t_hat(step_time, time_budget, config) + search,
+        time=config.w_t / t_hat(step_time, time_budget, config) + paid,
         cost=config.w_c * cost_ratio(cost, minimum_cost),
         penalty=-config.w_s * path_states / config.path_states_scale,
     )

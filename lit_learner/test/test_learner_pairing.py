@@ -7,7 +7,7 @@ from lit_learner.config import RewardConfig
 from lit_learner.errors import PairingError
 from lit_learner.messages import DecisionRequest, EpisodeEnd
 from lit_learner.pairing import Pairing
-from lit_learner.rewards import batch_size_reward, neighbour_reward
+from lit_learner.rewards import batch_size_reward, neighbour_reward, search_cost
 
 REWARD = RewardConfig()
 
@@ -51,7 +51,7 @@ def test_consecutive_requests_of_one_agent_form_a_transition() -> None:
     )
     assert not t.terminated and not t.truncated
     # The step ran from t = 0 without a solution until 1.5: all of it was search time.
-    assert t.reward == neighbour_reward(True, 1.5, 10.0, 4.0, 2.0, 25, REWARD, search_time=1.5)
+    assert t.reward == neighbour_reward(True, 1.5, 10.0, 4.0, 2.0, 25, REWARD, search=(0.0, 1.5))
 
 
 def test_only_steps_taken_before_the_first_solution_pay_search_time() -> None:
@@ -61,8 +61,8 @@ def test_only_steps_taken_before_the_first_solution_pay_search_time() -> None:
     t2 = pairing.step(request("psi_K", "e", 2.0, 0.1, improvements=1, cost=4.0), 0.3)
     t3 = pairing.step(request("psi_K", "e", 3.0, 0.1, improvements=1, cost=4.0), 0.3)
     assert t1 is not None and t2 is not None and t3 is not None
-    assert t1.reward.total == pytest.approx(-REWARD.w_search * 0.25 / 10.0)
-    assert t2.reward.time == pytest.approx(REWARD.w_t / 0.2 - REWARD.w_search * 1.25 / 10.0)
+    assert t1.reward.total == pytest.approx(-search_cost(0.5, 0.75, 10.0, REWARD))
+    assert t2.reward.time == pytest.approx(REWARD.w_t / 0.2 - search_cost(0.75, 2.0, 10.0, REWARD))
     assert t3.reward.total == 0.0
 
 

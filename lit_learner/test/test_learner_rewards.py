@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
@@ -11,6 +12,7 @@ from lit_learner.rewards import (
     cost_ratio,
     kappa,
     neighbour_reward,
+    search_cost,
     t_hat,
 )
 
@@ -55,10 +57,22 @@ def test_neighbour_reward_with_and_without_improvement() -> None:
 
 
 def test_neighbour_reward_charges_search_time_before_the_first_solution() -> None:
-    # 0.02 s of a 0.4 s budget spent searching: -w_search * 0.05 whether or not the step improved.
-    quiet = neighbour_reward(False, 0.0, 0.4, None, 3.0, 0, CONFIG, search_time=0.02)
-    assert quiet.time == pytest.approx(-CONFIG.w_search * 0.05)
+    # From 4 ms to 8 ms of a 0.4 s budget: w_search * ln 2, whether or not the step improved.
+    quiet = neighbour_reward(False, 0.0, 0.4, None, 3.0, 0, CONFIG, search=(0.004, 0.008))
+    assert quiet.time == pytest.approx(-CONFIG.w_search * math.log(2.0))
     assert quiet.total == pytest.approx(quiet.time)
-    found = neighbour_reward(True, 0.1, 0.4, 4.0, 3.0, 50, CONFIG, search_time=0.02)
-    assert found.time == pytest.approx(0.01 / 0.25 - CONFIG.w_search * 0.05)
+    found = neighbour_reward(True, 0.1, 0.4, 4.0, 3.0, 50, CONFIG, search=(0.004, 0.008))
+    assert found.time == pytest.approx(0.01 / 0.25 - CONFIG.w_search * math.log(2.0))
     assert found.cost == pytest.approx(0.75)
+    assert neighbour_reward(False, 0.0, 0.4, None, 3.0, 0, CONFIG).total == 0.0
+
+
+def test_search_costs_add_up_to_the_log_of_the_first_solution_time() -> None:
+    floor = CONFIG.search_floor * 0.3
+    times = [0.0, floor / 2, 0.002, 0.005, 0.0301]
+    total = sum(search_cost(a, b, 0.3, CONFIG) for a, b in itertools.pairwise(times))
+    assert total == pytest.approx(CONFIG.w_search * math.log(0.0301 / floor))
+    # Twice as fast is worth the same at any scale.
+    assert search_cost(0.0, 0.008, 0.4, CONFIG) - search_cost(0.0, 0.004, 0.4, CONFIG) == (
+        pytest.approx(search_cost(0.0, 0.2, 0.3, CONFIG) - search_cost(0.0, 0.1, 0.3, CONFIG))
+    )

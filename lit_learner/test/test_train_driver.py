@@ -78,6 +78,7 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path
 
     # The run's bag holds every episode's messages, unbroken, in the planner node's format.
     from lit_learner.offline import read_episodes
+
     from lit_planner import replay
 
     bag = tmp_path / "run-bag"
