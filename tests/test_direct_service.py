@@ -8,10 +8,7 @@ from __future__ import annotations
 
 import sys
 import textwrap
-from collections.abc import Iterator
-from pathlib import Path
 
-import pytest
 from ros_helpers import RosSystem
 
 SERVER = textwrap.dedent(
@@ -71,15 +68,6 @@ CLIENT = textwrap.dedent(
     rclpy.shutdown()
     """
 )
-
-
-@pytest.fixture
-def ros(tmp_path: Path) -> Iterator[RosSystem]:
-    system = RosSystem(tmp_path)
-    try:
-        yield system
-    finally:
-        system.close()
 
 
 def test_direct_service_and_wait_set_client_across_processes(ros: RosSystem) -> None:

@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import math
 import signal
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -48,16 +47,6 @@ TRAINING = {
     "learner_wait": 300.0,
 }
 """Planner parameters of a short training run."""
-
-
-@pytest.fixture
-def ros(tmp_path: Path) -> Iterator[RosSystem]:
-    """The processes of one test, in a domain of their own, stopped by PID at the end."""
-    system = RosSystem(tmp_path)
-    try:
-        yield system
-    finally:
-        system.close()
 
 
 def _ready(*children: Child) -> None:
