@@ -52,8 +52,14 @@ def load_schema(name: str) -> dict[str, Any]:
     return _validator(name.removeprefix("lit_msgs_json/")).schema  # type: ignore[no-any-return]
 
 
-def validate(name: str, obj: object) -> None:
+def validate(name: str, obj: object, *, plain: bool | None = None) -> None:
     """Check ``obj`` against schema ``name``.
+
+    Args:
+        name: the schema.
+        obj: the document.
+        plain: True when the caller knows ``obj`` is plain JSON (what ``json.loads`` returns, all
+            floats finite), which spares walking it to find out; None: walk it.
 
     Raises:
         SchemaError: the most relevant violation, naming its JSON path and the broken rule.
@@ -61,7 +67,7 @@ def validate(name: str, obj: object) -> None:
     """
     short = name.removeprefix("lit_msgs_json/")
     validator = _validator(short)
-    if _plain_json(obj):
+    if plain or (plain is None and _plain_json(obj)):
         if _fast_validator(short).is_valid(obj):
             return
     else:

@@ -40,6 +40,11 @@ MAX_MESSAGE_BYTES = 1_048_576
 MAX_NESTING = 64
 """Deepest nesting of arrays and objects a message may have (the schemas need far less)."""
 
+_OVERFLOWING_NUMBER = re.compile(r"[0-9]{24}|[eE][+-]?[0-9]{3}")
+"""Where a JSON text may spell a number too large for a double (json.loads makes it inf): 24 or
+more digits in a row, or a 3-digit exponent. Without a match every float parsed is finite (below
+1e24 * 10^99); a match only means the parsed document is checked float by float."""
+
 MESSAGE_VERSIONS: dict[str, int] = {
     "DecideRequest": 1,
     "DecideResponse": 1,
@@ -368,7 +373,9 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
         ) from None
     except ValueError as exc:  # JSONDecodeError
         raise MessageError("json", f"not valid JSON: {exc}", field="$", rule="json") from None
-    if _nesting(obj) > MAX_NESTING:
+    # Fewer brackets than the limit cannot nest deeper than it (the usual case: skip the walk).
+    brackets = text.count("{") + text.count("[")  # type: ignore[union-attr]
+    if brackets > MAX_NESTING and _nesting(obj) > MAX_NESTING:
         raise MessageError(
             "json",
             f"nested deeper than {MAX_NESTING} levels of arrays and objects",
@@ -405,8 +412,10 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
             request_seq=seq,
         )
 
-    # 7. the payload
-    _check_payload(short, obj["payload"], seq)
+    # 7. the payload: what json.loads built is plain JSON; its floats are finite unless the text
+    # may spell one too large for a double.
+    plain = _OVERFLOWING_NUMBER.search(text) is None  # type: ignore[call-overload]
+    _check_payload(short, obj["payload"], seq, plain=plain)
     return Message(
         name=short,
         version=expected,
@@ -450,9 +459,9 @@ def _check_envelope(obj: object, claimed: str | None, seq: int | None) -> None:
         ) from None
 
 
-def _check_payload(short: str, payload: object, seq: int | None) -> None:
+def _check_payload(short: str, payload: object, seq: int | None, plain: bool | None = None) -> None:
     try:
-        validate(short, payload)
+        validate(short, payload, plain=plain)
     except SchemaError as exc:
         raise MessageError(
             "payload",

@@ -510,6 +510,14 @@ DECODE_FAILURES: list[DecodeCase] = [
         DR,
         3,
     ),
+    # Overflowing spellings without a 3-digit exponent: json.loads makes them inf as well.
+    *(
+        (name, GOOD.replace("0.42", spelling), "payload", "$.payload.rho_global", "finite", DR, 3)
+        for name, spelling in [
+            ("rho-overflow-digits", "1" * 400 + ".0"),
+            ("rho-overflow-mixed", "1" + "0" * 250 + "e99"),
+        ]
+    ),
 ]
 
 # (id, envelope fields changed (... deletes), code, field, rule, request_schema, request_seq);
