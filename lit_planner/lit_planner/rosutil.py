@@ -70,6 +70,10 @@ def flush_publishers(publishers: Sequence[Any], timeout: float = 5.0) -> bool:
     )
 
 
+SETTLE_SECONDS = 0.1
+"""Pause of :meth:`ServiceCaller.wait` after the service appeared (endpoint matching)."""
+
+
 class ServiceCaller:
     """Calls one service with a deadline (``diagnostic_msgs/srv/AddDiagnostics`` unless
     ``srv_type`` says otherwise).
@@ -127,8 +131,13 @@ class ServiceCaller:
                 self._wait_set = _rclpy.WaitSet(0, 0, 0, 1, 0, 0, node.context.handle)
 
     def wait(self, timeout: float) -> bool:
-        """Whether the service appeared within ``timeout`` seconds (DDS discovery)."""
-        return bool(self.client.wait_for_service(timeout_sec=timeout))
+        """Whether the service appeared within ``timeout`` seconds (DDS discovery). The graph
+        shows the server before the server's response writer has matched this client's reader;
+        a short settle time keeps the first answers from going nowhere."""
+        if not self.client.wait_for_service(timeout_sec=timeout):
+            return False
+        time.sleep(SETTLE_SECONDS)
+        return True
 
     def request(self, request: Any, timeout: float) -> Any:
         """Send ``request``; the response, or None after ``timeout``."""
@@ -180,6 +189,10 @@ class ServiceCaller:
                 if self._wait_set is not None:
                     self._wait_set = None
                     self._owner.destroy_node()
+
+
+SEND_ATTEMPTS = 20
+"""Tries of :meth:`DirectService._send` (each waits up to 100 ms for the client's reader)."""
 
 
 class DirectService:
@@ -244,12 +257,29 @@ class DirectService:
                 except Exception as exc:  # noqa: BLE001 - keep serving
                     self._log.error(f"{service.srv_name}: callback failed: {exc!r}")
                     response = self._srv_type.Response()
-                service.send_response(response, header)
+                self._send(service, response, header)
         except ExternalShutdownException:
             return
         except Exception as exc:  # noqa: BLE001 - RCLError when the context shuts down under the wait
             if context.ok() and not self._stopping:
                 self._log.error(f"{service.srv_name}: serving stopped: {exc!r}")
+
+    def _send(self, service: Any, response: Any, header: Any) -> None:
+        """Send the answer. Fast DDS drops it (with a RuntimeWarning, after waiting 100 ms) when
+        the client's response reader is not matched yet, which happens to a client that calls
+        right after discovering the service; then try again, for up to about 2 s."""
+        import warnings
+
+        for attempt in range(SEND_ATTEMPTS):
+            with warnings.catch_warnings():
+                warnings.simplefilter("error", RuntimeWarning)
+                try:
+                    service.send_response(response, header)
+                    return
+                except RuntimeWarning as exc:
+                    if self._stopping or attempt == SEND_ATTEMPTS - 1:
+                        self._log.warning(f"{service.srv_name}: answer not delivered: {exc}")
+                        return
 
     def shutdown(self, timeout: float = 2.0) -> None:
         """Stop the thread and destroy the node."""
