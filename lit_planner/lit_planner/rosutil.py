@@ -11,6 +11,7 @@ import os
 import signal
 import threading
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -70,6 +71,22 @@ def flush_publishers(publishers: Sequence[Any], timeout: float = 5.0) -> bool:
     )
 
 
+def private_node(node: Any, name: str) -> Any:
+    """A small node beside ``node`` (same context and namespace) for one latency-critical
+    endpoint: no parameter services, no rosout, and immune to a process-wide ``__node:=`` remap
+    (that one is the main node's)."""
+    import rclpy
+
+    return rclpy.create_node(
+        name,
+        namespace=node.get_namespace(),
+        context=node.context,
+        start_parameter_services=False,
+        enable_rosout=False,
+        use_global_arguments=False,
+    )
+
+
 SETTLE_SECONDS = 0.1
 """Pause of :meth:`ServiceCaller.wait` after the service appeared (endpoint matching)."""
 
@@ -112,17 +129,7 @@ class ServiceCaller:
         self._wait_set: Any = None
         self._lock = threading.Lock()
         if private:
-            import rclpy
-
-            self._owner = rclpy.create_node(
-                f"{node.get_name()}_{suffix}",
-                namespace=node.get_namespace(),
-                context=node.context,
-                start_parameter_services=False,
-                enable_rosout=False,
-                use_global_arguments=False,  # a process-wide __node:= remap is the main node's
-            )
-            node = self._owner
+            self._owner = node = private_node(node, f"{node.get_name()}_{suffix}")
         self.client = node.create_client(srv_type, name, callback_group=callback_group)
         if private:
             from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -208,21 +215,13 @@ class DirectService:
     def __init__(
         self, node: Any, node_name: str, srv_type: Any, service: str, callback: Callable
     ) -> None:
-        import rclpy
         from rclpy.guard_condition import GuardCondition
         from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
         self._log = node.get_logger()
         self._srv_type = srv_type
         self._callback = callback
-        self._owner = rclpy.create_node(
-            node_name,
-            namespace=node.get_namespace(),
-            context=node.context,
-            start_parameter_services=False,
-            enable_rosout=False,
-            use_global_arguments=False,  # a process-wide __node:= remap is the main node's
-        )
+        self._owner = private_node(node, node_name)
         self._service = self._owner.create_service(srv_type, service, callback)
         self._stop = GuardCondition(None, None, context=node.context)
         self._stopping = False
@@ -268,8 +267,6 @@ class DirectService:
         """Send the answer. Fast DDS drops it (with a RuntimeWarning, after waiting 100 ms) when
         the client's response reader is not matched yet, which happens to a client that calls
         right after discovering the service; then try again, for up to about 2 s."""
-        import warnings
-
         for attempt in range(SEND_ATTEMPTS):
             with warnings.catch_warnings():
                 warnings.simplefilter("error", RuntimeWarning)
