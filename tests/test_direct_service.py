@@ -1,8 +1,9 @@
 """The decide path's transport (``lit_planner.rosutil``) across two real processes: a
 :class:`DirectService` server and the private, wait-set :class:`ServiceCaller` client, in a ROS
 domain of their own. The server's callback fails on one request; the server must answer it with
-the empty response and keep serving, stale answers must not be mistaken for fresh ones, and both
-ends must shut down cleanly."""
+the empty response and keep serving, stale answers must not be mistaken for fresh ones, work the
+callback defers must run after its answer is sent and before the next request, and both ends must
+shut down cleanly."""
 
 from __future__ import annotations
 
@@ -19,21 +20,43 @@ SERVER = textwrap.dedent(
     from diagnostic_msgs.srv import AddDiagnostics
     from lit_planner.rosutil import DirectService
 
+    import os
+    events = []
+
+    def after(text):
+        if text.startswith("defer-wait:"):
+            # Blocks until the client has the answer: an answer sent after this work would never
+            # arrive, and the client's call would time out.
+            path = text.removeprefix("defer-wait:")
+            for _ in range(3000):
+                if os.path.exists(path):
+                    break
+                time.sleep(0.01)
+        if text == "defer-boom":
+            raise RuntimeError("deferred work failed on purpose")
+        events.append("after:" + text)
+
     def serve(request, response):
         text = request.load_namespace
+        events.append("call:" + text)
         if text == "boom":
             raise RuntimeError("the callback failed on purpose")
         if text.startswith("slow"):
             time.sleep(0.5)
+        if text.startswith("defer"):
+            holder[0].defer(lambda: after(text))
         response.success = True
-        response.message = "echo:" + text
+        response.message = ",".join(events) if text == "order" else "echo:" + text
         return response
+
+    holder = []
 
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     node = rclpy.create_node("direct_test_server")
     service = DirectService(node, "direct_test_service", AddDiagnostics, "/direct/echo", serve)
+    holder.append(service)
     print("ready", flush=True)
     stop.wait()
     service.shutdown()
@@ -46,6 +69,7 @@ SERVER = textwrap.dedent(
 
 CLIENT = textwrap.dedent(
     """
+    import sys
     import rclpy
     from lit_planner.rosutil import ServiceCaller
 
@@ -59,6 +83,13 @@ CLIENT = textwrap.dedent(
     print("late", caller.call("slow-1", 0.05))
     print("fresh", caller.call("next", 10.0))
     print("many", all(caller.call(str(i), 10.0) == (True, "echo:" + str(i)) for i in range(200)))
+    flag = sys.argv[1]
+    print("defer-wait", caller.call("defer-wait:" + flag, 20.0))
+    open(flag, "w").close()
+    print("defer-boom", caller.call("defer-boom", 20.0))
+    print("defer-1", caller.call("defer-1", 20.0))
+    order = caller.call("order", 20.0)[1].split(",")
+    print("order", order[order.index("call:defer-wait:" + flag):])
     caller.destroy()
     try:
         caller.call("x", 0.1)
@@ -70,10 +101,11 @@ CLIENT = textwrap.dedent(
 )
 
 
-def test_direct_service_and_wait_set_client_across_processes(ros: RosSystem) -> None:
+def test_direct_service_and_wait_set_client_across_processes(ros: RosSystem, tmp_path) -> None:
+    flag = str(tmp_path / "answer-received")
     server = ros.start("server", [sys.executable, "-c", SERVER])
     server.wait_for_log(r"^ready", timeout=60.0)
-    client = ros.start("client", [sys.executable, "-c", CLIENT])
+    client = ros.start("client", [sys.executable, "-c", CLIENT, flag])
     assert client.wait(120.0) == 0, client.tail()
     out = client.text()
     assert "first (True, 'echo:hello')" in out
@@ -82,6 +114,21 @@ def test_direct_service_and_wait_set_client_across_processes(ros: RosSystem) -> 
     assert "late None" in out  # the deadline passed
     assert "fresh (True, 'echo:next')" in out  # the late answer to slow-1 was not taken for it
     assert "many True" in out
+    # Deferred work: after the answer (the client got it while the work was still waiting for
+    # the client), before the next request; failing work is logged and serving goes on.
+    assert f"defer-wait (True, 'echo:defer-wait:{flag}')" in out
+    assert "defer-boom (True, 'echo:defer-boom')" in out
+    assert "defer-1 (True, 'echo:defer-1')" in out
+    expected = [
+        f"call:defer-wait:{flag}",
+        f"after:defer-wait:{flag}",
+        "call:defer-boom",
+        "call:defer-1",
+        "after:defer-1",
+        "call:order",
+    ]
+    assert f"order {expected}" in out
+    assert "deferred work failed" in server.text()
     assert "destroyed: the client of /direct/echo was destroyed" in out
     assert "callback failed" in server.text()
     assert ros.stop(server) == 0, server.tail()

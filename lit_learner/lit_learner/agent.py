@@ -116,7 +116,9 @@ class DDPGAgent:
         else:
             a_norm = self.normalise(self.policy(features))
             if explore:
-                a_norm = float(np.clip(a_norm + self.rng.normal(0.0, self.config.noise_std), 0, 1))
+                a_norm = min(
+                    max(a_norm + float(self.rng.normal(0.0, self.config.noise_std)), 0.0), 1.0
+                )
         value = self.executed(a_norm)
         return value, self.normalise(value)
 

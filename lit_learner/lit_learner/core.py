@@ -73,15 +73,38 @@ class LearnerCore:
         """The executed value for a request: B rounded half away from zero and clamped to
         20..200 (as a float), psi_K clamped to [3, 15]. Closes the agent's previous step of the
         episode and records this one as pending (only for trained agents)."""
+        value, a_norm = self.choose(request)
+        self.commit(request, a_norm)
+        return value
+
+    def choose(self, request: DecisionRequest) -> tuple[float, float | None]:
+        """The first half of :meth:`decide`: checks the request (as :meth:`decide` would, so that
+        :meth:`commit` cannot fail on it) and chooses the action without recording anything.
+
+        A server answers with the value and calls :meth:`commit` after the answer is sent (the
+        pairing and the replay insert are then off the caller's critical path). The pair must be
+        committed before the next request is chosen, in the order chosen: the exploration noise
+        comes from the agent's generator, and the pairing needs the episode's steps in order.
+
+        Returns:
+            ``(value, a_norm)``: the executed value and what :meth:`commit` records (None for an
+            agent that is not trained).
+
+        Raises:
+            MessageError: the request is invalid.
+            PairingError: its planning time is before the episode's previous message.
+        """
         request.validate()
+        self.pairing.check(request)
         agent = self.agents[request.agent]
         if self.trains(request.agent):
-            value, a_norm = agent.act(request.features, request.explore)
-            self._step(request, a_norm)
-        else:
-            value = agent.executed(agent.normalise(agent.policy(request.features)))
-            self._step(request, None)
-        return value
+            return agent.act(request.features, request.explore)
+        return agent.executed(agent.normalise(agent.policy(request.features))), None
+
+    def commit(self, request: DecisionRequest, a_norm: float | None) -> None:
+        """The second half of :meth:`decide`: closes the agent's previous step of the episode
+        and records this one as pending (only for trained agents)."""
+        self._step(request, a_norm)
 
     def record(self, request: DecisionRequest, executed: float) -> None:
         """A decision that was already taken (``executed`` is the value the planner applied):

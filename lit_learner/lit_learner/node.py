@@ -171,7 +171,7 @@ class LearnerNode:
                 self._waiting += 1
                 try:
                     with self._lock:
-                        value = self.core.decide(decision)
+                        value, a_norm = self.core.choose(decision)
                         version = self.core.policy_version
                         self._decisions += 1
                         self._planners.add(message.source)
@@ -188,6 +188,9 @@ class LearnerNode:
                         "explore": bool(decision.explore),
                     },
                 )
+                # The pairing and the replay insert happen after the answer is on its way, on
+                # this thread, before the next request is taken.
+                self._decide.defer(lambda: self._commit(decision, a_norm))
                 return response
             final = payload.get("final_features")
             end = EpisodeEnd(
@@ -235,6 +238,14 @@ class LearnerNode:
             )
             self.log.warning(f"rejected: {exc}")
             return response
+
+    def _commit(self, decision: Any, a_norm: float | None) -> None:
+        self._waiting += 1
+        try:
+            with self._lock:
+                self.core.commit(decision, a_norm)
+        finally:
+            self._waiting -= 1
 
     def _serve_export(self, request: Any, response: Any) -> Any:
         del request

@@ -57,12 +57,16 @@ class EpisodeProgress:
     returns: dict[str, float] = field(default_factory=dict)
     """Undiscounted return per agent so far."""
 
-    def observe(self, episode_id: str, planning_time: float, improvements: int) -> None:
+    def check(self, episode_id: str, planning_time: float) -> None:
+        """Raise PairingError when ``planning_time`` is before the previous message's."""
         if planning_time < self.last_time:
             raise PairingError(
                 f"episode {episode_id!r}: planning_time {planning_time} is before the previous "
                 f"message's {self.last_time}"
             )
+
+    def observe(self, episode_id: str, planning_time: float, improvements: int) -> None:
+        self.check(episode_id, planning_time)
         self.last_time = planning_time
         if improvements not in self.improvement_times and improvements > max(
             self.improvement_times
@@ -81,6 +85,13 @@ class Pairing:
     def __init__(self, reward: RewardConfig) -> None:
         self.reward = reward
         self.episodes: dict[str, EpisodeProgress] = {}
+
+    def check(self, request: DecisionRequest) -> None:
+        """Raise the :class:`PairingError` that :meth:`step` would raise for ``request``, without
+        changing anything."""
+        episode = self.episodes.get(request.episode_id)
+        if episode is not None:
+            episode.check(request.episode_id, request.planning_time)
 
     def step(self, request: DecisionRequest, action: float | None) -> Transition | None:
         """Close the agent's pending step in this episode (if any) and open a new one.

@@ -10,7 +10,7 @@ import pytest
 import torch
 from lit_learner.config import AgentConfig, LearnerConfig
 from lit_learner.core import LearnerCore
-from lit_learner.errors import CheckpointError, MessageError
+from lit_learner.errors import CheckpointError, MessageError, PairingError
 from lit_learner.messages import DecisionRequest, EpisodeEnd
 
 Message = DecisionRequest | EpisodeEnd
@@ -130,6 +130,34 @@ def test_bad_messages_are_rejected_with_their_field() -> None:
         core.decide(replace(good, rho_local=float("nan")))
     with pytest.raises(MessageError, match="time_budget 0.0 must be finite and > 0"):
         core.end_episode(EpisodeEnd("e", 1.0, 0.0, None, 1.0, 0, 0))
+
+
+def test_choose_then_commit_is_decide() -> None:
+    """The node answers after choose() and commits after sending: the same values, transitions
+    and training as decide(); a request choose() rejects changes nothing."""
+    messages = script(8, seed=2)
+    whole = LearnerCore(small_config())
+    expected = feed(whole, messages)
+
+    split = LearnerCore(small_config())
+    got: list[object] = []
+    for m in messages:
+        if isinstance(m, DecisionRequest):
+            if m.planning_time > 0.15 and m.episode_id == "ep5":  # after messages at >= 0.1
+                with pytest.raises(PairingError, match="before the previous message"):
+                    split.choose(replace(m, planning_time=0.0))
+            value, a_norm = split.choose(m)
+            split.commit(m, a_norm)
+            got.append(value)
+        else:
+            got.append(split.end_episode(m))
+    assert got == expected
+    a, b = flat_state(whole), flat_state(split)
+    for key in a:
+        if isinstance(a[key], torch.Tensor):
+            assert torch.equal(a[key], b[key]), key
+        else:
+            assert a[key] == b[key], key
 
 
 def test_missing_checkpoint(tmp_path: Path) -> None:

@@ -23,7 +23,9 @@ sender's messages); a receiver calls :func:`decode`, which either returns a vali
 
 from __future__ import annotations
 
+import functools
 import json
+import math
 import re
 import threading
 import time
@@ -39,11 +41,6 @@ MAX_MESSAGE_BYTES = 1_048_576
 
 MAX_NESTING = 64
 """Deepest nesting of arrays and objects a message may have (the schemas need far less)."""
-
-_OVERFLOWING_NUMBER = re.compile(r"[0-9]{24}|[eE][+-]?[0-9]{3}")
-"""Where a JSON text may spell a number too large for a double (json.loads makes it inf): 24 or
-more digits in a row, or a 3-digit exponent. Without a match every float parsed is finite (below
-1e24 * 10^99); a match only means the parsed document is checked float by float."""
 
 MESSAGE_VERSIONS: dict[str, int] = {
     "DecideRequest": 1,
@@ -211,6 +208,7 @@ class Publisher:
         self._run_id = run_id
         self._lock = threading.Lock()
         self._next_seq = 0
+        self._heads: dict[str, tuple[str, str]] = {}
 
     @property
     def source(self) -> str:
@@ -256,16 +254,26 @@ class Publisher:
         """
         short, stamp = self._check(name, payload, stamp_ns)
         payload_text = json.dumps(payload, allow_nan=False, separators=(",", ":"))
+        schema, sender = self._head_parts(short)
         with self._lock:
             seq = self._next_seq
-            head = json.dumps(self._wrap(short, seq, stamp, None), separators=(",", ":"))
-            # Same text as dumping the whole envelope: payload is its last key.
-            text = f"{head.removesuffix('null}')}{payload_text}}}"
+            # The same text as json.dumps of the whole envelope (tested), from cached parts.
+            text = f'{schema}{seq},"stamp_ns":{stamp}{sender}{payload_text}}}'
             size = len(text)  # json.dumps escapes non-ASCII, so characters are bytes
             if size > MAX_MESSAGE_BYTES:
                 raise _oversize(size, short, None)
             self._next_seq += 1
         return text
+
+    def _head_parts(self, short: str) -> tuple[str, str]:
+        """The envelope text before ``seq`` and from ``source`` to the payload's colon."""
+        parts = self._heads.get(short)
+        if parts is None:
+            head = json.dumps(self._wrap(short, 0, 0, None), separators=(",", ":"))
+            before_seq, after_stamp = head.split(',"seq":0,"stamp_ns":0', 1)
+            parts = (before_seq + ',"seq":', after_stamp.removesuffix("null}"))
+            self._heads[short] = parts
+        return parts
 
     def error(self, exc: MessageError | Exception, **overrides: Any) -> str:
         """Encode an ``Error`` payload describing ``exc``; ``overrides`` replace its fields.
@@ -290,8 +298,13 @@ class Publisher:
         short = name.removeprefix(SCHEMA_PREFIX)
         if short not in MESSAGE_VERSIONS:
             raise _unknown(short, _short_name(SCHEMA_PREFIX + short), None)
-        stamp = time.time_ns() if stamp_ns is None else stamp_ns
-        _check_envelope(self._wrap(short, 0, stamp, {}), short, None)
+        if stamp_ns is None:
+            # source and run_id were checked when the publisher was made; seq and a stamp of now
+            # are ours and always fit: the envelope needs no check (the hot path of every send).
+            stamp = time.time_ns()
+        else:
+            stamp = stamp_ns
+            _check_envelope(self._wrap(short, 0, stamp, {}), short, None)
         _check_payload(short, payload, None)
         return short, stamp
 
@@ -365,8 +378,20 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
     # 2. strict UTF-8 JSON
     if not_utf8 is not None:
         raise MessageError("json", f"not UTF-8: {not_utf8}", field="$", rule="json")
+    overflowed: list[str] = []
+
+    def parse_float(spelling: str) -> float:
+        value = float(spelling)
+        if math.isinf(value):  # a number too large for a double
+            overflowed.append(spelling)
+        return value
+
     try:
-        obj = json.loads(text, parse_constant=_reject_constant)  # type: ignore[arg-type]
+        obj = json.loads(
+            text,  # type: ignore[arg-type]
+            parse_constant=_reject_constant,
+            parse_float=parse_float,
+        )
     except RecursionError:
         raise MessageError(
             "json", "not valid JSON: nested too deeply", field="$", rule="max-depth"
@@ -383,9 +408,12 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
             rule="max-depth",
         )
 
-    # 3. the envelope
+    # 3. the envelope. What json.loads built is plain JSON (only dict, list, str, int, float,
+    # bool, None), with finite floats unless the text spelled one too large for a double; only
+    # then do the validators walk the document to find it.
+    plain = not overflowed
     claimed, seq = _claimed(obj)
-    _check_envelope(obj, claimed, seq)
+    _check_envelope(obj, claimed, seq, plain=plain)
     assert isinstance(obj, dict)
     short = obj["schema"].removeprefix(SCHEMA_PREFIX)
 
@@ -412,9 +440,7 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
             request_seq=seq,
         )
 
-    # 7. the payload: what json.loads built is plain JSON; its floats are finite unless the text
-    # may spell one too large for a double.
-    plain = _OVERFLOWING_NUMBER.search(text) is None  # type: ignore[call-overload]
+    # 7. the payload
     _check_payload(short, obj["payload"], seq, plain=plain)
     return Message(
         name=short,
@@ -430,6 +456,13 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
 def _accepted(accept: str | Iterable[str] | None) -> frozenset[str] | None:
     if accept is None:
         return None
+    if isinstance(accept, (str, tuple)):
+        return _accepted_names(accept)
+    return _accepted_names(tuple(accept))
+
+
+@functools.lru_cache(maxsize=64)
+def _accepted_names(accept: str | tuple[str, ...]) -> frozenset[str]:
     names = [accept] if isinstance(accept, str) else list(accept)
     shorts = frozenset(name.removeprefix(SCHEMA_PREFIX) for name in names)
     unknown = sorted(shorts - MESSAGE_VERSIONS.keys())
@@ -441,13 +474,16 @@ def _accepted(accept: str | Iterable[str] | None) -> frozenset[str] | None:
     return shorts
 
 
-def _check_envelope(obj: object, claimed: str | None, seq: int | None) -> None:
-    """Validate the envelope without its payload (whose errors are the payload's)."""
+def _check_envelope(
+    obj: object, claimed: str | None, seq: int | None, plain: bool | None = None
+) -> None:
+    """Validate the envelope without its payload (whose errors are the payload's); ``plain`` as
+    for :func:`validate`."""
     shell = obj
     if isinstance(obj, dict) and isinstance(obj.get("payload"), dict):
         shell = {**obj, "payload": {}}
     try:
-        validate("Envelope", shell)
+        validate("Envelope", shell, plain=plain)
     except SchemaError as exc:
         raise MessageError(
             "envelope",

@@ -324,6 +324,17 @@ def test_round_trip_of_every_message(name: str, payload: dict[str, Any]) -> None
     validate("Envelope", doc)
 
 
+def test_encode_with_a_source_and_run_id_json_must_escape() -> None:
+    publisher = Publisher('plänner "q" \\ ψ', "rün\t1")
+    payload = with_("DecideRequest", episode_id="e")
+    for seq in range(2):  # the second text comes from the cached envelope head
+        text = publisher.encode("DecideRequest", payload, stamp_ns=7)
+        doc = publisher.envelope("DecideRequest", payload, stamp_ns=7)
+        doc["seq"] = 2 * seq
+        assert text == json.dumps(doc, allow_nan=False, separators=(",", ":"))
+        assert decode(text).source == 'plänner "q" \\ ψ'
+
+
 def test_non_ascii_strings_round_trip() -> None:
     payload = with_("DecideRequest", episode_id="épisode-ψ")
     message = decode(Publisher("p", "r").encode("DecideRequest", payload))

@@ -210,6 +210,10 @@ class DirectService:
     executor machinery on the path, and nothing else of the process's node (timers, parameter
     services, other services) can delay it. A callback that raises is logged and answered with
     the empty response, and the thread keeps serving.
+
+    Work the answer does not need can wait until it is sent: the callback hands it to
+    :meth:`defer`, and the thread runs it right after sending, before it takes the next request
+    (so deferred work and requests keep their order).
     """
 
     def __init__(
@@ -225,6 +229,7 @@ class DirectService:
         self._service = self._owner.create_service(srv_type, service, callback)
         self._stop = GuardCondition(None, None, context=node.context)
         self._stopping = False
+        self._deferred: list[Callable[[], object]] = []
         context = node.context
         with context.handle:
             self._wait_set = _rclpy.WaitSet(0, 1, 0, 0, 1, 0, context.handle)
@@ -257,11 +262,25 @@ class DirectService:
                     self._log.error(f"{service.srv_name}: callback failed: {exc!r}")
                     response = self._srv_type.Response()
                 self._send(service, response, header)
+                self._run_deferred(service.srv_name)
         except ExternalShutdownException:
             return
         except Exception as exc:  # noqa: BLE001 - RCLError when the context shuts down under the wait
             if context.ok() and not self._stopping:
                 self._log.error(f"{service.srv_name}: serving stopped: {exc!r}")
+
+    def defer(self, work: Callable[[], object]) -> None:
+        """Run ``work`` on the serving thread once the current answer is sent (call it from the
+        callback only). Work that raises is logged; the thread keeps serving."""
+        self._deferred.append(work)
+
+    def _run_deferred(self, name: str) -> None:
+        while self._deferred:
+            work = self._deferred.pop(0)
+            try:
+                work()
+            except Exception as exc:  # noqa: BLE001 - keep serving
+                self._log.error(f"{name}: deferred work failed: {exc!r}")
 
     def _send(self, service: Any, response: Any, header: Any) -> None:
         """Send the answer. Fast DDS drops it (with a RuntimeWarning, after waiting 100 ms) when
