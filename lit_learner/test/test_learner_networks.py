@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 import torch
 from lit_learner.fuzzy import fuzzify
@@ -89,6 +90,27 @@ def test_snapshot_computes_what_the_actor_computes(kernels: tuple[int, ...]) -> 
     got = torch.tensor([snapshot(tuple(row.tolist())) for row in raw], dtype=torch.float64)
     assert torch.allclose(got, expected.double(), rtol=0, atol=1e-4)
     assert got.std() > 0.1  # the outputs really vary over the states
+    # The compiled pass (the C++ core is built here) is the numpy reference to rounding.
+    assert snapshot.compiled is not None
+    reference = [snapshot.numpy_call(tuple(row.tolist())) for row in raw]
+    assert got.tolist() == pytest.approx(reference, rel=0, abs=1e-12)
+
+
+def test_compiled_actor_rejects_shapes_that_do_not_chain() -> None:
+    import lit_core
+
+    trunk = (np.zeros((4, 9)), np.zeros(4))
+    last = (np.zeros((3, 4)), np.zeros(3))
+    actor = lit_core.TskActor((0.0, 0.5, 1.0), 0.2, trunk, [last], np.array([1.0, 2.0, 3.0]))
+    assert actor(0.1, 0.2, 0.3) == pytest.approx(2.0)  # equal logits: the consequents' mean
+    with pytest.raises(ValueError, match="layer 0: weight has 5 columns, expected 4 inputs"):
+        lit_core.TskActor((0, 0.5, 1), 0.2, trunk, [(np.zeros((3, 5)), np.zeros(3))], np.ones(3))
+    with pytest.raises(ValueError, match="trunk: bias has 3 entries, expected 4"):
+        lit_core.TskActor((0, 0.5, 1), 0.2, (np.zeros((4, 9)), np.zeros(3)), [last], np.ones(3))
+    with pytest.raises(ValueError, match="consequents: 2 entries"):
+        lit_core.TskActor((0, 0.5, 1), 0.2, trunk, [last], np.ones(2))
+    with pytest.raises(ValueError, match="sigma must be finite and positive"):
+        lit_core.TskActor((0, 0.5, 1), 0.0, trunk, [last], np.ones(3))
 
 
 def test_agent_policy_follows_every_weight_change() -> None:

@@ -5,6 +5,7 @@
 #include "lit/LITstar.h"
 #include "lit/LookupTensor.h"
 #include "lit/ParameterPolicy.h"
+#include "lit/TskActor.h"
 
 #include <ompl/base/PlannerTerminationCondition.h>
 #include <ompl/base/spaces/RealVectorStateSpace.h>
@@ -17,6 +18,7 @@
 #include <ompl/util/Console.h>
 #include <ompl/util/RandomNumbers.h>
 
+#include <pybind11/eigen.h>
 #include <pybind11/functional.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -460,6 +462,13 @@ PYBIND11_MODULE(lit_core, m)
         .def("trilinear", &LookupTensor::trilinear)
         .def("at", &LookupTensor::at)
         .def_property_readonly("shape", &LookupTensor::shape);
+
+    py::class_<TskActor>(m, "TskActor",
+                         "The learner's actor for one state, compiled (lit_learner.networks.ActorSnapshot uses it).")
+        .def(py::init<std::array<double, 3>, double, TskActor::Layer, std::vector<TskActor::Layer>, Eigen::VectorXd>(),
+             py::arg("centres"), py::arg("sigma"), py::arg("trunk"), py::arg("layers"), py::arg("consequents"),
+             "trunk and layers are (weight, bias) pairs; raises ValueError when shapes do not chain.")
+        .def("__call__", &TskActor::operator(), py::arg("rho_global"), py::arg("rho_local"), py::arg("measure"));
 
     py::class_<ParameterPolicy, std::shared_ptr<ParameterPolicy>>(m, "ParameterPolicy")
         .def_property_readonly("name", &ParameterPolicy::name);
