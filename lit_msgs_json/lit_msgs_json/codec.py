@@ -78,6 +78,17 @@ def validate(name: str, obj: object, *, plain: bool | None = None) -> None:
         raise SchemaError(short, error.json_path, str(error.validator), error.message)
 
 
+def valid_envelope(name: str, obj: object) -> bool:
+    """Whether ``obj``, plain JSON, is a valid envelope whose payload satisfies schema ``name``
+    (one compiled check of the whole message). False says nothing about why: the caller then
+    checks the envelope and the payload separately, which explains the violation.
+
+    Raises:
+        UnknownSchemaError: no schema of that name ships with the package.
+    """
+    return bool(_fast_envelope_validator(name.removeprefix("lit_msgs_json/")).is_valid(obj))
+
+
 def dumps(name: str, obj: object, **kwargs: Any) -> str:
     """Validate ``obj`` against schema ``name`` and serialise it as strict JSON (no NaN)."""
     validate(name, obj)
@@ -111,6 +122,18 @@ def _validator(name: str) -> Draft202012Validator:
 def _fast_validator(name: str) -> Any:
     """The compiled validator of ``name`` (after :func:`_validator` has checked the schema)."""
     return jsonschema_rs.Draft202012Validator(_schema(name), registry=_fast_registry())
+
+
+@cache
+def _fast_envelope_validator(name: str) -> Any:
+    """The compiled validator of an envelope carrying a ``name`` payload."""
+    envelope, payload = _validator("Envelope").schema, _validator(name).schema
+    schema = {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "allOf": [{"$ref": envelope["$id"]}],
+        "properties": {"payload": {"$ref": payload["$id"]}},
+    }
+    return jsonschema_rs.Draft202012Validator(schema, registry=_fast_registry())
 
 
 @cache

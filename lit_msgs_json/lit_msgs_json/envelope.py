@@ -33,7 +33,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
-from lit_msgs_json.codec import validate
+from lit_msgs_json.codec import valid_envelope, validate
 from lit_msgs_json.errors import SchemaError
 
 MAX_MESSAGE_BYTES = 1_048_576
@@ -398,8 +398,29 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
         ) from None
     except ValueError as exc:  # JSONDecodeError
         raise MessageError("json", f"not valid JSON: {exc}", field="$", rule="json") from None
-    # Fewer brackets than the limit cannot nest deeper than it (the usual case: skip the walk).
+    # Fewer brackets than the nesting limit cannot nest deeper than it.
     brackets = text.count("{") + text.count("[")  # type: ignore[union-attr]
+    # The usual case, a valid message: one compiled check of the whole document. Anything else
+    # takes the checks below, which find the first problem in the documented order.
+    if not overflowed and brackets <= MAX_NESTING and type(obj) is dict:
+        short = obj.get("schema")
+        short = short.removeprefix(SCHEMA_PREFIX) if type(short) is str else None
+        if (
+            short in MESSAGE_VERSIONS
+            and (accepted is None or short in accepted)
+            and obj.get("version") == MESSAGE_VERSIONS[short]
+            and type(obj.get("version")) is int
+            and valid_envelope(short, obj)
+        ):
+            return Message(
+                name=short,
+                version=obj["version"],
+                seq=int(obj["seq"]),  # an integer, perhaps spelt 3.0
+                stamp_ns=int(obj["stamp_ns"]),
+                source=obj["source"],
+                run_id=obj["run_id"],
+                payload=obj["payload"],
+            )
     if brackets > MAX_NESTING and _nesting(obj) > MAX_NESTING:
         raise MessageError(
             "json",

@@ -324,6 +324,22 @@ def test_round_trip_of_every_message(name: str, payload: dict[str, Any]) -> None
     validate("Envelope", doc)
 
 
+@pytest.mark.parametrize("name", sorted(EXAMPLES))
+def test_one_check_of_the_whole_message_agrees_with_the_two_checks(name: str) -> None:
+    """decode()'s fast path (codec.valid_envelope) accepts exactly what the envelope check and
+    the payload check accept together."""
+    from lit_msgs_json.codec import valid_envelope
+
+    doc = Publisher("p", "r").envelope(name, copy.deepcopy(EXAMPLES[name]), stamp_ns=1)
+    assert valid_envelope(name, doc)
+    bad_payload = {**doc, "payload": {**doc["payload"], "unexpected": 1}}
+    bad_envelope = {**doc, "seq": -1}
+    other = "Error" if name != "Error" else "DecideRequest"
+    for bad in (bad_payload, bad_envelope):
+        assert not valid_envelope(name, bad)
+    assert not valid_envelope(other, doc)  # the payload is checked against the named schema
+
+
 def test_encode_with_a_source_and_run_id_json_must_escape() -> None:
     publisher = Publisher('plänner "q" \\ ψ', "rün\t1")
     payload = with_("DecideRequest", episode_id="e")
