@@ -69,13 +69,22 @@ class DDPGAgent:
         """Fuzzy 9-vectors of raw (..., 3) features."""
         return fuzzify(features, self.config.fuzzy_centres, self.config.fuzzy_sigma)
 
-    def policy(self, features: Features) -> float:
+    def policy(self, features: Features, published: bool = False) -> float:
         """Noise-free z*(features) in action units, before rounding.
 
         Evaluated by an :class:`ActorSnapshot` of the current actor weights (rebuilt whenever a
         parameter has changed: an optimiser step, a loaded checkpoint), not by torch: a single
         decision is on the planner's critical path.
+
+        ``published``: use the snapshot built last, without looking at the parameters. A thread
+        that decides while another one trains passes True: the trainer rebuilds the snapshot
+        after each step (:meth:`LearnerCore.update_step`), and the parameters are half-updated
+        during one. The snapshot must exist (:meth:`snapshot` once before).
         """
+        if published:
+            if self._snapshot is None:
+                raise RuntimeError("no published actor snapshot: call snapshot() first")
+            return self._snapshot(features)
         return self.snapshot()(features)
 
     def snapshot(self) -> ActorSnapshot:
@@ -109,12 +118,14 @@ class DDPGAgent:
             value = round_half_away_from_zero(value)
         return min(max(value, lo), hi)
 
-    def act(self, features: Features, explore: bool) -> tuple[float, float]:
-        """(executed value, its a_norm) for one decision."""
+    def act(
+        self, features: Features, explore: bool, published: bool = False
+    ) -> tuple[float, float]:
+        """(executed value, its a_norm) for one decision; ``published`` as for :meth:`policy`."""
         if explore and self.warming_up:
             a_norm = float(self.rng.uniform(0.0, 1.0))
         else:
-            a_norm = self.normalise(self.policy(features))
+            a_norm = self.normalise(self.policy(features, published))
             if explore:
                 a_norm = min(
                     max(a_norm + float(self.rng.normal(0.0, self.config.noise_std)), 0.0), 1.0

@@ -77,7 +77,9 @@ class LearnerCore:
         self.commit(request, a_norm)
         return value
 
-    def choose(self, request: DecisionRequest) -> tuple[float, float | None]:
+    def choose(
+        self, request: DecisionRequest, published: bool = False
+    ) -> tuple[float, float | None]:
         """The first half of :meth:`decide`: checks the request (as :meth:`decide` would, so that
         :meth:`commit` cannot fail on it) and chooses the action without recording anything.
 
@@ -85,6 +87,11 @@ class LearnerCore:
         pairing and the replay insert are then off the caller's critical path). The pair must be
         committed before the next request is chosen, in the order chosen: the exploration noise
         comes from the agent's generator, and the pairing needs the episode's steps in order.
+
+        ``published`` (the learner node): the actor snapshot built after the last gradient
+        step (:meth:`publish`), so that a decision can be chosen while another thread takes a
+        gradient step, without waiting for it. Everything else it reads (the pairing, the
+        agent's generator, which locks itself) only the deciding thread changes.
 
         Returns:
             ``(value, a_norm)``: the executed value and what :meth:`commit` records (None for an
@@ -98,8 +105,14 @@ class LearnerCore:
         self.pairing.check(request)
         agent = self.agents[request.agent]
         if self.trains(request.agent):
-            return agent.act(request.features, request.explore)
-        return agent.executed(agent.normalise(agent.policy(request.features))), None
+            return agent.act(request.features, request.explore, published)
+        return agent.executed(agent.normalise(agent.policy(request.features, published))), None
+
+    def publish(self) -> None:
+        """Build the actor snapshots that ``choose(published=True)`` uses (after a checkpoint is
+        loaded; :meth:`update_step` rebuilds them itself)."""
+        for agent in self.agents.values():
+            agent.snapshot()
 
     def commit(self, request: DecisionRequest, a_norm: float | None) -> None:
         """The second half of :meth:`decide`: closes the agent's previous step of the episode

@@ -72,6 +72,7 @@ class LearnerNode:
         self.run_id = p["run_id"] or time.strftime("learner-%Y%m%d-%H%M%S")
         self.source = node.get_fully_qualified_name()
         self.core = self._load_core()
+        self.core.publish()  # the actor snapshots that decisions read without the lock
         self._lock = threading.Lock()
         self._work = threading.Condition(self._lock)
         self._export_lock = threading.Lock()
@@ -168,15 +169,10 @@ class LearnerNode:
                     path_states=payload["path_states"],
                     explore=payload.get("explore", True),
                 )
-                self._waiting += 1
-                try:
-                    with self._lock:
-                        value, a_norm = self.core.choose(decision)
-                        version = self.core.policy_version
-                        self._decisions += 1
-                        self._planners.add(message.source)
-                finally:
-                    self._waiting -= 1
+                # Without the lock: a gradient step in progress does not hold the decision up
+                # (the actor snapshot is the one published after the last step).
+                value, a_norm = self.core.choose(decision, published=True)
+                version = self.core.policy_version
                 response.success = True
                 response.message = self.reply.encode(
                     "DecideResponse",
@@ -190,7 +186,7 @@ class LearnerNode:
                 )
                 # The pairing and the replay insert happen after the answer is on its way, on
                 # this thread, before the next request is taken.
-                self._decide.defer(lambda: self._commit(decision, a_norm))
+                self._decide.defer(lambda: self._commit(decision, a_norm, message.source))
                 return response
             final = payload.get("final_features")
             end = EpisodeEnd(
@@ -239,11 +235,13 @@ class LearnerNode:
             self.log.warning(f"rejected: {exc}")
             return response
 
-    def _commit(self, decision: Any, a_norm: float | None) -> None:
+    def _commit(self, decision: Any, a_norm: float | None, source: str) -> None:
         self._waiting += 1
         try:
             with self._lock:
                 self.core.commit(decision, a_norm)
+                self._decisions += 1
+                self._planners.add(source)
         finally:
             self._waiting -= 1
 

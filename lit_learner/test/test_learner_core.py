@@ -160,6 +160,26 @@ def test_choose_then_commit_is_decide() -> None:
             assert a[key] == b[key], key
 
 
+def test_published_decisions_read_the_snapshot_of_the_last_step() -> None:
+    """choose(published=True) (the node decides while the trainer steps) reads the snapshot
+    published after the last gradient step, never parameters in the middle of one."""
+    core = LearnerCore(small_config(train_b=False))  # untrained B: noise-free, no pairing state
+    request = DecisionRequest("B", "e", 0.1, 0.2, 0.3, 0.0, 1.0, None, 1.0, 0, 0)
+    with pytest.raises(RuntimeError, match="no published actor snapshot"):
+        core.choose(request, published=True)
+    core.publish()
+    before = core.choose(request, published=True)
+    assert before == core.choose(request)
+    actor = core.agents["B"].actor
+    with torch.no_grad():  # a step half-way: parameters changed, nothing published yet
+        for parameter in actor.parameters():
+            parameter.add_(0.3)
+    assert core.choose(request, published=True) == before
+    changed = core.choose(request)  # looks at the parameters: rebuilds and publishes
+    assert changed != before
+    assert core.choose(request, published=True) == changed
+
+
 def test_missing_checkpoint(tmp_path: Path) -> None:
     with pytest.raises(CheckpointError, match="checkpoint not found"):
         LearnerCore.load_checkpoint(tmp_path / "none.pt")
