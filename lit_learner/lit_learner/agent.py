@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import copy
 import math
+from contextlib import AbstractContextManager, nullcontext
 from typing import Any
 
 import numpy as np
@@ -153,11 +154,16 @@ class DDPGAgent:
         c = self.config
         return beta_at(self.updates, c.beta_start, c.beta_end, c.beta_steps)
 
-    def update(self) -> dict[str, float]:
-        """One gradient step on the critic and the actor, then Polyak updates of both targets."""
+    def update(self, replay_lock: AbstractContextManager[Any] | None = None) -> dict[str, float]:
+        """One gradient step on the critic and the actor, then Polyak updates of both targets.
+
+        ``replay_lock`` is held while the replay buffer is sampled and its priorities updated
+        (another thread may add transitions meanwhile)."""
         c = self.config
         beta = self.beta
-        batch = self.replay.sample(c.batch_size, beta, self.rng)
+        guard = replay_lock if replay_lock is not None else nullcontext()
+        with guard:
+            batch = self.replay.sample(c.batch_size, beta, self.rng)
         state = self.state(torch.from_numpy(batch.state))
         next_state = self.state(torch.from_numpy(batch.next_state))
         action = torch.from_numpy(batch.action)
@@ -173,7 +179,9 @@ class DDPGAgent:
         self.critic_optimizer.zero_grad()
         critic_loss.backward()
         self.critic_optimizer.step()
-        self.replay.update_priorities(batch.index, (target - q).detach().double().numpy())
+        td = (target - q).detach().double().numpy()
+        with guard:
+            self.replay.update_priorities(batch.index, td)
 
         logits = self.actor.logits(state)
         actor_loss = -self.critic(state, self.actor.normalised_from_logits(logits)).mean()

@@ -197,22 +197,33 @@ class LearnerCore:
         """Gradient steps owed to stored transitions, summed over the trained agents."""
         return sum(n for name, n in self._pending_updates.items() if self.trains(name))
 
-    def update_step(self, agent: str | None = None) -> dict[str, float] | None:
+    def update_step(
+        self, agent: str | None = None, lock: AbstractContextManager[Any] | None = None
+    ) -> dict[str, float] | None:
         """One gradient step of ``agent`` (None: the first trained agent with pending steps).
+
+        ``lock`` guards what the thread that decides and commits shares with this one (the
+        counters, the replay buffer): it is held for the bookkeeping and the replay's sample
+        and priority update, not for the gradient computation, so that commits and episode
+        ends need not wait for a step. Nobody else may change the networks meanwhile (the learner
+        node holds a lock of its own for them).
 
         Returns:
             The agent's update record (``critic``, ``actor``, ``mean_q``, ``td_abs``, ``beta``),
             or None when no step was pending.
         """
+        guard = lock if lock is not None else nullcontext()
         names = [agent] if agent is not None else list(self.agents)
-        for name in names:
-            if self.trains(name) and self._pending_updates[name] > 0:
-                self._pending_updates[name] -= 1
-                self._policy_version += 1
-                record = self.agents[name].update()
-                self.agents[name].snapshot()  # rebuilt here, not in the next decision
-                return record
-        return None
+        with guard:
+            name = next((n for n in names if self.trains(n) and self._pending_updates[n] > 0), None)
+            if name is None:
+                return None
+            self._pending_updates[name] -= 1
+        record = self.agents[name].update(replay_lock=lock)
+        self.agents[name].snapshot()  # published here, not rebuilt in the next decision
+        with guard:
+            self._policy_version += 1
+        return record
 
     def counters(self) -> dict[str, float]:
         """``charts/updates_<A>``, ``charts/transitions_<A>``, ``charts/warming_up_<A>`` of the

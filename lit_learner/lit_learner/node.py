@@ -18,11 +18,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -74,13 +75,17 @@ class LearnerNode:
         self.core = self._load_core()
         self.core.publish()  # the actor snapshots that decisions read without the lock
         self._lock = threading.Lock()
+        """The core's bookkeeping: pairing, replay buffer, counters (held briefly)."""
+        self._networks = threading.Lock()
+        """The networks: held by the trainer for a whole gradient step, and by checkpoints and
+        exports (always taken before ``_lock``). Decisions take neither lock."""
         self._work = threading.Condition(self._lock)
         self._export_lock = threading.Lock()
         self._stopping = False
         self._planners: set[str] = set()
         self._decisions = 0
         self._waiting = 0
-        """Decisions waiting for the lock: the trainer yields to them between gradient steps."""
+        """Commits waiting for the lock: the trainer yields to them."""
         self._episodes_at_checkpoint = self.core.episodes
         self._episodes_at_export = self.core.episodes
         self._last_checkpoint = time.monotonic()
@@ -266,10 +271,12 @@ class LearnerNode:
                     self._work.wait(timeout=1.0)
                 if self._stopping:
                     return
-                record = self.core.update_step()
-                if record is not None:
+            with self._networks:
+                record = self.core.update_step(lock=self._lock)
+            if record is not None:
+                with self._lock:
                     self._last_metrics.update({f"losses/{k}": float(v) for k, v in record.items()})
-            if record is None:
+            else:
                 self._maintain()
             while self._waiting and not self._stopping:
                 time.sleep(0.0001)  # let waiting decisions in (the lock is not fair)
@@ -299,8 +306,8 @@ class LearnerNode:
             self.export("end of training")
 
     def checkpoint(self) -> None:
-        """Write the checkpoint atomically (under the lock: a consistent state)."""
-        with self._lock:
+        """Write the checkpoint atomically (under both locks: a consistent state)."""
+        with self._networks, self._lock:
             self.core.save_checkpoint(self.params["checkpoint"])
             self._episodes_at_checkpoint = self.core.episodes
         self._last_checkpoint = time.monotonic()
@@ -319,10 +326,16 @@ class LearnerNode:
             "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         }
         with self._export_lock:  # one export at a time; decisions go on meanwhile
-            paths = self.core.export_tensors(self.params["export_dir"], record, lock=self._lock)
+            paths = self.core.export_tensors(self.params["export_dir"], record, lock=self._frozen())
             self._episodes_at_export = record["episodes"]
         self.log.info(f"exported tensors to {self.params['export_dir']} ({why})")
         return paths
+
+    @contextlib.contextmanager
+    def _frozen(self) -> Iterator[None]:
+        """Both locks: nothing in the core changes meanwhile."""
+        with self._networks, self._lock:
+            yield
 
     def _publish_stats(self) -> None:
         with self._lock:
