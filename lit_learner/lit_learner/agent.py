@@ -70,23 +70,16 @@ class DDPGAgent:
         """Fuzzy 9-vectors of raw (..., 3) features."""
         return fuzzify(features, self.config.fuzzy_centres, self.config.fuzzy_sigma)
 
-    def policy(self, features: Features, published: bool = False) -> float:
+    def policy(self, features: Features, snapshot: ActorSnapshot | None = None) -> float:
         """Noise-free z*(features) in action units, before rounding.
 
         Evaluated by an :class:`ActorSnapshot` of the current actor weights (rebuilt whenever a
         parameter has changed: an optimiser step, a loaded checkpoint), not by torch: a single
-        decision is on the planner's critical path.
-
-        ``published``: use the snapshot built last, without looking at the parameters. A thread
-        that decides while another one trains passes True: the trainer rebuilds the snapshot
-        after each step (:meth:`LearnerCore.update_step`), and the parameters are half-updated
-        during one. The snapshot must exist (:meth:`snapshot` once before).
+        decision is on the planner's critical path. ``snapshot``: evaluate that one instead (a
+        thread that decides while another one trains must not look at the parameters, which are
+        half-updated during a step; see :meth:`LearnerCore.choose`).
         """
-        if published:
-            if self._snapshot is None:
-                raise RuntimeError("no published actor snapshot: call snapshot() first")
-            return self._snapshot(features)
-        return self.snapshot()(features)
+        return (snapshot or self.snapshot())(features)
 
     def snapshot(self) -> ActorSnapshot:
         """The snapshot of the actor as it is now (cached until its parameters change)."""
@@ -120,13 +113,13 @@ class DDPGAgent:
         return min(max(value, lo), hi)
 
     def act(
-        self, features: Features, explore: bool, published: bool = False
+        self, features: Features, explore: bool, snapshot: ActorSnapshot | None = None
     ) -> tuple[float, float]:
-        """(executed value, its a_norm) for one decision; ``published`` as for :meth:`policy`."""
+        """(executed value, its a_norm) for one decision; ``snapshot`` as for :meth:`policy`."""
         if explore and self.warming_up:
             a_norm = float(self.rng.uniform(0.0, 1.0))
         else:
-            a_norm = self.normalise(self.policy(features, published))
+            a_norm = self.normalise(self.policy(features, snapshot))
             if explore:
                 a_norm = min(
                     max(a_norm + float(self.rng.normal(0.0, self.config.noise_std)), 0.0), 1.0
@@ -181,7 +174,7 @@ class DDPGAgent:
         self.critic_optimizer.step()
         td = (target - q).detach().double().numpy()
         with guard:
-            self.replay.update_priorities(batch.index, td)
+            self.replay.update_priorities(batch.index, td, sampled_at=batch.adds)
 
         logits = self.actor.logits(state)
         actor_loss = -self.critic(state, self.actor.normalised_from_logits(logits)).mean()

@@ -16,7 +16,7 @@ import random
 from collections.abc import Sequence
 from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -26,12 +26,24 @@ from lit_learner.config import AGENT_NAMES, LearnerConfig
 from lit_learner.errors import CheckpointError, ConfigError
 from lit_learner.export import CHECKPOINT_FILE, TENSOR_FILES, policy_grid
 from lit_learner.messages import DecisionRequest, EpisodeEnd
+from lit_learner.networks import ActorSnapshot
 from lit_learner.pairing import Pairing, Transition
 
 CHECKPOINT_FORMAT = 1
 """Version of the checkpoint layout written by :meth:`LearnerCore.save_checkpoint`."""
 AGENT_SEED_OFFSET = {"B": 0, "psi_K": 1}
 """Agent seed = config seed + offset, so the two agents never share random streams."""
+
+
+class Choice(NamedTuple):
+    """A chosen decision (:meth:`LearnerCore.choose`)."""
+
+    value: float
+    """The executed value."""
+    a_norm: float | None
+    """What :meth:`LearnerCore.commit` records (None for an agent that is not trained)."""
+    policy_version: int
+    """The policy version that chose it."""
 
 
 class LearnerCore:
@@ -50,6 +62,8 @@ class LearnerCore:
         self._policy_version = 0
         self._pending_updates = dict.fromkeys(AGENT_NAMES, 0)
         """Transitions stored since the last update round, counted from warm-up on."""
+        self._published: tuple[int, dict[str, ActorSnapshot]] | None = None
+        """(policy version, actor snapshot per agent) for decisions taken concurrently."""
         self._episode_terms: dict[str, dict[str, list[float]]] = {}
         """Per episode and agent: summed reward terms [time, cost, penalty] and the step count."""
 
@@ -73,46 +87,53 @@ class LearnerCore:
         """The executed value for a request: B rounded half away from zero and clamped to
         20..200 (as a float), psi_K clamped to [3, 15]. Closes the agent's previous step of the
         episode and records this one as pending (only for trained agents)."""
-        value, a_norm = self.choose(request)
-        self.commit(request, a_norm)
-        return value
+        choice = self.choose(request)
+        self.commit(request, choice.a_norm)
+        return choice.value
 
-    def choose(
-        self, request: DecisionRequest, published: bool = False
-    ) -> tuple[float, float | None]:
+    def choose(self, request: DecisionRequest, published: bool = False) -> Choice:
         """The first half of :meth:`decide`: checks the request (as :meth:`decide` would, so that
         :meth:`commit` cannot fail on it) and chooses the action without recording anything.
 
         A server answers with the value and calls :meth:`commit` after the answer is sent (the
         pairing and the replay insert are then off the caller's critical path). The pair must be
-        committed before the next request is chosen, in the order chosen: the exploration noise
-        comes from the agent's generator, and the pairing needs the episode's steps in order.
+        committed before the next request is chosen, in the order chosen: the pairing needs the
+        episode's steps in order.
 
-        ``published`` (the learner node): the actor snapshot built after the last gradient
-        step (:meth:`publish`), so that a decision can be chosen while another thread takes a
-        gradient step, without waiting for it. Everything else it reads (the pairing, the
-        agent's generator, which locks itself) only the deciding thread changes.
-
-        Returns:
-            ``(value, a_norm)``: the executed value and what :meth:`commit` records (None for an
-            agent that is not trained).
+        ``published`` (the learner node): the actor snapshots and policy version published
+        together after the last gradient step (:meth:`publish`, :meth:`update_step`), so that a
+        decision can be chosen while another thread takes a gradient step, without waiting for
+        it. The pairing only the deciding thread changes; the agent's generator is shared with
+        the trainer's replay sampling (numpy locks it; the order of draws then depends on timing).
 
         Raises:
             MessageError: the request is invalid.
             PairingError: its planning time is before the episode's previous message.
+            RuntimeError: ``published`` before anything was published.
         """
         request.validate()
         self.pairing.check(request)
         agent = self.agents[request.agent]
+        snapshot = None
+        version = self._policy_version
+        if published:
+            if self._published is None:
+                raise RuntimeError("no published actor snapshots: call publish() first")
+            version, snapshots = self._published
+            snapshot = snapshots[request.agent]
         if self.trains(request.agent):
-            return agent.act(request.features, request.explore, published)
-        return agent.executed(agent.normalise(agent.policy(request.features, published))), None
+            value, a_norm = agent.act(request.features, request.explore, snapshot)
+            return Choice(value, a_norm, version)
+        value = agent.executed(agent.normalise(agent.policy(request.features, snapshot)))
+        return Choice(value, None, version)
 
     def publish(self) -> None:
-        """Build the actor snapshots that ``choose(published=True)`` uses (after a checkpoint is
-        loaded; :meth:`update_step` rebuilds them itself)."""
-        for agent in self.agents.values():
-            agent.snapshot()
+        """Publish the actor snapshots (and the policy version they belong to) that
+        ``choose(published=True)`` reads; :meth:`update_step` publishes after each step."""
+        self._published = (
+            self._policy_version,
+            {name: agent.snapshot() for name, agent in self.agents.items()},
+        )
 
     def commit(self, request: DecisionRequest, a_norm: float | None) -> None:
         """The second half of :meth:`decide`: closes the agent's previous step of the episode
@@ -220,9 +241,11 @@ class LearnerCore:
                 return None
             self._pending_updates[name] -= 1
         record = self.agents[name].update(replay_lock=lock)
-        self.agents[name].snapshot()  # published here, not rebuilt in the next decision
+        snapshot = self.agents[name].snapshot()  # rebuilt here, not in the next decision
         with guard:
             self._policy_version += 1
+            if self._published is not None:  # one assignment: version and snapshots agree
+                self._published = (self._policy_version, {**self._published[1], name: snapshot})
         return record
 
     def counters(self) -> dict[str, float]:

@@ -166,7 +166,8 @@ def _compiled_actor(
         import lit_core
     except ImportError:
         return None
-    return lit_core.TskActor(centres, sigma, trunk, layers, consequents)
+    compiled = getattr(lit_core, "TskActor", None)  # None: a core built before it existed
+    return None if compiled is None else compiled(centres, sigma, trunk, layers, consequents)
 
 
 class Critic(nn.Module):

@@ -5,9 +5,13 @@
   DecideResponse / EpisodeEndResponse, or an Error with ``success = false``).
 - Episodes of several planners are kept apart: the learner core sees the episode as
   ``<source>|<run_id>|<episode_id>`` (source = the planner node's fully qualified name).
+- Answers a decision from the actor snapshots published after the last gradient step, without
+  any lock, and pairs and stores it after the answer is sent (on the serving thread, before the
+  next request).
 - Trains at episode ends: the episode's transitions are stored at once and the gradient steps they
-  call for run on a background thread, one at a time under the same lock as decisions, so decisions
-  keep being answered while it trains (a decision waits at most one gradient step).
+  call for run on a background thread, one at a time. A step holds the networks' lock throughout
+  (checkpoints and exports take it too) and the core's lock only for its bookkeeping and the
+  replay's sample and priority update, so neither decisions nor episode ends wait for a step.
 - Publishes ``/lit/learner/stats`` (LearnerStats) every ``stats_period`` s.
 - Checkpoints every ``checkpoint_every`` episodes and ``checkpoint_period`` s, and on shutdown;
   resumes from ``checkpoint`` when the file exists (``fresh: true`` starts over).
@@ -148,6 +152,7 @@ class LearnerNode:
         from lit_msgs_json.envelope import MessageError, decode
 
         from lit_learner.errors import MessageError as CoreMessageError
+        from lit_learner.errors import PairingError
         from lit_learner.messages import DecisionRequest, EpisodeEnd
 
         try:
@@ -176,8 +181,7 @@ class LearnerNode:
                 )
                 # Without the lock: a gradient step in progress does not hold the decision up
                 # (the actor snapshot is the one published after the last step).
-                value, a_norm = self.core.choose(decision, published=True)
-                version = self.core.policy_version
+                value, a_norm, version = self.core.choose(decision, published=True)
                 response.success = True
                 response.message = self.reply.encode(
                     "DecideResponse",
@@ -227,7 +231,7 @@ class LearnerNode:
             response.success = True
             response.message = self.reply.encode("EpisodeEndResponse", body)
             return response
-        except (CoreMessageError, ValueError) as exc:
+        except (CoreMessageError, PairingError, ValueError) as exc:
             response.success = False
             response.message = self.reply.error(
                 MessageError(
@@ -361,7 +365,7 @@ class LearnerNode:
     def shutdown(self) -> None:
         """Stop serving decisions and training, then checkpoint (and export if trained since the
         last export)."""
-        self._decide.shutdown()
+        self._decide.shutdown(timeout=30.0)  # its last commit may wait for a checkpoint
         with self._work:
             self._stopping = True
             self._work.notify_all()

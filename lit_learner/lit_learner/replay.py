@@ -104,6 +104,8 @@ class Batch:
     terminated: NDArray[np.float32]
     weight: NDArray[np.float32]
     """(m,) importance weights (P_i / P_min)^(-beta), each <= 1."""
+    adds: int = 0
+    """The buffer's add count when it was sampled (to spot items overwritten since)."""
 
 
 class PrioritizedReplay:
@@ -123,6 +125,8 @@ class PrioritizedReplay:
         self.position = 0
         self.max_priority = 1.0
         """Largest raw priority set so far: the priority of new items."""
+        self.adds = 0
+        """Items added since this buffer was made or loaded (not saved)."""
 
     def __len__(self) -> int:
         return self.size
@@ -145,6 +149,7 @@ class PrioritizedReplay:
         self.tree.set(i, self.max_priority**self.alpha)
         self.position = (i + 1) % self.capacity
         self.size = min(self.size + 1, self.capacity)
+        self.adds += 1
         return i
 
     def sample(self, batch_size: int, beta: float, rng: np.random.Generator) -> Batch:
@@ -166,11 +171,31 @@ class PrioritizedReplay:
             next_state=self.next_state[index],
             terminated=self.terminated[index],
             weight=weight.astype(np.float32),
+            adds=self.adds,
         )
 
-    def update_priorities(self, index: NDArray[np.intp], td_error: NDArray[np.float64]) -> None:
-        """Raw priority |y - Q| + eps for the sampled items."""
+    def update_priorities(
+        self,
+        index: NDArray[np.intp],
+        td_error: NDArray[np.float64],
+        sampled_at: int | None = None,
+    ) -> None:
+        """Raw priority |y - Q| + eps for the sampled items.
+
+        ``sampled_at``: the batch's ``adds``. Items that were overwritten by adds since then (a
+        learner thread that stores transitions while another takes a gradient step) keep the
+        priority they were stored with: the error belongs to the item they replaced.
+        """
         priority = np.abs(np.asarray(td_error, dtype=np.float64)) + self.priority_eps
+        index = np.asarray(index)
+        if sampled_at is not None and self.adds != sampled_at:
+            since = self.adds - sampled_at
+            # Adds since the sample wrote the `since` slots before the current position.
+            first = (self.position - min(since, self.capacity)) % self.capacity
+            keep = (index - first) % self.capacity >= since
+            index, priority = index[keep], priority[keep]
+            if index.size == 0:
+                return
         self.tree.set(index, priority**self.alpha)
         self.max_priority = max(self.max_priority, float(priority.max()))
 

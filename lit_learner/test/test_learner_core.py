@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from dataclasses import replace
 from pathlib import Path
 
@@ -146,7 +147,8 @@ def test_choose_then_commit_is_decide() -> None:
             if m.planning_time > 0.15 and m.episode_id == "ep5":  # after messages at >= 0.1
                 with pytest.raises(PairingError, match="before the previous message"):
                     split.choose(replace(m, planning_time=0.0))
-            value, a_norm = split.choose(m)
+            value, a_norm, version = split.choose(m)
+            assert version == split.policy_version
             split.commit(m, a_norm)
             got.append(value)
         else:
@@ -161,23 +163,85 @@ def test_choose_then_commit_is_decide() -> None:
 
 
 def test_published_decisions_read_the_snapshot_of_the_last_step() -> None:
-    """choose(published=True) (the node decides while the trainer steps) reads the snapshot
-    published after the last gradient step, never parameters in the middle of one."""
+    """choose(published=True) (the node decides while the trainer steps) reads the snapshots and
+    policy version published after the last gradient step, never parameters in mid-step."""
     core = LearnerCore(small_config(train_b=False))  # untrained B: noise-free, no pairing state
     request = DecisionRequest("B", "e", 0.1, 0.2, 0.3, 0.0, 1.0, None, 1.0, 0, 0)
-    with pytest.raises(RuntimeError, match="no published actor snapshot"):
+    with pytest.raises(RuntimeError, match="no published actor snapshots"):
         core.choose(request, published=True)
     core.publish()
     before = core.choose(request, published=True)
-    assert before == core.choose(request)
+    assert before == core.choose(request) and before.policy_version == 0
     actor = core.agents["B"].actor
     with torch.no_grad():  # a step half-way: parameters changed, nothing published yet
         for parameter in actor.parameters():
             parameter.add_(0.3)
     assert core.choose(request, published=True) == before
-    changed = core.choose(request)  # looks at the parameters: rebuilds and publishes
-    assert changed != before
-    assert core.choose(request, published=True) == changed
+    assert core.choose(request).value != before.value  # looks at the parameters
+    core.publish()
+    assert core.choose(request, published=True).value != before.value
+
+
+def test_a_gradient_step_publishes_its_snapshot_with_its_version() -> None:
+    core = LearnerCore(small_config())
+    feed(core, script(6))  # past both warm-ups; every owed step taken
+    core.publish()
+    version = core.policy_version
+    k = core.agents["psi_K"]
+    old = core.choose(DecisionRequest("psi_K", "x", 0.1, 0.2, 0.3, 0.0, 1.0, None, 1.0, 0, 0))
+    core._pending_updates["psi_K"] += 1  # one more step owed
+    lock = threading.Lock()
+    assert core.update_step("psi_K", lock=lock) is not None
+    assert not lock.locked()
+    published_version, snapshots = core._published  # type: ignore[misc]
+    assert published_version == version + 1 == core.policy_version
+    assert snapshots["psi_K"] is k.snapshot() and snapshots["psi_K"] is not None
+    assert old.policy_version == version
+
+
+def test_deciding_while_another_thread_trains() -> None:
+    """The learner node's pattern: one thread chooses from published snapshots and commits
+    under the core's lock; another takes gradient steps holding that lock only for bookkeeping
+    and the replay. Nothing raises, every owed step is taken, and the sum tree stays the sum of
+    its leaves."""
+    core = LearnerCore(small_config())
+    feed(core, script(4))  # past warm-up
+    core.publish()
+    lock, stop, errors = threading.Lock(), threading.Event(), []
+
+    def train() -> None:
+        try:
+            while not stop.is_set():
+                if core.update_step(lock=lock) is None:
+                    stop.wait(0.001)
+        except Exception as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+
+    trainer = threading.Thread(target=train)
+    trainer.start()
+    try:
+        versions = []
+        for m in script(12, seed=9):
+            stop.wait(0.002)  # the planner plans between messages; the trainer runs meanwhile
+            if isinstance(m, DecisionRequest):
+                choice = core.choose(m, published=True)
+                versions.append(choice.policy_version)
+                with lock:
+                    core.commit(m, choice.a_norm)
+            else:
+                with lock:
+                    core.close_episode(m)
+    finally:
+        while core.pending_updates and not errors:
+            stop.wait(0.01)
+        stop.set()
+        trainer.join()
+    assert not errors
+    assert versions == sorted(versions) and versions[-1] > versions[0]  # it did train meanwhile
+    for agent in core.agents.values():
+        tree = agent.replay.tree
+        leaves = tree.get(np.arange(agent.replay.size))
+        assert tree.total == pytest.approx(float(leaves.sum()), rel=1e-12)
 
 
 def test_missing_checkpoint(tmp_path: Path) -> None:

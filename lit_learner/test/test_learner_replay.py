@@ -91,6 +91,31 @@ def test_ring_buffer_overwrites_the_oldest() -> None:
     assert sorted(replay.reward.tolist()) == [2.0, 3.0, 4.0]
 
 
+def test_priorities_of_items_overwritten_since_the_sample_are_kept() -> None:
+    """A gradient step samples, another thread adds (wrapping the ring), then the step writes
+    its errors: only items still holding what was sampled take them."""
+    replay = PrioritizedReplay(4, alpha=1.0, priority_eps=0.0)
+    for _ in range(4):
+        replay.add((0, 0, 0), 0.0, 0.0, (0, 0, 0), False)  # priority 1 each, position back at 0
+    batch = replay.sample(64, 0.4, np.random.default_rng(0))
+    assert set(batch.index.tolist()) == {0, 1, 2, 3}
+    replay.update_priorities(np.array([1]), np.array([5.0]))  # max priority 5 for new items
+    for _ in range(2):  # slots 0 and 1 now hold new transitions at priority 5
+        replay.add((1, 1, 1), 1.0, 1.0, (1, 1, 1), False)
+    replay.update_priorities(batch.index, np.full(batch.index.shape, 0.5), sampled_at=batch.adds)
+    assert replay.tree.get(np.arange(4)).tolist() == pytest.approx([5.0, 5.0, 0.5, 0.5])
+    # Without the add count (one thread) every sampled item takes its error.
+    replay.update_priorities(np.array([0, 1]), np.array([0.25, 0.25]))
+    assert replay.tree.get(np.arange(2)).tolist() == pytest.approx([0.25, 0.25])
+    # A whole ring of adds since the sample: nothing sampled is left.
+    batch = replay.sample(16, 0.4, np.random.default_rng(1))
+    for _ in range(5):
+        replay.add((2, 2, 2), 2.0, 2.0, (2, 2, 2), False)
+    before = replay.tree.get(np.arange(4)).tolist()
+    replay.update_priorities(batch.index, np.full(batch.index.shape, 9.0), sampled_at=batch.adds)
+    assert replay.tree.get(np.arange(4)).tolist() == before
+
+
 def test_sampling_an_empty_buffer_fails() -> None:
     with pytest.raises(ReplayError, match="empty replay buffer"):
         PrioritizedReplay(4, 0.6, 1e-6).sample(2, 0.4, np.random.default_rng(0))

@@ -258,7 +258,7 @@ class Publisher:
         with self._lock:
             seq = self._next_seq
             # The same text as json.dumps of the whole envelope (tested), from cached parts.
-            text = f'{schema}{seq},"stamp_ns":{stamp}{sender}{payload_text}}}'
+            text = f'{schema}{seq},"stamp_ns":{int(stamp)}{sender}{payload_text}}}'
             size = len(text)  # json.dumps escapes non-ASCII, so characters are bytes
             if size > MAX_MESSAGE_BYTES:
                 raise _oversize(size, short, None)

@@ -261,8 +261,10 @@ class DirectService:
                 except Exception as exc:  # noqa: BLE001 - keep serving
                     self._log.error(f"{service.srv_name}: callback failed: {exc!r}")
                     response = self._srv_type.Response()
-                self._send(service, response, header)
-                self._run_deferred(service.srv_name)
+                try:
+                    self._send(service, response, header)
+                finally:  # the answer is out (or cannot go out): its work is still owed
+                    self._run_deferred(service.srv_name)
         except ExternalShutdownException:
             return
         except Exception as exc:  # noqa: BLE001 - RCLError when the context shuts down under the wait
