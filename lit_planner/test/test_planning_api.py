@@ -284,6 +284,35 @@ def test_listener_sees_events() -> None:
 # --------------------------------------------------------------------------- OMPL baselines
 
 
+def longest_chord_inside_boxes(scenario: scenarios.Scenario, path: np.ndarray) -> float:
+    """The longest piece of any path segment inside any obstacle box (slab method)."""
+    lower, upper = scenario.boxes[:, 0], scenario.boxes[:, 1]  # (m, dim)
+    longest = 0.0
+    for a, b in itertools.pairwise(path):
+        d = b - a
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1, t2 = (lower - a) / d, (upper - a) / d  # (m, dim); inf/nan where d == 0
+        flat = d == 0
+        inside = np.all(~flat | ((lower <= a) & (a <= upper)), axis=1)  # parallel axes
+        enter = np.where(flat, -np.inf, np.minimum(t1, t2)).max(axis=1).clip(0.0, 1.0)
+        leave = np.where(flat, np.inf, np.maximum(t1, t2)).min(axis=1).clip(0.0, 1.0)
+        chord = np.where(inside, np.maximum(leave - enter, 0.0), 0.0) * np.linalg.norm(d)
+        longest = max(longest, float(chord.max(initial=0.0)))
+    return longest
+
+
+def test_longest_chord_inside_boxes() -> None:
+    scenario = scenarios.get("np4")
+    box = scenario.boxes[0]
+    centre = (box[0] + box[1]) / 2
+    width = float(box[1][0] - box[0][0])
+    left, right = centre.copy(), centre.copy()
+    left[0], right[0] = box[0][0] - 1.0, box[1][0] + 1.0  # straight through along axis 0
+    assert longest_chord_inside_boxes(scenario, np.array([left, right])) == pytest.approx(width)
+    outside = np.array(scenario.start)
+    assert longest_chord_inside_boxes(scenario, np.array([outside, outside + 1e-9])) == 0.0
+
+
 @pytest.mark.parametrize("name", ["np4", "rrd4"])
 @pytest.mark.parametrize("planner", OMPL_PLANNERS)
 def test_ompl_baselines_give_sound_paths(planner: str, name: str) -> None:
@@ -295,6 +324,15 @@ def test_ompl_baselines_give_sound_paths(planner: str, name: str) -> None:
     if name == "np4":  # every baseline solves np4 within a few ms; rrd4 may take longer
         assert result["solved"], result["status"]
     if result["solved"]:
+        check = result["path_check"]
+        if not check["valid"]:
+            # OMPL's discrete motion check samples each edge at the scenario's resolution, so it
+            # can pass an edge that clips a box over less than that spacing; the dense re-check,
+            # four times finer, may then catch it (seen once in many runs of irrtstar on rrd4).
+            # That is OMPL's contract, not a planner bug: allow it, and only that.
+            spacing = scenario.resolution * scenario.max_extent
+            assert longest_chord_inside_boxes(scenario, np.array(result["path"])) <= spacing
+            result = {**result, "path_check": {**check, "ok": True, "valid": True}}
         assert_sound(result, scenario)
     else:
         assert result["status"] in ("timeout", "approximate_solution")
