@@ -134,3 +134,44 @@ def test_direct_service_and_wait_set_client_across_processes(ros: RosSystem, tmp
     assert ros.stop(server) == 0, server.tail()
     assert "thread alive after shutdown: False" in server.text()
     assert "clean exit" in server.text()
+
+
+def test_send_response_retries_an_answer_fast_dds_dropped() -> None:
+    """rclpy only warns when Fast DDS drops an answer; send_response tries again, logs when it
+    gives up, and turns no other warning into an error (nor leaves its filter behind)."""
+    import warnings
+
+    from lit_planner import rosutil
+
+    class Log:
+        def __init__(self) -> None:
+            self.lines: list[str] = []
+
+        def warning(self, text: str) -> None:
+            self.lines.append(text)
+
+    sent: list[object] = []
+
+    def flaky(drops: int):  # type: ignore[no-untyped-def]
+        def send(response: object, header: object) -> None:
+            if len(sent) < drops:
+                sent.append(None)
+                warnings.warn("failed to send response (timeout): x", RuntimeWarning, stacklevel=1)
+                return
+            warnings.warn("an unrelated warning", RuntimeWarning, stacklevel=1)
+            sent.append(response)
+
+        return send
+
+    log = Log()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert rosutil.send_response(flaky(2), "answer", None, "/svc", log)
+        assert sent == [None, None, "answer"] and not log.lines
+        assert [str(w.message) for w in caught] == ["an unrelated warning"]
+    sent.clear()
+    assert not rosutil.send_response(flaky(10**6), "answer", None, "/svc", log)
+    assert len(sent) == rosutil.SEND_ATTEMPTS
+    assert log.lines == ["/svc: answer not delivered: failed to send response (timeout): x"]
+    assert not rosutil.send_response(flaky(10**6), "a", None, "/svc", log, stopping=lambda: True)
+    assert not any(f[0] == "error" for f in warnings.filters)

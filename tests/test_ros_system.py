@@ -483,6 +483,18 @@ def test_bad_input_is_answered_with_errors(ros: RosSystem) -> None:
         assert error["field"] == field, f"{case}: {error}"
         assert words in error["message"], f"{case}: {error}"
 
+    # Time running backwards within an episode: the learner can pair no transition from it.
+    episode = {"episode_id": "backwards", "agent": "psi_K"}
+    later = _envelope("DecideRequest", _decide_payload(planning_time=0.5, **episode))
+    earlier = _envelope("DecideRequest", _decide_payload(planning_time=0.2, **episode))
+    result = ros.call("--payload-only", "raw", DECIDE, json.dumps(later))
+    assert result.returncode == 0 and result.json()["agent"] == "psi_K", result
+    result = ros.call("--payload-only", "raw", DECIDE, json.dumps(earlier))
+    assert result.returncode == 1, result
+    error = result.json()
+    assert error["code"] == "invalid-request", error
+    assert "before the previous message's 0.5" in error["message"], error
+
     result = ros.call("--payload-only", "plan", "--scenario", "np4", "--time", "0.2")
     assert result.returncode == 0, result
     assert result.json()["solved"] is True

@@ -79,7 +79,7 @@ class DDPGAgent:
         thread that decides while another one trains must not look at the parameters, which are
         half-updated during a step; see :meth:`LearnerCore.choose`).
         """
-        return (snapshot or self.snapshot())(features)
+        return (snapshot if snapshot is not None else self.snapshot())(features)
 
     def snapshot(self) -> ActorSnapshot:
         """The snapshot of the actor as it is now (cached until its parameters change)."""

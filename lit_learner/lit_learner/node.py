@@ -38,6 +38,7 @@ from lit_planner.rosutil import (
     DirectService,
     flush_publishers,
     json_qos,
+    retry_lost_answers,
     spin_node,
 )
 
@@ -113,7 +114,9 @@ class LearnerNode:
             start_parameter_services=False,
             use_global_arguments=False,  # a process-wide __node:= remap is the main node's
         )
-        self._export_node.create_service(Trigger, EXPORT_SERVICE, self._serve_export)
+        retry_lost_answers(
+            self._export_node.create_service(Trigger, EXPORT_SERVICE, self._serve_export), self.log
+        )
         self._export_executor = SingleThreadedExecutor()
         self._export_executor.add_node(self._export_node)
         self._export_thread = threading.Thread(
@@ -283,7 +286,7 @@ class LearnerNode:
             else:
                 self._maintain()
             while self._waiting and not self._stopping:
-                time.sleep(0.0001)  # let waiting decisions in (the lock is not fair)
+                time.sleep(0.0001)  # let waiting commits in (the lock is not fair)
 
     def _due(self) -> bool:
         """Whether a checkpoint or the end-of-training export is owed (caller holds the lock)."""

@@ -56,6 +56,7 @@ from lit_planner.rosutil import (
     ServiceCaller,
     flush_publishers,
     json_qos,
+    retry_lost_answers,
     spin_node,
 )
 
@@ -161,8 +162,14 @@ class PlannerNode:
         self._worker.start()
         from diagnostic_msgs.srv import AddDiagnostics
 
-        node.create_service(
-            AddDiagnostics, PLAN_SERVICE, self._serve_plan, callback_group=ReentrantCallbackGroup()
+        retry_lost_answers(
+            node.create_service(
+                AddDiagnostics,
+                PLAN_SERVICE,
+                self._serve_plan,
+                callback_group=ReentrantCallbackGroup(),
+            ),
+            self.log,
         )
         self._driver = threading.Thread(target=self._drive, name="episodes", daemon=True)
         self._driver.start()

@@ -199,7 +199,53 @@ class ServiceCaller:
 
 
 SEND_ATTEMPTS = 20
-"""Tries of :meth:`DirectService._send` (each waits up to 100 ms for the client's reader)."""
+"""Tries of :func:`send_response` (each waits up to 100 ms for the client's reader)."""
+
+_SEND_LOCK = threading.Lock()
+"""Serialises :func:`send_response`'s warning filter: ``warnings.catch_warnings`` saves and
+restores the process's filter list, and two threads interleaving it would leave the filter on."""
+
+
+def send_response(
+    send: Callable[[Any, Any], None],
+    response: Any,
+    header: Any,
+    name: str,
+    log: Any,
+    stopping: Callable[[], bool] = lambda: False,
+) -> bool:
+    """Send a service's answer with ``send`` (a ``Service.send_response``). Fast DDS drops an
+    answer (rclpy then warns "failed to send response", after waiting 100 ms) when the client's
+    response reader is not matched yet, which happens to a client that calls right after
+    discovering the service, more often under load; then try again, for up to about 2 s.
+    Whether it went out."""
+    for attempt in range(SEND_ATTEMPTS):
+        with _SEND_LOCK, warnings.catch_warnings():
+            # Only this warning becomes an error: another thread's warnings stay warnings.
+            warnings.filterwarnings(
+                "error", message="failed to send response", category=RuntimeWarning
+            )
+            try:
+                send(response, header)
+                return True
+            except RuntimeWarning as exc:
+                if stopping() or attempt == SEND_ATTEMPTS - 1:
+                    log.warning(f"{name}: answer not delivered: {exc}")
+                    return False
+    return False
+
+
+def retry_lost_answers(service: Any, log: Any) -> Any:
+    """Make the executor's answers of ``service`` (an rclpy ``Service``) go through
+    :func:`send_response`; returns ``service``."""
+    send = service.send_response
+    name = service.srv_name
+
+    def retrying(response: Any, header: Any) -> None:
+        send_response(send, response, header, name, log)
+
+    service.send_response = retrying  # the executor calls srv.send_response(response, header)
+    return service
 
 
 class DirectService:
@@ -262,7 +308,14 @@ class DirectService:
                     self._log.error(f"{service.srv_name}: callback failed: {exc!r}")
                     response = self._srv_type.Response()
                 try:
-                    self._send(service, response, header)
+                    send_response(
+                        service.send_response,
+                        response,
+                        header,
+                        service.srv_name,
+                        self._log,
+                        lambda: self._stopping,
+                    )
                 finally:  # the answer is out (or cannot go out): its work is still owed
                     self._run_deferred(service.srv_name)
         except ExternalShutdownException:
@@ -283,21 +336,6 @@ class DirectService:
                 work()
             except Exception as exc:  # noqa: BLE001 - keep serving
                 self._log.error(f"{name}: deferred work failed: {exc!r}")
-
-    def _send(self, service: Any, response: Any, header: Any) -> None:
-        """Send the answer. Fast DDS drops it (with a RuntimeWarning, after waiting 100 ms) when
-        the client's response reader is not matched yet, which happens to a client that calls
-        right after discovering the service; then try again, for up to about 2 s."""
-        for attempt in range(SEND_ATTEMPTS):
-            with warnings.catch_warnings():
-                warnings.simplefilter("error", RuntimeWarning)
-                try:
-                    service.send_response(response, header)
-                    return
-                except RuntimeWarning as exc:
-                    if self._stopping or attempt == SEND_ATTEMPTS - 1:
-                        self._log.warning(f"{service.srv_name}: answer not delivered: {exc}")
-                        return
 
     def shutdown(self, timeout: float = 2.0) -> None:
         """Stop the thread and destroy the node."""

@@ -43,14 +43,23 @@ def quiet_ompl() -> None:
     lit_core.set_log_level("error")
 
 
-def assert_sound(result: dict[str, Any], scenario: scenarios.Scenario) -> None:
-    """A solved result: valid joined path, non-increasing costs ending in the reported cost."""
+def assert_sound(
+    result: dict[str, Any], scenario: scenarios.Scenario, clip_allowance: float = 0.0
+) -> None:
+    """A solved result: valid joined path, non-increasing costs ending in the reported cost.
+
+    ``clip_allowance``: a path the dense re-check rejects passes when no segment runs inside a
+    box for longer than this (what a discrete motion check at that spacing can miss)."""
     assert result["solved"] and result["status"] == "exact_solution"
     path = np.array(result["path"])
     assert np.allclose(path[0], scenario.start) and np.allclose(path[-1], scenario.goal)
     # plan() ran the independent dense re-check (scenarios.check_path) on this path already.
     check = result["path_check"]
-    assert check["ok"] and check["valid"] and check["points_checked"] > len(path), check
+    assert check["starts_at_start"] and check["ends_at_goal"], check
+    assert check["points_checked"] > len(path) or not check["valid"], check
+    if not check["valid"]:
+        assert clip_allowance > 0.0, check
+        assert longest_chord_inside_boxes(scenario, path) <= clip_allowance, check
     assert math.isclose(check["cost"], result["cost"], rel_tol=1e-9)
     costs = [cost for _, cost in result["improvements"]]
     times = [t for t, _ in result["improvements"]]
@@ -324,16 +333,11 @@ def test_ompl_baselines_give_sound_paths(planner: str, name: str) -> None:
     if name == "np4":  # every baseline solves np4 within a few ms; rrd4 may take longer
         assert result["solved"], result["status"]
     if result["solved"]:
-        check = result["path_check"]
-        if not check["valid"]:
-            # OMPL's discrete motion check samples each edge at the scenario's resolution, so it
-            # can pass an edge that clips a box over less than that spacing; the dense re-check,
-            # four times finer, may then catch it (seen once in many runs of irrtstar on rrd4).
-            # That is OMPL's contract, not a planner bug: allow it, and only that.
-            spacing = scenario.resolution * scenario.max_extent
-            assert longest_chord_inside_boxes(scenario, np.array(result["path"])) <= spacing
-            result = {**result, "path_check": {**check, "ok": True, "valid": True}}
-        assert_sound(result, scenario)
+        # OMPL's discrete motion check samples each edge at the scenario's resolution, so it can
+        # pass an edge that clips a box over less than that spacing; the dense re-check, four
+        # times finer, may then catch it (seen once in many runs of irrtstar on rrd4). That is
+        # OMPL's contract, not a planner bug: allow it, and only that.
+        assert_sound(result, scenario, clip_allowance=scenario.resolution * scenario.max_extent)
     else:
         assert result["status"] in ("timeout", "approximate_solution")
         assert result["path"] == [] and result["path_check"] is None
