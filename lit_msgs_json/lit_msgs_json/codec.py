@@ -67,7 +67,7 @@ def validate(name: str, obj: object, *, plain: bool | None = None) -> None:
     """
     short = name.removeprefix("lit_msgs_json/")
     validator = _validator(short)
-    if plain or (plain is None and _plain_json(obj)):
+    if plain or (plain is None and plain_json(obj)):
         if _fast_validator(short).is_valid(obj):
             return
     else:
@@ -159,31 +159,40 @@ def _registry() -> Registry:
     )
 
 
-def _plain_json(obj: object) -> bool:
+def plain_json(obj: object) -> bool:
     """Whether ``obj`` is built only of what ``json.loads`` returns (dict with str keys, list, str,
     int, bool, None) and finite floats, exact types only. Only such documents take the compiled
-    validator: it treats a tuple as an array and rejects numpy scalars with a ValueError, where
-    jsonschema (the reference) rejects the first and explains the second."""
+    validator (it treats a tuple as an array and rejects numpy scalars with a ValueError, where
+    jsonschema, the reference, rejects the first and explains the second) and orjson's encoder
+    (which writes NaN as null)."""
     kind = type(obj)
-    if kind is float:
-        return math.isfinite(obj)  # type: ignore[arg-type]
     if kind is dict:
         for key, value in obj.items():  # type: ignore[attr-defined]
-            if type(key) is not str or not _plain_value(value):
+            if type(key) is not str:
+                return False
+            kind = type(value)
+            if kind is float:
+                if value - value != 0.0:  # NaN and the infinities give NaN
+                    return False
+            elif not (
+                kind is str or kind is int or kind is bool or value is None or plain_json(value)
+            ):
                 return False
         return True
     if kind is list:
-        return all(_plain_value(value) for value in obj)  # type: ignore[attr-defined]
-    return kind is str or kind is int or kind is bool or obj is None
-
-
-def _plain_value(value: object) -> bool:
-    kind = type(value)
-    if kind is float:
-        return math.isfinite(value)  # type: ignore[arg-type]
-    if kind is str or kind is int or kind is bool or value is None:
+        for value in obj:  # type: ignore[attr-defined]
+            kind = type(value)
+            if kind is float:
+                if value - value != 0.0:
+                    return False
+            elif not (
+                kind is str or kind is int or kind is bool or value is None or plain_json(value)
+            ):
+                return False
         return True
-    return _plain_json(value)
+    if kind is float:
+        return math.isfinite(obj)  # type: ignore[arg-type]
+    return kind is str or kind is int or kind is bool or obj is None
 
 
 def _non_finite_numbers(obj: object, path: str) -> Iterator[tuple[str, float]]:

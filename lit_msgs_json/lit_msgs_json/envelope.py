@@ -33,7 +33,9 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
-from lit_msgs_json.codec import valid_envelope, validate
+import orjson
+
+from lit_msgs_json.codec import plain_json, valid_envelope, validate
 from lit_msgs_json.errors import SchemaError
 
 MAX_MESSAGE_BYTES = 1_048_576
@@ -78,6 +80,7 @@ SCHEMA_PREFIX = "lit_msgs_json/"
 """Prefix of the envelope's ``schema`` field."""
 
 _MAX_SEQ = 2**63 - 1
+_DIGITS_AS_ZERO = bytes.maketrans(b"123456789", b"000000000")
 _SCHEMA_PATTERN = re.compile(r"lit_msgs_json/([A-Za-z][A-Za-z0-9]{0,127})")
 _MAX_DETAIL = 400
 _MAX_MESSAGE = 4096
@@ -239,7 +242,7 @@ class Publisher:
                 violates its schema; ``field`` starts with ``$.payload``) or ``envelope`` (a bad
                 ``stamp_ns``). No seq is taken then.
         """
-        short, stamp = self._check(name, payload, stamp_ns)
+        short, stamp, _ = self._check(name, payload, stamp_ns)
         with self._lock:
             seq = self._next_seq
             self._next_seq += 1
@@ -252,14 +255,25 @@ class Publisher:
             MessageError: as :meth:`envelope`, or ``oversize`` when the text would be longer than
                 ``MAX_MESSAGE_BYTES``.
         """
-        short, stamp = self._check(name, payload, stamp_ns)
-        payload_text = json.dumps(payload, allow_nan=False, separators=(",", ":"))
+        short, stamp, plain = self._check(name, payload, stamp_ns)
+        payload_text = None
+        if plain:  # orjson: the same document, written faster, non-ASCII characters unescaped
+            try:
+                data = orjson.dumps(payload)
+            except orjson.JSONEncodeError:  # a lone surrogate, an integer beyond 64 bits
+                pass
+            else:
+                payload_text = data.decode("utf-8")
+                non_ascii_bytes = len(data) - len(payload_text)
+        if payload_text is None:  # numpy scalars, tuples, ...: the standard encoder knows them
+            payload_text = json.dumps(payload, allow_nan=False, separators=(",", ":"))
+            non_ascii_bytes = 0  # json.dumps escapes them
         schema, sender = self._head_parts(short)
         with self._lock:
             seq = self._next_seq
-            # The same text as json.dumps of the whole envelope (tested), from cached parts.
+            # json.loads gives the envelope() document back (tested); head and sender from cache.
             text = f'{schema}{seq},"stamp_ns":{int(stamp)}{sender}{payload_text}}}'
-            size = len(text)  # json.dumps escapes non-ASCII, so characters are bytes
+            size = len(text) + non_ascii_bytes  # the head is json.dumps's: ASCII only
             if size > MAX_MESSAGE_BYTES:
                 raise _oversize(size, short, None)
             self._next_seq += 1
@@ -294,7 +308,8 @@ class Publisher:
         payload.update(overrides)
         return self.encode("Error", payload)
 
-    def _check(self, name: str, payload: object, stamp_ns: int | None) -> tuple[str, int]:
+    def _check(self, name: str, payload: object, stamp_ns: int | None) -> tuple[str, int, bool]:
+        """(short name, stamp, whether the payload is plain JSON) of a valid message."""
         short = name.removeprefix(SCHEMA_PREFIX)
         if short not in MESSAGE_VERSIONS:
             raise _unknown(short, _short_name(SCHEMA_PREFIX + short), None)
@@ -305,8 +320,9 @@ class Publisher:
         else:
             stamp = stamp_ns
             _check_envelope(self._wrap(short, 0, stamp, {}), short, None)
-        _check_payload(short, payload, None)
-        return short, stamp
+        plain = plain_json(payload)
+        _check_payload(short, payload, None, plain=plain)
+        return short, stamp, plain
 
     def _wrap(self, short: str, seq: int, stamp_ns: int, payload: object) -> dict[str, Any]:
         return {
@@ -351,6 +367,7 @@ def decode(text: str | bytes, accept: str | Iterable[str] | None = None) -> Mess
 def _decode(text: object, accepted: frozenset[str] | None) -> Message:
     # 1. size, before anything else touches the text
     not_utf8: str | None = None
+    data = b""  # the text's UTF-8 bytes (when it is not too long)
     if isinstance(text, (bytes, bytearray, memoryview)):
         data = bytes(text)
         size = len(data)
@@ -364,7 +381,8 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
             size = len(text)
         else:
             try:
-                size = len(text.encode("utf-8"))
+                data = text.encode("utf-8")
+                size = len(data)
             except UnicodeEncodeError as exc:  # lone surrogates
                 size = len(text.encode("utf-8", "surrogatepass"))
                 not_utf8 = str(exc)
@@ -378,6 +396,21 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
     # 2. strict UTF-8 JSON
     if not_utf8 is not None:
         raise MessageError("json", f"not UTF-8: {not_utf8}", field="$", rule="json")
+    # Fewer brackets than the nesting limit cannot nest deeper than it.
+    brackets = data.count(b"{") + data.count(b"[")
+    # The usual case, a valid message: parsed by orjson and checked by one compiled check of the
+    # whole document. orjson fails on everything the standard parser rejects here (and on some
+    # texts it accepts, such as lone surrogates); the only document it builds differently is one
+    # with an integer outside 64 bits (a float then), which _long_digits keeps off this path.
+    # Anything else takes the steps below, which find the first problem in the documented order.
+    if brackets <= MAX_NESTING and not _long_digits(data):
+        try:
+            obj = orjson.loads(data)
+        except orjson.JSONDecodeError:
+            obj = None
+        message = _valid_message(obj, accepted)
+        if message is not None:
+            return message
     overflowed: list[str] = []
 
     def parse_float(spelling: str) -> float:
@@ -398,29 +431,10 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
         ) from None
     except ValueError as exc:  # JSONDecodeError
         raise MessageError("json", f"not valid JSON: {exc}", field="$", rule="json") from None
-    # Fewer brackets than the nesting limit cannot nest deeper than it.
-    brackets = text.count("{") + text.count("[")  # type: ignore[union-attr]
-    # The usual case, a valid message: one compiled check of the whole document. Anything else
-    # takes the checks below, which find the first problem in the documented order.
-    if not overflowed and brackets <= MAX_NESTING and type(obj) is dict:
-        short = obj.get("schema")
-        short = short.removeprefix(SCHEMA_PREFIX) if type(short) is str else None
-        if (
-            short in MESSAGE_VERSIONS
-            and (accepted is None or short in accepted)
-            and obj.get("version") == MESSAGE_VERSIONS[short]
-            and type(obj.get("version")) is int
-            and valid_envelope(short, obj)
-        ):
-            return Message(
-                name=short,
-                version=obj["version"],
-                seq=int(obj["seq"]),  # an integer, perhaps spelt 3.0
-                stamp_ns=int(obj["stamp_ns"]),
-                source=obj["source"],
-                run_id=obj["run_id"],
-                payload=obj["payload"],
-            )
+    if not overflowed and brackets <= MAX_NESTING:
+        message = _valid_message(obj, accepted)  # valid, but not for orjson
+        if message is not None:
+            return message
     if brackets > MAX_NESTING and _nesting(obj) > MAX_NESTING:
         raise MessageError(
             "json",
@@ -472,6 +486,42 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
         run_id=obj["run_id"],
         payload=obj["payload"],
     )
+
+
+def _long_digits(data: bytes) -> bool:
+    """Whether ``data`` has digits that may spell an integer outside 64 bits, which orjson parses
+    as a float (the standard parser as an int): one below -2**63 or above 2**64 - 1 needs 19
+    digits after a minus sign or 20 digits. (Three byte scans: a regex takes several times as
+    long.)"""
+    digits = data.translate(_DIGITS_AS_ZERO)
+    return b"00000000000000000000" in digits or b"-0000000000000000000" in digits
+
+
+def _valid_message(obj: object, accepted: frozenset[str] | None) -> Message | None:
+    """``obj`` as a :class:`Message` when it is a valid message the caller takes, in the current
+    version (one compiled check of envelope and payload); None says nothing about why."""
+    if type(obj) is not dict:
+        return None
+    short = obj.get("schema")
+    short = short.removeprefix(SCHEMA_PREFIX) if type(short) is str else None
+    version = obj.get("version")
+    if (
+        short in MESSAGE_VERSIONS
+        and (accepted is None or short in accepted)
+        and version == MESSAGE_VERSIONS[short]
+        and type(version) is int
+        and valid_envelope(short, obj)
+    ):
+        return Message(
+            name=short,
+            version=version,
+            seq=int(obj["seq"]),  # an integer, perhaps spelt 3.0
+            stamp_ns=int(obj["stamp_ns"]),
+            source=obj["source"],
+            run_id=obj["run_id"],
+            payload=obj["payload"],
+        )
+    return None
 
 
 def _accepted(accept: str | Iterable[str] | None) -> frozenset[str] | None:

@@ -264,6 +264,11 @@ def envelope_text(payload: object, name: str = "DecideRequest", /, **fields: obj
     return json.dumps(doc)
 
 
+def typed(obj: object) -> str:
+    """``obj`` as JSON text: equal for documents equal in value *and* number type (1 != 1.0)."""
+    return json.dumps(obj, allow_nan=False)
+
+
 def with_(name: str, **changes: object) -> dict[str, Any]:
     """A copy of ``EXAMPLES[name]`` with ``changes`` applied."""
     return {**copy.deepcopy(EXAMPLES[name]), **changes}
@@ -315,11 +320,12 @@ def test_round_trip_of_every_message(name: str, payload: dict[str, Any]) -> None
     assert message.schema == f"lit_msgs_json/{name}"
     assert decode(text.encode("utf-8"), accept=name) == message
     assert decode(text, accept=[f"lit_msgs_json/{name}", "Error"]) == message
-    # encode() is exactly json.dumps of envelope(), compact and strict
+    # encode() is envelope() as compact JSON, in the envelope's key order
     doc = publisher.envelope(name, payload, stamp_ns=123)
     assert doc["seq"] == 1 and doc["payload"] is payload
     doc["seq"] = 0
-    assert text == json.dumps(doc, allow_nan=False, separators=(",", ":"))
+    assert typed(json.loads(text)) == typed(doc)
+    assert text == json.dumps(json.loads(text), separators=(",", ":"), ensure_ascii=False)
     assert list(doc) == ["schema", "version", "seq", "stamp_ns", "source", "run_id", "payload"]
     validate("Envelope", doc)
 
@@ -366,7 +372,7 @@ def test_encode_with_a_source_and_run_id_json_must_escape() -> None:
         text = publisher.encode("DecideRequest", payload, stamp_ns=7)
         doc = publisher.envelope("DecideRequest", payload, stamp_ns=7)
         doc["seq"] = 2 * seq
-        assert text == json.dumps(doc, allow_nan=False, separators=(",", ":"))
+        assert json.loads(text) == doc
         assert decode(text).source == 'plänner "q" \\ ψ'
 
 
@@ -374,6 +380,134 @@ def test_non_ascii_strings_round_trip() -> None:
     payload = with_("DecideRequest", episode_id="épisode-ψ")
     message = decode(Publisher("p", "r").encode("DecideRequest", payload))
     assert message.payload["episode_id"] == "épisode-ψ"
+
+
+# ---------------------------------------------------------------------------------------------
+# orjson (the fast parser and encoder) against the standard json module (the reference)
+
+
+class _NoOrjson:
+    """Stands in for orjson in ``envelope``: every call fails, so decode() and encode() take the
+    standard json module's path, the reference the fast path must agree with."""
+
+    JSONDecodeError = ValueError
+    JSONEncodeError = TypeError
+
+    @staticmethod
+    def loads(text: object) -> object:
+        raise ValueError("orjson switched off")
+
+    @staticmethod
+    def dumps(obj: object) -> bytes:
+        raise TypeError("orjson switched off")
+
+
+def outcome(text: str | bytes) -> tuple[object, ...]:
+    """What decode() makes of ``text``, number types included."""
+    try:
+        m = decode(text)
+    except MessageError as exc:
+        return ("error", str(exc), exc.to_payload()["field"])
+    return (m.name, m.version, m.seq, m.stamp_ns, m.source, m.run_id, typed(m.payload))
+
+
+def reference_outcome(text: str | bytes, monkeypatch: pytest.MonkeyPatch) -> tuple[object, ...]:
+    with monkeypatch.context() as patch:
+        patch.setattr(envelope_module, "orjson", _NoOrjson)
+        return outcome(text)
+
+
+def test_orjson_and_the_standard_parser_decode_alike(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every text decodes to the same message (number types included) or the same error with
+    orjson as without it: integers beyond 64 bits (orjson would make them floats), lone
+    surrogates (orjson refuses them), overflowing and long numbers, and random mutations."""
+    good = EXAMPLES[DR]
+    texts = [envelope_text(payload, name) for name, payload in [*EXAMPLES.items(), *VARIANTS]]
+    texts += [
+        envelope_text(with_(DR, episode_id="\ud800-lone")),  # json.dumps escapes it
+        envelope_text(with_(DR, episode_id='épisode ψ " \\ \n \u2028')),
+        envelope_text(with_(DR, cost=10**30)),
+        envelope_text(with_(DR, cost=2**64 - 1)),
+        envelope_text(with_(DR, cost=2**64)),
+        envelope_text(with_(DR, cost=-(2**63) - 1)),
+        envelope_text(with_(DR, improvements=2**63)),
+        envelope_text(good, seq=-(2**63) - 1),
+        envelope_text(good, seq=2**64),
+        envelope_text(good, seq=3.0),
+        envelope_text(good, stamp_ns=99999999999999999999),
+        envelope_text(with_(DR, planning_time=1e-7, cost=1.5e300)),
+        GOOD.replace("0.42", "1e400"),
+        GOOD.replace("0.42", "-1e400"),
+        GOOD.replace("0.42", "4.2E-1"),
+        GOOD.replace("0.42", "0.4200000000000000000000000000001"),
+        GOOD.replace("0.42", "-0.0"),
+        GOOD.replace("0.42", "0.42,"),
+        GOOD.replace("0.42", "042"),
+        "\ufeff" + GOOD,
+        " \t\n" + GOOD + " \r\n",
+        GOOD + "x",
+        GOOD.encode("utf-16"),
+        GOOD.encode("utf-8"),
+    ]
+    rng = random.Random(20261130)
+    for _ in range(300):
+        text = rng.choice(texts[: len(EXAMPLES)])
+        at = rng.randrange(len(text))
+        texts.append(text[:at] + rng.choice('0123456789-.eE"{}[],:\\ ') + text[at + 1 :])
+    valid = 0
+    for text in texts:
+        expected = reference_outcome(text, monkeypatch)
+        assert outcome(text) == expected, text
+        valid += expected[0] != "error"
+    assert valid > len(EXAMPLES) + len(VARIANTS)
+
+
+def test_a_valid_message_takes_the_fast_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With the standard parser switched off, valid messages still decode (so orjson is really
+    what decodes them) and a message orjson cannot take still fails over to it."""
+
+    def refuse(*args: object, **kwargs: object) -> object:
+        raise AssertionError("the standard parser was used")
+
+    monkeypatch.setattr(envelope_module.json, "loads", refuse)
+    for name, payload in EXAMPLES.items():
+        assert decode(envelope_text(payload, name)).payload == payload
+    with pytest.raises(MessageError, match="the standard parser was used"):  # code internal
+        decode(envelope_text(with_(DR, cost=10**30)))
+
+
+def test_encode_writes_numbers_and_strings_exactly(monkeypatch: pytest.MonkeyPatch) -> None:
+    """encode() (orjson) and decode() give back every finite double bit for bit, every integer
+    (beyond 64 bits through the standard encoder), and any string, non-ASCII and lone surrogates
+    included; the size limit counts UTF-8 bytes."""
+    import math
+    import struct
+
+    rng = random.Random(5)
+    publisher = Publisher("p", "r")
+    values: list[object] = [0.0, -0.0, 5e-324, 1.7976931348623157e308, 1e16, 1e-7, 0.1 + 0.2]
+    values += [0, -1, 2**63 - 1, -(2**63), 2**64 - 1, 2**64, -(2**70), 10**30]
+    while len(values) < 3000:
+        x = struct.unpack("<d", rng.getrandbits(64).to_bytes(8, "little"))[0]
+        if math.isfinite(x):
+            values.append(x)
+    path = [values[i : i + 2] for i in range(0, len(values), 2)]
+    for message in ('ψ-é\n"', "lone \ud800 surrogate"):
+        payload = with_("PlanResponse", path=path, message=message)
+        decoded = decode(publisher.encode("PlanResponse", payload)).payload
+        assert typed(decoded) == typed(payload)
+        assert [
+            struct.pack("<d", v) for row in decoded["path"] for v in row if type(v) is float
+        ] == [struct.pack("<d", v) for v in values if type(v) is float]
+    # the limit is on UTF-8 bytes: each 'ψ' is two
+    payload = with_("PlanResponse", message="ψ" * 100)
+    text = publisher.encode("PlanResponse", payload)
+    assert len(text.encode("utf-8")) == len(text) + 100
+    monkeypatch.setattr(envelope_module, "MAX_MESSAGE_BYTES", len(text) + 99)
+    with pytest.raises(MessageError, match="max-bytes"):
+        publisher.encode("PlanResponse", payload)
+    monkeypatch.setattr(envelope_module, "MAX_MESSAGE_BYTES", len(text) + 100)
+    assert decode(publisher.encode("PlanResponse", payload)).payload == payload
 
 
 # ---------------------------------------------------------------------------------------------
