@@ -87,14 +87,15 @@ class Actor(nn.Module):
 
 
 class ActorSnapshot:
-    """The actor's noise-free output for one state, in float64, from a copy of its weights.
+    """The actor's noise-free output for one state, from a copy of its weights.
 
     One decision through torch costs about 0.3 ms of per-operator overhead for a network this
     small, the same arithmetic in numpy about 35 µs, and compiled (``lit_core.TskActor``, what a
-    call uses when the C++ core is built) a few µs: a decision service answering across processes
-    needs the last. The parallel same-padded convolutions of the trunk are one linear map of the
-    9-vector, so the snapshot folds them into a single (81 x 9) matrix. :meth:`numpy_call` is the
-    same computation in numpy (the reference the compiled one is tested against).
+    call uses when the C++ core is built) about 4 µs: a decision service answering across
+    processes needs the last. The parallel same-padded convolutions of the trunk are one linear
+    map of the 9-vector, so the snapshot folds them into a single (81 x 9) matrix.
+    :meth:`numpy_call` is the same computation in numpy, in float64 (the reference the compiled
+    one is tested against; the compiled affine maps run in float32, as torch's do).
     """
 
     def __init__(self, actor: Actor, centres: Sequence[float], sigma: float) -> None:

@@ -31,6 +31,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
+from lit_msgs_json.envelope import MessageError, decode
 from lit_planner.rosutil import (
     DECIDE_SERVICE,
     EXPORT_SERVICE,
@@ -41,6 +42,10 @@ from lit_planner.rosutil import (
     retry_lost_answers,
     spin_node,
 )
+
+from lit_learner.errors import MessageError as CoreMessageError
+from lit_learner.errors import PairingError
+from lit_learner.messages import DecisionRequest, EpisodeEnd
 
 NODE_NAME = "lit_learner"
 
@@ -152,12 +157,7 @@ class LearnerNode:
     # ------------------------------------------------------------------ service
 
     def _serve(self, request: Any, response: Any) -> Any:
-        from lit_msgs_json.envelope import MessageError, decode
-
-        from lit_learner.errors import MessageError as CoreMessageError
-        from lit_learner.errors import PairingError
-        from lit_learner.messages import DecisionRequest, EpisodeEnd
-
+        # Module-level imports: an import statement here would cost microseconds per decision.
         try:
             message = decode(request.load_namespace, accept=("DecideRequest", "EpisodeEnd"))
         except MessageError as exc:

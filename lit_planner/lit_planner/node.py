@@ -40,6 +40,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from lit_msgs_json.envelope import MessageError, decode
+
 from lit_planner.episode_messages import (
     DecisionSources,
     EventLog,
@@ -207,7 +209,6 @@ class PlannerNode:
     # ------------------------------------------------------------------ service
 
     def _serve_plan(self, request: Any, response: Any) -> Any:
-        from lit_msgs_json.envelope import MessageError, decode
 
         reply = self.envelopes["reply"]
         try:
@@ -400,7 +401,6 @@ class PlannerNode:
 
     def _run(self, job: Job) -> None:
         import lit_core
-        from lit_msgs_json.envelope import MessageError
 
         from lit_planner import planning
 
@@ -451,8 +451,6 @@ class PlannerNode:
     # ------------------------------------------------------------------ learner calls
 
     def _decide(self, job: Job, episode: DecisionSources, budget: float, context: Any) -> float:
-        from lit_msgs_json.envelope import MessageError, decode
-
         kind = context.kind
         now = time.monotonic()
         if now >= self._learner_down_until:
@@ -511,7 +509,6 @@ class PlannerNode:
 
     def _end_episode(self, job: Job, episode: DecisionSources, result: dict[str, Any]) -> None:
         from lit_learner.train import BUDGET_TOLERANCE, minimum_cost
-        from lit_msgs_json.envelope import MessageError, decode
 
         problem = job.scenario
         budget = job.time or problem.time_budget
