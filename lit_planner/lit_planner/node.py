@@ -475,7 +475,6 @@ class PlannerNode:
                 self.envelopes["decide"].encode("DecideRequest", payload),
                 self.params["decision_timeout"],
             )
-            latency = (time.perf_counter() - started) * 1e3
             if answer is not None:
                 success, text = answer
                 try:
@@ -484,7 +483,8 @@ class PlannerNode:
                     reason = f"unreadable learner answer ({exc})"
                 else:
                     if success and reply.name == "DecideResponse":
-                        episode.add("learner", latency)
+                        # From encoding the request to the decoded, validated answer.
+                        episode.add("learner", (time.perf_counter() - started) * 1e3)
                         return float(reply.payload["value"])
                     reason = f"learner error: {reply.payload.get('message', '?')}"
             else:

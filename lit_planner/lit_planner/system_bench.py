@@ -1,7 +1,9 @@
 """``lit system-bench``: the distributed system's own numbers, measured in one run.
 
 1. **Decide round trip** across processes: ``lit call decide --repeat N`` (a separate client
-   process) against a running ``lit_learner_node``, for both agents: median and p99.
+   process) against a running ``lit_learner_node``, for both agents: median and p99; and the
+   round trips the planner node itself recorded (``Decision.latency_ms``) in the training run of
+   2.
 2. **Planning throughput** in training mode against the tensor policy on the same problems: the
    planner node plans ``--episodes`` draws of the training distribution (same ``--seed``) once
    asking the learner at every decision and once with the tensor policy; wall seconds per
@@ -95,6 +97,14 @@ def run(args: argparse.Namespace) -> int:
                 )
             ratio = rows["training"]["wall"] / rows["tensor"]["wall"]
             print(f"\ntraining / tensor wall time per episode: {ratio:.2f}x")
+            latencies = rows["training"]["latencies_ms"]
+            if latencies:
+                print(
+                    f"\nDecide round trip inside the planner node during this training run "
+                    f"(Decision.latency_ms, from encoding the request to the validated answer, "
+                    f"{len(latencies)} decisions, the learner training meanwhile): median "
+                    f"{np.median(latencies):.3f} ms, p99 {np.percentile(latencies, 99):.2f} ms"
+                )
             print("\n## Time for the planner to notice a dead learner (SIGKILL → fallback)\n")
             delays = _dead_learner(system, work, args)
             for i, delay in enumerate(delays):
@@ -171,6 +181,13 @@ def _throughput(system: System, work: Path, policy: str, args: argparse.Namespac
     _stop(system, "recorder")
     envelopes = _envelopes(replay, bag)
     summaries = [e.payload for e in envelopes if e.schema == "lit_msgs_json/EpisodeSummary"]
+    latencies = [
+        e.payload["latency_ms"]
+        for e in envelopes
+        if e.schema == "lit_msgs_json/Decision"
+        and e.payload["source"] == "learner"
+        and "latency_ms" in e.payload
+    ]
     # From the planner's first message (its first episode has begun) to its last one: startup and
     # the wait for the learner's service (DDS discovery, up to seconds) excluded for both policies.
     stamps = [e.stamp_ns for e in envelopes if e.schema != "lit_msgs_json/LearnerStats"]
@@ -180,6 +197,7 @@ def _throughput(system: System, work: Path, policy: str, args: argparse.Namespac
         "wall": wall / max(1, len(summaries)),
         "planner": float(np.mean([s["time"] for s in summaries])),
         "learner_calls": sum(s["learner_calls"] for s in summaries),
+        "latencies_ms": latencies,
     }
 
 
