@@ -13,6 +13,7 @@ import copy
 import hashlib
 import os
 import random
+import threading
 from collections.abc import Sequence
 from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
@@ -304,10 +305,22 @@ class LearnerCore:
 
     def save_checkpoint(self, path: str | Path) -> None:
         """Write the state atomically (a temporary file renamed into place)."""
+        self.write_checkpoint(self.checkpoint_state(), path)
+
+    def checkpoint_state(self) -> dict[str, Any]:
+        """A deep copy of :meth:`state_dict` that later changes of the core do not touch: a
+        caller that serialises the core's state under a lock copies it under the lock (tens of
+        ms) and writes it with :meth:`write_checkpoint` after releasing it (about 0.1 s more,
+        which decisions would otherwise wait for)."""
+        return copy.deepcopy(self.state_dict())
+
+    @staticmethod
+    def write_checkpoint(state: dict[str, Any], path: str | Path) -> None:
+        """Write a :meth:`checkpoint_state` atomically (a temporary file renamed into place)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        temporary = path.with_name(path.name + ".tmp")
-        torch.save(self.state_dict(), temporary)
+        temporary = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+        torch.save(state, temporary)
         os.replace(temporary, path)
 
     @classmethod
@@ -361,8 +374,8 @@ class LearnerCore:
         ``directory``.
 
         ``lock`` (held by whoever else uses the core, e.g. the learner node's decision service)
-        is taken only while the checkpoint is written and the actors are copied; the lookup
-        grids, which take seconds, are computed from those copies without it.
+        is taken only while the state and the actors are copied; the checkpoint file and the
+        lookup grids, which take seconds, are written from those copies without it.
 
         Returns:
             Paths keyed ``B`` (b_tensor.npy), ``psi_K`` (k_tensor.npy) and ``checkpoint``.
@@ -376,7 +389,7 @@ class LearnerCore:
         directory.mkdir(parents=True, exist_ok=True)
         checkpoint = directory / CHECKPOINT_FILE
         with lock if lock is not None else nullcontext():
-            self.save_checkpoint(checkpoint)
+            state = self.checkpoint_state()  # written below, after the lock
             frozen = {
                 name: (
                     copy.deepcopy(self.agents[name].actor),
@@ -392,6 +405,7 @@ class LearnerCore:
                 for name in agents
             }
             policy_version = self._policy_version
+        self.write_checkpoint(state, checkpoint)
         checkpoint_sha256 = _sha256(checkpoint)
         paths: dict[str, Path] = {"checkpoint": checkpoint}
         for name, (actor, training) in frozen.items():

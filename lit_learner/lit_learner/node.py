@@ -89,6 +89,8 @@ class LearnerNode:
         self._networks = threading.Lock()
         """The networks: held by the trainer for a whole gradient step, and by checkpoints and
         exports (always taken before ``_lock``). Decisions take neither lock."""
+        self._checkpoint_lock = threading.Lock()
+        """One checkpoint at a time (taken before the other two)."""
         self._work = threading.Condition(self._lock)
         self._export_lock = threading.Lock()
         self._stopping = False
@@ -313,10 +315,15 @@ class LearnerNode:
             self.export("end of training")
 
     def checkpoint(self) -> None:
-        """Write the checkpoint atomically (under both locks: a consistent state)."""
-        with self._networks, self._lock:
-            self.core.save_checkpoint(self.params["checkpoint"])
-            self._episodes_at_checkpoint = self.core.episodes
+        """Write the checkpoint atomically: a consistent copy of the state under both locks, the
+        file after they are released (decisions' commits and episode ends wait for the copy
+        only)."""
+        with self._checkpoint_lock:  # one checkpoint at a time: files written in copy order
+            with self._networks, self._lock:
+                state = self.core.checkpoint_state()
+                episodes = self.core.episodes
+            self.core.write_checkpoint(state, self.params["checkpoint"])
+            self._episodes_at_checkpoint = episodes
         self._last_checkpoint = time.monotonic()
         self.log.info(
             f"checkpoint {self.params['checkpoint']} ({self._episodes_at_checkpoint} episodes)"

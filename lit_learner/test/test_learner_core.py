@@ -298,6 +298,33 @@ def test_resume_from_checkpoint_is_exact(tmp_path: Path) -> None:
             assert a[key] == b[key], key
 
 
+def test_a_checkpoint_state_is_a_copy_later_training_does_not_touch(tmp_path: Path) -> None:
+    """The learner node copies the state under its locks and writes the file after releasing
+    them, while decisions and gradient steps go on: the file must hold the state at the copy."""
+    messages = script(10, seed=5)
+    cut = len(messages) // 2
+    core = LearnerCore(small_config())
+    got = feed(core, messages[:cut])
+    assert core.policy_version > 0
+    state = core.checkpoint_state()
+    core.save_checkpoint(tmp_path / "at-copy.pt")
+    feed(core, messages[cut:])  # decisions, episode ends and gradient steps after the copy
+    LearnerCore.write_checkpoint(state, tmp_path / "late.pt")
+    late = LearnerCore.load_checkpoint(tmp_path / "late.pt")
+    at_copy = LearnerCore.load_checkpoint(tmp_path / "at-copy.pt")
+    a, b = flat_state(at_copy), flat_state(late)
+    assert a.keys() == b.keys()
+    for key in a:
+        if isinstance(a[key], torch.Tensor):
+            assert torch.equal(a[key], b[key]), key
+        else:
+            assert a[key] == b[key], key
+    assert late.policy_version < core.policy_version
+    # and it resumes exactly like the core it was copied from
+    uninterrupted = LearnerCore(small_config())
+    assert got + feed(late, messages[cut:]) == feed(uninterrupted, messages)
+
+
 def test_configs_from_before_the_logit_penalty_and_search_cost_keep_training_without_them() -> None:
     doc = LearnerConfig().to_dict()
     for agent in ("b", "k"):
