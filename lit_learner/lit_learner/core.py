@@ -97,9 +97,11 @@ class LearnerCore:
         :meth:`commit` cannot fail on it) and chooses the action without recording anything.
 
         A server answers with the value and calls :meth:`commit` after the answer is sent (the
-        pairing and the replay insert are then off the caller's critical path). The pair must be
-        committed before the next request is chosen, in the order chosen: the pairing needs the
-        episode's steps in order.
+        pairing and the replay insert are then off the caller's critical path). Commits must come
+        in the order chosen (the pairing needs the episode's steps in order); a caller that
+        chooses before the previous commit is applied must check time order against it itself
+        (the learner node does, see ``LearnerNode._check_order``), since :meth:`choose` checks
+        against the committed ones.
 
         ``published`` (the learner node): the actor snapshots and policy version published
         together after the last gradient step (:meth:`publish`, :meth:`update_step`), so that a

@@ -6,8 +6,9 @@
 - Episodes of several planners are kept apart: the learner core sees the episode as
   ``<source>|<run_id>|<episode_id>`` (source = the planner node's fully qualified name).
 - Answers a decision from the actor snapshots published after the last gradient step, without
-  any lock, and pairs and stores it after the answer is sent (on the serving thread, before the
-  next request).
+  any lock, and pairs and stores it after the answer is sent: at once when the core's lock is
+  free, else (a checkpoint is copying the state) as soon as it is, in order; an episode end
+  records its episode's waiting decisions first, and time order is checked against them too.
 - Trains at episode ends: the episode's transitions are stored at once and the gradient steps they
   call for run on a background thread, one at a time. A step holds the networks' lock throughout
   (checkpoints and exports take it too) and the core's lock only for its bookkeeping and the
@@ -22,6 +23,7 @@
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import json
 import sys
@@ -98,6 +100,12 @@ class LearnerNode:
         self._decisions = 0
         self._waiting = 0
         """Commits waiting for the lock: the trainer yields to them."""
+        self._unapplied: collections.deque[tuple[Any, float | None, str]] = collections.deque()
+        """Answered decisions not recorded yet (the lock was taken); applied in order."""
+        self._queue_lock = threading.Lock()
+        """Guards ``_unapplied`` (held for an append or a pop only)."""
+        self._latest_time: dict[str, float] = {}
+        """Planning time of each open episode's latest answered decision (serving thread)."""
         self._episodes_at_checkpoint = self.core.episodes
         self._episodes_at_export = self.core.episodes
         self._last_checkpoint = time.monotonic()
@@ -186,7 +194,9 @@ class LearnerNode:
                 )
                 # Without the lock: a gradient step in progress does not hold the decision up
                 # (the actor snapshot is the one published after the last step).
+                self._check_order(decision)
                 value, a_norm, version = self.core.choose(decision, published=True)
+                self._latest_time[episode] = decision.planning_time
                 response.success = True
                 response.message = self.reply.encode(
                     "DecideResponse",
@@ -198,9 +208,8 @@ class LearnerNode:
                         "explore": bool(decision.explore),
                     },
                 )
-                # The pairing and the replay insert happen after the answer is on its way, on
-                # this thread, before the next request is taken.
-                self._decide.defer(lambda: self._commit(decision, a_norm, message.source))
+                # The pairing and the replay insert happen after the answer is on its way.
+                self._decide.defer(lambda: self._queue_commit(decision, a_norm, message.source))
                 return response
             final = payload.get("final_features")
             end = EpisodeEnd(
@@ -215,6 +224,8 @@ class LearnerNode:
                 final_features={k: tuple(v) for k, v in final.items()} if final else None,
             )
             with self._lock:
+                self._apply_commits_locked()  # the episode's decisions, in order, first
+                self._latest_time.pop(episode, None)
                 before = sum(agent.transitions for agent in self.core.agents.values())
                 metrics = self.core.close_episode(end)
                 stored = sum(agent.transitions for agent in self.core.agents.values()) - before
@@ -249,15 +260,55 @@ class LearnerNode:
             self.log.warning(f"rejected: {exc}")
             return response
 
-    def _commit(self, decision: Any, a_norm: float | None, source: str) -> None:
+    def _check_order(self, decision: DecisionRequest) -> None:
+        """The pairing's time-order check against this episode's latest decision, including
+        decisions whose commit has not been applied yet (the core's own check sees only the
+        applied ones)."""
+        latest = self._latest_time.get(decision.episode_id)
+        if latest is not None and decision.planning_time < latest:
+            raise PairingError(
+                f"episode {decision.episode_id!r}: planning_time {decision.planning_time} is "
+                f"before the previous message's {latest}"
+            )
+
+    def _queue_commit(self, decision: Any, a_norm: float | None, source: str) -> None:
+        """Record a decision that has been answered: now if the core's lock is free, else as
+        soon as it is (the trainer applies what is waiting when it lets the lock go, and so does
+        the next request or episode end). A checkpoint copies the state under the lock for tens
+        of ms; the serving thread used to wait for it before taking the next request, and the
+        planner's 50 ms decision deadline ran out."""
+        with self._queue_lock:
+            self._unapplied.append((decision, a_norm, source))
+        self.apply_commits(block=False)
+
+    def apply_commits(self, block: bool = True) -> None:
+        """Apply the queued commits, in order (``block=False``: only if the lock is free)."""
+        if not self._unapplied:
+            return
         self._waiting += 1
         try:
-            with self._lock:
-                self.core.commit(decision, a_norm)
-                self._decisions += 1
-                self._planners.add(source)
+            if not self._lock.acquire(blocking=block):
+                return
         finally:
             self._waiting -= 1
+        try:
+            self._apply_commits_locked()
+        finally:
+            self._lock.release()
+
+    def _apply_commits_locked(self) -> None:
+        while True:
+            with self._queue_lock:
+                if not self._unapplied:
+                    return
+                decision, a_norm, source = self._unapplied.popleft()
+            try:
+                self.core.commit(decision, a_norm)
+            except Exception as exc:  # noqa: BLE001 - the others still count
+                self.log.error(f"commit of a decision of {decision.episode_id} failed: {exc!r}")
+                continue
+            self._decisions += 1
+            self._planners.add(source)
 
     def _serve_export(self, request: Any, response: Any) -> Any:
         del request
@@ -287,6 +338,7 @@ class LearnerNode:
                     self._last_metrics.update({f"losses/{k}": float(v) for k, v in record.items()})
             else:
                 self._maintain()
+            self.apply_commits()  # decisions answered while this thread held the lock
             while self._waiting and not self._stopping:
                 time.sleep(0.0001)  # let waiting commits in (the lock is not fair)
 
@@ -375,11 +427,12 @@ class LearnerNode:
     def shutdown(self) -> None:
         """Stop serving decisions and training, then checkpoint (and export if trained since the
         last export)."""
-        self._decide.shutdown(timeout=30.0)  # its last commit may wait for a checkpoint
+        self._decide.shutdown(timeout=30.0)
         with self._work:
             self._stopping = True
             self._work.notify_all()
         self._trainer.join(timeout=30.0)
+        self.apply_commits()  # every answered decision is in the last checkpoint
         self._export_executor.shutdown(timeout_sec=2.0)
         self._export_thread.join(timeout=30.0)
         self._export_node.destroy_node()

@@ -1,0 +1,106 @@
+"""The learner node answers decisions while its core's lock is taken (a checkpoint copies the
+state under it for tens of ms) and records them afterwards, in order; time order is still checked
+against decisions not recorded yet, and an episode end records its episode's decisions first.
+
+The node runs in a child process of its own (rclpy's global state stays out of pytest's), in a
+ROS domain of its own; its decide callback is called directly, as its serving thread would.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+from ros_helpers import reserve_domain
+
+SCRIPT = textwrap.dedent(
+    """
+    import json, sys
+    import rclpy
+    from diagnostic_msgs.srv import AddDiagnostics
+    from lit_msgs_json.envelope import Publisher, decode
+
+    folder = sys.argv[1]
+    rclpy.init(args=["--ros-args", "-p", f"checkpoint:={folder}/c.pt",
+                     "-p", f"export_dir:={folder}/tensors", "-p", "checkpoint_period:=3600.0"])
+    from lit_learner.node import LearnerNode
+
+    learner = LearnerNode()
+    publisher = Publisher("planner/test", "run-1")
+    key = "planner/test|run-1|e1"
+
+    def call(name, payload):
+        request = AddDiagnostics.Request()
+        request.load_namespace = publisher.encode(name, payload)
+        response = learner._serve(request, AddDiagnostics.Response())
+        learner._decide._run_deferred("test")  # as the serving thread does after the answer
+        return bool(response.success), decode(response.message).payload
+
+    def decide(agent, t):
+        return {"agent": agent, "episode_id": "e1", "rho_global": 0.1, "rho_local": 0.2,
+                "measure": 0.5, "planning_time": t, "time_budget": 1.0, "cost": None,
+                "minimum_cost": 1.0, "improvements": 0, "path_states": 0, "explore": True}
+
+    out = {}
+    learner._lock.acquire()  # as a checkpoint copying the state holds it
+    answers = [call("DecideRequest", decide(agent, t))
+               for agent, t in (("psi_K", 0.1), ("B", 0.1), ("psi_K", 0.2))]
+    out["answered"] = [ok and "value" in payload for ok, payload in answers]
+    out["queued"] = len(learner._unapplied)
+    out["recorded_while_locked"] = key in learner.core.pairing.episodes
+    ok, payload = call("DecideRequest", decide("psi_K", 0.15))  # before the last one
+    out["backwards"] = [ok, payload.get("code"), "before the previous" in payload["message"]]
+    learner._lock.release()
+    learner.apply_commits()
+    out["queued_after"] = len(learner._unapplied)
+    out["decisions"] = learner._decisions
+    out["last_time"] = learner.core.pairing.episodes[key].last_time
+    learner._lock.acquire()
+    call("DecideRequest", decide("B", 0.25))
+    out["queued_before_end"] = len(learner._unapplied)
+    learner._lock.release()
+    ok, payload = call("EpisodeEnd", {
+        "episode_id": "e1", "planning_time": 0.3, "time_budget": 1.0, "cost": None,
+        "minimum_cost": 1.0, "improvements": 0, "path_states": 0, "truncated": False,
+        "fallback_decisions": 0})
+    out["end"] = [ok, payload.get("transitions_stored"), len(learner._unapplied)]
+    out["decisions_at_end"] = learner._decisions
+    learner.shutdown()
+    learner.node.destroy_node()
+    rclpy.shutdown()
+    print("RESULT " + json.dumps(out))
+    """
+)
+
+
+def test_decisions_answered_while_the_lock_is_taken_are_recorded_after_in_order(
+    tmp_path: Path,
+) -> None:
+    domain, lock = reserve_domain()
+    try:
+        env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain))
+        process = subprocess.run(
+            [sys.executable, "-c", SCRIPT, str(tmp_path)],
+            env=env, capture_output=True, text=True, timeout=300, check=False,
+        )  # fmt: skip
+    finally:
+        if lock is not None:
+            lock.close()
+    assert process.returncode == 0, process.stdout[-2000:] + process.stderr[-3000:]
+    line = next(x for x in process.stdout.splitlines() if x.startswith("RESULT "))
+    out = json.loads(line.removeprefix("RESULT "))
+    # Answered at once, recorded later: nothing reached the core while the lock was taken.
+    assert out["answered"] == [True, True, True]
+    assert out["queued"] == 3 and out["recorded_while_locked"] is False
+    # A decision earlier than one answered but not yet recorded is still refused.
+    assert out["backwards"] == [False, "invalid-request", True]
+    # Recorded in order once the lock was free (the last one's time is the episode's latest).
+    assert out["queued_after"] == 0 and out["decisions"] == 3 and out["last_time"] == 0.2
+    # An episode end records the episode's waiting decisions before closing it.
+    assert out["queued_before_end"] == 1
+    assert out["end"][0] is True and out["end"][2] == 0
+    assert out["decisions_at_end"] == 4
