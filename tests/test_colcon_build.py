@@ -57,8 +57,8 @@ def test_colcon_builds_the_workspace(tmp_path: Path) -> None:
     # from PyPI writes setup.sh; a ROS install adds setup.bash).
     assert list((install / "lit_core").glob("lib/python3*/site-packages/lit_core*.so"))
     probe = subprocess.run(
-        ["sh", "-c", f". {install}/setup.sh && {sys.executable} -c "
-         "'import lit_core; print(lit_core.__file__); print(lit_core.LookupTensor)'"],
+        ["sh", "-c", (f". {install}/setup.sh && {sys.executable} -c "
+                      "'import lit_core; print(lit_core.__file__); print(lit_core.LookupTensor)'")],
         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120, check=False,
     )  # fmt: skip
     assert probe.returncode == 0, probe.stdout + probe.stderr

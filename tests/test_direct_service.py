@@ -174,4 +174,18 @@ def test_send_response_retries_an_answer_fast_dds_dropped() -> None:
     assert len(sent) == rosutil.SEND_ATTEMPTS
     assert log.lines == ["/svc: answer not delivered: failed to send response (timeout): x"]
     assert not rosutil.send_response(flaky(10**6), "a", None, "/svc", log, stopping=lambda: True)
+    sent.clear()
+    assert not rosutil.send_response(flaky(10**6), "a", None, "/svc", log, attempts=7)
+    assert len(sent) == 7
     assert not any(f[0] == "error" for f in warnings.filters)
+
+    class Service:  # what retry_lost_answers wraps: an rclpy Service's send_response
+        srv_name = "/slow"
+
+        def __init__(self) -> None:
+            self.send_response = flaky(10**6)
+
+    sent.clear()
+    service = rosutil.retry_lost_answers(Service(), log)
+    service.send_response("answer", None)
+    assert len(sent) == rosutil.SLOW_SERVICE_SEND_ATTEMPTS > rosutil.SEND_ATTEMPTS

@@ -477,7 +477,9 @@ def test_bad_input_is_answered_with_errors(ros: RosSystem) -> None:
     ]
     for (case, _, _, code, field, words), call in zip(BAD_INPUT, calls, strict=True):
         result = finish_call(call)
-        assert result.returncode == 1, f"{case}: {result}"
+        assert result.returncode == 1, (
+            f"{case}: {result}\nplanner:\n{planner.tail(60)}\nlearner:\n{learner.tail(30)}"
+        )
         error = result.json()
         assert error["code"] == code, f"{case}: {error}"
         assert error["field"] == field, f"{case}: {error}"

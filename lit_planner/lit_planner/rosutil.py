@@ -199,7 +199,8 @@ class ServiceCaller:
 
 
 SEND_ATTEMPTS = 20
-"""Tries of :func:`send_response` (each waits up to 100 ms for the client's reader)."""
+"""Tries of :func:`send_response` (each waits up to 100 ms for the client's reader): about 2 s,
+the most the decide service's one serving thread may spend on a client that went away."""
 
 _SEND_LOCK = threading.Lock()
 """Serialises :func:`send_response`'s warning filter: ``warnings.catch_warnings`` saves and
@@ -213,13 +214,14 @@ def send_response(
     name: str,
     log: Any,
     stopping: Callable[[], bool] = lambda: False,
+    attempts: int = SEND_ATTEMPTS,
 ) -> bool:
     """Send a service's answer with ``send`` (a ``Service.send_response``). Fast DDS drops an
     answer (rclpy then warns "failed to send response", after waiting 100 ms) when the client's
     response reader is not matched yet, which happens to a client that calls right after
-    discovering the service, more often under load; then try again, for up to about 2 s.
-    Whether it went out."""
-    for attempt in range(SEND_ATTEMPTS):
+    discovering the service, more often under load; then try again, ``attempts`` times in all
+    (about 0.1 s each). Whether it went out."""
+    for attempt in range(attempts):
         with _SEND_LOCK, warnings.catch_warnings():
             # Only this warning becomes an error: another thread's warnings stay warnings.
             warnings.filterwarnings(
@@ -229,20 +231,27 @@ def send_response(
                 send(response, header)
                 return True
             except RuntimeWarning as exc:
-                if stopping() or attempt == SEND_ATTEMPTS - 1:
+                if stopping() or attempt == attempts - 1:
                     log.warning(f"{name}: answer not delivered: {exc}")
                     return False
     return False
 
 
-def retry_lost_answers(service: Any, log: Any) -> Any:
+SLOW_SERVICE_SEND_ATTEMPTS = 100
+"""Tries of a slow service's answer (:func:`retry_lost_answers`): about 10 s. A plan or an
+export takes long anyway, the executor has other threads, and a client that discovered the
+service while many processes were starting can stay unmatched for more than 2 s (a plan answer
+was lost so in the bad-input test, which starts a dozen clients at once)."""
+
+
+def retry_lost_answers(service: Any, log: Any, attempts: int = SLOW_SERVICE_SEND_ATTEMPTS) -> Any:
     """Make the executor's answers of ``service`` (an rclpy ``Service``) go through
-    :func:`send_response`; returns ``service``."""
+    :func:`send_response` (``attempts`` tries); returns ``service``."""
     send = service.send_response
     name = service.srv_name
 
     def retrying(response: Any, header: Any) -> None:
-        send_response(send, response, header, name, log)
+        send_response(send, response, header, name, log, attempts=attempts)
 
     service.send_response = retrying  # the executor calls srv.send_response(response, header)
     return service
