@@ -98,8 +98,6 @@ class LearnerNode:
         self._stopping = False
         self._planners: set[str] = set()
         self._decisions = 0
-        self._waiting = 0
-        """Commits waiting for the lock: the trainer yields to them."""
         self._unapplied: collections.deque[tuple[Any, float | None, str]] = collections.deque()
         """Answered decisions not recorded yet (the lock was taken); applied in order."""
         self._queue_lock = threading.Lock()
@@ -283,14 +281,8 @@ class LearnerNode:
 
     def apply_commits(self, block: bool = True) -> None:
         """Apply the queued commits, in order (``block=False``: only if the lock is free)."""
-        if not self._unapplied:
+        if not self._unapplied or not self._lock.acquire(blocking=block):
             return
-        self._waiting += 1
-        try:
-            if not self._lock.acquire(blocking=block):
-                return
-        finally:
-            self._waiting -= 1
         try:
             self._apply_commits_locked()
         finally:
@@ -339,8 +331,6 @@ class LearnerNode:
             else:
                 self._maintain()
             self.apply_commits()  # decisions answered while this thread held the lock
-            while self._waiting and not self._stopping:
-                time.sleep(0.0001)  # let waiting commits in (the lock is not fair)
 
     def _due(self) -> bool:
         """Whether a checkpoint or the end-of-training export is owed (caller holds the lock)."""
