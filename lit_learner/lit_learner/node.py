@@ -92,7 +92,7 @@ class LearnerNode:
         """The networks: held by the trainer for a whole gradient step, and by checkpoints and
         exports (always taken before ``_lock``). Decisions take neither lock."""
         self._checkpoint_lock = threading.Lock()
-        """One checkpoint at a time (taken before the other two)."""
+        """One checkpoint or export at a time (taken after ``_export_lock``, before the others)."""
         self._work = threading.Condition(self._lock)
         self._export_lock = threading.Lock()
         self._stopping = False
@@ -194,7 +194,6 @@ class LearnerNode:
                 # (the actor snapshot is the one published after the last step).
                 self._check_order(decision)
                 value, a_norm, version = self.core.choose(decision, published=True)
-                self._latest_time[episode] = decision.planning_time
                 response.success = True
                 response.message = self.reply.encode(
                     "DecideResponse",
@@ -206,6 +205,7 @@ class LearnerNode:
                         "explore": bool(decision.explore),
                     },
                 )
+                self._latest_time[episode] = decision.planning_time
                 # The pairing and the replay insert happen after the answer is on its way.
                 self._decide.defer(lambda: self._queue_commit(decision, a_norm, message.source))
                 return response
@@ -319,7 +319,12 @@ class LearnerNode:
         """Run owed gradient steps one by one; checkpoint and export when due."""
         while True:
             with self._work:
-                while not self._stopping and self.core.pending_updates == 0 and not self._due():
+                while (
+                    not self._stopping
+                    and self.core.pending_updates == 0
+                    and not self._due()
+                    and not self._unapplied  # queued commits: applied below within a second
+                ):
                     self._work.wait(timeout=1.0)
                 if self._stopping:
                     return
@@ -381,7 +386,9 @@ class LearnerNode:
             "episodes": self.core.episodes,
             "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         }
-        with self._export_lock:  # one export at a time; decisions go on meanwhile
+        # One export at a time, decisions going on meanwhile; and not beside a checkpoint (the
+        # export writes a checkpoint copy, perhaps to the same file).
+        with self._export_lock, self._checkpoint_lock:
             paths = self.core.export_tensors(self.params["export_dir"], record, lock=self._frozen())
             self._episodes_at_export = record["episodes"]
         self.log.info(f"exported tensors to {self.params['export_dir']} ({why})")

@@ -320,7 +320,10 @@ class Publisher:
         else:
             stamp = stamp_ns
             _check_envelope(self._wrap(short, 0, stamp, {}), short, None)
-        plain = plain_json(payload)
+        try:
+            plain = plain_json(payload)
+        except RecursionError:  # nested too deeply: the reference explains (max-depth)
+            plain = False
         _check_payload(short, payload, None, plain=plain)
         return short, stamp, plain
 

@@ -510,6 +510,15 @@ def test_encode_writes_numbers_and_strings_exactly(monkeypatch: pytest.MonkeyPat
     assert decode(publisher.encode("PlanResponse", payload)).payload == payload
 
 
+def test_encoding_a_payload_nested_too_deeply_is_a_message_error() -> None:
+    nested: list[object] = []
+    for _ in range(5000):
+        nested = [nested]
+    with pytest.raises(MessageError) as info:
+        Publisher("p", "r").encode("PlanResponse", with_("PlanResponse", path=nested))
+    assert (info.value.code, info.value.rule) == ("payload", "max-depth")
+
+
 # ---------------------------------------------------------------------------------------------
 # Publisher
 

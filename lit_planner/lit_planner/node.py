@@ -53,6 +53,7 @@ from lit_planner.episode_messages import (
 )
 from lit_planner.rosutil import (
     DECIDE_SERVICE,
+    PLAN_SEND_ATTEMPTS,
     PLAN_SERVICE,
     TOPICS,
     ServiceCaller,
@@ -172,6 +173,7 @@ class PlannerNode:
                 callback_group=ReentrantCallbackGroup(),
             ),
             self.log,
+            attempts=PLAN_SEND_ATTEMPTS,
         )
         self._driver = threading.Thread(target=self._drive, name="episodes", daemon=True)
         self._driver.start()

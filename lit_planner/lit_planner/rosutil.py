@@ -200,7 +200,8 @@ class ServiceCaller:
 
 SEND_ATTEMPTS = 20
 """Tries of :func:`send_response` (each waits up to 100 ms for the client's reader): about 2 s,
-the most the decide service's one serving thread may spend on a client that went away."""
+the most the decide service's one serving thread (and any send waiting for the send lock
+meanwhile) may spend on a client that went away."""
 
 _SEND_LOCK = threading.Lock()
 """Serialises :func:`send_response`'s warning filter: ``warnings.catch_warnings`` saves and
@@ -237,14 +238,15 @@ def send_response(
     return False
 
 
-SLOW_SERVICE_SEND_ATTEMPTS = 100
-"""Tries of a slow service's answer (:func:`retry_lost_answers`): about 10 s. A plan or an
-export takes long anyway, the executor has other threads, and a client that discovered the
-service while many processes were starting can stay unmatched for more than 2 s (a plan answer
-was lost so in the bad-input test, which starts a dozen clients at once)."""
+PLAN_SEND_ATTEMPTS = 100
+"""Tries of the planner's plan answers: about 10 s. A plan takes long anyway, the executor has
+other threads, and a client that discovered the service while many processes were starting may
+stay unmatched for more than 2 s. Only where nothing latency-critical shares the process:
+every try holds the process's send lock for up to 100 ms (the learner's export keeps
+:data:`SEND_ATTEMPTS`, since its decide service sends through the same lock)."""
 
 
-def retry_lost_answers(service: Any, log: Any, attempts: int = SLOW_SERVICE_SEND_ATTEMPTS) -> Any:
+def retry_lost_answers(service: Any, log: Any, attempts: int = SEND_ATTEMPTS) -> Any:
     """Make the executor's answers of ``service`` (an rclpy ``Service``) go through
     :func:`send_response` (``attempts`` tries); returns ``service``."""
     send = service.send_response
