@@ -81,6 +81,7 @@ SCHEMA_PREFIX = "lit_msgs_json/"
 
 _MAX_SEQ = 2**63 - 1
 _DIGITS_AS_ZERO = bytes.maketrans(b"123456789", b"000000000")
+_UNPARSED = object()
 _SCHEMA_PATTERN = re.compile(r"lit_msgs_json/([A-Za-z][A-Za-z0-9]{0,127})")
 _MAX_DETAIL = 400
 _MAX_MESSAGE = 4096
@@ -401,41 +402,42 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
         raise MessageError("json", f"not UTF-8: {not_utf8}", field="$", rule="json")
     # Fewer brackets than the nesting limit cannot nest deeper than it.
     brackets = data.count(b"{") + data.count(b"[")
-    # The usual case, a valid message: parsed by orjson and checked by one compiled check of the
-    # whole document. orjson fails on everything the standard parser rejects here (and on some
-    # texts it accepts, such as lone surrogates); the only document it builds differently is one
-    # with an integer outside 64 bits (a float then), which _long_digits keeps off this path.
-    # Anything else takes the steps below, which find the first problem in the documented order.
+    # Parsed once: by orjson where it builds the same document as the standard parser (it
+    # refuses every text the standard parser refuses here, and some it accepts, such as lone
+    # surrogates and numbers too large for a double; the only document it builds differently
+    # has an integer outside 64 bits, a float then, which _long_digits keeps off it), else by the
+    # standard parser, which explains what is wrong.
+    overflowed: list[str] = []
+    obj: Any = _UNPARSED
     if brackets <= MAX_NESTING and not _long_digits(data):
         try:
             obj = orjson.loads(data)
         except orjson.JSONDecodeError:
-            obj = None
-        message = _valid_message(obj, accepted)
-        if message is not None:
-            return message
-    overflowed: list[str] = []
+            pass
+    if obj is _UNPARSED:
 
-    def parse_float(spelling: str) -> float:
-        value = float(spelling)
-        if math.isinf(value):  # a number too large for a double
-            overflowed.append(spelling)
-        return value
+        def parse_float(spelling: str) -> float:
+            value = float(spelling)
+            if math.isinf(value):  # a number too large for a double
+                overflowed.append(spelling)
+            return value
 
-    try:
-        obj = json.loads(
-            text,  # type: ignore[arg-type]
-            parse_constant=_reject_constant,
-            parse_float=parse_float,
-        )
-    except RecursionError:
-        raise MessageError(
-            "json", "not valid JSON: nested too deeply", field="$", rule="max-depth"
-        ) from None
-    except ValueError as exc:  # JSONDecodeError
-        raise MessageError("json", f"not valid JSON: {exc}", field="$", rule="json") from None
+        try:
+            obj = json.loads(
+                text,  # type: ignore[arg-type]
+                parse_constant=_reject_constant,
+                parse_float=parse_float,
+            )
+        except RecursionError:
+            raise MessageError(
+                "json", "not valid JSON: nested too deeply", field="$", rule="max-depth"
+            ) from None
+        except ValueError as exc:  # JSONDecodeError
+            raise MessageError("json", f"not valid JSON: {exc}", field="$", rule="json") from None
+    # The usual case, a valid message: one compiled check of the whole document. Anything else
+    # takes the steps below, which find the first problem in the documented order.
     if not overflowed and brackets <= MAX_NESTING:
-        message = _valid_message(obj, accepted)  # valid, but not for orjson
+        message = _valid_message(obj, accepted)
         if message is not None:
             return message
     if brackets > MAX_NESTING and _nesting(obj) > MAX_NESTING:

@@ -211,7 +211,6 @@ class PlannerNode:
     # ------------------------------------------------------------------ service
 
     def _serve_plan(self, request: Any, response: Any) -> Any:
-
         reply = self.envelopes["reply"]
         try:
             message = decode(request.load_namespace, accept="PlanRequest")
