@@ -33,4 +33,5 @@ def test_system_bench_prints_all_three_measurements() -> None:
     assert "| training | 2 |" in out and "| tensor | 2 |" in out
     assert "training / tensor wall time per episode" in out
     assert "Decide round trip inside the planner node during this training run" in out
+    assert "decisions fell back (no answer within the 50 ms decision timeout)" in out
     assert "kill 1:" in out and "median" in out

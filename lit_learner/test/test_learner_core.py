@@ -298,6 +298,44 @@ def test_resume_from_checkpoint_is_exact(tmp_path: Path) -> None:
             assert a[key] == b[key], key
 
 
+def test_checkpoint_files_hold_the_arrays_as_tensors_and_old_files_still_load(
+    tmp_path: Path,
+) -> None:
+    """torch.save pickles a numpy array holding the GIL (a full replay stalled the decide thread
+    for 0.2 s) but writes a tensor's bytes without it: arrays go to the file as tensors and come
+    back as the same numpy arrays. A file written with the arrays themselves (before) loads to
+    the same state."""
+    core = LearnerCore(small_config())
+    feed(core, script(6, seed=2))
+    core.save_checkpoint(tmp_path / "new.pt")
+    raw = torch.load(tmp_path / "new.pt", weights_only=False)
+    stored = raw["agents"]["psi_K"]["replay"]["state"]
+    assert set(stored) == {"__numpy_array__"} and isinstance(
+        stored["__numpy_array__"], torch.Tensor
+    )
+    loaded = LearnerCore.load_checkpoint(tmp_path / "new.pt")
+    replay = loaded.agents["psi_K"].replay
+    assert isinstance(replay.state, np.ndarray) and replay.state.dtype == np.float32
+    state = core.state_dict()  # the old layout: numpy arrays, every sum-tree node
+    for name, agent in core.agents.items():
+        state["agents"][name]["replay"]["tree"] = {
+            "capacity": agent.replay.capacity,
+            "nodes": agent.replay.tree.nodes.copy(),
+        }
+    torch.save(state, tmp_path / "old.pt")
+    old = LearnerCore.load_checkpoint(tmp_path / "old.pt")
+    a, b = flat_state(loaded), flat_state(old)
+    assert a.keys() == b.keys()
+    for key in a:
+        if isinstance(a[key], torch.Tensor):
+            assert torch.equal(a[key], b[key]), key
+        else:
+            assert a[key] == b[key], key
+    np.testing.assert_array_equal(
+        old.agents["B"].replay.next_state, loaded.agents["B"].replay.next_state
+    )
+
+
 def test_a_checkpoint_state_is_a_copy_later_training_does_not_touch(tmp_path: Path) -> None:
     """The learner node copies the state under its locks and writes the file after releasing
     them, while decisions and gradient steps go on: the file must hold the state at the copy."""

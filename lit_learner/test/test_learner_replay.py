@@ -34,6 +34,38 @@ def test_sum_tree_rejects_bad_indices() -> None:
         SumTree(3).set(3, 1.0)
 
 
+@pytest.mark.parametrize("items", [0, 1, 700, 1000, 1500])
+def test_a_saved_sum_tree_keeps_its_leaves_and_rebuilds_its_sums_bit_for_bit(items: int) -> None:
+    """Only the filled leaves are saved; every inner node is rebuilt from them with the same
+    float64 additions, through sampling updates and wrap-around (1500 adds to 1000 slots)."""
+    rng = np.random.default_rng(3)
+    replay = PrioritizedReplay(1000, alpha=0.6, priority_eps=1e-6)  # 1024 leaves
+    for i in range(items):
+        replay.add((0.1, 0.2, 0.3), 0.5, float(i), (0.1, 0.2, 0.4), False)
+        if i % 50 == 49:
+            index = rng.integers(0, replay.size, 64)
+            replay.update_priorities(index, rng.normal(size=64), sampled_at=replay.adds)
+    state = replay.state_dict()
+    assert state["tree"]["leaves"].shape == (replay.size,)  # not the 2048 nodes
+    loaded = PrioritizedReplay(1000, alpha=0.6, priority_eps=1e-6)
+    loaded.load_state_dict(state)
+    np.testing.assert_array_equal(loaded.tree.nodes, replay.tree.nodes)  # bitwise
+    assert loaded.tree.total == replay.tree.total
+
+
+def test_a_sum_tree_saved_with_all_its_nodes_still_loads() -> None:
+    """Checkpoints written before the leaves-only layout hold every node."""
+    tree = SumTree(5)
+    tree.set(np.arange(5), np.array([1.0, 0.5, 2.0, 0.25, 3.0]))
+    old = SumTree(5)
+    old.load_state_dict({"capacity": 5, "nodes": tree.nodes.copy()})
+    np.testing.assert_array_equal(old.nodes, tree.nodes)
+    with pytest.raises(ReplayError, match="do not fit"):
+        SumTree(5).load_state_dict({"capacity": 5, "leaves": np.ones(6)})
+    with pytest.raises(ReplayError, match="filled leaves outside"):
+        tree.state_dict(6)
+
+
 def filled(priorities: list[float], alpha: float) -> PrioritizedReplay:
     replay = PrioritizedReplay(len(priorities), alpha, priority_eps=1e-6)
     for i in range(len(priorities)):

@@ -7,6 +7,7 @@ loop), and shutdown tolerates the race between SIGTERM and a spinning executor.
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import threading
@@ -69,6 +70,20 @@ def flush_publishers(publishers: Sequence[Any], timeout: float = 5.0) -> bool:
         publisher.wait_for_all_acked(Duration(nanoseconds=int(timeout * 1e9)))
         for publisher in publishers
     )
+
+
+def freeze_startup_objects() -> None:
+    """Exempt every object alive now from later garbage collections (``gc.freeze``).
+
+    Call it once a long-running process has imported and built what it keeps for its whole life.
+    A process with rclpy, numpy and torch loaded holds about 200 000 objects that the cyclic
+    collector would otherwise traverse in every full collection: 80 ms in the learner node here
+    (10-20 ms in the planner and recorder nodes), with the GIL held, so every thread of the
+    process, the one answering decide requests included, stops for as long. After the freeze a
+    full collection only visits objects created since. Cycles created later are still collected.
+    """
+    gc.collect()
+    gc.freeze()
 
 
 def private_node(node: Any, name: str) -> Any:
@@ -405,6 +420,7 @@ def spin_node(
     signal.signal(signal.SIGINT, request_stop)
     owner = make_owner()
     node = owner.node
+    freeze_startup_objects()
     # One thread: rclpy's single-threaded executor has a much shorter callback path (a service
     # round trip of about 0.3 ms against several ms with the thread pool).
     executor = SingleThreadedExecutor() if threads == 1 else MultiThreadedExecutor(threads)
