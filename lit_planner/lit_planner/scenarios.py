@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 import re
 import zlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Literal, cast
@@ -571,17 +571,91 @@ def check_path(scenario: Scenario, path: ArrayLike, resolution: float | None = N
 
     if not is_valid(scenario, waypoints[0]):
         return result(1, 0, waypoints[0])
+    lower, upper = np.array(scenario.lower), np.array(scenario.upper)
     checked = 1
     for index, (a, b, length) in enumerate(
         zip(waypoints[:-1], waypoints[1:], lengths, strict=True)
     ):
         steps = max(1, math.ceil(length / spacing))
-        for begin in range(1, steps + 1, _CHUNK_POINTS):  # sample 0 is the previous segment's end
-            j = np.arange(begin, min(begin + _CHUNK_POINTS, steps + 1))
-            samples = a + (j / steps)[:, None] * (b - a)
-            samples[j == steps] = b  # the endpoint exactly, not a rounded interpolation
-            valid = is_valid(scenario, samples)
-            checked += len(samples)
-            if not valid.all():
-                return result(checked, index, samples[np.argmin(valid)])
+        if np.all((lower <= b) & (b <= upper)):  # a is in bounds too: so is every sample
+            first = _first_sample_in_a_box(scenario, a, b, steps)
+        else:  # leaves the bounds: sample by sample (it is invalid anyway)
+            first = _first_invalid_sample(scenario, a, b, steps)
+        if first is not None:
+            return result(checked + first, index, _samples(a, b, steps, np.array([first]))[0])
+        checked += steps
     return result(checked)
+
+
+def _samples(a: FloatArray, b: FloatArray, steps: int, j: NDArray[np.int64]) -> FloatArray:
+    """Samples ``j`` (1..steps) of the segment a→b cut into ``steps``: the points check_path
+    tests (sample 0 is ``a``, the previous segment's end; sample ``steps`` is ``b`` exactly, not
+    a rounded interpolation)."""
+    samples = a + (j / steps)[:, None] * (b - a)
+    samples[j == steps] = b
+    return samples
+
+
+def _first_invalid_sample(
+    scenario: Scenario, a: FloatArray, b: FloatArray, steps: int
+) -> int | None:
+    """The first of samples 1..steps that :func:`is_valid` rejects, by testing them all."""
+    for begin in range(1, steps + 1, _CHUNK_POINTS):
+        j = np.arange(begin, min(begin + _CHUNK_POINTS, steps + 1))
+        valid = is_valid(scenario, _samples(a, b, steps, j))
+        if not valid.all():
+            return int(j[np.argmin(valid)])
+    return None
+
+
+def _first_sample_in_a_box(
+    scenario: Scenario, a: FloatArray, b: FloatArray, steps: int
+) -> int | None:
+    """The first of samples 1..steps inside a box, for a segment whose ends are in bounds (so
+    are all its samples), found without generating the samples: exactly the answer of testing
+    each with :func:`is_valid`.
+
+    Each coordinate of ``a + (j / steps) * (b - a)`` is monotone in j (floating-point rounding
+    is monotone, and with fewer than 2^40 steps no sample passes ``b``), so the samples with a
+    coordinate inside a box's closed slab form one run of j, found by bisection on the sample
+    formula itself; a box holds the samples in the intersection of its slabs' runs.
+    """
+    if len(scenario.boxes) == 0:
+        return None
+    lo, hi = scenario.boxes[:, 0, :], scenario.boxes[:, 1, :]
+    # A sample lies between the segment's ends in every coordinate: other boxes hold none.
+    near = np.all((lo <= np.maximum(a, b)) & (hi >= np.minimum(a, b)), axis=1)
+    if not near.any():
+        return None
+    lo, hi = lo[near], hi[near]
+    delta = b - a
+    rising = np.broadcast_to(delta > 0, lo.shape)
+    falling = np.broadcast_to(delta < 0, lo.shape)
+
+    def coordinate(j: NDArray[np.int64]) -> FloatArray:
+        x = a + (j / steps) * delta
+        return np.where(j >= steps, b, x)
+
+    def first(enters: Callable[[FloatArray], NDArray[np.bool_]]) -> NDArray[np.int64]:
+        """Per box and axis, the first j in 1..steps where ``enters`` holds (it holds from there
+        on), steps + 1 where it never does."""
+        low = np.ones(lo.shape, dtype=np.int64)
+        high = np.full(lo.shape, steps + 1, dtype=np.int64)
+        active = low < high
+        while active.any():
+            mid = (low + high) // 2  # <= steps while low < high
+            hit = enters(coordinate(mid))
+            high = np.where(active & hit, mid, high)
+            low = np.where(active & ~hit, mid + 1, low)
+            active = low < high
+        return low
+
+    # First sample inside the slab, and first sample past it (rising: above hi; falling: below lo).
+    start = first(lambda x: np.where(rising, x >= lo, np.where(falling, x <= hi, True)))
+    past = first(lambda x: np.where(rising, x > hi, np.where(falling, x < lo, False)))
+    constant_inside = (lo <= a) & (a <= hi)  # axes the segment does not move along
+    start = np.where(rising | falling, start, np.where(constant_inside, 1, steps + 1))
+    past = np.where(rising | falling, past, steps + 1)
+    enter, leave = start.max(axis=1), past.min(axis=1)  # samples enter..leave-1 are in the box
+    inside = enter < leave
+    return int(enter[inside].min()) if inside.any() else None

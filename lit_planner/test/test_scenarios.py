@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import itertools
 import math
 import zlib
 
@@ -330,3 +331,62 @@ def test_get_rejects_bad_names(name: str, instance: int | None, message: str) ->
 def test_get_accepts_instance_zero_of_fixed_families_and_large_dims() -> None:
     assert get("np8/0") is get("np8")
     assert get("rrd32/7").boxes.shape == (30, 2, 32)
+
+
+def _dense_reference(s, path, resolution):  # type: ignore[no-untyped-def]
+    """check_path's definition, sample by sample: (valid, first invalid segment, its first
+    invalid sample, samples tested up to it)."""
+    path = np.asarray(path, dtype=np.float64)
+    if not is_valid(s, path[0]):
+        return False, 0, tuple(path[0]), 1
+    spacing = resolution * s.max_extent / 4
+    checked = 1
+    for index, (a, b) in enumerate(itertools.pairwise(path)):
+        steps = max(1, math.ceil(float(np.linalg.norm(b - a)) / spacing))
+        j = np.arange(1, steps + 1)
+        samples = a + (j / steps)[:, None] * (b - a)
+        samples[j == steps] = b
+        valid = is_valid(s, samples)
+        if not valid.all():
+            k = int(np.argmin(valid))
+            return False, index, tuple(samples[k]), checked + k + 1
+        checked += steps
+    return True, None, None, checked
+
+
+@pytest.mark.parametrize("name", ["np4", "wg8", "rrd4/3", "rrd8/5", "rrd16/2"])
+def test_check_path_finds_exactly_what_testing_every_sample_finds(name: str) -> None:
+    """check_path finds a segment's first sample inside a box by bisection on the sample formula
+    instead of testing every sample: it must agree with testing every sample on the verdict, the
+    segment, the exact point and the count, on random paths and on paths that graze boxes: along
+    faces, through corners, on a face, with axes that hardly move."""
+    s = get(name)
+    rng = np.random.default_rng(11)
+    lower, upper = np.array(s.lower), np.array(s.upper)
+    boxes = s.boxes
+    cases = 0
+    for _ in range(150):
+        kind = rng.integers(4)
+        if kind == 0:  # anywhere
+            path = rng.uniform(lower, upper, (rng.integers(2, 5), s.dim))
+        else:  # around one box's corner or face
+            box = boxes[rng.integers(len(boxes))]
+            corner = np.where(rng.random(s.dim) < 0.5, box[0], box[1])
+            step = rng.choice([1e-3, 1e-5, 1e-9, 0.0], size=s.dim)
+            a = corner + rng.normal(size=s.dim) * step
+            b = corner + rng.normal(size=s.dim) * 0.05
+            if kind == 2:  # along a face: one coordinate exactly on it
+                axis = rng.integers(s.dim)
+                a[axis] = b[axis] = corner[axis]
+            if kind == 3:  # an axis that moves by one ulp or so
+                axis = rng.integers(s.dim)
+                b[axis] = np.nextafter(a[axis], np.inf)
+            path = np.clip(np.array([a, b, b + rng.normal(size=s.dim) * 0.01]), lower, upper)
+        resolution = 1e-3 if rng.random() < 0.5 else 1e-4
+        check = check_path(s, path, resolution=resolution)
+        valid, index, point_, checked = _dense_reference(s, path, resolution)
+        assert (check.valid, check.first_invalid_index) == (valid, index), path.tolist()
+        assert check.first_invalid_point == point_, path.tolist()  # the same float64s
+        assert check.points_checked == checked
+        cases += not valid
+    assert 10 < cases < 150  # both verdicts were exercised
