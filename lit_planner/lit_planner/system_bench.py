@@ -109,6 +109,8 @@ def run(args: argparse.Namespace) -> int:
                     f"{rows['training']['fallbacks']} decisions fell back (no answer within "
                     f"the 50 ms decision timeout)"
                 )
+            for line in rows["training"]["warnings"]:  # why decisions fell back, if they did
+                print(line)
             print("\n## Time for the planner to notice a dead learner (SIGKILL → fallback)\n")
             delays = _dead_learner(system, work, args)
             for i, delay in enumerate(delays):
@@ -166,6 +168,8 @@ def _throughput(system: System, work: Path, policy: str, args: argparse.Namespac
     from lit_planner import replay
 
     bag = work / f"bag-{policy}"
+    learner = system.children["learner"]
+    learner_seen = len(learner.lines)
     system.start("recorder", "lit_recorder_node", {"bag": str(bag), "run_id": policy})
     system.wait_ready("recorder")
     planner = system.start(
@@ -206,6 +210,15 @@ def _throughput(system: System, work: Path, policy: str, args: argparse.Namespac
         "learner_calls": sum(s["learner_calls"] for s in summaries),
         "fallbacks": sum(s["fallback_decisions"] for s in summaries),
         "latencies_ms": latencies,
+        "warnings": [
+            f"{name}: {line.strip()}"
+            for name, lines in (
+                ("planner", planner.lines),
+                ("learner", learner.lines[learner_seen:]),
+            )
+            for line in lines
+            if "[WARN]" in line or "[ERROR]" in line
+        ],
     }
 
 
