@@ -237,3 +237,34 @@ def test_a_node_run_by_spin_node_has_its_startup_objects_frozen(tmp_path) -> Non
     assert process.returncode == 0, process.stderr[-2000:]
     frozen = int(process.stdout.split("frozen", 1)[1].split()[0])
     assert frozen > 5000
+
+
+def test_an_answer_that_cannot_be_sent_does_not_end_the_executor_thread() -> None:
+    """A send that raises (rclpy's compiled send_response once raised a SystemError when the
+    dropped-answer warning was an error, and the exception ended the planner's executor thread)
+    is logged by the executor's wrapper, not raised into the executor."""
+    from lit_planner import rosutil
+
+    class Log:
+        def __init__(self) -> None:
+            self.errors: list[str] = []
+
+        def warning(self, text: str) -> None:
+            raise AssertionError(text)
+
+        def error(self, text: str) -> None:
+            self.errors.append(text)
+
+    class Service:
+        srv_name = "/broken"
+
+        @staticmethod
+        def send_response(response: object, header: object) -> None:
+            raise SystemError("returned a result with an exception set")
+
+    log = Log()
+    service = rosutil.retry_lost_answers(Service(), log)
+    service.send_response("answer", None)  # does not raise
+    assert log.errors == [
+        "/broken: answer not sent: SystemError('returned a result with an exception set')"
+    ]

@@ -236,21 +236,33 @@ def send_response(
     answer (rclpy then warns "failed to send response", after waiting 100 ms) when the client's
     response reader is not matched yet, which happens to a client that calls right after
     discovering the service, more often under load; then try again, ``attempts`` times in all
-    (about 0.1 s each). Whether it went out."""
+    (about 0.1 s each). Whether it went out.
+
+    The warning is recorded, not turned into an error: raised from inside rclpy's compiled
+    ``send_response`` an error comes out as a ``SystemError`` (a result with an exception set),
+    which once escaped and ended the planner node's executor thread. Other warnings caught
+    meanwhile (the filter is process-wide) are issued again afterwards."""
     for attempt in range(attempts):
-        with _SEND_LOCK, warnings.catch_warnings():
-            # Only this warning becomes an error: another thread's warnings stay warnings.
+        with _SEND_LOCK, warnings.catch_warnings(record=True) as caught:
+            # "always": the default action would show (and record) it once per code location.
             warnings.filterwarnings(
-                "error", message="failed to send response", category=RuntimeWarning
+                "always", message="failed to send response", category=RuntimeWarning
             )
-            try:
-                send(response, header)
-                return True
-            except RuntimeWarning as exc:
-                if stopping() or attempt == attempts - 1:
-                    log.warning(f"{name}: answer not delivered: {exc}")
-                    return False
+            send(response, header)
+        dropped = [w for w in caught if _is_dropped_answer(w)]
+        for w in caught:
+            if not _is_dropped_answer(w):
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        if not dropped:
+            return True
+        if stopping() or attempt == attempts - 1:
+            log.warning(f"{name}: answer not delivered: {dropped[-1].message}")
+            return False
     return False
+
+
+def _is_dropped_answer(w: warnings.WarningMessage) -> bool:
+    return issubclass(w.category, RuntimeWarning) and "failed to send response" in str(w.message)
 
 
 PLAN_SEND_ATTEMPTS = 100
@@ -268,7 +280,10 @@ def retry_lost_answers(service: Any, log: Any, attempts: int = SEND_ATTEMPTS) ->
     name = service.srv_name
 
     def retrying(response: Any, header: Any) -> None:
-        send_response(send, response, header, name, log, attempts=attempts)
+        try:
+            send_response(send, response, header, name, log, attempts=attempts)
+        except Exception as exc:  # noqa: BLE001 - raised here it would end the executor's thread
+            log.error(f"{name}: answer not sent: {exc!r}")
 
     service.send_response = retrying  # the executor calls srv.send_response(response, header)
     return service
@@ -342,6 +357,8 @@ class DirectService:
                         self._log,
                         lambda: self._stopping,
                     )
+                except Exception as exc:  # noqa: BLE001 - keep serving
+                    self._log.error(f"{service.srv_name}: answer not sent: {exc!r}")
                 finally:  # the answer is out (or cannot go out): its work is still owed
                     self._run_deferred(service.srv_name)
         except ExternalShutdownException:
