@@ -455,7 +455,7 @@ def _arrays_as_tensors(value: Any) -> Any:
     if isinstance(value, np.ndarray) and value.dtype in _TENSOR_DTYPES and value.ndim > 0:
         return {_ARRAY_TAG: torch.from_numpy(np.ascontiguousarray(value))}
     if isinstance(value, dict):
-        return {key: _arrays_as_tensors(item) for key, item in value.items()}
+        return _same_mapping(value, {k: _arrays_as_tensors(v) for k, v in value.items()})
     if isinstance(value, (list, tuple)) and type(value) in (list, tuple):
         return type(value)(_arrays_as_tensors(item) for item in value)
     return value
@@ -466,7 +466,18 @@ def _arrays_from_tensors(value: Any) -> Any:
     if isinstance(value, dict):
         if len(value) == 1 and _ARRAY_TAG in value:
             return value[_ARRAY_TAG].numpy()
-        return {key: _arrays_from_tensors(item) for key, item in value.items()}
+        return _same_mapping(value, {k: _arrays_from_tensors(v) for k, v in value.items()})
     if isinstance(value, (list, tuple)) and type(value) in (list, tuple):
         return type(value)(_arrays_from_tensors(item) for item in value)
     return value
+
+
+def _same_mapping(original: dict[Any, Any], items: dict[Any, Any]) -> dict[Any, Any]:
+    """``items`` in a mapping of ``original``'s type, with its ``_metadata`` (module versions
+    that ``nn.Module.state_dict`` attaches to its OrderedDict)."""
+    if type(original) is dict:
+        return items
+    mapping = type(original)(items)
+    if hasattr(original, "_metadata"):
+        mapping._metadata = original._metadata  # type: ignore[attr-defined]
+    return mapping

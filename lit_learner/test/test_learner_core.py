@@ -313,6 +313,9 @@ def test_checkpoint_files_hold_the_arrays_as_tensors_and_old_files_still_load(
     assert set(stored) == {"__numpy_array__"} and isinstance(
         stored["__numpy_array__"], torch.Tensor
     )
+    actor = raw["agents"]["psi_K"]["actor"]  # an OrderedDict with nn.Module's version metadata
+    assert type(actor) is type(core.agents["psi_K"].actor.state_dict())
+    assert actor._metadata == core.agents["psi_K"].actor.state_dict()._metadata
     loaded = LearnerCore.load_checkpoint(tmp_path / "new.pt")
     replay = loaded.agents["psi_K"].replay
     assert isinstance(replay.state, np.ndarray) and replay.state.dtype == np.float32

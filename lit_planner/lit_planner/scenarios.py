@@ -58,6 +58,9 @@ ENDPOINT_TOLERANCE = 1e-9
 """Euclidean distance within which a path counts as starting at the start / ending at the goal."""
 CHECK_REFINEMENT = 4
 """:func:`check_path` samples edges this many times finer than the scenario's resolution."""
+MAX_CHECK_STEPS = 1 << 40
+"""Most samples :func:`check_path` takes on one segment (its exact search relies on fewer than
+about 2^50: beyond that a rounded sample could pass the segment's end)."""
 MAX_REDRAWS = 10_000
 """Draws per box before giving up (guards against a family that cannot avoid start and goal)."""
 SEED_FORMAT = "lit_planner.scenarios/{family}/{dim}/{instance}"
@@ -311,7 +314,8 @@ class PathCheck:
     first_invalid_point: tuple[float, ...] | None
     """The first invalid point along the path."""
     points_checked: int
-    """Number of points tested (the check stops at the first invalid one's chunk)."""
+    """Number of points tested: every sample of a valid path; up to and including the first
+    invalid one otherwise."""
     cost: float
     """Path length: the sum of the Euclidean segment lengths."""
     spacing: float
@@ -577,6 +581,11 @@ def check_path(scenario: Scenario, path: ArrayLike, resolution: float | None = N
         zip(waypoints[:-1], waypoints[1:], lengths, strict=True)
     ):
         steps = max(1, math.ceil(length / spacing))
+        if steps > MAX_CHECK_STEPS:
+            raise ScenarioError(
+                f"segment {index} of length {length:g} would take {steps} samples at spacing "
+                f"{spacing:g}, more than {MAX_CHECK_STEPS}: the resolution is too fine"
+            )
         if np.all((lower <= b) & (b <= upper)):  # a is in bounds too: so is every sample
             first = _first_sample_in_a_box(scenario, a, b, steps)
         else:  # leaves the bounds: sample by sample (it is invalid anyway)
@@ -616,9 +625,9 @@ def _first_sample_in_a_box(
     each with :func:`is_valid`.
 
     Each coordinate of ``a + (j / steps) * (b - a)`` is monotone in j (floating-point rounding
-    is monotone, and with fewer than 2^40 steps no sample passes ``b``), so the samples with a
-    coordinate inside a box's closed slab form one run of j, found by bisection on the sample
-    formula itself; a box holds the samples in the intersection of its slabs' runs.
+    is monotone, and with at most :data:`MAX_CHECK_STEPS` steps no sample passes ``b``), so the
+    samples with a coordinate inside a box's closed slab form one run of j, found by bisection on
+    the sample formula itself; a box holds the samples in the intersection of its slabs' runs.
     """
     if len(scenario.boxes) == 0:
         return None

@@ -187,7 +187,9 @@ def _throughput(system: System, work: Path, policy: str, args: argparse.Namespac
             "run_id": policy,
         },
     )
-    if planner.process.wait(3600) != 0:
+    code = planner.process.wait(3600)
+    planner.drain()
+    if code != 0:
         raise SystemExit("lit system-bench: the planner failed:\n" + "\n".join(planner.lines[-20:]))
     _stop(system, "recorder")
     envelopes = _envelopes(replay, bag)

@@ -40,6 +40,13 @@ class Child:
     process: subprocess.Popen[str]
     lines: list[str] = field(default_factory=list)
     ready: threading.Event = field(default_factory=threading.Event)
+    pump: threading.Thread | None = None
+    """The thread that reads the process's output into ``lines``."""
+
+    def drain(self, timeout: float = 5.0) -> None:
+        """After the process ended: wait until ``lines`` holds all of its output."""
+        if self.pump is not None:
+            self.pump.join(timeout)
 
 
 class System:
@@ -88,7 +95,8 @@ class System:
         )
         child = Child(name, process)
         self.children[name] = child
-        threading.Thread(target=self._pump, args=(child, process.stdout), daemon=True).start()
+        child.pump = threading.Thread(target=self._pump, args=(child, process.stdout), daemon=True)
+        child.pump.start()
         return child
 
     def _pump(self, child: Child, stream: IO[str] | None) -> None:

@@ -390,3 +390,9 @@ def test_check_path_finds_exactly_what_testing_every_sample_finds(name: str) -> 
         assert check.points_checked == checked
         cases += not valid
     assert 10 < cases < 150  # both verdicts were exercised
+
+
+def test_check_path_refuses_a_resolution_too_fine_for_its_exact_search() -> None:
+    s = get("rrd4/3")
+    with pytest.raises(ScenarioError, match="resolution is too fine"):
+        check_path(s, [s.start, s.goal], resolution=1e-300)

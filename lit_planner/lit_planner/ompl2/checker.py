@@ -203,7 +203,10 @@ class BoxWorldChecker:
                 samples = a + (j / steps)[:, None] * (b - a)
                 samples[j == steps] = b
                 valid = self.is_valid(samples)
-                report["points_checked"] += len(samples)
+                # Up to and including the first invalid sample, as scenarios.check_path counts.
+                report["points_checked"] += (
+                    len(samples) if valid.all() else int(np.argmin(valid)) + 1
+                )
                 if not valid.all():
                     report.update(valid=False, first_invalid_segment=index,
                                   first_invalid_point=samples[np.argmin(valid)].tolist())  # fmt: skip
