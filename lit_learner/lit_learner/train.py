@@ -519,6 +519,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="decide psi_K every N expansions (planner parameter decision_interval)",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the learner and the draws")
+    parser.add_argument(
+        "--w-search",
+        type=float,
+        default=None,
+        metavar="W",
+        help="weight of the psi_K agent's search cost before the first solution (default 1; a "
+        "new run only: a resumed run keeps its checkpoint's)",
+    )
     parser.add_argument("--out", type=Path, help="run folder (default runs/train-<UTC time>)")
     parser.add_argument("--resume", type=Path, metavar="CHECKPOINT", help="continue a run")
     parser.add_argument(
@@ -617,7 +625,12 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
         if value is not None and not value > 0:
             raise TrainingError(f"{label} must be positive, got {value}")
 
+    w_search = getattr(args, "w_search", None)
+    if w_search is not None and not (math.isfinite(w_search) and w_search >= 0):
+        raise TrainingError(f"--w-search must be finite and >= 0, got {w_search}")
     if args.resume is not None:
+        if w_search is not None:
+            raise TrainingError("--w-search is set when a run starts; --resume keeps the run's")
         checkpoint = Path(args.resume)
         if not checkpoint.exists():
             raise TrainingError(f"--resume {checkpoint}: no such checkpoint")
@@ -653,6 +666,10 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
             started_utc=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         )
         config = hooks.learner_config or LearnerConfig(seed=args.seed)
+        if w_search is not None:
+            config = dataclasses.replace(
+                config, reward=dataclasses.replace(config.reward, w_search=w_search)
+            )
         core = LearnerCore(config)
         rng = np.random.default_rng(args.seed)
     run_dir.mkdir(parents=True, exist_ok=True)

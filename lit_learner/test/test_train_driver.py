@@ -191,6 +191,18 @@ def test_run_reports_bad_input_as_one_line(
     assert "training scenario 'xx9'" in capsys.readouterr().err
     assert train.run(arguments(tmp_path / "run", decision_interval=0)) == 2
     assert "--decision-interval must be at least 1, got 0" in capsys.readouterr().err
+    assert train.run(arguments(tmp_path / "run", w_search=-1.0)) == 2
+    assert "--w-search must be finite and >= 0, got -1.0" in capsys.readouterr().err
+    assert train.run(arguments(tmp_path / "run", resume=tmp_path / "x.ckpt", w_search=2.0)) == 2
+    assert "--w-search is set when a run starts" in capsys.readouterr().err
+
+
+def test_w_search_sets_the_search_cost_of_a_new_run(tmp_path: Path) -> None:
+    from lit_learner.core import LearnerCore
+
+    train.train(arguments(tmp_path / "run", scenarios="np4", episodes=2, w_search=2.5))
+    core = LearnerCore.load_checkpoint(tmp_path / "run" / "checkpoints" / "final.ckpt")
+    assert core.config.reward.w_search == 2.5
 
 
 def test_ctrl_c_finishes_the_query_then_stops_with_a_final_checkpoint(
