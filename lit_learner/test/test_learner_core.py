@@ -154,12 +154,7 @@ def test_choose_then_commit_is_decide() -> None:
         else:
             got.append(split.end_episode(m))
     assert got == expected
-    a, b = flat_state(whole), flat_state(split)
-    for key in a:
-        if isinstance(a[key], torch.Tensor):
-            assert torch.equal(a[key], b[key]), key
-        else:
-            assert a[key] == b[key], key
+    assert_same_state(whole, split)
 
 
 def test_published_decisions_read_the_snapshot_of_the_last_step() -> None:
@@ -267,6 +262,17 @@ def flat_state(core: LearnerCore) -> dict[str, object]:
     return state
 
 
+def assert_same_state(x: LearnerCore, y: LearnerCore) -> None:
+    """Networks, optimisers, replay and counters equal, tensors bit for bit."""
+    a, b = flat_state(x), flat_state(y)
+    assert a.keys() == b.keys()
+    for key in a:
+        if isinstance(a[key], torch.Tensor):
+            assert torch.equal(a[key], b[key]), key  # bitwise
+        else:
+            assert a[key] == b[key], key
+
+
 def test_resume_from_checkpoint_is_exact(tmp_path: Path) -> None:
     messages = script(10, seed=5)
     # Cut in the middle of an episode after both agents passed warm-up: pending steps included.
@@ -289,13 +295,7 @@ def test_resume_from_checkpoint_is_exact(tmp_path: Path) -> None:
     got += feed(resumed, messages[cut:])
 
     assert got == expected
-    a, b = flat_state(uninterrupted), flat_state(resumed)
-    assert a.keys() == b.keys()
-    for key in a:
-        if isinstance(a[key], torch.Tensor):
-            assert torch.equal(a[key], b[key]), key  # bitwise
-        else:
-            assert a[key] == b[key], key
+    assert_same_state(uninterrupted, resumed)
 
 
 def test_checkpoint_files_hold_the_arrays_as_tensors_and_old_files_still_load(
@@ -327,13 +327,7 @@ def test_checkpoint_files_hold_the_arrays_as_tensors_and_old_files_still_load(
         }
     torch.save(state, tmp_path / "old.pt")
     old = LearnerCore.load_checkpoint(tmp_path / "old.pt")
-    a, b = flat_state(loaded), flat_state(old)
-    assert a.keys() == b.keys()
-    for key in a:
-        if isinstance(a[key], torch.Tensor):
-            assert torch.equal(a[key], b[key]), key
-        else:
-            assert a[key] == b[key], key
+    assert_same_state(loaded, old)
     np.testing.assert_array_equal(
         old.agents["B"].replay.next_state, loaded.agents["B"].replay.next_state
     )
@@ -353,13 +347,7 @@ def test_a_checkpoint_state_is_a_copy_later_training_does_not_touch(tmp_path: Pa
     LearnerCore.write_checkpoint(state, tmp_path / "late.pt")
     late = LearnerCore.load_checkpoint(tmp_path / "late.pt")
     at_copy = LearnerCore.load_checkpoint(tmp_path / "at-copy.pt")
-    a, b = flat_state(at_copy), flat_state(late)
-    assert a.keys() == b.keys()
-    for key in a:
-        if isinstance(a[key], torch.Tensor):
-            assert torch.equal(a[key], b[key]), key
-        else:
-            assert a[key] == b[key], key
+    assert_same_state(at_copy, late)
     assert late.policy_version < core.policy_version
     # and it resumes exactly like the core it was copied from
     uninterrupted = LearnerCore(small_config())
