@@ -87,8 +87,8 @@ class SumTree:
         filled = self.capacity if filled is None else filled
         if not 0 <= filled <= self.capacity:
             raise ReplayError(f"sum tree: {filled} filled leaves outside [0, {self.capacity}]")
-        leaves = self.nodes[self.leaves : self.leaves + filled].copy()
-        return {"capacity": self.capacity, "leaves": leaves}
+        # A view, like the buffer's arrays: LearnerCore.checkpoint_state copies the whole state.
+        return {"capacity": self.capacity, "leaves": self.nodes[self.leaves : self.leaves + filled]}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Leaves as :meth:`state_dict` saved them (or all nodes, as checkpoints before the
@@ -224,13 +224,16 @@ class PrioritizedReplay:
         self.max_priority = max(self.max_priority, float(priority.max()))
 
     def state_dict(self) -> dict[str, Any]:
+        """Views of the filled part, as ``nn.Module.state_dict`` returns references: copy it
+        (:meth:`LearnerCore.checkpoint_state` deep-copies the core's state once) before the
+        buffer changes."""
         return {
             "tree": self.tree.state_dict(self.size),  # leaves past size were never set
-            "state": self.state[: self.size].copy(),
-            "action": self.action[: self.size].copy(),
-            "reward": self.reward[: self.size].copy(),
-            "next_state": self.next_state[: self.size].copy(),
-            "terminated": self.terminated[: self.size].copy(),
+            "state": self.state[: self.size],
+            "action": self.action[: self.size],
+            "reward": self.reward[: self.size],
+            "next_state": self.next_state[: self.size],
+            "terminated": self.terminated[: self.size],
             "size": self.size,
             "position": self.position,
             "max_priority": self.max_priority,

@@ -625,7 +625,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
         if value is not None and not value > 0:
             raise TrainingError(f"{label} must be positive, got {value}")
 
-    w_search = getattr(args, "w_search", None)
+    w_search = args.w_search
     if w_search is not None and not (math.isfinite(w_search) and w_search >= 0):
         raise TrainingError(f"--w-search must be finite and >= 0, got {w_search}")
     if args.resume is not None:

@@ -218,6 +218,9 @@ SEND_ATTEMPTS = 20
 the most the decide service's one serving thread (and any send waiting for the send lock
 meanwhile) may spend on a client that went away."""
 
+_DROPPED = "failed to send response"
+"""rclpy's warning when Fast DDS dropped a service's answer."""
+
 _SEND_LOCK = threading.Lock()
 """Serialises :func:`send_response`'s warning filter: ``warnings.catch_warnings`` saves and
 restores the process's filter list, and two threads interleaving it would leave the filter on."""
@@ -241,28 +244,29 @@ def send_response(
     The warning is recorded, not turned into an error: raised from inside rclpy's compiled
     ``send_response`` an error comes out as a ``SystemError`` (a result with an exception set),
     which once escaped and ended the planner node's executor thread. Other warnings caught
-    meanwhile (the filter is process-wide) are issued again afterwards."""
+    meanwhile (the filter is process-wide) are issued again afterwards. A send that raises is
+    logged as an error and counts as not delivered: the thread that serves goes on."""
     for attempt in range(attempts):
         with _SEND_LOCK, warnings.catch_warnings(record=True) as caught:
             # "always": the default action would show (and record) it once per code location.
-            warnings.filterwarnings(
-                "always", message="failed to send response", category=RuntimeWarning
-            )
-            send(response, header)
-        dropped = [w for w in caught if _is_dropped_answer(w)]
+            warnings.filterwarnings("always", message=_DROPPED, category=RuntimeWarning)
+            try:
+                send(response, header)
+            except Exception as exc:  # noqa: BLE001 - raised into an executor it would end it
+                log.error(f"{name}: answer not sent: {exc!r}")
+                return False
+        dropped = None
         for w in caught:
-            if not _is_dropped_answer(w):
+            if issubclass(w.category, RuntimeWarning) and _DROPPED in str(w.message):
+                dropped = w.message
+            else:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-        if not dropped:
+        if dropped is None:
             return True
         if stopping() or attempt == attempts - 1:
-            log.warning(f"{name}: answer not delivered: {dropped[-1].message}")
+            log.warning(f"{name}: answer not delivered: {dropped}")
             return False
     return False
-
-
-def _is_dropped_answer(w: warnings.WarningMessage) -> bool:
-    return issubclass(w.category, RuntimeWarning) and "failed to send response" in str(w.message)
 
 
 PLAN_SEND_ATTEMPTS = 100
@@ -280,10 +284,7 @@ def retry_lost_answers(service: Any, log: Any, attempts: int = SEND_ATTEMPTS) ->
     name = service.srv_name
 
     def retrying(response: Any, header: Any) -> None:
-        try:
-            send_response(send, response, header, name, log, attempts=attempts)
-        except Exception as exc:  # noqa: BLE001 - raised here it would end the executor's thread
-            log.error(f"{name}: answer not sent: {exc!r}")
+        send_response(send, response, header, name, log, attempts=attempts)
 
     service.send_response = retrying  # the executor calls srv.send_response(response, header)
     return service
@@ -357,8 +358,6 @@ class DirectService:
                         self._log,
                         lambda: self._stopping,
                     )
-                except Exception as exc:  # noqa: BLE001 - keep serving
-                    self._log.error(f"{service.srv_name}: answer not sent: {exc!r}")
                 finally:  # the answer is out (or cannot go out): its work is still owed
                     self._run_deferred(service.srv_name)
         except ExternalShutdownException:
