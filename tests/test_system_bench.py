@@ -6,8 +6,10 @@ A smoke test with tiny sizes: the numbers themselves are benchmarks, not test as
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
+import time
 
 from ros_helpers import reserve_domain
 
@@ -35,3 +37,77 @@ def test_system_bench_prints_all_three_measurements() -> None:
     assert "Decide round trip inside the planner node during this training run" in out
     assert "decisions fell back (no answer within the 50 ms decision timeout)" in out
     assert "kill 1:" in out and "median" in out
+
+
+def _descendants(pid: int) -> set[int]:
+    """PIDs of ``pid``'s children, grandchildren, ... (from /proc)."""
+    parents: dict[int, int] = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat", encoding="utf-8") as stat:
+                    fields = stat.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            parents[int(entry)] = int(fields[1])
+    found, frontier = set(), {pid}
+    while frontier:
+        frontier = {child for child, parent in parents.items() if parent in frontier} - found
+        found |= frontier
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat", encoding="utf-8") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def test_parts_switched_off_and_ctrl_c_stops_every_child() -> None:
+    """``--episodes 0 --kills 0`` measures only the round trips (0 episodes used to wait for a
+    planner that serves forever); Ctrl-C ends the run with 130 and stops every process it began."""
+    rejected = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "system-bench", "--episodes", "-1"],
+        capture_output=True, text=True, timeout=60, check=False,
+    )  # fmt: skip
+    assert rejected.returncode == 2 and "must be 0 or more, not -1" in rejected.stderr
+    domain, lock = reserve_domain()
+    process = subprocess.Popen(
+        [
+            sys.executable, "-m", "lit_planner.cli", "system-bench", "--episodes", "0",
+            "--kills", "0", "--calls", "100000", "--domain-id", str(domain),
+        ],
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    children: set[int] = set()
+    try:
+        assert process.stdout is not None
+        header = process.stdout.readline()
+        assert header.startswith("## Decide round trip"), header
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:  # learner, echo and the `lit call` client all up
+            children = _descendants(process.pid)
+            if len(children) >= 3:
+                break
+            time.sleep(0.2)
+        time.sleep(1.0)
+        children = _descendants(process.pid)
+        assert len(children) >= 3, children
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=120)
+        assert process.returncode == 130, out + err
+        assert "lit system-bench: interrupted" in err
+        assert "Planning throughput" not in out and "dead learner" not in out
+        assert not [pid for pid in children if _alive(pid)]
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        for pid in children:
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+        if lock is not None:
+            lock.close()

@@ -103,7 +103,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser, module = build_parser(selected if selected in COMMANDS else None)
     args = parser.parse_args(argv)
     run = getattr(module, COMMANDS[args.command].run)
-    return int(run(args) or 0)
+    try:
+        return int(run(args) or 0)
+    except KeyboardInterrupt:  # Ctrl-C: the command's own finally blocks have stopped its children
+        print(f"lit {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -40,12 +40,16 @@ _LOG_STAMP = re.compile(r"\[(?:WARN|INFO|ERROR)\] \[(\d+\.\d+)\]")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``lit system-bench``."""
-    parser.add_argument("--episodes", type=int, default=12, help="episodes per policy")
+    parser.add_argument(
+        "--episodes", type=_count, default=12, help="episodes per policy (0: skip part 2)"
+    )
     parser.add_argument("--budget", type=float, default=0.3, help="planner seconds per episode")
     parser.add_argument("--scenarios", default="np4,np8,rrd4,rrd8", help="training mix")
     parser.add_argument("--seed", type=int, default=7, help="seed of the episode draws")
-    parser.add_argument("--calls", type=int, default=2000, help="decide round trips per agent")
-    parser.add_argument("--kills", type=int, default=3, help="learner SIGKILLs")
+    parser.add_argument(
+        "--calls", type=_count, default=2000, help="decide round trips per agent (0: skip part 1)"
+    )
+    parser.add_argument("--kills", type=_count, default=3, help="learner SIGKILLs (0: skip part 3)")
     parser.add_argument(
         "--domain-id",
         type=int,
@@ -53,76 +57,99 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _count(text: str) -> int:
+    """A non-negative integer option."""
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, not {value}")
+    return value
+
+
 def run(args: argparse.Namespace) -> int:
-    """Run the three measurements and print them as tables."""
+    """Run the three measurements (those not switched off with a count of 0) as tables."""
     with tempfile.TemporaryDirectory(prefix="lit-system-bench-") as folder:
         work = Path(folder)
         system = System(args.domain_id, work, echo=None)
         try:
             _start_learner(system, work)
-            system.start("echo", [sys.executable, "-m", "lit_planner.echo_node"])
-            system.wait_ready("echo")
-            print("## Decide round trip (lit call decide --repeat, separate process)\n")
-            print(
-                "Baseline, same run: an AddDiagnostics server that echoes the request and does "
-                "nothing else (`lit_planner.echo_node`), called with a decide request's text.\n"
-            )
-            print("| service | calls | median | p99 | max | median / echo median |")
-            print("|---|---|---|---|---|---|")
-            rows = [
-                (f"decide {agent}", _round_trips(system, ["decide", "--agent", agent], args.calls))
-                for agent in ("psi_K", "B")
-            ]
-            echo = _round_trips(system, ["raw", ECHO_SERVICE, _decide_text()], args.calls)
-            rows.append(("echo (baseline)", echo))
-            for name, stats in rows:
-                print(
-                    f"| {name} | {stats['calls']} | {stats['median_ms']:.3f} ms | "
-                    f"{stats['p99_ms']:.2f} ms | {stats['max_ms']:.2f} ms | "
-                    f"{stats['median_ms'] / echo['median_ms']:.2f}x |",
-                    flush=True,
-                )
-            _stop(system, "echo")
-            print("\n## Planning throughput on the same problems\n")
-            print("| policy | episodes | wall s / episode | planner s / episode | learner calls |")
-            print("|---|---|---|---|---|")
-            rows = {}
-            for policy in ("training", "tensor"):
-                rows[policy] = _throughput(system, work, policy, args)
-                row = rows[policy]
-                print(
-                    f"| {policy} | {row['episodes']} | {row['wall']:.3f} | {row['planner']:.3f} | "
-                    f"{row['learner_calls']} |",
-                    flush=True,
-                )
-            ratio = rows["training"]["wall"] / rows["tensor"]["wall"]
-            print(f"\ntraining / tensor wall time per episode: {ratio:.2f}x")
-            latencies = rows["training"]["latencies_ms"]
-            if latencies:
-                p50, p90, p99 = np.percentile(latencies, [50, 90, 99])
-                print(
-                    f"\nDecide round trip inside the planner node during this training run "
-                    f"(Decision.latency_ms, from encoding the request to the validated answer; "
-                    f"{len(latencies)} answered decisions while the learner trained and wrote a "
-                    f"checkpoint after every episode): median {p50:.3f} ms, p90 {p90:.2f} ms, "
-                    f"p99 {p99:.2f} ms, max {max(latencies):.2f} ms; "
-                    f"{rows['training']['fallbacks']} decisions fell back (no answer within "
-                    f"the 50 ms decision timeout)"
-                )
-            for line in rows["training"]["warnings"]:  # why decisions fell back, if they did
-                print(line)
-            print("\n## Time for the planner to notice a dead learner (SIGKILL → fallback)\n")
-            delays = _dead_learner(system, work, args)
-            for i, delay in enumerate(delays):
-                print(f"kill {i + 1}: {delay * 1e3:.0f} ms")
-            if delays:
-                print(
-                    f"median {np.median(delays) * 1e3:.0f} ms, max {max(delays) * 1e3:.0f} ms "
-                    f"(decision_timeout 50 ms)"
-                )
+            if args.calls:
+                _decide_round_trips(system, args)
+            if args.episodes:
+                _throughput_tables(system, work, args)
+            if args.kills:
+                _kill_delays(system, work, args)
         finally:
             system.stop()
     return 0
+
+
+def _decide_round_trips(system: System, args: argparse.Namespace) -> None:
+    system.start("echo", [sys.executable, "-m", "lit_planner.echo_node"])
+    system.wait_ready("echo")
+    print("## Decide round trip (lit call decide --repeat, separate process)\n", flush=True)
+    print(
+        "Baseline, same run: an AddDiagnostics server that echoes the request and does "
+        "nothing else (`lit_planner.echo_node`), called with a decide request's text.\n"
+    )
+    print("| service | calls | median | p99 | max | median / echo median |")
+    print("|---|---|---|---|---|---|")
+    rows = [
+        (f"decide {agent}", _round_trips(system, ["decide", "--agent", agent], args.calls))
+        for agent in ("psi_K", "B")
+    ]
+    echo = _round_trips(system, ["raw", ECHO_SERVICE, _decide_text()], args.calls)
+    rows.append(("echo (baseline)", echo))
+    for name, stats in rows:
+        print(
+            f"| {name} | {stats['calls']} | {stats['median_ms']:.3f} ms | "
+            f"{stats['p99_ms']:.2f} ms | {stats['max_ms']:.2f} ms | "
+            f"{stats['median_ms'] / echo['median_ms']:.2f}x |",
+            flush=True,
+        )
+    _stop(system, "echo")
+
+
+def _throughput_tables(system: System, work: Path, args: argparse.Namespace) -> None:
+    print("\n## Planning throughput on the same problems\n", flush=True)
+    print("| policy | episodes | wall s / episode | planner s / episode | learner calls |")
+    print("|---|---|---|---|---|")
+    rows = {}
+    for policy in ("training", "tensor"):
+        rows[policy] = _throughput(system, work, policy, args)
+        row = rows[policy]
+        print(
+            f"| {policy} | {row['episodes']} | {row['wall']:.3f} | {row['planner']:.3f} | "
+            f"{row['learner_calls']} |",
+            flush=True,
+        )
+    ratio = rows["training"]["wall"] / rows["tensor"]["wall"]
+    print(f"\ntraining / tensor wall time per episode: {ratio:.2f}x")
+    latencies = rows["training"]["latencies_ms"]
+    if latencies:
+        p50, p90, p99 = np.percentile(latencies, [50, 90, 99])
+        print(
+            f"\nDecide round trip inside the planner node during this training run "
+            f"(Decision.latency_ms, from encoding the request to the validated answer; "
+            f"{len(latencies)} answered decisions while the learner trained and wrote a "
+            f"checkpoint after every episode): median {p50:.3f} ms, p90 {p90:.2f} ms, "
+            f"p99 {p99:.2f} ms, max {max(latencies):.2f} ms; "
+            f"{rows['training']['fallbacks']} decisions fell back (no answer within "
+            f"the 50 ms decision timeout)"
+        )
+    for line in rows["training"]["warnings"]:  # why decisions fell back, if they did
+        print(line)
+
+
+def _kill_delays(system: System, work: Path, args: argparse.Namespace) -> None:
+    print("\n## Time for the planner to notice a dead learner (SIGKILL → fallback)\n", flush=True)
+    delays = _dead_learner(system, work, args)
+    for i, delay in enumerate(delays):
+        print(f"kill {i + 1}: {delay * 1e3:.0f} ms")
+    if delays:
+        print(
+            f"median {np.median(delays) * 1e3:.0f} ms, max {max(delays) * 1e3:.0f} ms "
+            f"(decision_timeout 50 ms)"
+        )
 
 
 def _start_learner(system: System, work: Path) -> None:
