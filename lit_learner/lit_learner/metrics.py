@@ -44,6 +44,16 @@ class MetricsLog:
                 self.rows = [dict(row) for row in reader]
         self._rewrite()
 
+    def keep_episodes_before(self, episode: int) -> int:
+        """Drop the rows of episodes ``episode`` and later (a run resumed from an earlier
+        checkpoint trains them again); the number of rows dropped."""
+        kept = [row for row in self.rows if _episode(row) < episode]
+        dropped = len(self.rows) - len(kept)
+        if dropped:
+            self.rows = kept
+            self._rewrite()
+        return dropped
+
     def append(self, row: Mapping[str, object]) -> None:
         """Add one episode's row; new column names widen the header (the file is rewritten)."""
         text = {key: _cell(value) for key, value in row.items()}
@@ -64,6 +74,14 @@ class MetricsLog:
             writer.writeheader()
             writer.writerows(self.rows)
         temporary.replace(self.path)
+
+
+def _episode(row: Mapping[str, str]) -> int:
+    """A row's episode number (a row without one counts as before every episode)."""
+    try:
+        return int(row.get("episode") or -1)
+    except ValueError:
+        return -1
 
 
 def _cell(value: object) -> str:
@@ -145,7 +163,12 @@ def plot_training_curves(metrics_path: Path, output: Path, bins: int) -> Path:
         counts = np.nan_to_num(counts)
         totals = counts.sum(axis=0, keepdims=True)
         share = np.divide(counts, totals, out=np.zeros_like(counts), where=totals > 0)
-        extent = (episodes.min(), episodes.max(), -0.5, bins - 0.5) if len(episodes) else None
+        # Each column spans its episode +- 0.5 (a one-episode run gets a column of width 1).
+        extent = (
+            (episodes.min() - 0.5, episodes.max() + 0.5, -0.5, bins - 0.5)
+            if len(episodes)
+            else None
+        )
         image = axis.imshow(share, aspect="auto", origin="lower", extent=extent, vmin=0, vmax=1)
         figure.colorbar(image, ax=axis, fraction=0.04)
     figure.suptitle(f"LIT* Fuzzy-DDPG training ({metrics_path.parent.name})")

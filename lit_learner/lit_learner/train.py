@@ -79,6 +79,8 @@ CHECKPOINT_DIR = "checkpoints"
 B_PHASE_TENSORS = "b_phase_tensors"
 PROVENANCE_FILE = "provenance.json"
 STATE_SUFFIX = ".driver.json"
+INTERRUPTED_NOTE = " (interrupted: --resume the final checkpoint to continue)"
+"""Ends the summary's first line of a run stopped by Ctrl-C or SIGTERM (exit code 130)."""
 
 METRIC_COLUMNS = (
     "episode",
@@ -429,7 +431,13 @@ class DriverState:
                 f"{path}: the driver state of this checkpoint is missing; `lit train --resume` "
                 "needs the checkpoint and its .driver.json written by `lit train`"
             )
-        return cls(**json.loads(path.read_text()))
+        try:
+            return cls(**json.loads(path.read_text()))
+        except (ValueError, TypeError) as exc:  # bad JSON or UTF-8; not this object's fields
+            raise TrainingError(
+                f"{path}: not a readable driver state of `lit train` ({exc}); restore it or "
+                "resume from another checkpoint of the run"
+            ) from exc
 
 
 def state_path(checkpoint: Path) -> Path:
@@ -575,7 +583,7 @@ def run(args: argparse.Namespace) -> int:
             if handler is not None:  # None: installed outside Python, cannot be restored
                 signal.signal(sig, handler)
     print(summary)
-    return 0
+    return 130 if INTERRUPTED_NOTE in summary else 0
 
 
 @dataclass
@@ -599,6 +607,22 @@ def _finished(state: DriverState) -> bool:
     return (state.episodes is not None and state.episode >= state.episodes) or (
         state.minutes is not None and state.elapsed >= state.minutes * 60.0
     )
+
+
+def _check_folders(args: argparse.Namespace) -> None:
+    """Refuse, before any training, folders that cannot be written (a file in the way)."""
+    for label, value in (
+        ("--out", args.out),
+        ("--export", args.export),
+        ("--bag-dir", args.bag_dir),
+    ):
+        if value is None:
+            continue
+        for folder in (Path(value), *Path(value).parents):
+            if folder.exists():
+                if not folder.is_dir():
+                    raise TrainingError(f"{label} {value}: {folder} is a file, not a folder")
+                break
 
 
 def agent_range(agent_config: Any, fallback: tuple[float, float]) -> tuple[float, float]:
@@ -625,6 +649,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
         if value is not None and not value > 0:
             raise TrainingError(f"{label} must be positive, got {value}")
 
+    _check_folders(args)
     w_search = args.w_search
     if w_search is not None and not (math.isfinite(w_search) and w_search >= 0):
         raise TrainingError(f"--w-search must be finite and >= 0, got {w_search}")
@@ -634,7 +659,22 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
         checkpoint = Path(args.resume)
         if not checkpoint.exists():
             raise TrainingError(f"--resume {checkpoint}: no such checkpoint")
+        if checkpoint.is_dir():
+            raise TrainingError(
+                f"--resume {checkpoint}: a folder; give a checkpoint file, such as "
+                f"{checkpoint / CHECKPOINT_DIR / 'final.ckpt'}"
+            )
         state = DriverState.load(state_path(checkpoint))
+        if args.episodes is not None and args.episodes <= state.episode:
+            raise TrainingError(
+                f"--episodes {args.episodes} with --resume is the new total, and the checkpoint "
+                f"has {state.episode} episodes already"
+            )
+        if args.minutes is not None and args.minutes * 60.0 <= state.elapsed:
+            raise TrainingError(
+                f"--minutes {args.minutes:g} with --resume is the new total, and the checkpoint "
+                f"has trained {state.elapsed / 60.0:.1f} minutes already"
+            )
         run_dir = Path(args.out) if args.out else checkpoint.resolve().parent.parent
         core = LearnerCore.load_checkpoint(checkpoint)
         if args.episodes is not None:
@@ -672,8 +712,8 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
             )
         core = LearnerCore(config)
         rng = np.random.default_rng(args.seed)
+    distribution = TrainingDistribution(state.scenarios, rng)  # checks the names first
     run_dir.mkdir(parents=True, exist_ok=True)
-    distribution = TrainingDistribution(state.scenarios, rng)
     b_range = agent_range(core.config.b, (20.0, 200.0))
     k_range = agent_range(core.config.k, (3.0, 12.0 + 3.0))
     ranges = {"B": b_range, "psi_K": k_range}
@@ -687,6 +727,13 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
         histogram_column(agent, index) for agent in ranges for index in range(HISTOGRAM_BINS)
     ]
     log = MetricsLog(run_dir / METRICS_FILE, columns)
+    dropped = log.keep_episodes_before(state.episode)
+    if dropped:  # resumed from an earlier checkpoint: those episodes are trained again
+        print(
+            f"lit train: {run_dir / METRICS_FILE}: dropped the rows of {dropped} episodes after "
+            f"the checkpoint (episode {state.episode}); they run again",
+            file=sys.stderr,
+        )
     recording = None if args.no_bag else _open_bag(args, state, run_dir)
     progress = _progress(state, disable=args.no_progress)
     session_start = time.perf_counter() - state.elapsed
@@ -740,15 +787,23 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
         (
             f"lit train: {state.episode} episodes in {state.elapsed / 60:.1f} min "
             f"({state.episodes_per_phase}), run folder {run_dir}"
-            + (" (interrupted: --resume the final checkpoint to continue)" if interrupted else "")
+            + (INTERRUPTED_NOTE if interrupted else "")
         ),
         f"  checkpoint {final}, metrics {run_dir / METRICS_FILE}, curves {curves}",
     ]
     if recording is not None:
         lines.append(f"  bag {recording.recorder.path} (lit replay info / tensors)")
     if args.export is not None:
+        replaced = [
+            name for name in planning.TENSOR_FILES.values() if (Path(args.export) / name).exists()
+        ]
         written = export(core, Path(args.export), record, curves)
         lines.append(f"  tensors {', '.join(str(path) for path in written.values())}")
+        if replaced:
+            lines.append(
+                f"  (replaced the tensors that were in {args.export}; other files there, such as a "
+                "README or an evaluation, still describe the previous ones)"
+            )
     return "\n".join(lines)
 
 

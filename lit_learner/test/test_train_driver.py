@@ -231,3 +231,64 @@ def test_ctrl_c_finishes_the_query_then_stops_with_a_final_checkpoint(
         train.state_path(tmp_path / "run" / train.CHECKPOINT_DIR / "final.ckpt")
     )
     assert state.episode == len(outcomes)
+
+
+def test_ctrl_c_exits_with_130(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from lit_learner.core import LearnerCore
+
+    original = LearnerCore.decide
+    calls = {"count": 0}
+
+    def decide_with_one_interrupt(self: LearnerCore, request: object) -> float:
+        calls["count"] += 1
+        if calls["count"] == 5:
+            raise KeyboardInterrupt
+        return original(self, request)
+
+    monkeypatch.setattr(LearnerCore, "decide", decide_with_one_interrupt)
+    assert train.run(arguments(tmp_path / "run", episodes=50, scenarios="np4")) == 130
+    assert train.INTERRUPTED_NOTE in capsys.readouterr().out
+    assert train.run(arguments(tmp_path / "again", episodes=1, scenarios="np4")) == 0
+
+
+def test_resume_from_an_earlier_checkpoint_trains_its_episodes_again_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Rows of episodes after the checkpoint leave metrics.csv: they are trained again, and
+    must not appear twice."""
+    run_dir = tmp_path / "run"
+    hooks = train.TrainingHooks(learner_config=small_config())
+    train.train(arguments(run_dir, episodes=6, scenarios="np4", checkpoint_every=3), hooks)
+    earlier = run_dir / train.CHECKPOINT_DIR / "episode-0000003.ckpt"
+    train.train(arguments(run_dir, episodes=5, resume=earlier))
+    assert "dropped the rows of 3 episodes after the checkpoint" in capsys.readouterr().err
+    with (run_dir / METRICS_FILE).open(newline="") as handle:
+        assert [int(row["episode"]) for row in csv.DictReader(handle)] == [0, 1, 2, 3, 4]
+
+    final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
+    with pytest.raises(train.TrainingError, match="has 5 episodes already"):
+        train.train(arguments(run_dir, episodes=5, resume=final))
+    with pytest.raises(train.TrainingError, match="a folder; give a checkpoint file"):
+        train.train(arguments(run_dir, episodes=9, resume=run_dir))
+    train.state_path(final).write_text("{")
+    with pytest.raises(train.TrainingError, match="not a readable driver state"):
+        train.train(arguments(run_dir, episodes=9, resume=final))
+
+
+@pytest.mark.parametrize("option", ["out", "export", "bag_dir"])
+def test_a_file_in_the_way_is_refused_before_training(tmp_path: Path, option: str) -> None:
+    blocker = tmp_path / "afile"
+    blocker.write_text("not a folder\n")
+    args = arguments(tmp_path / "run", episodes=2, scenarios="np4")
+    setattr(args, option, blocker / "sub" if option == "out" else blocker)
+    with pytest.raises(train.TrainingError, match="is a file, not a folder"):
+        train.train(args)
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["afile"]  # nothing trained
+
+
+def test_unknown_scenario_leaves_no_run_folder(tmp_path: Path) -> None:
+    with pytest.raises(train.TrainingError):
+        train.train(arguments(tmp_path / "run", episodes=2, scenarios="foo4"))
+    assert not (tmp_path / "run").exists()

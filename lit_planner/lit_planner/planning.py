@@ -176,8 +176,7 @@ def make_policy(
         raise MissingTensorsError(
             f"the tensor policy found no lookup tensors in {folder} ({source}): expected "
             f"{' and/or '.join(TENSOR_FILES.values())} with their .json sidecars. Train and "
-            "export them with `lit train` (arrives with the learner issue), or use the fixed "
-            "or fit policy"
+            "export them with `lit train --export DIR`, or use the fixed or fit policy"
         )
     return lit_core.TensorPolicy(
         tensors.get("B"), tensors.get("psi_K"), INTERPOLATIONS[interpolation]
