@@ -97,7 +97,10 @@ def test_bench_summary_is_complete_and_names_the_skipped_tensor_planner(
     codec.validate("BenchSummary", summary)
     assert summary["config"]["planners"] == list(PLANNERS)
     assert [s["planner"] for s in summary["skipped"]] == ["litstar-tensor"]
-    assert "litstar-tensor skipped: no trained tensors in tensors/" in result.stderr
+    assert "litstar-tensor skipped: no trained tensors (the tensor policy found no lookup " in (
+        result.stderr
+    )
+    assert "(from $LIT_TENSORS)" in result.stderr  # the folder it looked in, and why there
     assert "litstar-tensor skipped: no trained tensors" in (out / "summary.md").read_text()
     assert summary["comparisons"]["litstar"] == "litstar-fixed"
     assert summary["machine"]["cores"] >= 1 and summary["versions"]["python"]
@@ -119,3 +122,14 @@ def test_bench_rejects_bad_input(tmp_path: Path) -> None:
     (tmp_path / "full" / "keep.txt").write_text("mine")
     result = _lit("bench", "--quick", "--out", str(tmp_path / "full"))
     assert result.returncode == 2 and "not an empty folder" in result.stderr
+    for option in ("--scenarios", "--planners"):
+        result = _lit("bench", option, " ", "--out", str(tmp_path / "y"))
+        assert result.returncode == 2 and "need at least one scenario" in result.stderr
+    (tmp_path / "empty").mkdir()
+    result = _lit(
+        "bench", "--planners", "litstar-tensor", "--tensors", str(tmp_path / "empty"),
+        "--out", str(tmp_path / "z"),
+    )  # fmt: skip
+    assert result.returncode == 2, result.stderr
+    assert f"found no lookup tensors in {tmp_path / 'empty'} (given)" in result.stderr
+    assert not (tmp_path / "y").exists() and not (tmp_path / "z").exists()

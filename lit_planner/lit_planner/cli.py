@@ -30,24 +30,27 @@ class Command:
 COMMANDS: dict[str, Command] = {
     "demo": Command(
         "lit_planner.demo",
-        "plan the default scenario (narrow passage in R^8) with LIT* and print the result",
+        "learner, planner and recorder as ROS 2 processes: training episodes over ROS, then "
+        "inference plans of np8 (--local: one plan in-process)",
     ),
     "bench": Command(
         "lit_planner.bench.cli",
         "benchmark planners on the paper's scenarios: statistics, tables, plots (--quick, --paper)",
     ),
-    "plan": Command("lit_planner.plan_cli", "plan one query or a benchmark with the C++ core"),
+    "plan": Command(
+        "lit_planner.plan_cli", "plan one query with LIT* or an OMPL planner (C++ core)"
+    ),
     "arena": Command(
         "lit_planner.arena",
         "turn a bench run folder's runs.jsonl into OMPL benchmark logs and a Planner Arena database",
     ),
     "replay": Command(
         "lit_planner.replay",
-        "read recorded bags: info, verify paths, salvage a killed bag, regenerate bench outputs",
+        "read recorded bags: info, verify, salvage, compact, regenerate bench outputs or tensors",
     ),
     "up": Command(
         "lit_planner.up",
-        "start the learner and a planner node as two ROS 2 processes; Ctrl-C stops both",
+        "start the recorder, the learner and a planner node as ROS 2 processes; Ctrl-C stops all",
     ),
     "system-bench": Command(
         "lit_planner.system_bench",

@@ -20,7 +20,9 @@ import argparse
 import json
 import math
 import os
+import signal
 import sys
+import threading
 import time
 from datetime import UTC, datetime
 from pathlib import Path
@@ -133,6 +135,9 @@ def run(args: argparse.Namespace) -> int:
         if recording is not None:
             recording.add_runs(records)
 
+    # `kill PID` stops like Ctrl-C: the bag gets its summary and metadata.yaml on the way out.
+    main_thread = threading.current_thread() is threading.main_thread()  # signals: main only
+    previous = signal.signal(signal.SIGTERM, signal.default_int_handler) if main_thread else None
     try:
         records = runner.run_benchmark(config, on_scenario_done=append)
     except KeyboardInterrupt:
@@ -142,6 +147,8 @@ def run(args: argparse.Namespace) -> int:
         )
         return 130
     finally:
+        if main_thread and previous is not None:  # None: set outside Python, not restorable
+            signal.signal(signal.SIGTERM, previous)
         if recording is not None:
             recording.close()
     duration = time.perf_counter() - clock
@@ -320,8 +327,11 @@ def _start_recording(
 def _config(args: argparse.Namespace) -> tuple[runner.BenchConfig, str | None, list[str]]:
     preset_name = next((name for name in runner.PRESETS if getattr(args, name)), None)
     preset = runner.PRESETS[preset_name] if preset_name else runner.PRESETS["paper"]
-    scenario_names = _split(args.scenarios) if args.scenarios else list(preset.scenarios)
-    planners = _split(args.planners) if args.planners else list(runner.ALL_PLANNERS)
+    # An option given but empty (--scenarios "") is an error below, not the preset's list.
+    scenario_names = (
+        _split(args.scenarios) if args.scenarios is not None else list(preset.scenarios)
+    )
+    planners = _split(args.planners) if args.planners is not None else list(runner.ALL_PLANNERS)
     runs = args.runs if args.runs is not None else preset.runs
     if runs < 1:
         raise ValueError(f"--runs must be at least 1, got {runs}")

@@ -175,7 +175,7 @@ def comparisons(
     if lit == TENSOR_PLANNER:
         note = "LIT* is litstar-tensor (trained lookup tensors)"
     elif lit is not None and TENSOR_PLANNER in skipped:
-        note = f"LIT* is {lit}: litstar-tensor was skipped (no trained tensors in tensors/)"
+        note = f"LIT* is {lit}: litstar-tensor was skipped (no trained tensors)"
     elif lit is not None:
         note = f"LIT* is {lit}: litstar-tensor was not among the planners"
     else:

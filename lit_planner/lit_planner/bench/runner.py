@@ -54,7 +54,7 @@ ALL_PLANNERS = (
 """Every planner the benchmark knows, LIT*'s three policies first."""
 TENSOR_PLANNER = "litstar-tensor"
 """The planner that needs trained lookup tensors."""
-SKIPPED_NO_TENSORS = "skipped: no trained tensors in tensors/"
+SKIPPED_NO_TENSORS = "skipped: no trained tensors"
 """Reason recorded when ``litstar-tensor`` cannot run (the folder is named in the detail)."""
 SHUFFLE_KEY = "lit bench/{scenario}/{instance}/{run}/{seed}"
 """String seeding each run's planner order (``random.Random`` hashes strings stably)."""
@@ -144,9 +144,11 @@ def scenario_for(name: str, instance: int = 0) -> scenarios.Scenario:
 def select_planners(
     planners: Sequence[str], tensors_dir: Path | None = None
 ) -> tuple[list[str], list[Skip]]:
-    """Split ``planners`` into those that run and those skipped (no trained tensors).
+    """Split ``planners`` into those that run and those skipped (no trained tensors in the
+    default folder, ``$LIT_TENSORS`` or the checkout's ``tensors/``).
 
     Raises:
+        MissingTensorsError: ``tensors_dir`` was given and holds no tensors.
         PlannerError: an unknown planner name.
         TensorFileError: tensors exist but are defective (never skipped silently).
     """
@@ -162,6 +164,8 @@ def select_planners(
             try:
                 planning.make_policy("tensor", tensors_dir)
             except MissingTensorsError as error:
+                if tensors_dir is not None:  # asked for by name: not skipped quietly
+                    raise
                 skipped.append(Skip(name, SKIPPED_NO_TENSORS, str(error)))
                 continue
         running.append(name)
