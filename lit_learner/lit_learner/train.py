@@ -743,6 +743,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
         while not (_finished(state) or interrupted):
             phase = _phase_for(state)
             if phase == PHASE_K and state.phase != PHASE_K:
+                progress.write("lit train: B phase done; exporting its B tensor (a few seconds)")
                 b_tensor = _switch_to_k(core, state, run_dir)
             state.phase = phase
             spec = distribution.draw(state.episode)
@@ -885,6 +886,7 @@ def _row(outcome: EpisodeOutcome, core: Any, ranges: dict[str, tuple[float, floa
 
 class _NoProgress:
     def update(self, *_: object) -> None: ...
+    def write(self, *_: object) -> None: ...
     def set_postfix(self, *_: object, **__: object) -> None: ...
     def close(self) -> None: ...
 
