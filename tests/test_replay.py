@@ -587,3 +587,180 @@ def test_compact_keeps_every_message_and_compresses(mixed_bag: Path, tmp_path: P
     info = replay.bag_info(out)
     assert info["custom_data"]["lit.compacted_from"] == mixed_bag.name
     assert _replay("compact", mixed_bag, out).returncode == 2  # never overwrites
+
+
+# --- review fixes: duplicates, damaged files, argument and output checks ---------------------
+
+LITSTAR_SAMPLE = ROOT / "bags" / "samples" / "litstar_vs_aitstar"
+EXCEPTION_NAME = re.compile(r"\b[A-Z][A-Za-z]+(Error|Exceeded|Exception)\b")
+
+
+def _sample_copy(tmp_path: Path, name: str) -> Path:
+    copy = tmp_path / name
+    shutil.copytree(SAMPLE, copy)
+    return copy
+
+
+def _rerecorded(source: Path, target: Path, change: dict[str, Any] | None = None) -> Path:
+    """``source``'s messages in a new bag; ``change`` updates the payload of BenchRun seq 0."""
+    from rosbags.rosbag2 import Reader
+
+    with Reader(source) as reader, BagRecorder(target, run_id="copy") as recorder:
+        for connection in reader.connections:
+            recorder.add_topic(connection.topic, connection.msgtype)
+        for connection, stamp, raw in reader.messages():
+            text = bag.typestore().deserialize_cdr(raw, connection.msgtype).data
+            document = json.loads(text)
+            if change and document["schema"] == bag.BENCH_RUN_SCHEMA and document["seq"] == 0:
+                document["payload"].update(change)
+            recorder.write_string(connection.topic, json.dumps(document), stamp)
+    return target
+
+
+def test_bench_replay_counts_each_bag_and_record_once(tmp_path: Path) -> None:
+    """A bag given twice is refused; identical records of two copies count once (warned);
+    different records under the same run id and seq are refused."""
+    first = _sample_copy(tmp_path, "first")
+    _assert_clean_error(_replay("bench", first, first, "--out", tmp_path / "o1"), "given twice")
+    _assert_clean_error(
+        _replay("bench", first, first / "bench_np4.mcap", "--out", tmp_path / "o1"),
+        "the same bag as",
+    )
+    _assert_clean_error(_replay("bench", first, f"{first}/../first"), "the same bag as")
+    _assert_clean_error(_replay("verify", first, first), "given twice")
+    assert not (tmp_path / "o1").exists()
+
+    second = _sample_copy(tmp_path, "second")
+    result = _replay("bench", first, second, "--out", tmp_path / "o2")
+    assert result.returncode == 0, result.stderr
+    assert "2 run records" in result.stdout
+    assert "2 duplicate run records ignored" in result.stderr
+    summary = json.loads((tmp_path / "o2" / "summary.json").read_text())
+    assert summary["scenarios"]["np4"]["planners"]["litstar-fixed"] == SAMPLE_STATISTICS
+    recorded = replay.read_bench([first, second])
+    assert (len(recorded.runs), len(recorded.duplicates), recorded.missing) == (2, 2, 0)
+
+    conflicting = _rerecorded(SAMPLE, tmp_path / "conflicting", {"t_init": 1.0})
+    _assert_clean_error(
+        _replay("bench", first, conflicting, "--out", tmp_path / "o3"), "differs from the record"
+    )
+
+
+@pytest.mark.parametrize("command", ["info", "verify", "compact"])
+def test_mcap_of_only_its_magic_is_a_clean_error_with_salvage_hint(
+    command: str, tmp_path: Path
+) -> None:
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(_mcap(SAMPLE).read_bytes()[:8])
+    args = (cut, tmp_path / "out") if command == "compact" else (cut,)
+    result = _replay(command, *args)
+    _assert_clean_error(result, "only the 8-byte MCAP magic")
+    assert f"lit replay salvage {cut}" in result.stderr
+    assert EXCEPTION_NAME.search(result.stderr) is None, result.stderr
+
+
+def test_compact_of_damaged_bag_gives_salvage_hint(tmp_path: Path) -> None:
+    data = _mcap(SAMPLE).read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) - 100])
+    result = _replay("compact", cut, tmp_path / "out")
+    _assert_clean_error(result, f"lit replay salvage {cut}")
+    assert "does not end with the MCAP magic" in result.stderr
+    assert "LIT_REPLAY_DEBUG" not in result.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_salvage_of_a_cut_first_chunk_recovers_its_complete_records(tmp_path: Path) -> None:
+    data = (LITSTAR_SAMPLE / "out.mcap").read_bytes()
+    for size in (100, 1000):  # inside the first chunk: nothing but schema and channels
+        cut = tmp_path / f"cut{size}.mcap"
+        cut.write_bytes(data[:size])
+        result = _replay("salvage", cut)
+        _assert_clean_error(result, "nothing to salvage")
+        assert "end of file inside the chunk at byte" in result.stderr
+        assert EXCEPTION_NAME.search(result.stderr) is None, result.stderr
+    cut = tmp_path / "cut20000.mcap"
+    cut.write_bytes(data[:20000])
+    result = _replay("salvage", cut)
+    assert result.returncode == 0, result.stderr
+    assert "end of file inside the chunk at byte" in result.stdout
+    assert EXCEPTION_NAME.search(result.stdout) is None, result.stdout
+    recovered = _recovered(result.stdout)
+    assert 1 < recovered < 81
+    runs = next(
+        p for p in replay.bag_info(tmp_path / "cut20000-salvaged")["publishers"]
+        if p["topic"] == bag.BENCH_RUN_TOPIC
+    )  # fmt: skip
+    assert (runs["first_seq"], runs["gaps"], runs["count"]) == (0, 0, recovered - 1)
+
+    # zstd chunks (compact): what the compressed bytes present decode to is recovered.
+    compacted = tmp_path / "compacted"
+    assert _replay("compact", LITSTAR_SAMPLE, compacted).returncode == 0
+    zdata = _mcap(compacted).read_bytes()
+    zcut = tmp_path / "zcut.mcap"
+    zcut.write_bytes(zdata[: len(zdata) * 9 // 10])
+    result = _replay("salvage", zcut)
+    assert result.returncode == 0, result.stderr
+    assert 1 < _recovered(result.stdout) < 81
+
+
+def test_salvage_reports_a_missing_end_magic(tmp_path: Path) -> None:
+    data = _mcap(SAMPLE).read_bytes()
+    for missing in (8, 3):
+        cut = tmp_path / f"no_magic{missing}.mcap"
+        cut.write_bytes(data[:-missing])
+        result = _replay("salvage", cut)
+        assert result.returncode == 0, result.stderr
+        assert "complete file" not in result.stdout
+        assert "end magic after the footer is missing" in result.stdout
+        assert _recovered(result.stdout) == 3
+    result = _replay("salvage", _mcap(SAMPLE), "-o", tmp_path / "whole")
+    assert result.returncode == 0 and "complete file" in result.stdout, result.stdout
+
+
+def test_tensors_and_measure_reject_bad_arguments(tmp_path: Path) -> None:
+    (tmp_path / "file").write_text("x")
+    _assert_clean_error(_replay("tensors", SAMPLE, "--out", tmp_path / "file"), "not a folder")
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "b_tensor.npy").write_text("old")
+    _assert_clean_error(_replay("tensors", SAMPLE, "--out", tmp_path / "full"), "not empty")
+    assert (tmp_path / "full" / "b_tensor.npy").read_text() == "old"
+    _assert_clean_error(_replay("measure", "--messages", "0"), "--messages")
+    _assert_clean_error(_replay("measure", "--kills", "-1"), "--kills")
+    _assert_clean_error(_replay("measure", "--chunk-bytes", "0"), "--chunk-bytes")
+
+
+def test_bench_replay_refuses_a_non_empty_output_folder(tmp_path: Path) -> None:
+    stale = tmp_path / "stale"
+    (stale / "plots").mkdir(parents=True)
+    (stale / "plots" / "old.png").write_bytes(b"png")
+    _assert_clean_error(_replay("bench", SAMPLE, "--out", stale), "not empty")
+    assert [p.name for p in stale.rglob("*")] == ["plots", "old.png"]
+    (tmp_path / "file").write_text("x")
+    _assert_clean_error(_replay("bench", SAMPLE, "--out", tmp_path / "file"), "not a folder")
+    (tmp_path / "empty").mkdir()
+    assert _replay("bench", SAMPLE, "--out", tmp_path / "empty").returncode == 0
+    # The default folder <bag>/replay: written once, then refused rather than mixed.
+    copy = _sample_copy(tmp_path, "copy")
+    assert _replay("bench", copy).returncode == 0
+    assert (copy / "replay" / "summary.json").is_file()
+    _assert_clean_error(_replay("bench", copy), "the default output folder")
+
+
+def test_replay_outputs_beside_checked_in_bags_are_ignored_by_git() -> None:
+    git = shutil.which("git")
+    if git is None or not (ROOT / ".git").exists():
+        pytest.skip("no git checkout")
+    paths = [
+        "bags/samples/bench_np4/replay/summary.json",  # lit replay bench <bag>
+        "bags/samples/bench_np4/bench_np4-replay/summary.json",  # lit replay bench <bag>.mcap
+        "bags/samples/bench_np4-salvaged/metadata.yaml",  # lit replay salvage <bag>
+    ]
+    for path in paths:
+        ignored = subprocess.run([git, "check-ignore", "-q", path], cwd=ROOT, check=False)
+        assert ignored.returncode == 0, f"{path} is not ignored"
+    tracked = subprocess.run(
+        [git, "ls-files", "-ci", "--exclude-standard", "bags"],
+        cwd=ROOT, capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    assert tracked.stdout == ""

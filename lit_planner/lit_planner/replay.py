@@ -20,6 +20,11 @@ unknown schema or an unsupported version, text that is not an envelope, undecoda
 payloads that fail their schema. A bag that cannot be read at all (a missing path, an empty
 directory or file, a writer killed before ``close()``, a truncated or damaged file) is a one-line
 error with exit status 2; ``salvage`` then recovers what is readable.
+
+A bag given twice (also as a folder and its ``.mcap`` file) is refused; ``bench`` counts a run
+record once when copies of a bag hold it (same topic, source, run id and seq; a warning says how
+many were left out) and refuses two different records under one run id and seq. Output folders
+(``bench --out`` or its default ``<first BAG>/replay``, ``tensors --out``) must be new or empty.
 """
 
 from __future__ import annotations
@@ -70,6 +75,10 @@ _MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 class ReplayError(LitPlannerError, ValueError):
     """A bag or an argument that replay cannot use; the message is one line naming the input."""
+
+
+class NotBenchBagError(ReplayError):
+    """A readable bag without the config or the run records of a ``lit bench`` run."""
 
 
 # --- Reading bags ----------------------------------------------------------------------------
@@ -212,8 +221,9 @@ class BagReader:
             self._reader = Reader(self.path)
             self._reader.open()
         except Exception as error:  # noqa: BLE001 -- damaged files raise anything
+            reason = _mcap_damage(self.path) or _describe(error)
             raise ReplayError(
-                f"cannot read bag {self.path}: {_describe(error)}; if its writer was killed or the "
+                f"cannot read bag {self.path}: {reason}; if its writer was killed or the "
                 f"file is damaged, recover it with `lit replay salvage {self.path}`"
             ) from None
         try:
@@ -242,11 +252,21 @@ class BagReader:
         Raises:
             ReplayError: the data cannot be read on (names how many messages were read).
         """
+        for connection, stamp, data in self.raw_messages():
+            yield RawMessage(connection.topic, connection.msgtype, stamp, bytes(data))
+
+    def raw_messages(self) -> Iterator[tuple[Any, int, bytes | memoryview]]:
+        """Every message in time order as rosbags' ``Reader.messages()`` gives it: (connection,
+        log time, serialized data).
+
+        Raises:
+            ReplayError: the data cannot be read on (names how many messages were read).
+        """
         read = 0
         iterator = self._reader.messages()
         while True:
             try:
-                connection, stamp, data = next(iterator)
+                item = next(iterator)
             except StopIteration:
                 return
             except Exception as error:  # noqa: BLE001 -- damaged files raise anything
@@ -255,7 +275,7 @@ class BagReader:
                     f"recover it with `lit replay salvage {self.path}`"
                 ) from None
             read += 1
-            yield RawMessage(connection.topic, connection.msgtype, stamp, bytes(data))
+            yield item
 
     def _facts(self) -> BagFacts:
         reader = self._reader
@@ -309,6 +329,29 @@ def _check_readable(path: Path) -> None:
         raise ReplayError(f"{path} is an empty file")
     if path.suffix != ".mcap":
         raise ReplayError(f"{path} is not a bag: expected a bag directory or an .mcap file")
+
+
+def _mcap_damage(path: Path) -> str | None:
+    """What is visibly wrong with the framing of a bag's MCAP file(s) (the magic at both ends),
+    in words; None when both ends look right (or there is no MCAP file to look at)."""
+    files = sorted(path.glob("*.mcap")) if path.is_dir() else [path]
+    for file in files:
+        try:
+            size = file.stat().st_size
+            with file.open("rb") as handle:
+                head = handle.read(len(_MCAP_MAGIC))
+                handle.seek(max(0, size - len(_MCAP_MAGIC)))
+                tail = handle.read(len(_MCAP_MAGIC))
+        except OSError:
+            continue
+        where = f"{file.name} " if path.is_dir() else ""
+        if head != _MCAP_MAGIC:
+            return f"{where}does not start with the MCAP magic: not an MCAP file, or damaged"
+        if size <= len(_MCAP_MAGIC):
+            return f"{where}holds only the {size}-byte MCAP magic and no record: truncated"
+        if size < 2 * len(_MCAP_MAGIC) or tail != _MCAP_MAGIC:
+            return f"{where}does not end with the MCAP magic: truncated (or damaged at its end)"
+    return None
 
 
 def _load_metadata(path: Path) -> dict[str, Any]:
@@ -732,7 +775,7 @@ class SalvageResult:
     stopped_at: int = 0
     """Byte offset where reading stopped: the end of the last readable record."""
     complete: bool = False
-    """The footer was reached."""
+    """The file was read to its end: every record, the footer and the end magic."""
     reason: str = ""
     """Why reading stopped."""
     messages: dict[str, int] = field(default_factory=dict)
@@ -788,8 +831,9 @@ def salvage(source: str | Path, out: str | Path | None = None) -> tuple[Path, li
 
     Each file is read with ``mcap``'s ``StreamReader`` up to the first record that cannot be
     read (a truncation, a damaged record header); a chunk whose inner records break off keeps the
-    records before the break and reading goes on with the next chunk. Every message must belong to
-    a known channel and deserialize as its type.
+    records before the break and reading goes on with the next chunk; a chunk cut off by the end
+    of the file gives its complete inner records (of a zstd chunk, those the compressed bytes
+    present decode to). Every message must belong to a known channel and deserialize as its type.
 
     Returns:
         The new bag and, per file, where reading stopped and the messages recovered per topic.
@@ -849,6 +893,7 @@ def _read_mcap(result: SalvageResult, gathered: _Salvaged) -> None:
     from mcap.records import Chunk, Footer
     from mcap.stream_reader import StreamReader
 
+    footer = False
     with result.file.open("rb") as handle:
         stream = _StrictStream(handle)
         # The size limit keeps a damaged length field from allocating gigabytes.
@@ -862,25 +907,136 @@ def _read_mcap(result: SalvageResult, gathered: _Salvaged) -> None:
                             gathered.take(inner, result)
                     except Exception as error:  # noqa: BLE001 -- damaged chunk content
                         result.damaged_chunks.append(
-                            f"chunk ending at byte {stream.position}: {_describe(error)}"
+                            f"chunk ending at byte {stream.position}: {_error_text(error)}"
                         )
                 else:
                     gathered.take(record, result)
                 result.stopped_at = stream.position
-                if isinstance(record, Footer):
-                    result.complete = True
+                footer = footer or isinstance(record, Footer)
         except Exception as error:  # noqa: BLE001 -- truncation, bit flips: anything
             if result.stopped_at == 0 and stream.position >= len(_MCAP_MAGIC):
                 result.stopped_at = _magic_length(result.file)
-            at_boundary = isinstance(error, EOFError) and stream.position == result.stopped_at
-            result.reason = (
-                "end of file without footer (the writer did not finish)"
-                if at_boundary
-                else _describe(error)
-            )
+            result.reason = _stop_reason(error, result, gathered, footer, stream.position)
             return
         result.stopped_at = stream.position
+    result.complete = True
     result.reason = "complete file"
+
+
+def _stop_reason(
+    error: Exception, result: SalvageResult, gathered: _Salvaged, footer: bool, position: int
+) -> str:
+    """Why reading ``result.file`` stopped at ``result.stopped_at``, in words; a chunk cut off by
+    the end of the file gives its complete inner records to ``gathered`` first."""
+    from mcap.exceptions import EndOfFile, InvalidMagic
+
+    start, size = result.stopped_at, result.size
+    if isinstance(error, InvalidMagic):
+        if footer:
+            return "the 8 bytes after the footer are not the MCAP end magic: the end is damaged"
+        return "the file does not start with the MCAP magic: not an MCAP file, or damaged"
+    if footer:
+        return (
+            f"the MCAP end magic after the footer is missing ({size - start} of its 8 bytes "
+            "present): the file is cut short after its last record; every record was read"
+        )
+    if isinstance(error, EOFError | EndOfFile) and position == start:
+        if start <= len(_MCAP_MAGIC):
+            return "end of file after the MCAP magic: no record (the writer did not finish)"
+        return "end of file without footer (the writer did not finish)"
+    header = _record_header(result.file, start)
+    if header is None:
+        return f"end of file inside the record header at byte {start}: the file is truncated"
+    length, name = header
+    if start + 9 + length > size:
+        if name == "CHUNK":
+            partial = _partial_chunk(result, gathered, start, length)
+            if partial is not None:
+                return partial
+        return (
+            f"the {name} record at byte {start} claims {length} bytes, past the end of the file "
+            f"at byte {size}: the file is truncated there, or the record's length is damaged"
+        )
+    return f"unreadable {name} record at byte {start}: {_error_text(error)}"
+
+
+def _error_text(error: BaseException) -> str:
+    """An exception's message alone (its class name only when it has none)."""
+    text = " ".join(str(error).split()).rstrip(".")
+    if len(text) > 200:
+        text = text[:200] + "…"
+    return text or type(error).__name__
+
+
+def _record_header(path: Path, start: int) -> tuple[int, str] | None:
+    """(length, opcode name) of the record at byte ``start``; None when cut off."""
+    from mcap.opcode import Opcode
+
+    with path.open("rb") as handle:
+        handle.seek(start)
+        head = handle.read(9)
+    if len(head) < 9:
+        return None
+    opcode, length = int(head[0]), int.from_bytes(head[1:], "little")
+    try:
+        name = Opcode(opcode).name
+    except ValueError:
+        name = f"unknown (opcode 0x{opcode:02x})"
+    return length, name
+
+
+def _partial_chunk(
+    result: SalvageResult, gathered: _Salvaged, start: int, length: int
+) -> str | None:
+    """Read the complete inner records of the chunk at byte ``start`` that the end of the file
+    cuts off. None when the chunk's own fields do not add up to ``length`` (a damaged length
+    rather than a truncation)."""
+    import struct
+
+    from mcap.records import Chunk, Message
+
+    with result.file.open("rb") as handle:
+        handle.seek(start + 9)
+        body = handle.read(min(length, result.size - start - 9))  # never a damaged length
+    try:
+        start_ns, end_ns, uncompressed_size, crc, name_length = struct.unpack_from("<QQQII", body)
+        fields = 32 + name_length + 8
+        compression = body[32 : fields - 8].decode("utf-8")
+        (records_length,) = struct.unpack_from("<Q", body, fields - 8)
+    except (struct.error, UnicodeDecodeError):
+        return None
+    if fields + records_length != length:
+        return None
+    chunk = Chunk(
+        compression=compression,
+        data=body[fields:],
+        message_start_time=start_ns,
+        message_end_time=end_ns,
+        uncompressed_crc=crc,
+        uncompressed_size=uncompressed_size,
+    )
+    records = messages = 0
+    end = 0
+    try:
+        for end, inner in _inner_records(_chunk_data(chunk, partial=True), chunk):
+            gathered.take(inner, result)
+            records += 1
+            messages += isinstance(inner, Message)
+    except Exception:  # noqa: BLE001, S110 -- the cut (or damage) ends the readable records
+        pass
+    # Uncompressed, the last complete inner record ends at a known byte; compressed, every byte
+    # up to the end of the file went into the decompressor.
+    if records:
+        result.stopped_at = start + 9 + fields + end if compression == "" else result.size
+    read = (
+        f"{records} of its records ({messages} messages) read"
+        if records
+        else "no complete record in it"
+    )
+    return (
+        f"end of file inside the chunk at byte {start} ({9 + length} bytes, {result.size - start} "
+        f"of them present): the file is truncated; {read}"
+    )
 
 
 def _magic_length(path: Path) -> int:
@@ -891,20 +1047,33 @@ def _magic_length(path: Path) -> int:
 
 def _chunk_records(chunk: Any) -> Iterator[object]:
     """The schema, channel and message records of a chunk, checked as they are read."""
+    for _, record in _inner_records(_chunk_data(chunk), chunk):
+        yield record
+
+
+def _chunk_data(chunk: Any, *, partial: bool = False) -> bytes:
+    """A chunk's records, decompressed; ``partial``: of a chunk cut off by the end of the file
+    (as much as the compressed bytes present give)."""
+    if chunk.compression == "":
+        return bytes(chunk.data)
+    if chunk.compression == "zstd":
+        import zstandard
+
+        if partial:
+            return zstandard.ZstdDecompressor().decompressobj().decompress(chunk.data)
+        return zstandard.decompress(chunk.data, chunk.uncompressed_size)
+    raise ValueError(f"chunk compression {chunk.compression!r} is not supported")
+
+
+def _inner_records(data: bytes, chunk: Any) -> Iterator[tuple[int, object]]:
+    """(end offset in ``data``, record) of the schema, channel and message records in a chunk's
+    ``data``, checked as they are read; raises ValueError at the first record that does not fit."""
     import struct
 
     from mcap.data_stream import ReadDataStream
     from mcap.opcode import Opcode
     from mcap.records import Channel, Message, Schema
 
-    if chunk.compression == "":
-        data = chunk.data
-    elif chunk.compression == "zstd":
-        import zstandard
-
-        data = zstandard.decompress(chunk.data, chunk.uncompressed_size)
-    else:
-        raise ValueError(f"chunk compression {chunk.compression!r} is not supported")
     offset = 0
     while offset < len(data):
         if offset + 9 > len(data):
@@ -921,12 +1090,12 @@ def _chunk_records(chunk: Any) -> Iterator[object]:
             record = Message.read(stream, length)
             if not chunk.message_start_time <= record.log_time <= chunk.message_end_time:
                 raise ValueError(f"message time {record.log_time} outside its chunk's range")
-            yield record
+            yield offset, record
         elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
             parsed = Schema.read(stream) if opcode == Opcode.SCHEMA else Channel.read(stream)
             if stream.count != length:
                 raise ValueError(f"{type(parsed).__name__} record length mismatch")
-            yield parsed
+            yield offset, parsed
 
 
 class _Bytes:
@@ -1049,21 +1218,21 @@ def compact(source: str | Path, out: str | Path) -> dict[str, Any]:
     Returns:
         ``messages``, ``bytes_before`` and ``bytes_after``.
     """
-    from rosbags.rosbag2 import Reader
-
     source, target = Path(source), Path(out)
     _check_readable(source)
     if target.exists():
         raise ReplayError(f"{target} exists; choose a new folder")
     custom = _salvaged_custom_data(source)
     custom["lit.compacted_from"] = source.name
-    with Reader(source) as reader:
+    # BagReader: a damaged or unfinished bag is the same one-line error (with the salvage hint)
+    # as for info and verify, before or while the messages are copied.
+    with BagReader(source) as reader:
         count = _write_bag(
             bag.ChunkedWriter(target, chunk_bytes=bag.MAX_CHUNK_BYTES, compress=True),
             custom,
             (
                 (c.id, c.topic, c.msgtype, lambda c=c: c.ext.offered_qos_profiles, stamp, data)
-                for c, stamp, data in reader.messages()
+                for c, stamp, data in reader.raw_messages()
             ),
         )
 
@@ -1082,22 +1251,35 @@ class BenchBag:
 
     config: Envelope
     runs: list[Envelope]
+    """Each record once (the first bag that holds it)."""
     skipped: Skipped
     missing: int
+    """Records missing: gaps in the seq of a publisher (topic, source, run id)."""
+    duplicates: list[str] = field(default_factory=list)
+    """Records left out because an identical one (same topic, source, run id and seq) was read
+    already, each as ``<topic> seq <n> of run <id> in <bag>``."""
 
 
 def read_bench(paths: Sequence[str | Path]) -> BenchBag:
     """The recorded config and run records, runs in recording order (bag order, then seq).
 
+    A record read already (same topic, source, run id and seq; e.g. a bag and its salvaged or
+    compacted copy) is left out and listed in ``duplicates`` when it is identical, so no run
+    counts twice.
+
     Raises:
-        ReplayError: no BenchConfig, configs that differ between bags, or no run record.
+        ReplayError: a bag given twice, configs that differ between bags, or two different
+            records under the same run id and seq.
+        NotBenchBagError: a bag without BenchConfig, or no run record at all.
     """
     from lit_msgs_json import codec
 
+    check_distinct_bags(paths)
     skipped = Skipped()
     config: Envelope | None = None
     runs: list[Envelope] = []
-    missing = 0
+    first_seen: dict[tuple[str, str, str, int], tuple[Envelope, str | Path]] = {}
+    duplicates: list[str] = []
     for path in paths:
         bag_config, bag_runs = None, []
         with BagReader(path) as reader:
@@ -1115,20 +1297,65 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
                         continue
                     bag_runs.append(item)
         if bag_config is None:
-            raise ReplayError(f"{path}: no {bag.BENCH_CONFIG_TOPIC} message: not a lit bench bag")
+            raise NotBenchBagError(
+                f"{path}: no {bag.BENCH_CONFIG_TOPIC} message: not a lit bench bag"
+            )
         if not isinstance(bag_config.payload, dict):
             raise ReplayError(f"{path}: the {bag.BENCH_CONFIG_TOPIC} payload is not an object")
         if config is not None and bag_config.payload.get("config") != config.payload.get("config"):
             raise ReplayError(f"{path}: its bench configuration differs from that of {paths[0]}")
         config = config or bag_config
         bag_runs.sort(key=lambda e: e.seq)
-        seqs = [e.seq for e in bag_runs]
-        missing += sum(b - a - 1 for a, b in itertools.pairwise(seqs) if b > a + 1)
-        runs.extend(bag_runs)
+        for item in bag_runs:
+            key = (item.topic, item.source, item.run_id, item.seq)
+            where = f"{item.topic} seq {item.seq} of run {item.run_id}"
+            if key not in first_seen:
+                first_seen[key] = (item, path)
+                runs.append(item)
+                continue
+            earlier, earlier_path = first_seen[key]
+            if earlier.payload != item.payload:
+                raise ReplayError(
+                    f"{path}: {where} differs from the record with the same run id and seq in "
+                    f"{earlier_path}; which one is right cannot be told"
+                )
+            duplicates.append(f"{where} in {path}")
     assert config is not None
     if not runs:
-        raise ReplayError(f"no usable {bag.BENCH_RUN_TOPIC} record in {', '.join(map(str, paths))}")
-    return BenchBag(config, runs, skipped, missing)
+        raise NotBenchBagError(
+            f"no usable {bag.BENCH_RUN_TOPIC} record in {', '.join(map(str, paths))}"
+        )
+    publishers: dict[tuple[str, str, str], list[int]] = {}
+    for topic, source, run_id, seq in first_seen:
+        publishers.setdefault((topic, source, run_id), []).append(seq)
+    missing = sum(
+        b - a - 1 for seqs in publishers.values() for a, b in itertools.pairwise(sorted(seqs))
+    )
+    return BenchBag(config, runs, skipped, missing, duplicates)
+
+
+def check_distinct_bags(paths: Sequence[str | Path]) -> None:
+    """Refuse a bag given twice: the same path, or a bag folder and one of its ``.mcap`` files
+    (compared after resolving links and relative paths).
+
+    Raises:
+        ReplayError: names both arguments.
+    """
+    owners: dict[Path, str | Path] = {}
+    for path in paths:
+        given = Path(path)
+        keys = {given.resolve()}
+        if given.is_dir():
+            keys |= {file.resolve() for file in given.glob("*.mcap")}
+        for key in sorted(keys):
+            if key in owners:
+                same = (
+                    "given twice"
+                    if Path(owners[key]) == given
+                    else f"the same bag as {owners[key]}"
+                )
+                raise ReplayError(f"{path}: {same}; give each bag once")
+        owners.update(dict.fromkeys(keys, path))
 
 
 def replay_bench(paths: Sequence[str | Path], out: Path) -> tuple[dict[str, Any], BenchBag]:
@@ -1223,22 +1450,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     bench.add_argument("bags", type=Path, nargs="+", metavar="BAG")
     bench.add_argument(
-        "--out", type=Path, metavar="DIR", help=f"output folder (default: <first BAG>/{REPLAY_DIR})"
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help=f"output folder, new or empty (default: <first BAG>/{REPLAY_DIR})",
     )
 
 
 def run(args: argparse.Namespace) -> int:
     """Run a ``lit replay`` subcommand: 0 success, 1 invalid paths (verify), 2 bad input."""
-    from lit_planner import bag_measure
-
     commands = {
         "info": _info,
         "verify": _verify,
         "salvage": _salvage,
         "compact": _compact,
         "bench": _bench,
-        "measure": bag_measure.run,
-        "tensors": lambda arguments: _offline().run(arguments),
+        "measure": _measure,
+        "tensors": _tensors,
     }
     try:
         return commands[args.replay_command](args)
@@ -1262,6 +1490,37 @@ def _offline() -> Any:
     return importlib.import_module("lit_learner.offline")
 
 
+def _tensors(args: argparse.Namespace) -> int:
+    check_distinct_bags(args.bags)
+    _check_new_folder(args.out, f"--out {args.out}")
+    return int(_offline().run(args))
+
+
+def _measure(args: argparse.Namespace) -> int:
+    from lit_planner import bag_measure
+
+    if args.messages < 1:
+        raise ReplayError(
+            f"--messages must be 1 or more (write-rate messages), got {args.messages}"
+        )
+    if args.kills < 0:
+        raise ReplayError(f"--kills must be 0 or more (crash trials), got {args.kills}")
+    if not 1 <= args.chunk_bytes <= bag.MAX_CHUNK_BYTES:
+        raise ReplayError(
+            f"--chunk-bytes must be within 1..{bag.MAX_CHUNK_BYTES}, got {args.chunk_bytes}"
+        )
+    return bag_measure.run(args)
+
+
+def _check_new_folder(path: Path, label: str, advice: str = "choose a new or empty folder") -> None:
+    """Refuse an output folder that exists and is not empty (as ``lit bench --out`` does): new
+    outputs never mix with stale ones, nothing is overwritten."""
+    if path.exists() and not path.is_dir():
+        raise ReplayError(f"{label}: exists and is not a folder; {advice}")
+    if path.is_dir() and any(path.iterdir()):
+        raise ReplayError(f"{label}: exists and is not empty; {advice}")
+
+
 def _info(args: argparse.Namespace) -> int:
     info = bag_info(args.bag)
     if args.json:
@@ -1272,6 +1531,7 @@ def _info(args: argparse.Namespace) -> int:
 
 
 def _verify(args: argparse.Namespace) -> int:
+    check_distinct_bags(args.bags)
     report = VerifyReport()
     skipped = Skipped()
     for path in args.bags:
@@ -1391,13 +1651,21 @@ def episode_table(summaries: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str
 
 
 def _bench(args: argparse.Namespace) -> int:
+    check_distinct_bags(args.bags)
     first = Path(args.bags[0])
     out = args.out
     if out is None:
         out = first / REPLAY_DIR if first.is_dir() else first.with_name(first.stem + "-replay")
+        _check_new_folder(
+            out,
+            f"{out} (the default output folder)",
+            "remove it (an earlier replay?) or choose another folder with --out",
+        )
+    else:
+        _check_new_folder(out, f"--out {out}")
     try:
         summary, recorded = replay_bench(args.bags, Path(out))
-    except ReplayError as error:
+    except NotBenchBagError as error:
         # Not a lit bench bag: summarise the planning queries of a ROS run (lit up, lit demo).
         summaries = read_episode_summaries(args.bags)
         if not summaries:
@@ -1413,6 +1681,13 @@ def _bench(args: argparse.Namespace) -> int:
         return 0
     if recorded.skipped.total:
         print(f"{PROG} bench: {recorded.skipped.line()}", file=sys.stderr)
+    if recorded.duplicates:
+        print(
+            f"{PROG} bench: warning: {len(recorded.duplicates)} duplicate run records ignored (an "
+            f"identical record with the same run id and seq was read already), e.g. "
+            f"{recorded.duplicates[0]}",
+            file=sys.stderr,
+        )
     if recorded.missing:
         print(
             f"{PROG} bench: warning: {recorded.missing} run records missing (seq gaps); the "
