@@ -418,16 +418,46 @@ BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
         ["plan", "--scenario", "np4", "--start", "0,0"],
         None,
         "invalid-request",
-        None,
+        "$.payload.start",
         "start has 2 coordinates",
+    ),
+    (
+        "plan: start equals goal",  # answered with an internal SolutionUpdate error before
+        ["plan", "--scenario", "np4", "--start", "0.2,0,0,0"],
+        None,
+        "invalid-request",
+        "$.payload.goal",
+        "nothing to plan",
     ),
     (
         "plan: unknown scenario",
         ["plan", "--scenario", "zz9"],
         None,
         "invalid-request",
-        None,
+        "$.payload.scenario",
         "zz9",
+    ),
+    (
+        "plan: a world too large for double precision",  # ran the planner node out of memory
+        [
+            "raw",
+            PLAN,
+            json.dumps(
+                _envelope(
+                    "PlanRequest",
+                    {
+                        "world": {"lower": [-1e308, -1e308], "upper": [1e308, 1e308], "boxes": []},
+                        "start": [-0.3, 0.0],
+                        "goal": [0.3, 0.0],
+                        "time": 0.2,
+                    },
+                )
+            ),
+        ],
+        None,
+        "invalid-request",
+        "$.payload.world",
+        "the world is too large",
     ),
     ("decide: malformed JSON", ["raw", DECIDE, "[1, 2"], None, "json", "$", "not valid JSON"),
     (

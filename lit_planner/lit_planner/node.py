@@ -257,7 +257,8 @@ class PlannerNode:
         response.message = reply.encode("PlanResponse", self._plan_response(job))
         return response
 
-    def _job_from_request(self, payload: dict[str, Any]) -> Job:
+    def _problem_from_request(self, payload: dict[str, Any]) -> Any:
+        """The scenario a plan request names or gives (its start and goal swapped in)."""
         from lit_planner import scenarios
 
         if "world" in payload:
@@ -283,6 +284,29 @@ class PlannerNode:
                     time_budget=problem.time_budget,
                     resolution=problem.resolution,
                 )
+        return problem
+
+    def _job_from_request(self, payload: dict[str, Any]) -> Job:
+        from lit_planner.errors import ScenarioError
+
+        where = "world" if "world" in payload else "scenario"  # for the Error's field
+        try:
+            problem = self._problem_from_request(payload)
+        except ScenarioError as exc:
+            first = str(exc).split(" ", 1)[0]  # "start has 2 coordinates, ...": the start's fault
+            where = first if first in ("start", "goal") else where
+            raise MessageError(
+                "invalid-request", str(exc), field=f"$.payload.{where}", rule=where,
+                request_schema="PlanRequest",
+            ) from exc  # fmt: skip
+        if tuple(problem.start) == tuple(problem.goal):
+            raise MessageError(
+                "invalid-request",
+                "start and goal are the same state: there is nothing to plan",
+                field="$.payload.goal",
+                rule="differs-from-start",
+                request_schema="PlanRequest",
+            )
         planner = payload.get("planner", "litstar")
         policy = payload.get(
             "policy", "tensor" if self.params["policy"] == "training" else self.params["policy"]

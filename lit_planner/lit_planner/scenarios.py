@@ -367,6 +367,8 @@ def custom(
         raise ScenarioError(f"box {bad[0]} has a lower corner above its upper corner")
     if not (math.isfinite(time_budget) and time_budget > 0):
         raise ScenarioError(f"time budget must be positive, got {time_budget}")
+    resolution = DEFAULT_CUSTOM_RESOLUTION if resolution is None else float(resolution)
+    _check_extent(np.asarray(lower, float), np.asarray(upper, float), resolution)
     corners.setflags(write=False)
     return Scenario(
         name=f"{CUSTOM_FAMILY}{dim}",
@@ -378,12 +380,34 @@ def custom(
         goal=tuple(float(x) for x in goal),
         boxes=corners,
         time_budget=float(time_budget),
-        resolution=DEFAULT_CUSTOM_RESOLUTION if resolution is None else float(resolution),
+        resolution=resolution,
         optimal_cost=None,
         instance=0,
         seed=None,
         description=f"explicit world in R^{dim} with {len(boxes)} boxes",
     )
+
+
+def _check_extent(lower: np.ndarray, upper: np.ndarray, resolution: float) -> None:
+    """The space's sizes must keep the planner's arithmetic finite: its diagonal, its measure
+    (the informed-set ratios divide by it) and the collision-check spacing (resolution x the
+    largest size), which must be positive."""
+    with np.errstate(over="ignore", under="ignore"):
+        extent = upper - lower
+        diagonal = float(np.sqrt(np.sum(np.square(extent))))
+        measure = float(np.prod(extent))
+    if not (np.all(np.isfinite(extent)) and math.isfinite(diagonal) and math.isfinite(measure)):
+        raise ScenarioError(
+            f"the world is too large: its size ({float(np.max(extent)):.3g} along its longest "
+            "axis) makes the diagonal or the volume overflow double precision"
+        )
+    if not (math.isfinite(resolution) and 0 < resolution <= 1):
+        raise ScenarioError(f"resolution must be in (0, 1], got {resolution}")
+    if measure <= 0 or not resolution * float(np.max(extent)) > 0:
+        raise ScenarioError(
+            f"the world is too small: its volume or its collision-check spacing underflows "
+            f"(smallest size {float(np.min(extent)):.3g})"
+        )
 
 
 def seed_for(family: str, dim: int, instance: int) -> int:

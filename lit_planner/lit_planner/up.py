@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import argparse
 import ctypes
+import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -140,6 +142,10 @@ class System:
         return codes
 
 
+DEFAULT_SCENARIO = "np8"
+"""``--scenario``'s default for the tensor, fit and fixed policies."""
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``lit up``."""
     parser.add_argument(
@@ -149,7 +155,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--policy", default="training", choices=("training", "tensor", "fit", "fixed")
     )
     parser.add_argument("--episodes", type=int, default=20, help="planner episodes (0: serve)")
-    parser.add_argument("--scenario", default="np8")
+    parser.add_argument(
+        "--scenario",
+        default=None,
+        help=f"tensor, fit, fixed: the scenario of the episodes (default {DEFAULT_SCENARIO}); "
+        "training: the training scenarios, comma-separated family+dimension (default: the "
+        "planner node's mix)",
+    )
     parser.add_argument("--time-budget", type=float, default=0.0, help="0: the scenario's")
     parser.add_argument("--run-id", default=None)
     parser.add_argument("--checkpoint", default=None, help="learner checkpoint (resumed if found)")
@@ -171,10 +183,48 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+_RUN_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,127}")
+"""A run id: a single folder name (no path components), as bags and run folders use it."""
+
+
+def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | None:
+    """What is wrong with the options, checked before any process starts; None when fine."""
+    from lit_learner.train import TrainingDistribution, TrainingError
+
+    from lit_planner import scenarios
+    from lit_planner.errors import LitPlannerError
+
+    if not _RUN_ID.fullmatch(run_id):
+        return f"--run-id {run_id!r}: use letters, digits, '.', '_' and '-' (a folder name)"
+    if args.episodes < 0:
+        return f"--episodes must be 0 (serve only) or more, got {args.episodes}"
+    if not (math.isfinite(args.time_budget) and args.time_budget >= 0):
+        return (
+            f"--time-budget must be 0 (the scenario's) or a positive number, got {args.time_budget}"
+        )
+    try:
+        if args.policy == "training" and args.scenario is not None:
+            TrainingDistribution(args.scenario.split(","), None)
+        else:
+            scenarios.get(args.scenario or DEFAULT_SCENARIO)
+    except (LitPlannerError, TrainingError) as error:
+        return f"--scenario {args.scenario}: {error}"
+    if bag is not None and bag.exists():
+        return f"bag {bag} exists already; choose another --bag or --run-id"
+    return None
+
+
 def run(args: argparse.Namespace) -> int:
     """Start everything, stream logs, stop on Ctrl-C; 0 when every process exited cleanly."""
+    from lit_planner.bag import default_bag_root
+
     run_id = args.run_id or time.strftime("up-%Y%m%d-%H%M%S")
-    runs = Path("runs") / run_id
+    bag = None if args.no_record else (args.bag or default_bag_root() / run_id).absolute()
+    problem = _check(args, run_id, bag)
+    if problem is not None:
+        print(f"lit up: {problem}", file=sys.stderr)
+        return 2
+    runs = (Path("runs") / run_id).absolute()  # absolute: the export service answers with it
     runs.mkdir(parents=True, exist_ok=True)
     system = System(args.domain_id, Path.cwd())
     stop = threading.Event()
@@ -186,10 +236,7 @@ def run(args: argparse.Namespace) -> int:
         flush=True,
     )
     try:
-        if not args.no_record:
-            from lit_planner.bag import default_bag_root
-
-            bag = args.bag or default_bag_root() / run_id
+        if bag is not None:
             system.start("recorder", "lit_recorder_node", {"bag": str(bag), "run_id": run_id})
             system.wait_ready("recorder")
         learner = {
@@ -202,7 +249,14 @@ def run(args: argparse.Namespace) -> int:
         planner = {
             "policy": args.policy,
             "episodes": args.episodes,
-            "scenario": args.scenario,
+            "scenario": DEFAULT_SCENARIO
+            if args.policy == "training"
+            else args.scenario or DEFAULT_SCENARIO,
+            **(
+                {"training_scenarios": args.scenario}
+                if args.policy == "training" and args.scenario is not None
+                else {}
+            ),
             "time_budget": args.time_budget,
             "run_id": run_id,
             # Hold the episodes until the recorder is subscribed to every topic.

@@ -396,3 +396,22 @@ def test_check_path_refuses_a_resolution_too_fine_for_its_exact_search() -> None
     s = get("rrd4/3")
     with pytest.raises(ScenarioError, match="resolution is too fine"):
         check_path(s, [s.start, s.goal], resolution=1e-300)
+
+
+@pytest.mark.parametrize(
+    ("lower", "upper", "message"),
+    [
+        (-1e308, 1e308, "too large"),  # the size overflows: the planner node once ran out of memory
+        (-1e307, 1e307, "too large"),  # finite size, overflowing diagonal and volume
+        (-1e-300, 1e-300, "too small"),  # volume and check spacing underflow
+    ],
+)
+def test_custom_world_sizes_that_break_the_arithmetic_are_refused(
+    lower: float, upper: float, message: str
+) -> None:
+    with pytest.raises(ScenarioError, match=message):
+        scenarios.custom([lower, lower], [upper, upper], [], [0.0, 0.0], [0.0, 0.0])
+    big = scenarios.custom([-1e100, -1e100], [1e100, 1e100], [], [-1.0, 0.0], [1.0, 0.0])
+    assert big.dim == 2  # large but finite worlds stay allowed
+    with pytest.raises(ScenarioError, match="resolution must be in"):
+        scenarios.custom([0, 0], [1, 1], [], [0.1, 0.1], [0.9, 0.9], resolution=0.0)
