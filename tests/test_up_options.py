@@ -36,3 +36,28 @@ def test_bad_options_start_nothing(tmp_path: Path, options: list[str], message: 
     assert message in process.stderr and "Traceback" not in process.stderr
     assert "lit up: run" not in process.stdout  # nothing started
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bag"]  # no runs/ folder either
+
+
+@pytest.mark.parametrize(
+    ("command", "message"),
+    [
+        (["demo", "--time", "-1"], "lit demo: --time must be a positive number"),
+        (["demo", "--local", "--time", "0"], "lit demo: --time must be a positive number"),
+        (["demo", "--plans", "0"], "lit demo: --plans must be 1 or more"),
+        (["call", "--timeout", "-1", "decide"], "--timeout must be a positive number"),
+        (["call", "--wait", "nan", "decide"], "--wait must be a positive number"),
+        (["call", "decide", "--repeat", "0"], "--repeat must be 1 or more"),
+    ],
+)
+def test_demo_and_call_refuse_bad_options_before_starting(
+    tmp_path: Path, command: list[str], message: str
+) -> None:
+    process = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", *command],
+        cwd=tmp_path,
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID="1"),
+        capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert process.returncode == 2, process.stdout + process.stderr
+    assert message in process.stderr and "Traceback" not in process.stderr
+    assert not list(tmp_path.iterdir())

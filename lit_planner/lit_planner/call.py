@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import threading
 import time
@@ -37,12 +38,19 @@ from lit_planner.rosutil import (
     localhost_environment,
 )
 
+DEFAULT_TIMEOUT = 60.0
+"""Seconds to wait for an answer (a plan's own time budget is added)."""
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``lit call {plan,decide,export,raw}``."""
     parser.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the service")
     parser.add_argument(
-        "--timeout", type=float, default=60.0, help="seconds to wait for the answer"
+        "--timeout",
+        type=float,
+        default=None,
+        help=f"seconds to wait for the answer (default {DEFAULT_TIMEOUT:g}, plus the plan's --time "
+        "for plan)",
     )
     parser.add_argument(
         "--payload-only", action="store_true", help="print only the response's payload"
@@ -92,6 +100,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Build the request, call the service, print the answer."""
     try:
+        for label, value in (("--wait", args.wait), ("--timeout", args.timeout)):
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{label} must be a positive number of seconds, got {value}")
+        if getattr(args, "repeat", 1) < 1:
+            raise ValueError(f"--repeat must be 1 or more, got {args.repeat}")
+        if args.timeout is None:  # a long plan must not time out on the client's side for sure
+            plan_time = getattr(args, "time", None) if args.service == "plan" else None
+            args.timeout = DEFAULT_TIMEOUT + (plan_time or 0.0)
         name, text = _request(args)
     except (OSError, ValueError) as exc:
         print(f"lit call: error: {exc}", file=sys.stderr)

@@ -76,6 +76,13 @@ def run(args: argparse.Namespace) -> int:
     try:
         scenario = scenarios.get(args.scenario)
         planning.check_seed(args.seed)
+        if args.time is not None and not (math.isfinite(args.time) and args.time > 0):
+            raise LitPlannerError(f"--time must be a positive number of seconds, got {args.time}")
+        if not args.local and (args.plans < 1 or args.training_episodes < 0):
+            raise LitPlannerError(
+                f"--plans must be 1 or more and --training-episodes 0 or more, got {args.plans} "
+                f"and {args.training_episodes}"
+            )
     except LitPlannerError as error:
         print(f"lit demo: {error}", file=sys.stderr)
         return plan_cli.EXIT_BAD_INPUT
