@@ -514,6 +514,8 @@ def test_bad_input_is_answered_with_errors(ros: RosSystem) -> None:
         assert error["code"] == code, f"{case}: {error}"
         assert error["field"] == field, f"{case}: {error}"
         assert words in error["message"], f"{case}: {error}"
+        if code == "invalid-request" and case.startswith("plan"):  # the request it answers
+            assert error["request_schema"] == "PlanRequest" and error["request_seq"] is not None
 
     # Time running backwards within an episode: the learner can pair no transition from it.
     episode = {"episode_id": "backwards", "agent": "psi_K"}

@@ -87,6 +87,8 @@ class Job:
     max_iterations: int = 0
     max_batches: int = 0
     request_id: str | None = None
+    request_seq: int | None = None
+    """The plan request's envelope seq (for an Error that answers it)."""
     episode_id: str = ""
     done: threading.Event = field(default_factory=threading.Event)
     result: dict[str, Any] | None = None
@@ -214,7 +216,7 @@ class PlannerNode:
         reply = self.envelopes["reply"]
         try:
             message = decode(request.load_namespace, accept="PlanRequest")
-            job = self._job_from_request(message.payload)
+            job = self._job_from_request(message.payload, message.seq)
         except MessageError as exc:
             response.success, response.message = False, reply.error(exc)
             self.log.warning(f"plan request rejected: {exc}")
@@ -286,7 +288,7 @@ class PlannerNode:
                 )
         return problem
 
-    def _job_from_request(self, payload: dict[str, Any]) -> Job:
+    def _job_from_request(self, payload: dict[str, Any], seq: int | None = None) -> Job:
         from lit_planner.errors import ScenarioError
 
         where = "world" if "world" in payload else "scenario"  # for the Error's field
@@ -297,7 +299,7 @@ class PlannerNode:
             where = first if first in ("start", "goal") else where
             raise MessageError(
                 "invalid-request", str(exc), field=f"$.payload.{where}", rule=where,
-                request_schema="PlanRequest",
+                request_schema="PlanRequest", request_seq=seq,
             ) from exc  # fmt: skip
         if tuple(problem.start) == tuple(problem.goal):
             raise MessageError(
@@ -306,6 +308,7 @@ class PlannerNode:
                 field="$.payload.goal",
                 rule="differs-from-start",
                 request_schema="PlanRequest",
+                request_seq=seq,
             )
         planner = payload.get("planner", "litstar")
         policy = payload.get(
@@ -321,6 +324,7 @@ class PlannerNode:
             max_iterations=int(payload.get("max_iterations", 0)),
             max_batches=int(payload.get("max_batches", 0)),
             request_id=payload.get("request_id"),
+            request_seq=seq,
             episode_id=payload.get("request_id") or f"req-{uuid.uuid4().hex[:12]}",
         )
 
@@ -466,6 +470,7 @@ class PlannerNode:
                 field=f"$.payload.{label}" if job.kind == "service" else None,
                 rule="valid-state",
                 request_schema="PlanRequest" if job.kind == "service" else None,
+                request_seq=job.request_seq,
             )
             return
         job.result = result
