@@ -61,3 +61,30 @@ def test_demo_and_call_refuse_bad_options_before_starting(
     assert process.returncode == 2, process.stdout + process.stderr
     assert message in process.stderr and "Traceback" not in process.stderr
     assert not list(tmp_path.iterdir())
+
+
+def test_sigterm_stops_lit_call_without_a_traceback() -> None:
+    """rclpy's own SIGTERM handler shuts the context down under the client's wait."""
+    import signal
+    import time
+
+    from ros_helpers import reserve_domain
+
+    domain, lock = reserve_domain()
+    process = subprocess.Popen(
+        [sys.executable, "-m", "lit_planner.cli", "call", "--wait", "60", "decide"],
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain)),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        time.sleep(3.0)  # waiting for a service nobody serves on this domain
+        process.send_signal(signal.SIGTERM)
+        _, err = process.communicate(timeout=60)
+        assert process.returncode == 130, err
+        assert "lit call: interrupted" in err and "Traceback" not in err
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        if lock is not None:
+            lock.close()

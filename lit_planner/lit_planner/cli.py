@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -111,6 +112,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:  # Ctrl-C: the command's own finally blocks have stopped its children
         print(f"lit {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # `lit plan --json | head -c 100`: the reader left; no traceback
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # Python's flush at exit would fail again
+        return 141  # as if killed by SIGPIPE, what a shell reports for such a pipeline
 
 
 if __name__ == "__main__":
