@@ -73,6 +73,12 @@ def test_parts_switched_off_and_ctrl_c_stops_every_child() -> None:
         capture_output=True, text=True, timeout=60, check=False,
     )  # fmt: skip
     assert rejected.returncode == 2 and "must be 0 or more, not -1" in rejected.stderr
+    nothing = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "system-bench", "--episodes", "0", "--calls", "0",
+         "--kills", "0"],
+        capture_output=True, text=True, timeout=60, check=False,
+    )  # fmt: skip
+    assert nothing.returncode == 2 and "nothing to measure" in nothing.stderr
     domain, lock = reserve_domain()
     process = subprocess.Popen(
         [

@@ -398,9 +398,14 @@ class PlannerNode:
             job.done.wait()
             if job.error is not None:
                 self.log.error(f"episode {job.episode_id} failed: {job.error}")
-        self.log.info(f"{p['episodes']} {p['policy']} episodes done")
         if p["exit_when_done"]:
+            self.log.info(f"{p['episodes']} {p['policy']} episodes done")
             self.finished = True
+        else:
+            self.log.info(
+                f"{p['episodes']} {p['policy']} episodes done; still serving plan requests until "
+                "stopped (Ctrl-C or SIGTERM)"
+            )
 
     def _wait_for_subscribers(self, count: int, timeout: float) -> bool:
         """Until each topic has ``count`` matched subscriptions (a recorder, a client): topics are

@@ -67,6 +67,10 @@ def _count(text: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Run the three measurements (those not switched off with a count of 0) as tables."""
+    if not (args.calls or args.episodes or args.kills):
+        print("lit system-bench: --calls, --episodes and --kills are all 0: nothing to measure",
+              file=sys.stderr)  # fmt: skip
+        return 2
     with tempfile.TemporaryDirectory(prefix="lit-system-bench-") as folder:
         work = Path(folder)
         system = System(args.domain_id, work, echo=None)
