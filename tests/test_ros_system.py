@@ -430,6 +430,14 @@ BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
         "nothing to plan",
     ),
     (
+        "plan: a policy for an OMPL planner",  # was silently ignored
+        ["plan", "--scenario", "np4", "--planner", "aitstar", "--policy", "tensor"],
+        None,
+        "invalid-request",
+        "$.payload.policy",
+        "aitstar takes no policy",
+    ),
+    (
         "plan: unknown scenario",
         ["plan", "--scenario", "zz9"],
         None,

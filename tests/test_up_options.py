@@ -47,6 +47,7 @@ def test_bad_options_start_nothing(tmp_path: Path, options: list[str], message: 
         (["call", "--timeout", "-1", "decide"], "--timeout must be a positive number"),
         (["call", "--wait", "nan", "decide"], "--wait must be a positive number"),
         (["call", "decide", "--repeat", "0"], "--repeat must be 1 or more"),
+        (["call", "plan", "--world", "/dev/null"], "/dev/null: not valid JSON"),
     ],
 )
 def test_demo_and_call_refuse_bad_options_before_starting(

@@ -176,7 +176,10 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
     if args.service == "plan":
         payload: dict[str, Any] = {}
         if args.world is not None:
-            document = json.loads(args.world.read_text(encoding="utf-8"))
+            try:
+                document = json.loads(args.world.read_text(encoding="utf-8"))
+            except ValueError as exc:  # JSONDecodeError, UnicodeDecodeError
+                raise ValueError(f"{args.world}: not valid JSON: {exc}") from exc
             if not isinstance(document, dict):
                 raise ValueError(f"{args.world}: expected a JSON object")
             if "world" in document:

@@ -311,6 +311,15 @@ class PlannerNode:
                 request_seq=seq,
             )
         planner = payload.get("planner", "litstar")
+        if planner != "litstar" and "policy" in payload:
+            raise MessageError(
+                "invalid-request",
+                f"policy {payload['policy']!r} is LIT*'s; {planner} takes no policy",
+                field="$.payload.policy",
+                rule="litstar-only",
+                request_schema="PlanRequest",
+                request_seq=seq,
+            )
         policy = payload.get(
             "policy", "tensor" if self.params["policy"] == "training" else self.params["policy"]
         )
