@@ -175,7 +175,8 @@ def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
     finally:
         codes = system.stop()
     wall = time.monotonic() - started
-    return _report(scenario, training, plans, codes, bag, wall)
+    budget = args.time if args.time is not None else scenario.time_budget
+    return _report(scenario, training, plans, codes, bag, wall, budget)
 
 
 def _quiet_echo(line: str) -> None:
@@ -285,6 +286,7 @@ def _report(
     codes: dict[str, int | None],
     bag: Path,
     wall: float,
+    budget: float,
 ) -> int:
     print()
     print(f"Training over ROS ({len(training)} episodes; learner decided every B and psi_K):")
@@ -325,7 +327,7 @@ def _report(
         print()
         print(f"First inference plan in detail (seed {plans[0][0]}):")
         first["improvements"] = [tuple(x) for x in first["improvements"]]
-        first.setdefault("time_budget", None)
+        first["time_budget"] = budget  # what the plan requests asked for
         try:
             print("\n".join(plan_cli.summary_lines(first, scenario)))
         except (KeyError, TypeError):
