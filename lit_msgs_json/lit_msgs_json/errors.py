@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+MAX_DETAIL = 400
+"""Characters of a violation's description kept in the message (its start and its end)."""
+
 
 class SchemaError(ValueError):
     """A document does not satisfy its JSON Schema.
@@ -10,6 +13,8 @@ class SchemaError(ValueError):
     """
 
     def __init__(self, schema: str, json_path: str, rule: str, detail: str) -> None:
+        if len(detail) > MAX_DETAIL:  # jsonschema quotes the whole value: a 2000-number array
+            detail = f"{detail[: MAX_DETAIL // 2]} … {detail[-MAX_DETAIL // 4 :]}"
         super().__init__(f"{schema}: {json_path}: {detail} (rule: {rule})")
         self.schema = schema
         """Name of the schema, e.g. ``TensorSidecar``."""

@@ -158,3 +158,17 @@ def test_dumps_and_loads_round_trip_and_reject_nan() -> None:
             {**good_sidecar(), "fuzzification": {"centres": [0, 0.5, 1], "sigma": float("inf")}},
         )
     assert issubclass(SchemaError, ValueError)
+
+
+def test_a_huge_violating_value_is_shortened_in_the_message() -> None:
+    from lit_msgs_json.errors import MAX_DETAIL, SchemaError
+
+    from lit_msgs_json import codec
+
+    world = {"lower": [0.0] * 2000, "upper": [1.0] * 2000, "boxes": []}
+    document = {"world": world, "start": [0.5] * 2000, "goal": [0.6] * 2000}
+    with pytest.raises(SchemaError) as caught:
+        codec.validate("PlanRequest", document)
+    message = str(caught.value)
+    assert len(message) < MAX_DETAIL + 100 and "…" in message
+    assert message.startswith("PlanRequest: $.") and message.endswith("(rule: maxItems)")
