@@ -764,3 +764,31 @@ def test_replay_outputs_beside_checked_in_bags_are_ignored_by_git() -> None:
         cwd=ROOT, capture_output=True, text=True, check=True,
     )  # fmt: skip
     assert tracked.stdout == ""
+
+
+def test_verify_of_a_bag_with_unreadable_lit_messages_is_incomplete(tmp_path: Path) -> None:
+    """Valid paths, but one LIT* message that cannot be read and one from another program: the
+    unreadable one makes verify exit 1 (not everything was checked); the foreign one does not."""
+    world = scenarios.get("np4")
+    around = [list(world.start), [-0.15, 0.1, 0.0, 0.0], [0.15, 0.1, 0.0, 0.0], list(world.goal)]
+    record = {"scenario": "np4", "instance": 0, "solved": True, "planner": "x", "run": 0}
+    path = tmp_path / "bench"
+    with BagRecorder(path, run_id="v") as recorder:
+        recorder.add_topic(bag.BENCH_RUN_TOPIC, bag.STRING_TYPE)
+        recorder.add_topic("/other/topic", bag.STRING_TYPE)
+        payload = {**record, "path": around, "path_valid": True}
+        text = envelope(bag.BENCH_RUN_SCHEMA, 0, "lit_bench", "v", payload, stamp_ns=0)
+        recorder.write_string(bag.BENCH_RUN_TOPIC, text, 10)
+        recorder.write_string("/other/topic", "hello", 11)
+    clean = _replay("verify", path)
+    assert clean.returncode == 0, clean.stdout + clean.stderr  # a foreign topic is no damage
+    with BagRecorder(tmp_path / "broken", run_id="v") as recorder:
+        recorder.add_topic(bag.BENCH_RUN_TOPIC, bag.STRING_TYPE)
+        recorder.write_string(bag.BENCH_RUN_TOPIC, text, 10)
+        recorder.write_string(bag.BENCH_RUN_TOPIC, "{not json", 11)
+    result = _replay("verify", tmp_path / "broken")
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "1 paths checked: 1 valid, 0 invalid" in result.stdout
+    assert "verify: incomplete: 0 recorded runs could not be checked and 1 LIT* messages" in (
+        result.stdout
+    )

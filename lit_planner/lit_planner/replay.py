@@ -149,6 +149,10 @@ class Trajectory:
     path: list[list[float]]
 
 
+BENIGN_SKIPS = frozenset({"foreign topic"})
+"""Reasons to skip a message that say nothing against the bag (another program's topics)."""
+
+
 @dataclass
 class Skipped:
     """Messages left out, counted by reason, with the first few examples."""
@@ -1550,7 +1554,13 @@ def _verify(args: argparse.Namespace) -> int:
     )
     for example in report.unchecked.examples + skipped.examples[: skipped.max_examples]:
         print(f"  {example}")
-    return 1 if report.invalid else 0
+    damaged = sum(n for reason, n in skipped.counts.items() if reason not in BENIGN_SKIPS)
+    if not report.invalid and (damaged or report.unchecked.total):
+        print(
+            f"{PROG} verify: incomplete: {report.unchecked.total} recorded runs could not be "
+            f"checked and {damaged} LIT* messages could not be read (see above)"
+        )
+    return 1 if report.invalid or damaged or report.unchecked.total else 0
 
 
 def _compact(args: argparse.Namespace) -> int:
