@@ -789,6 +789,7 @@ def test_verify_of_a_bag_with_unreadable_lit_messages_is_incomplete(tmp_path: Pa
     result = _replay("verify", tmp_path / "broken")
     assert result.returncode == 1, result.stdout + result.stderr
     assert "1 paths checked: 1 valid, 0 invalid" in result.stdout
-    assert "verify: incomplete: 0 recorded runs could not be checked and 1 LIT* messages" in (
-        result.stdout
+    assert (
+        "verify: incomplete: 0 recorded runs could not be checked and 1 LIT* messages are damaged"
+        in (result.stdout)
     )
