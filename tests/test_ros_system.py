@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import signal
+import time
 from pathlib import Path
 from typing import Any
 
@@ -548,6 +549,29 @@ def test_bad_input_is_answered_with_errors(ros: RosSystem) -> None:
 
 
 # ---------------------------------------------------------------------- 6. domains
+
+
+def _nice_values(pid: int) -> dict[int, int]:
+    """Nice value of each thread of ``pid`` (field 19 of /proc/<pid>/task/<tid>/stat)."""
+    values = {}
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+        values[int(task.name)] = int(fields[16])  # fields after the name start at field 3
+    return values
+
+
+def test_learner_trains_at_a_lower_priority_than_it_answers(ros: RosSystem) -> None:
+    """Only the trainer thread is niced; the thread that answers decisions is not."""
+    learner = ros.learner()
+    _ready(learner)
+    deadline = time.monotonic() + 30
+    while 10 not in _nice_values(learner.pid).values() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    values = _nice_values(learner.pid)
+    assert sorted(values.values()).count(10) == 1, values
+    assert values[learner.pid] == 0 and sum(v == 0 for v in values.values()) >= 2, values
+    result = ros.call("decide", "--agent", "psi_K")
+    assert result.returncode == 0, result
 
 
 def test_domains_are_isolated(ros: RosSystem) -> None:

@@ -129,13 +129,19 @@ def plot_training_curves(metrics_path: Path, output: Path, bins: int) -> Path:
         axis.plot(x, y, alpha=0.25, linewidth=0.8)
         window = min(ROLLING_WINDOW, len(y))
         smooth = np.convolve(y, np.ones(window) / window, mode="valid")
-        axis.plot(x[window - 1 :], smooth, label=f"{label} (mean of {window})")
+        marker = "o" if len(smooth) < 3 else None  # a line of one point is not drawn
+        axis.plot(x[window - 1 :], smooth, marker=marker, label=f"{label} (mean of {window})")
+
+    def note_if_empty(axis, text: str) -> None:
+        if not axis.lines:
+            axis.text(0.5, 0.5, text, ha="center", va="center", transform=axis.transAxes)
 
     for agent, axis in zip(AGENT_NAMES, axes[0, :2], strict=True):
         curve(axis, f"charts/return_{agent}", f"return {agent}")
         axis.set_title(f"episode return, {agent} agent")
         axis.set_xlabel("episode")
         axis.legend(loc="best", fontsize=8) if axis.lines else None
+        note_if_empty(axis, f"no {agent} episode yet")
     loss_axis = axes[0, 2]
     for agent in AGENT_NAMES:
         curve(loss_axis, f"losses/critic_{agent}", f"critic loss {agent}")
@@ -143,6 +149,8 @@ def plot_training_curves(metrics_path: Path, output: Path, bins: int) -> Path:
     loss_axis.set_title("critic losses")
     loss_axis.set_xlabel("episode")
     loss_axis.legend(loc="best", fontsize=8) if loss_axis.lines else None
+    warming_up = "no gradient step yet\n(the replay buffers are still in their warm-up)"
+    note_if_empty(loss_axis, warming_up)
     q_axis = axes[1, 2]
     for agent in AGENT_NAMES:
         curve(q_axis, f"losses/actor_{agent}", f"actor loss {agent} (= -mean Q)")
@@ -150,6 +158,7 @@ def plot_training_curves(metrics_path: Path, output: Path, bins: int) -> Path:
     q_axis.set_title("actor losses and mean Q")
     q_axis.set_xlabel("episode")
     q_axis.legend(loc="best", fontsize=7) if q_axis.lines else None
+    note_if_empty(q_axis, warming_up)
 
     for agent, axis in zip(AGENT_NAMES, axes[1, :2], strict=True):
         counts = np.asarray(

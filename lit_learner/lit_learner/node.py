@@ -26,6 +26,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import json
+import os
 import sys
 import threading
 import time
@@ -50,6 +51,12 @@ from lit_learner.errors import PairingError
 from lit_learner.messages import DecisionRequest, EpisodeEnd
 
 NODE_NAME = "lit_learner"
+TRAINER_NICE = 10
+"""Nice value of the trainer thread. Gradient steps run as long as the scheduler gives them a
+core; decisions and the DDS threads that carry them must not queue behind them. Measured while the
+B agent trained on a `lit call decide --repeat 3000` stream (two by two A/B runs, nice 10 and 19):
+round-trip medians 0.45-0.51 ms against 0.47-0.58 ms, and 3-10 instead of 7-27 answers slower than
+5 ms per 3000."""
 
 
 class LearnerNode:
@@ -78,6 +85,7 @@ class LearnerNode:
             "stats_period": 1.0,
             "run_id": "",
             "service": DECIDE_SERVICE,
+            "trainer_nice": TRAINER_NICE,
         }.items():
             node.declare_parameter(name, default)
             p[name] = node.get_parameter(name).value
@@ -317,6 +325,12 @@ class LearnerNode:
 
     def _train(self) -> None:
         """Run owed gradient steps one by one; checkpoint and export when due."""
+        nice = int(self.params["trainer_nice"])
+        if nice:
+            try:  # Linux: a thread's own nice value (raising it needs no privilege)
+                os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), nice)
+            except (OSError, AttributeError) as exc:
+                self.log.warning(f"trainer_nice {nice} not applied: {exc}")
         while True:
             with self._work:
                 while (

@@ -79,6 +79,7 @@ CHECKPOINT_DIR = "checkpoints"
 B_PHASE_TENSORS = "b_phase_tensors"
 PROVENANCE_FILE = "provenance.json"
 STATE_SUFFIX = ".driver.json"
+LOCK_FILE = ".lit-train.lock"
 INTERRUPTED_NOTE = " (interrupted: --resume the final checkpoint to continue)"
 """Ends the summary's first line of a run stopped by Ctrl-C or SIGTERM (exit code 130)."""
 
@@ -420,6 +421,8 @@ class DriverState:
     started_utc: str = ""
     resumed_with: list[list[str]] = field(default_factory=list)
     """Commands that resumed the run, in order."""
+    checkpoint_every: int = DEFAULT_CHECKPOINT_EVERY
+    """``--checkpoint-every`` of the run (a resume keeps it unless given again)."""
 
     def save(self, path: Path) -> None:
         path.write_text(json.dumps(dataclasses.asdict(self), indent=2) + "\n")
@@ -543,9 +546,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--checkpoint-every",
         type=int,
-        default=DEFAULT_CHECKPOINT_EVERY,
+        default=None,
         metavar="N",
-        help=f"checkpoint every N episodes, the last {KEEP_CHECKPOINTS} kept (0: final only)",
+        help=f"checkpoint every N episodes, the last {KEEP_CHECKPOINTS} kept (0: final only; "
+        f"default {DEFAULT_CHECKPOINT_EVERY}, or the resumed run's)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument(
@@ -645,6 +649,8 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
     command = ["lit", "train", *(sys.argv[2:] if sys.argv[1:2] == ["train"] else sys.argv[1:])]
     if args.decision_interval < 1:
         raise TrainingError(f"--decision-interval must be at least 1, got {args.decision_interval}")
+    if args.checkpoint_every is not None and args.checkpoint_every < 0:
+        raise TrainingError(f"--checkpoint-every must be 0 or more, got {args.checkpoint_every}")
     for label, value in (("--episodes", args.episodes), ("--minutes", args.minutes)):
         if value is not None and not value > 0:
             raise TrainingError(f"{label} must be positive, got {value}")
@@ -682,6 +688,8 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
         if args.minutes is not None:
             state.minutes = args.minutes
         state.resumed_with.append(command)
+        if args.checkpoint_every is not None:
+            state.checkpoint_every = args.checkpoint_every
         rng = np.random.default_rng()
         rng.bit_generator.state = state.rng_state
     else:
@@ -704,6 +712,9 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
             minutes=args.minutes,
             command=command,
             started_utc=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            checkpoint_every=(
+                DEFAULT_CHECKPOINT_EVERY if args.checkpoint_every is None else args.checkpoint_every
+            ),
         )
         config = hooks.learner_config or LearnerConfig(seed=args.seed)
         if w_search is not None:
@@ -714,6 +725,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
         rng = np.random.default_rng(args.seed)
     distribution = TrainingDistribution(state.scenarios, rng)  # checks the names first
     run_dir.mkdir(parents=True, exist_ok=True)
+    lock = _lock_run_folder(run_dir)  # held until this process ends
     b_range = agent_range(core.config.b, (20.0, 200.0))
     k_range = agent_range(core.config.k, (3.0, 12.0 + 3.0))
     ranges = {"B": b_range, "psi_K": k_range}
@@ -765,7 +777,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
                 hooks.on_episode(outcome)
             _advance(progress, state, outcome)
             interrupted = outcome.interrupted
-            if args.checkpoint_every > 0 and state.episode % args.checkpoint_every == 0:
+            if state.checkpoint_every > 0 and state.episode % state.checkpoint_every == 0:
                 periodic.append(
                     _checkpoint(core, state, rng, run_dir, f"episode-{state.episode:07d}")
                 )
@@ -805,7 +817,22 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
                 f"  (replaced the tensors that were in {args.export}; other files there, such as a "
                 "README or an evaluation, still describe the previous ones)"
             )
+    lock.close()
     return "\n".join(lines)
+
+
+def _lock_run_folder(run_dir: Path) -> Any:
+    """An exclusive lock on the run folder: two `lit train` processes appending to one run's
+    metrics and checkpoints would interleave them."""
+    import fcntl
+
+    handle = (run_dir / LOCK_FILE).open("w")
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        handle.close()
+        raise TrainingError(f"{run_dir} is in use by another lit train process") from None
+    return handle
 
 
 def export(core: Any, directory: Path, record: dict[str, Any], curves: Path | None) -> dict:

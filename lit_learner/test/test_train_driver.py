@@ -292,3 +292,24 @@ def test_unknown_scenario_leaves_no_run_folder(tmp_path: Path) -> None:
     with pytest.raises(train.TrainingError):
         train.train(arguments(tmp_path / "run", episodes=2, scenarios="foo4"))
     assert not (tmp_path / "run").exists()
+
+
+def test_resume_keeps_the_runs_checkpoint_interval_and_one_process_per_run(
+    tmp_path: Path,
+) -> None:
+    import fcntl
+
+    run_dir = tmp_path / "run"
+    hooks = train.TrainingHooks(learner_config=small_config())
+    train.train(arguments(run_dir, episodes=2, scenarios="np4", checkpoint_every=1), hooks)
+    final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
+    train.train(arguments(run_dir, episodes=4, resume=final))  # no --checkpoint-every: the run's
+    names = sorted(path.name for path in (run_dir / train.CHECKPOINT_DIR).glob("*.ckpt"))
+    assert names == ["episode-0000003.ckpt", "episode-0000004.ckpt", "final.ckpt"]
+
+    with (run_dir / train.LOCK_FILE).open("w") as held:  # as another lit train would hold it
+        fcntl.flock(held, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(train.TrainingError, match="in use by another lit train process"):
+            train.train(arguments(run_dir, episodes=6, resume=final))
+    with pytest.raises(train.TrainingError, match="--checkpoint-every must be 0 or more"):
+        train.train(arguments(tmp_path / "other", episodes=2, checkpoint_every=-1))
