@@ -749,7 +749,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
     recording = None if args.no_bag else _open_bag(args, state, run_dir)
     progress = _progress(state, disable=args.no_progress)
     session_start = time.perf_counter() - state.elapsed
-    periodic: list[Path] = []
+    periodic = _earlier_checkpoints(run_dir, state.episode)  # a resumed run prunes them too
     interrupted = False
     try:
         while not (_finished(state) or interrupted):
@@ -819,6 +819,16 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
             )
     lock.close()
     return "\n".join(lines)
+
+
+def _earlier_checkpoints(run_dir: Path, episode: int) -> list[Path]:
+    """The run's periodic checkpoints up to ``episode``, oldest first."""
+    found = []
+    for path in (run_dir / CHECKPOINT_DIR).glob("episode-*.ckpt"):
+        number = path.stem.removeprefix("episode-")
+        if number.isdigit() and int(number) <= episode:
+            found.append((int(number), path))
+    return [path for _, path in sorted(found)]
 
 
 def _lock_run_folder(run_dir: Path) -> Any:
