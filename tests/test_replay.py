@@ -601,8 +601,12 @@ def _sample_copy(tmp_path: Path, name: str) -> Path:
     return copy
 
 
-def _rerecorded(source: Path, target: Path, change: dict[str, Any] | None = None) -> Path:
-    """``source``'s messages in a new bag; ``change`` updates the payload of BenchRun seq 0."""
+def _rerecorded(
+    source: Path, target: Path, change: dict[str, Any] | None = None, *, new_run: bool = False
+) -> Path:
+    """``source``'s messages in a new bag; ``change`` updates the payload of BenchRun seq 0;
+    ``new_run``: the config message gets another stamp (another run with the same run id, as two
+    `lit bench` runs with the same --out name)."""
     from rosbags.rosbag2 import Reader
 
     with Reader(source) as reader, BagRecorder(target, run_id="copy") as recorder:
@@ -613,6 +617,8 @@ def _rerecorded(source: Path, target: Path, change: dict[str, Any] | None = None
             document = json.loads(text)
             if change and document["schema"] == bag.BENCH_RUN_SCHEMA and document["seq"] == 0:
                 document["payload"].update(change)
+            if new_run and document["schema"] == bag.BENCH_CONFIG_SCHEMA:
+                document["stamp_ns"] += 1
             recorder.write_string(connection.topic, json.dumps(document), stamp)
     return target
 
@@ -644,6 +650,10 @@ def test_bench_replay_counts_each_bag_and_record_once(tmp_path: Path) -> None:
     _assert_clean_error(
         _replay("bench", first, conflicting, "--out", tmp_path / "o3"), "differs from the record"
     )
+    # Two runs that share a run id (the same --out name) are two runs: both count.
+    rerun = _rerecorded(SAMPLE, tmp_path / "rerun", {"t_init": 1.0}, new_run=True)
+    both = replay.read_bench([first, rerun])
+    assert (len(both.runs), len(both.duplicates), both.missing) == (4, 0, 0)
 
 
 @pytest.mark.parametrize("command", ["info", "verify", "compact"])

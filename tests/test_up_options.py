@@ -19,7 +19,10 @@ import pytest
         (["--time-budget", "-1"], "--time-budget must be 0"),
         (["--time-budget", "nan"], "--time-budget must be 0"),
         (["--episodes", "-1"], "--episodes must be 0"),
-        (["--run-id", "../escape"], "--run-id '../escape': use letters"),
+        (["--run-id", "../escape"], "--run-id '../escape': a folder name"),
+        (["--run-id", "42"], "starts with a letter"),  # ROS would read -p run_id:=42 as a number
+        (["--run-id", "yes"], "not a YAML word"),
+        (["--planner-param", "bogus"], "expected NAME:=VALUE, got 'bogus'"),
         (["--bag", "EXISTING"], "exists already"),
     ],
 )

@@ -328,7 +328,9 @@ class LearnerNode:
         nice = int(self.params["trainer_nice"])
         if nice:
             try:  # Linux: a thread's own nice value (raising it needs no privilege)
-                os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), nice)
+                thread = threading.get_native_id()
+                current = os.getpriority(os.PRIO_PROCESS, thread)  # never above the process's
+                os.setpriority(os.PRIO_PROCESS, thread, max(nice, current))
             except (OSError, AttributeError) as exc:
                 self.log.warning(f"trainer_nice {nice} not applied: {exc}")
         while True:

@@ -750,12 +750,19 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
     progress = _progress(state, disable=args.no_progress)
     session_start = time.perf_counter() - state.elapsed
     periodic = _earlier_checkpoints(run_dir, state.episode)  # a resumed run prunes them too
+    for later in _later_checkpoints(run_dir, state.episode):  # of the history dropped above
+        later.unlink(missing_ok=True)
+        state_path(later).unlink(missing_ok=True)
+        print(f"lit train: removed {later} (after the checkpoint resumed from)", file=sys.stderr)
     interrupted = False
     try:
         while not (_finished(state) or interrupted):
             phase = _phase_for(state)
             if phase == PHASE_K and state.phase != PHASE_K:
-                progress.write("lit train: B phase done; exporting its B tensor (a few seconds)")
+                progress.write(
+                    "lit train: B phase done; exporting its B tensor (a few seconds)",
+                    file=sys.stderr,
+                )
                 b_tensor = _switch_to_k(core, state, run_dir)
             state.phase = phase
             spec = distribution.draw(state.episode)
@@ -821,14 +828,25 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
     return "\n".join(lines)
 
 
-def _earlier_checkpoints(run_dir: Path, episode: int) -> list[Path]:
-    """The run's periodic checkpoints up to ``episode``, oldest first."""
+def _periodic_checkpoints(run_dir: Path) -> list[tuple[int, Path]]:
+    """(episode, path) of the run's periodic checkpoints, oldest first."""
     found = []
     for path in (run_dir / CHECKPOINT_DIR).glob("episode-*.ckpt"):
         number = path.stem.removeprefix("episode-")
-        if number.isdigit() and int(number) <= episode:
+        if number.isdigit():
             found.append((int(number), path))
-    return [path for _, path in sorted(found)]
+    return sorted(found)
+
+
+def _earlier_checkpoints(run_dir: Path, episode: int) -> list[Path]:
+    """The run's periodic checkpoints up to ``episode``, oldest first."""
+    return [path for number, path in _periodic_checkpoints(run_dir) if number <= episode]
+
+
+def _later_checkpoints(run_dir: Path, episode: int) -> list[Path]:
+    """The run's periodic checkpoints after ``episode`` (a resume from an earlier checkpoint
+    trains those episodes again; the files would look like the run's newest state)."""
+    return [path for number, path in _periodic_checkpoints(run_dir) if number > episode]
 
 
 def _lock_run_folder(run_dir: Path) -> Any:
@@ -923,7 +941,7 @@ def _row(outcome: EpisodeOutcome, core: Any, ranges: dict[str, tuple[float, floa
 
 class _NoProgress:
     def update(self, *_: object) -> None: ...
-    def write(self, *_: object) -> None: ...
+    def write(self, *_: object, **__: object) -> None: ...
     def set_postfix(self, *_: object, **__: object) -> None: ...
     def close(self) -> None: ...
 

@@ -263,7 +263,11 @@ def test_resume_from_an_earlier_checkpoint_trains_its_episodes_again_once(
     train.train(arguments(run_dir, episodes=6, scenarios="np4", checkpoint_every=3), hooks)
     earlier = run_dir / train.CHECKPOINT_DIR / "episode-0000003.ckpt"
     train.train(arguments(run_dir, episodes=5, resume=earlier))
-    assert "dropped the rows of 3 episodes after the checkpoint" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "dropped the rows of 3 episodes after the checkpoint" in err
+    assert "removed" in err and "episode-0000006.ckpt" in err  # of the dropped history
+    names = sorted(path.name for path in (run_dir / train.CHECKPOINT_DIR).glob("*.ckpt"))
+    assert names == ["episode-0000003.ckpt", "final.ckpt"]
     with (run_dir / METRICS_FILE).open(newline="") as handle:
         assert [int(row["episode"]) for row in csv.DictReader(handle)] == [0, 1, 2, 3, 4]
 

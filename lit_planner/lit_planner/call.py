@@ -105,10 +105,10 @@ def run(args: argparse.Namespace) -> int:
                 raise ValueError(f"{label} must be a positive number of seconds, got {value}")
         if getattr(args, "repeat", 1) < 1:
             raise ValueError(f"--repeat must be 1 or more, got {args.repeat}")
-        if args.timeout is None:  # a long plan must not time out on the client's side for sure
-            plan_time = getattr(args, "time", None) if args.service == "plan" else None
-            args.timeout = DEFAULT_TIMEOUT + (plan_time or 0.0)
         name, text = _request(args)
+        if args.timeout is None:  # a long plan must not time out on the client's side for sure
+            plan_time = json.loads(text)["payload"].get("time") if args.service == "plan" else None
+            args.timeout = DEFAULT_TIMEOUT + float(plan_time or 0.0)
     except (OSError, ValueError) as exc:
         print(f"lit call: error: {exc}", file=sys.stderr)
         return 2

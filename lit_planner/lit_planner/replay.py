@@ -1300,7 +1300,9 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
     skipped = Skipped()
     config: Envelope | None = None
     runs: list[Envelope] = []
-    first_seen: dict[tuple[str, str, str, int], tuple[Envelope, str | Path]] = {}
+    # A record's identity: its run (the stamp of the run's config message: copies of one bag
+    # share it, two runs with the same --out name do not), publisher and seq.
+    first_seen: dict[tuple[int, str, str, str, int], tuple[Envelope, str | Path]] = {}
     duplicates: list[str] = []
     for path in paths:
         bag_config, bag_runs = None, []
@@ -1329,7 +1331,7 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
         config = config or bag_config
         bag_runs.sort(key=lambda e: e.seq)
         for item in bag_runs:
-            key = (item.topic, item.source, item.run_id, item.seq)
+            key = (bag_config.stamp_ns, item.topic, item.source, item.run_id, item.seq)
             where = f"{item.topic} seq {item.seq} of run {item.run_id}"
             if key not in first_seen:
                 first_seen[key] = (item, path)
@@ -1347,9 +1349,9 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
         raise NotBenchBagError(
             f"no usable {bag.BENCH_RUN_TOPIC} record in {', '.join(map(str, paths))}"
         )
-    publishers: dict[tuple[str, str, str], list[int]] = {}
-    for topic, source, run_id, seq in first_seen:
-        publishers.setdefault((topic, source, run_id), []).append(seq)
+    publishers: dict[tuple[int, str, str, str], list[int]] = {}
+    for started, topic, source, run_id, seq in first_seen:
+        publishers.setdefault((started, topic, source, run_id), []).append(seq)
     missing = sum(
         b - a - 1 for seqs in publishers.values() for a, b in itertools.pairwise(sorted(seqs))
     )

@@ -183,8 +183,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-_RUN_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,127}")
-"""A run id: a single folder name (no path components), as bags and run folders use it."""
+_RUN_ID = re.compile(r"[A-Za-z][A-Za-z0-9._-]{0,127}")
+"""A run id: a single folder name (no path components), as bags and run folders use it, that
+starts with a letter (ROS reads a ``-p run_id:=42`` parameter as a number)."""
+
+_YAML_WORDS = frozenset({"y", "n", "yes", "no", "on", "off", "true", "false", "null"})
+"""Words ROS parameters read as booleans or null rather than as strings."""
 
 
 def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | None:
@@ -194,8 +198,16 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
     from lit_planner import scenarios
     from lit_planner.errors import LitPlannerError
 
-    if not _RUN_ID.fullmatch(run_id):
-        return f"--run-id {run_id!r}: use letters, digits, '.', '_' and '-' (a folder name)"
+    if not _RUN_ID.fullmatch(run_id) or run_id.lower() in _YAML_WORDS:
+        return (
+            f"--run-id {run_id!r}: a folder name of letters, digits, '.', '_' and '-' that starts "
+            "with a letter and is not a YAML word such as 'yes' or 'null'"
+        )
+    try:
+        _params(args.planner_param)
+        _params(args.learner_param)
+    except ValueError as error:
+        return str(error)
     if args.episodes < 0:
         return f"--episodes must be 0 (serve only) or more, got {args.episodes}"
     if not (math.isfinite(args.time_budget) and args.time_budget >= 0):
@@ -204,7 +216,7 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
         )
     try:
         if args.policy == "training" and args.scenario is not None:
-            TrainingDistribution(args.scenario.split(","), None)
+            TrainingDistribution(_names(args.scenario), None)
         else:
             scenarios.get(args.scenario or DEFAULT_SCENARIO)
     except (LitPlannerError, TrainingError) as error:
@@ -294,11 +306,16 @@ def stop_on_sigterm() -> None:
     signal.signal(signal.SIGTERM, interrupt)
 
 
+def _names(text: str) -> list[str]:
+    """Comma-separated names, as the planner node reads ``training_scenarios``."""
+    return [name.strip() for name in text.split(",") if name.strip()]
+
+
 def _params(items: Sequence[str]) -> dict[str, str]:
     result = {}
     for item in items:
         if ":=" not in item:
-            raise SystemExit(f"lit up: expected NAME:=VALUE, got {item!r}")
+            raise ValueError(f"expected NAME:=VALUE, got {item!r}")
         name, value = item.split(":=", 1)
         result[name] = value
     return result
