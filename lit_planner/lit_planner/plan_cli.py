@@ -81,8 +81,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--interpolation",
         choices=tuple(planning.INTERPOLATIONS),
-        default="trilinear",
-        help="tensor policy lookup (default: %(default)s)",
+        default=None,
+        help="tensor policy lookup (default: trilinear)",
     )
     parser.add_argument(
         "--json", action="store_true", help="print one JSON object (null for infinite values)"
@@ -99,6 +99,11 @@ def run(args: argparse.Namespace) -> int:
                 "the external policy needs a callable and is not available on the command line"
             )
         planning.check_seed(args.seed)
+        if policy != "tensor" and (args.tensors is not None or args.interpolation is not None):
+            raise PlannerError(
+                f"--tensors and --interpolation are for the tensor policy, not for "
+                f"{policy or planner}"
+            )
         planning.quiet_ompl(planner)
         lit_core.set_global_seed(args.seed)
         result = planning.plan(
@@ -110,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
             max_iterations=args.iterations,
             max_batches=args.batches,
             tensors_dir=args.tensors,
-            interpolation=args.interpolation,
+            interpolation=args.interpolation or "trilinear",
         )
     except LitPlannerError as error:
         print(f"lit plan: {error}", file=sys.stderr)

@@ -161,6 +161,10 @@ def make_policy(
             f"unknown interpolation {interpolation!r}; expected one of {', '.join(INTERPOLATIONS)}"
         )
     folder = default_tensors_dir() if tensors_dir is None else Path(tensors_dir)
+    if folder.exists() and not folder.is_dir():
+        raise TensorFileError(
+            f"{folder}: a file; the tensor policy needs the folder of the tensors"
+        )
     tensors = {
         output: load_tensor(folder / file_name, output)
         for output, file_name in TENSOR_FILES.items()

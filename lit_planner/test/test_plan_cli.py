@@ -116,6 +116,9 @@ def test_plan_summary_is_readable() -> None:
         (["--policy", "tensor", "--tensors", "/nonexistent/tensors"], "no lookup tensors"),
         (["--planner", "bitstar", "--iterations", "5"], "stops on time only"),
         (["--seed", "-1"], "seed must be"),
+        (["--policy", "fixed", "--interpolation", "nearest"], "are for the tensor policy"),
+        (["--planner", "aitstar", "--tensors", "tensors"], "not for aitstar"),
+        (["--policy", "tensor", "--tensors", "README.md"], "README.md: a file"),
     ],
 )
 def test_plan_bad_input_is_one_line(args: list[str], message: str) -> None:
