@@ -384,11 +384,17 @@ def _out_dir(requested: Path | None) -> Path:
 def _estimate_formula(config: runner.BenchConfig, estimate: float) -> str:
     budgets = [scenarios.get(name).time_budget * config.time_scale for name in config.scenarios]
     return (
-        f"planning time alone: {config.runs} runs x {len(config.planners)} planners x "
-        f"{sum(budgets):.3g} s (budgets of {len(budgets)} scenarios: "
+        f"planning time alone: {_count(config.runs, 'run')} x "
+        f"{_count(len(config.planners), 'planner')} x {sum(budgets):.3g} s (budgets of "
+        f"{_count(len(budgets), 'scenario')}: "
         f"{' + '.join(f'{b:g}' for b in budgets)}) = {estimate:.4g} s = {estimate / 60:.3g} min; "
         "set-up and the path checks add to this"
     )
+
+
+def _count(number: int, noun: str) -> str:
+    """``1 run``, ``2 runs``."""
+    return f"{number} {noun}{'' if number == 1 else 's'}"
 
 
 def _split(text: str) -> list[str]:
