@@ -803,3 +803,23 @@ def test_verify_of_a_bag_with_unreadable_lit_messages_is_incomplete(tmp_path: Pa
         "verify: incomplete: 0 recorded runs could not be checked and 1 LIT* messages are damaged"
         in (result.stdout)
     )
+
+
+def test_episode_table_groups_the_instances_of_a_random_family() -> None:
+    def summary(scenario: str, cost: float | None) -> dict[str, Any]:
+        return {
+            "mode": "training", "scenario": scenario, "planner": "litstar", "policy": "training",
+            "solved": cost is not None, "t_init": 0.01 if cost else None, "c_init": cost,
+            "cost": cost, "optimal_cost": None, "fallback_decisions": 1, "path_valid": None,
+        }  # fmt: skip
+
+    rows, table = replay.episode_table(
+        [summary("rrd4/458", 2.0), summary("rrd4/12", None), summary("np8", 0.5)]
+    )
+    assert [(r["scenario"], r["instances"], r["queries"], r["solved"]) for r in rows] == [
+        ("np8", 1, 1, 1),
+        ("rrd4 (2 instances)", 2, 2, 1),
+    ]
+    assert rows[1]["median_c_final"] is None  # one of two unsolved: the median is infinite
+    assert rows[1]["fallback_decisions"] == 2
+    assert "| training | rrd4 (2 instances) | litstar | training | 2 | 1 |" in table

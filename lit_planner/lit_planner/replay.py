@@ -1630,10 +1630,14 @@ def read_episode_summaries(paths: Sequence[str | Path]) -> list[dict[str, Any]]:
 def episode_table(summaries: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str, Any]], str]:
     """Per (mode, scenario, planner, policy): queries, solved, medians of t_init, c_init, c_final
     and c_final / optimum (an unsolved query counts as infinite, as in ``lit bench``), fallback
-    decisions and independently re-checked paths. Returns the rows and a markdown table."""
+    decisions and independently re-checked paths. Returns the rows and a markdown table.
+
+    Instances of a random family are one group (``rrd4 (458 instances)``): a training run draws a
+    new instance for nearly every query, and a row per instance says nothing."""
     groups: dict[tuple[str, str, str, str], list[Mapping[str, Any]]] = {}
     for summary in summaries:
-        key = (summary["mode"], summary["scenario"], summary["planner"], summary["policy"])
+        family = str(summary["scenario"]).split("/", 1)[0]
+        key = (summary["mode"], family, summary["planner"], summary["policy"])
         groups.setdefault(key, []).append(summary)
 
     def median(values: list[float | None]) -> float | None:
@@ -1642,14 +1646,16 @@ def episode_table(summaries: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str
         return value if math.isfinite(value) else None
 
     rows = []
-    for (mode, scenario, planner, policy), group in sorted(groups.items()):
+    for (mode, family, planner, policy), group in sorted(groups.items()):
+        instances = sorted({str(s["scenario"]) for s in group})
+        scenario = instances[0] if len(instances) == 1 else f"{family} ({len(instances)} instances)"
         ratios = [
             s["cost"] / s["optimal_cost"] if s["cost"] and s["optimal_cost"] else None
             for s in group
         ]
         rows.append({
             "mode": mode, "scenario": scenario, "planner": planner, "policy": policy,
-            "queries": len(group),
+            "instances": len(instances), "queries": len(group),
             "solved": sum(bool(s["solved"]) for s in group),
             "median_t_init": median([s["t_init"] for s in group]),
             "median_c_init": median([s["c_init"] for s in group]),
