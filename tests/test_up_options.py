@@ -23,6 +23,8 @@ import pytest
         (["--run-id", "42"], "starts with a letter"),  # ROS would read -p run_id:=42 as a number
         (["--run-id", "yes"], "not a YAML word"),
         (["--planner-param", "bogus"], "expected NAME:=VALUE, got 'bogus'"),
+        (["--planner-param", "foo:=1"], "--planner-param: unknown parameter foo; known: scenario"),
+        (["--learner-param", "checkpoint_evry:=5"], "unknown parameter checkpoint_evry"),
         (["--bag", "EXISTING"], "exists already"),
     ],
 )

@@ -68,6 +68,29 @@ MODES = ("tensor", "fit", "fixed", "training")
 """Values of the ``policy`` parameter."""
 FIXED_BATCH, FIXED_FACTOR = 100.0, math.e
 """The fixed policy's values (the fallback when no tensors are available)."""
+PARAMETERS: dict[str, Any] = {
+    "scenario": "np8",
+    "policy": "tensor",
+    "time_budget": 0.0,
+    "seed": 1,
+    "episodes": 0,
+    "learner_service": DECIDE_SERVICE,
+    "decision_timeout": 0.05,
+    "decision_interval": 1,
+    "learner_retry": 1.0,
+    "learner_wait": 10.0,
+    "tensors_dir": "",
+    "training_scenarios": "np4,np8,wg4,wg8,rrd4,rrd8",
+    "training_seed": 7,
+    "queue_limit": 4,
+    "run_id": "",
+    "explore": True,
+    "exit_when_done": False,
+    "wait_for_subscribers": 0,
+    "episodes_from": "",
+}
+"""The node's ROS parameters and their defaults."""
+
 INVALID_TERMINAL = {"invalid_start": "start", "invalid_goal": "goal"}
 """Core statuses that mean the request gave an unusable start or goal."""
 
@@ -107,27 +130,7 @@ class PlannerNode:
 
         self.node = node = Node(NODE_NAME)
         self.log = node.get_logger()
-        p = self._declare(
-            scenario="np8",
-            policy="tensor",
-            time_budget=0.0,
-            seed=1,
-            episodes=0,
-            learner_service=DECIDE_SERVICE,
-            decision_timeout=0.05,
-            decision_interval=1,
-            learner_retry=1.0,
-            learner_wait=10.0,
-            tensors_dir="",
-            training_scenarios="np4,np8,wg4,wg8,rrd4,rrd8",
-            training_seed=7,
-            queue_limit=4,
-            run_id="",
-            explore=True,
-            exit_when_done=False,
-            wait_for_subscribers=0,
-            episodes_from="",
-        )
+        p = self._declare(**PARAMETERS)
         self.params = p
         if p["policy"] not in MODES:
             raise SystemExit(

@@ -203,11 +203,19 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
             f"--run-id {run_id!r}: a folder name of letters, digits, '.', '_' and '-' that starts "
             "with a letter and is not a YAML word such as 'yes' or 'null'"
         )
-    try:
-        _params(args.planner_param)
-        _params(args.learner_param)
-    except ValueError as error:
-        return str(error)
+    from lit_learner import node as learner_node
+    from lit_planner import node as planner_node
+
+    for option, given, known in (
+        ("--planner-param", args.planner_param, planner_node.PARAMETERS),
+        ("--learner-param", args.learner_param, learner_node.PARAMETERS),
+    ):
+        try:
+            unknown = sorted(set(_params(given)) - set(known) - {"use_sim_time"})  # ROS's own
+        except ValueError as error:
+            return f"{option}: {error}"
+        if unknown:
+            return f"{option}: unknown parameter {', '.join(unknown)}; known: {', '.join(known)}"
     if args.episodes < 0:
         return f"--episodes must be 0 (serve only) or more, got {args.episodes}"
     if not (math.isfinite(args.time_budget) and args.time_budget >= 0):
