@@ -121,7 +121,7 @@ def test_bench_rejects_bad_input(tmp_path: Path) -> None:
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "keep.txt").write_text("mine")
     result = _lit("bench", "--quick", "--out", str(tmp_path / "full"))
-    assert result.returncode == 2 and "not an empty folder" in result.stderr
+    assert result.returncode == 2 and "exists and is not empty" in result.stderr
     for option in ("--scenarios", "--planners"):
         result = _lit("bench", option, " ", "--out", str(tmp_path / "y"))
         assert result.returncode == 2 and "need at least one scenario" in result.stderr

@@ -52,11 +52,10 @@ from lit_learner.messages import DecisionRequest, EpisodeEnd
 
 NODE_NAME = "lit_learner"
 TRAINER_NICE = 10
-"""Nice value of the trainer thread. Gradient steps run as long as the scheduler gives them a
-core; decisions and the DDS threads that carry them must not queue behind them. Measured while the
-B agent trained on a `lit call decide --repeat 3000` stream (two by two A/B runs, nice 10 and 19):
-round-trip medians 0.45-0.51 ms against 0.47-0.58 ms, and 3-10 instead of 7-27 answers slower than
-5 ms per 3000."""
+"""Nice value of the trainer thread (never below the process's). Gradient steps run as long as the
+scheduler gives them a core; decisions and the DDS threads that carry them must not queue behind
+them. The README gives the measurement (`lit call decide --repeat 3000` against
+``trainer_nice:=0`` and ``:=10``)."""
 
 PARAMETERS: dict[str, Any] = {
     "checkpoint": "runs/learner/checkpoint.pt",

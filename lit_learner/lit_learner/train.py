@@ -80,8 +80,6 @@ B_PHASE_TENSORS = "b_phase_tensors"
 PROVENANCE_FILE = "provenance.json"
 STATE_SUFFIX = ".driver.json"
 LOCK_FILE = ".lit-train.lock"
-INTERRUPTED_NOTE = " (interrupted: --resume the final checkpoint to continue)"
-"""Ends the summary's first line of a run stopped by Ctrl-C or SIGTERM (exit code 130)."""
 
 METRIC_COLUMNS = (
     "episode",
@@ -578,7 +576,7 @@ def run(args: argparse.Namespace) -> int:
         for sig in previous:
             signal.signal(sig, signal.default_int_handler)
     try:
-        summary = train(args, hooks=None)
+        result = train(args, hooks=None)
     except (TrainingError, LearnerError, LitPlannerError) as error:
         print(f"lit train: {error}", file=sys.stderr)
         return 2
@@ -586,8 +584,18 @@ def run(args: argparse.Namespace) -> int:
         for sig, handler in previous.items():
             if handler is not None:  # None: installed outside Python, cannot be restored
                 signal.signal(sig, handler)
-    print(summary)
-    return 130 if INTERRUPTED_NOTE in summary else 0
+    print(result.summary)
+    return 130 if result.interrupted else 0
+
+
+@dataclass(frozen=True)
+class TrainingResult:
+    """What :func:`train` did."""
+
+    summary: str
+    """A readable paragraph: episodes, time, run folder, files written."""
+    interrupted: bool
+    """Stopped by Ctrl-C or SIGTERM before its episodes or minutes were done."""
 
 
 @dataclass
@@ -636,9 +644,10 @@ def agent_range(agent_config: Any, fallback: tuple[float, float]) -> tuple[float
     return float(agent_config.action_min), float(agent_config.action_max)
 
 
-def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
-    """The body of ``lit train``; returns a one-paragraph summary."""
+def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> TrainingResult:
+    """The body of ``lit train``."""
     import lit_core
+    from lit_planner.scenarios import split_names
 
     from lit_learner.config import LearnerConfig
     from lit_learner.core import LearnerCore
@@ -704,7 +713,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
             episodes = DEFAULT_EPISODES
         state = DriverState(
             run_id=f"train-{stamp}-s{args.seed}",
-            scenarios=[name.strip() for name in args.scenarios.split(",") if name.strip()],
+            scenarios=split_names(args.scenarios),
             schedule=args.schedule,
             decision_interval=args.decision_interval,
             seed=args.seed,
@@ -807,7 +816,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
         (
             f"lit train: {state.episode} episodes in {state.elapsed / 60:.1f} min "
             f"({state.episodes_per_phase}), run folder {run_dir}"
-            + (INTERRUPTED_NOTE if interrupted else "")
+            + (" (interrupted: --resume the final checkpoint to continue)" if interrupted else "")
         ),
         f"  checkpoint {final}, metrics {run_dir / METRICS_FILE}, curves {curves}",
     ]
@@ -825,7 +834,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> str:
                 "README or an evaluation, still describe the previous ones)"
             )
     lock.close()
-    return "\n".join(lines)
+    return TrainingResult("\n".join(lines), interrupted)
 
 
 def _periodic_checkpoints(run_dir: Path) -> list[tuple[int, Path]]:

@@ -222,8 +222,8 @@ def test_ctrl_c_finishes_the_query_then_stops_with_a_final_checkpoint(
     monkeypatch.setattr(LearnerCore, "decide", decide_with_one_interrupt)
     outcomes: list[train.EpisodeOutcome] = []
     hooks = train.TrainingHooks(learner_config=small_config(), on_episode=outcomes.append)
-    summary = train.train(arguments(tmp_path / "run", episodes=50, scenarios="np4"), hooks)
-    assert "interrupted" in summary
+    result = train.train(arguments(tmp_path / "run", episodes=50, scenarios="np4"), hooks)
+    assert result.interrupted and "(interrupted: --resume" in result.summary
     assert 1 <= len(outcomes) < 50 and outcomes[-1].interrupted
     assert not any(outcome.interrupted for outcome in outcomes[:-1])
     assert outcomes[-1].result["solved"]  # the interrupted query still ran to its budget
@@ -249,7 +249,7 @@ def test_ctrl_c_exits_with_130(
 
     monkeypatch.setattr(LearnerCore, "decide", decide_with_one_interrupt)
     assert train.run(arguments(tmp_path / "run", episodes=50, scenarios="np4")) == 130
-    assert train.INTERRUPTED_NOTE in capsys.readouterr().out
+    assert "(interrupted: --resume the final checkpoint" in capsys.readouterr().out
     assert train.run(arguments(tmp_path / "again", episodes=1, scenarios="np4")) == 0
 
 

@@ -415,6 +415,17 @@ def unique_directory(parent: Path, name: str) -> Path:
     return candidate
 
 
+def output_folder_problem(path: Path) -> str | None:
+    """Why ``path`` cannot take a new run's outputs (``lit bench --out``, ``lit replay bench
+    --out``): a file is in the way, or it holds files already (new outputs never mix with stale
+    ones, nothing is overwritten); None when it is new or empty."""
+    if path.exists() and not path.is_dir():
+        return "exists and is not a folder"
+    if path.is_dir() and any(path.iterdir()):
+        return "exists and is not empty"
+    return None
+
+
 def default_bag_root() -> Path:
     """The repository's ``bags/`` folder (beside the ``lit_planner`` package folder)."""
     return _ROOT / "bags"

@@ -85,8 +85,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """``lit crosscheck``: 0 all valid and agreeing, 1 otherwise, 2 bad input or worker failure."""
     try:
-        names = [name.strip() for name in args.scenarios.split(",") if name.strip()]
-        planners = [name.strip() for name in args.planners.split(",") if name.strip()]
+        names = scenarios.split_names(args.scenarios)
+        planners = scenarios.split_names(args.planners)
         report = crosscheck(names, runs=args.runs, time=args.time, first_seed=args.seed,
                             litstar=args.litstar, planners=planners,
                             tolerance=args.tolerance)  # fmt: skip

@@ -14,6 +14,11 @@ class LitPlannerError(Exception):
 class ScenarioError(LitPlannerError, ValueError):
     """A scenario name, dimension, instance or path argument is not acceptable."""
 
+    def __init__(self, message: str, *, part: str | None = None) -> None:
+        super().__init__(message)
+        self.part = part
+        """The input at fault when one is: ``start``, ``goal`` or ``time`` (a request's field)."""
+
 
 class TensorFileError(LitPlannerError, ValueError):
     """A lookup tensor or its sidecar cannot be written or read; names the file and the problem."""

@@ -294,12 +294,10 @@ class PlannerNode:
     def _job_from_request(self, payload: dict[str, Any], seq: int | None = None) -> Job:
         from lit_planner.errors import ScenarioError
 
-        where = "world" if "world" in payload else "scenario"  # for the Error's field
         try:
             problem = self._problem_from_request(payload)
-        except ScenarioError as exc:
-            first = str(exc).split(" ", 1)[0]  # "start has 2 coordinates, ...": the start's fault
-            where = first if first in ("start", "goal") else where
+        except ScenarioError as exc:  # the part at fault, else what the problem came from
+            where = exc.part or ("world" if "world" in payload else "scenario")
             raise MessageError(
                 "invalid-request", str(exc), field=f"$.payload.{where}", rule=where,
                 request_schema="PlanRequest", request_seq=seq,
@@ -385,7 +383,7 @@ class PlannerNode:
             import numpy as np
             from lit_learner.train import TrainingDistribution
 
-            names = [name.strip() for name in p["training_scenarios"].split(",") if name.strip()]
+            names = scenarios.split_names(p["training_scenarios"])
             distribution = TrainingDistribution(names, np.random.default_rng(p["training_seed"]))
         if training and not self.learner.wait(p["learner_wait"]):
             self.log.warning(

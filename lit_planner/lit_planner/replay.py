@@ -1537,12 +1537,10 @@ def _measure(args: argparse.Namespace) -> int:
 
 
 def _check_new_folder(path: Path, label: str, advice: str = "choose a new or empty folder") -> None:
-    """Refuse an output folder that exists and is not empty (as ``lit bench --out`` does): new
-    outputs never mix with stale ones, nothing is overwritten."""
-    if path.exists() and not path.is_dir():
-        raise ReplayError(f"{label}: exists and is not a folder; {advice}")
-    if path.is_dir() and any(path.iterdir()):
-        raise ReplayError(f"{label}: exists and is not empty; {advice}")
+    """Refuse an output folder that is a file or holds files (as ``lit bench --out`` does)."""
+    problem = bag.output_folder_problem(path)
+    if problem is not None:
+        raise ReplayError(f"{label}: {problem}; {advice}")
 
 
 def _info(args: argparse.Namespace) -> int:

@@ -351,7 +351,10 @@ def custom(
         raise ScenarioError(f"world dimension {dim} outside {MIN_DIM}..{MAX_DIM}")
     for label, vector in (("upper", upper), ("start", start), ("goal", goal)):
         if len(vector) != dim:
-            raise ScenarioError(f"{label} has {len(vector)} coordinates, lower has {dim}")
+            raise ScenarioError(
+                f"{label} has {len(vector)} coordinates, lower has {dim}",
+                part=None if label == "upper" else label,
+            )
     corners = np.zeros((len(boxes), 2, dim))
     for i, (box_lower, box_upper) in enumerate(boxes):
         if len(box_lower) != dim or len(box_upper) != dim:
@@ -366,7 +369,7 @@ def custom(
     if len(bad):
         raise ScenarioError(f"box {bad[0]} has a lower corner above its upper corner")
     if not (math.isfinite(time_budget) and time_budget > 0):
-        raise ScenarioError(f"time budget must be positive, got {time_budget}")
+        raise ScenarioError(f"time budget must be positive, got {time_budget}", part="time")
     resolution = DEFAULT_CUSTOM_RESOLUTION if resolution is None else float(resolution)
     _check_extent(np.asarray(lower, float), np.asarray(upper, float), resolution)
     corners.setflags(write=False)
@@ -414,6 +417,11 @@ def seed_for(family: str, dim: int, instance: int) -> int:
     """Seed of a random instance: CRC-32 of :data:`SEED_FORMAT` filled in (stable across runs)."""
     text = SEED_FORMAT.format(family=family, dim=dim, instance=instance)
     return zlib.crc32(text.encode("ascii"))
+
+
+def split_names(text: str) -> list[str]:
+    """The names of a comma-separated option (``"np4, rrd8,"`` -> ``["np4", "rrd8"]``)."""
+    return [name.strip() for name in text.split(",") if name.strip()]
 
 
 def names() -> list[str]:

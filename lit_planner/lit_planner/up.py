@@ -195,6 +195,8 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
     """What is wrong with the options, checked before any process starts; None when fine."""
     from lit_learner.train import TrainingDistribution, TrainingError
 
+    from lit_learner import node as learner_node
+    from lit_planner import node as planner_node
     from lit_planner import scenarios
     from lit_planner.errors import LitPlannerError
 
@@ -203,9 +205,6 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
             f"--run-id {run_id!r}: a folder name of letters, digits, '.', '_' and '-' that starts "
             "with a letter and is not a YAML word such as 'yes' or 'null'"
         )
-    from lit_learner import node as learner_node
-    from lit_planner import node as planner_node
-
     for option, given, known in (
         ("--planner-param", args.planner_param, planner_node.PARAMETERS),
         ("--learner-param", args.learner_param, learner_node.PARAMETERS),
@@ -224,7 +223,7 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
         )
     try:
         if args.policy == "training" and args.scenario is not None:
-            TrainingDistribution(_names(args.scenario), None)
+            TrainingDistribution(scenarios.split_names(args.scenario), None)
         else:
             scenarios.get(args.scenario or DEFAULT_SCENARIO)
     except (LitPlannerError, TrainingError) as error:
@@ -269,13 +268,11 @@ def run(args: argparse.Namespace) -> int:
         planner = {
             "policy": args.policy,
             "episodes": args.episodes,
-            "scenario": DEFAULT_SCENARIO
-            if args.policy == "training"
-            else args.scenario or DEFAULT_SCENARIO,
+            # Training draws its episodes from training_scenarios; the others plan `scenario`.
             **(
                 {"training_scenarios": args.scenario}
                 if args.policy == "training" and args.scenario is not None
-                else {}
+                else {"scenario": args.scenario or DEFAULT_SCENARIO}
             ),
             "time_budget": args.time_budget,
             "run_id": run_id,
@@ -312,11 +309,6 @@ def stop_on_sigterm() -> None:
         raise KeyboardInterrupt
 
     signal.signal(signal.SIGTERM, interrupt)
-
-
-def _names(text: str) -> list[str]:
-    """Comma-separated names, as the planner node reads ``training_scenarios``."""
-    return [name.strip() for name in text.split(",") if name.strip()]
 
 
 def _params(items: Sequence[str]) -> dict[str, str]:

@@ -329,9 +329,15 @@ def _config(args: argparse.Namespace) -> tuple[runner.BenchConfig, str | None, l
     preset = runner.PRESETS[preset_name] if preset_name else runner.PRESETS["paper"]
     # An option given but empty (--scenarios "") is an error below, not the preset's list.
     scenario_names = (
-        _split(args.scenarios) if args.scenarios is not None else list(preset.scenarios)
+        scenarios.split_names(args.scenarios)
+        if args.scenarios is not None
+        else list(preset.scenarios)
     )
-    planners = _split(args.planners) if args.planners is not None else list(runner.ALL_PLANNERS)
+    planners = (
+        scenarios.split_names(args.planners)
+        if args.planners is not None
+        else list(runner.ALL_PLANNERS)
+    )
     runs = args.runs if args.runs is not None else preset.runs
     if runs < 1:
         raise ValueError(f"--runs must be at least 1, got {runs}")
@@ -375,8 +381,9 @@ def _out_dir(requested: Path | None) -> Path:
         stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
         requested = Path(DEFAULT_OUT.format(timestamp=stamp))
     out = requested.resolve()
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise ValueError(f"--out {requested}: exists and is not an empty folder; choose a new one")
+    problem = bag.output_folder_problem(out)
+    if problem is not None:
+        raise ValueError(f"--out {requested}: {problem}; choose a new or empty folder")
     out.mkdir(parents=True, exist_ok=True)
     return out
 
@@ -395,7 +402,3 @@ def _estimate_formula(config: runner.BenchConfig, estimate: float) -> str:
 def _count(number: int, noun: str) -> str:
     """``1 run``, ``2 runs``."""
     return f"{number} {noun}{'' if number == 1 else 's'}"
-
-
-def _split(text: str) -> list[str]:
-    return [item.strip() for item in text.split(",") if item.strip()]
