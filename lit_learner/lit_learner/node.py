@@ -30,7 +30,7 @@ import os
 import sys
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +40,7 @@ from lit_planner.rosutil import (
     EXPORT_SERVICE,
     STATS_TOPIC,
     DirectService,
+    DuplicateServerWatch,
     flush_publishers,
     json_qos,
     retry_lost_answers,
@@ -143,10 +144,14 @@ class LearnerNode:
         self._export_executor = SingleThreadedExecutor()
         self._export_executor.add_node(self._export_node)
         self._export_thread = threading.Thread(
-            target=_spin_quietly, args=(self._export_executor,), name="export", daemon=True
+            target=_spin_quietly,
+            args=(self._export_executor, lambda: self._stopping),
+            name="export",
+            daemon=True,
         )
         self._export_thread.start()
         node.create_timer(p["stats_period"], self._publish_stats)
+        DuplicateServerWatch(node, p["service"]).start()
         self._trainer = threading.Thread(target=self._train, name="trainer", daemon=True)
         self._trainer.start()
         self.log.info(
@@ -458,18 +463,20 @@ class LearnerNode:
         flush_publishers([self.stats_publisher])
 
 
-def _spin_quietly(executor: Any) -> None:
-    """Spin until the executor is shut down (or the context is, racing a signal)."""
+def _spin_quietly(executor: Any, stopping: Callable[[], bool]) -> None:
+    """Spin until the executor is shut down; errors of a spin that races the shutdown (once
+    ``stopping()``, or the context is gone) are expected and not shown (see
+    ``lit_planner.rosutil._spin``)."""
     from rclpy.executors import ExternalShutdownException
 
     try:
         executor.spin()
     except (ExternalShutdownException, KeyboardInterrupt):
         pass
-    except Exception:  # RCLError when shutdown races the spin (PLATFORM_FACTS)
+    except Exception:  # RCLError, InvalidHandle
         import rclpy
 
-        if rclpy.ok():
+        if rclpy.ok() and not stopping():
             raise
 
 

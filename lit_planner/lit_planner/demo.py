@@ -115,9 +115,14 @@ def print_summary(result: dict[str, Any], scenario: Scenario) -> None:
 def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
     """Steps 1-4 of the module docstring."""
     from lit_planner.bag import default_bag_root
-    from lit_planner.up import System, stop_on_sigterm
+    from lit_planner.up import DomainBusy, System, claim_domain, stop_on_sigterm
 
     run_id = time.strftime("demo-%Y%m%d-%H%M%S")
+    try:
+        claim = claim_domain(args.domain_id, f"lit demo (run {run_id})")
+    except DomainBusy as error:
+        print(f"lit demo: {error}", file=sys.stderr)
+        return 2
     runs = (args.out or Path("runs")) / run_id
     bag = (args.out or default_bag_root()) / (f"{run_id}-bag" if args.out else run_id)
     system = System(args.domain_id, Path.cwd(), echo=_quiet_echo)
@@ -174,6 +179,7 @@ def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
         return 1
     finally:
         codes = system.stop()
+        claim.close()
     wall = time.monotonic() - started
     budget = args.time if args.time is not None else scenario.time_budget
     return _report(scenario, training, plans, codes, bag, wall, budget)

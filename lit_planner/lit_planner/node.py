@@ -56,6 +56,7 @@ from lit_planner.rosutil import (
     PLAN_SEND_ATTEMPTS,
     PLAN_SERVICE,
     TOPICS,
+    DuplicateServerWatch,
     ServiceCaller,
     flush_publishers,
     json_qos,
@@ -180,6 +181,7 @@ class PlannerNode:
             self.log,
             attempts=PLAN_SEND_ATTEMPTS,
         )
+        DuplicateServerWatch(node, PLAN_SERVICE).start()
         self._driver = threading.Thread(target=self._drive, name="episodes", daemon=True)
         self._driver.start()
         self.log.info(

@@ -45,6 +45,57 @@ def localhost_environment() -> None:
     os.environ.setdefault("ROS_DOMAIN_ID", str(DEFAULT_DOMAIN_ID))
 
 
+DUPLICATE_CHECK_PERIOD = 5.0
+"""Seconds between a node's checks for another server of its service (see
+:func:`warn_on_duplicate_server`)."""
+DEAD_SERVER_SECONDS = 25.0
+"""How long a second server must stay in the graph before it counts as alive: a process killed
+with SIGKILL stays in it until its DDS lease (20 s) runs out, as the learner does when it is
+killed and restarted (PLATFORM_FACTS.md)."""
+
+
+class DuplicateServerWatch:
+    """Checks whether more than one server offers ``service`` on the domain, and logs an error
+    once that has lasted :data:`DEAD_SERVER_SECONDS` (an info line when it ends): each request
+    then goes to either server (two learners each see part of every episode; two planners answer
+    each other's plan calls). Launchers refuse a second run on their domain (``lit up``'s domain
+    claim); this catches nodes started by other means. :meth:`start` checks every
+    :data:`DUPLICATE_CHECK_PERIOD` s on the node's executor."""
+
+    def __init__(self, node: Any, service: str) -> None:
+        self.node = node
+        self.name = node.resolve_service_name(service)
+        self.since: float | None = None
+        """When a second server was first seen (None: one server or none)."""
+        self.reported = False
+
+    def start(self) -> Any:
+        """Check periodically; returns the timer."""
+        return self.node.create_timer(DUPLICATE_CHECK_PERIOD, self.check)
+
+    def check(self) -> int:
+        """One check; returns the number of servers the graph shows."""
+        servers = int(self.node.count_services(self.name))
+        now = time.monotonic()
+        if servers <= 1:
+            if self.reported:
+                self.node.get_logger().info(f"{self.name}: the only server again")
+            self.since, self.reported = None, False
+            return servers
+        if self.since is None:
+            self.since = now
+        if not self.reported and now - self.since >= DEAD_SERVER_SECONDS:
+            self.reported = True
+            domain = self.node.context.get_domain_id()
+            self.node.get_logger().error(
+                f"{servers} servers of {self.name} on ROS_DOMAIN_ID={domain} for "
+                f"{now - self.since:.0f} s: another node serves it too, and each request goes "
+                "to either of them. Stop the other one, or run this one on another domain or in "
+                "another namespace"
+            )
+        return servers
+
+
 def json_qos() -> Any:
     """QoS of the JSON topics: reliable, keep-all, volatile (keep-last drops in bursts)."""
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -441,7 +492,10 @@ def spin_node(
     # round trip of about 0.3 ms against several ms with the thread pool).
     executor = SingleThreadedExecutor() if threads == 1 else MultiThreadedExecutor(threads)
     executor.add_node(node)
-    spinner = threading.Thread(target=_spin, args=(executor, stop), name="executor", daemon=True)
+    stopping = threading.Event()
+    spinner = threading.Thread(
+        target=_spin, args=(executor, stop, stopping), name="executor", daemon=True
+    )
     spinner.start()
     try:
         while not stop.wait(0.2):
@@ -453,6 +507,7 @@ def spin_node(
                 owner.shutdown()
             except Exception as exc:  # noqa: BLE001 - must not hide the clean exit
                 node.get_logger().error(f"shutdown: {exc}")
+        stopping.set()
         executor.shutdown(timeout_sec=2.0)
         spinner.join(timeout=2.0)
         try:
@@ -467,18 +522,24 @@ def spin_node(
     return 0
 
 
-def _spin(executor: Any, stop: threading.Event) -> None:
+def _spin(executor: Any, stop: threading.Event, stopping: threading.Event) -> None:
+    """Spin until the executor is shut down; ``stop`` is set when it ends (for any reason).
+
+    ``stopping``: the shutdown has begun, so an error of a spin that races it is expected and not
+    shown: the signal's race with the context (PLATFORM_FACTS), and rclpy 7.1's own race in
+    ``Executor.shutdown``, which destroys its guard condition while a callback that became ready
+    just before (a timer's) is still to run (``InvalidHandle`` from ``GuardCondition.trigger``).
+    """
     from rclpy.executors import ExternalShutdownException
 
     try:
         executor.spin()
     except (ExternalShutdownException, KeyboardInterrupt):
         pass
-    except Exception as exc:  # RCLError when shutdown races the spin (PLATFORM_FACTS)
+    except Exception:
         import rclpy
 
-        if rclpy.ok():
+        if rclpy.ok() and not stopping.is_set():
             raise
-        del exc
     finally:
         stop.set()

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from lit_planner.echo_node import ECHO_SERVICE
-from lit_planner.up import System
+from lit_planner.up import DomainBusy, System, claim_domain
 
 DEFAULT_DOMAIN_ID = 94
 _LOG_STAMP = re.compile(r"\[(?:WARN|INFO|ERROR)\] \[(\d+\.\d+)\]")
@@ -71,7 +71,12 @@ def run(args: argparse.Namespace) -> int:
         print("lit system-bench: --calls, --episodes and --kills are all 0: nothing to measure",
               file=sys.stderr)  # fmt: skip
         return 2
-    with tempfile.TemporaryDirectory(prefix="lit-system-bench-") as folder:
+    try:
+        claim = claim_domain(args.domain_id, "lit system-bench")
+    except DomainBusy as error:
+        print(f"lit system-bench: {error}", file=sys.stderr)
+        return 2
+    with claim, tempfile.TemporaryDirectory(prefix="lit-system-bench-") as folder:
         work = Path(folder)
         system = System(args.domain_id, work, echo=None)
         try:

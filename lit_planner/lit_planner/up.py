@@ -13,12 +13,14 @@ from __future__ import annotations
 
 import argparse
 import ctypes
+import fcntl
 import math
 import os
 import re
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -32,6 +34,12 @@ STOP_ORDER = ("planner", "learner", "recorder")
 """Processes stop in this order: the recorder last, so it keeps the final messages."""
 GRACE_SECONDS = 20.0
 """SIGTERM → SIGKILL grace period per process (the learner may be exporting tensors)."""
+WHY_WAIT = {
+    "learner": "it saves its checkpoint and exports its tensors",
+    "recorder": "it writes the rest of the bag and closes it",
+    "planner": "it finishes its current plan",
+}
+"""What each process does when it stops, for the message of an interrupted stop."""
 
 
 @dataclass
@@ -125,21 +133,83 @@ class System:
                 raise RuntimeError(f"{name} not ready after {timeout:g} s")
 
     def stop(self) -> dict[str, int | None]:
-        """SIGTERM each child (planner, learner, recorder order), SIGKILL after the grace."""
+        """SIGTERM each child (planner, learner, recorder order), SIGKILL after the grace.
+
+        An interrupt (Ctrl-C) while a child is stopping does not leave it behind: the wait goes
+        on, and says what it waits for (the learner saves its checkpoint, the recorder closes the
+        bag). A second interrupt SIGKILLs every child still running.
+        """
         codes: dict[str, int | None] = {}
         order = [n for n in STOP_ORDER if n in self.children]
         order += [n for n in self.children if n not in order]
+        interrupted = False
         for name in order:
             process = self.children[name].process
             if process.poll() is None:
                 process.send_signal(signal.SIGTERM)
+            deadline = time.monotonic() + GRACE_SECONDS
+            while process.poll() is None:
                 try:
-                    process.wait(GRACE_SECONDS)
+                    process.wait(max(0.0, deadline - time.monotonic()))
                 except subprocess.TimeoutExpired:
                     process.kill()
-                    process.wait()
+                except KeyboardInterrupt:
+                    if interrupted:
+                        self._kill_all()
+                        continue
+                    interrupted = True
+                    why = WHY_WAIT.get(name, "its shutdown")
+                    print(
+                        f"still stopping: waiting for the {name} to finish ({why}, at most "
+                        f"{GRACE_SECONDS:g} s); interrupt again to kill every process now",
+                        file=sys.stderr,
+                        flush=True,
+                    )
             codes[name] = process.returncode
         return codes
+
+    def _kill_all(self) -> None:
+        for child in self.children.values():
+            if child.process.poll() is None:
+                child.process.kill()
+        print("killed the processes still running", file=sys.stderr, flush=True)
+
+
+class DomainBusy(RuntimeError):
+    """Another launcher of this host runs its nodes on the domain (see :func:`claim_domain`)."""
+
+
+def claim_domain(domain_id: int, who: str) -> IO[str]:
+    """Hold this host's launcher lock of ``domain_id`` while the returned file stays open (it is
+    released when the file is closed or the process ends, however it ends).
+
+    ``lit up``, ``lit demo`` and ``lit system-bench`` claim their domain before they start a
+    node: two learners (or planners) on one domain serve the same services, DDS hands each
+    request to either of them, and both recorders record both runs. Discovery stays on this host,
+    so a lock file in the temporary directory covers everything that can meet on the domain. It
+    does not see nodes started without a launcher; the learner node itself warns when another
+    learner serves its decide service.
+
+    Raises:
+        DomainBusy: another launcher holds the domain; the message names it and its PID.
+    """
+    path = Path(tempfile.gettempdir()) / f"lit-launch-domain-{domain_id}.lock"
+    lock = open(path, "a+", encoding="utf-8")  # noqa: SIM115 - held by the caller
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        lock.seek(0)
+        holder = lock.read().strip() or "another launcher"
+        lock.close()
+        raise DomainBusy(
+            f"ROS_DOMAIN_ID={domain_id} is in use on this host by {holder}; its nodes would "
+            "answer this run's service calls. Stop it, or choose another --domain-id"
+        ) from None
+    lock.seek(0)
+    lock.truncate()
+    lock.write(f"{who} (pid {os.getpid()}, since {time.strftime('%H:%M:%S')})\n")
+    lock.flush()
+    return lock
 
 
 DEFAULT_SCENARIO = "np8"
@@ -243,6 +313,11 @@ def run(args: argparse.Namespace) -> int:
     if problem is not None:
         print(f"lit up: {problem}", file=sys.stderr)
         return 2
+    try:
+        claim = claim_domain(args.domain_id, f"lit up (run {run_id})")
+    except DomainBusy as error:
+        print(f"lit up: {error}", file=sys.stderr)
+        return 2
     runs = (Path("runs") / run_id).absolute()  # absolute: the export service answers with it
     runs.mkdir(parents=True, exist_ok=True)
     system = System(args.domain_id, Path.cwd())
@@ -287,7 +362,11 @@ def run(args: argparse.Namespace) -> int:
                 print(f"lit up: {', '.join(dead)} exited; stopping the others", flush=True)
                 break
     finally:
+        # From here an interrupt reaches System.stop (which waits on, or kills when repeated).
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        stop_on_sigterm()
         codes = system.stop()
+        claim.close()
     print("lit up: stopped " + ", ".join(f"{n} (exit {c})" for n, c in codes.items()), flush=True)
     return 0 if all(code == 0 for code in codes.values()) else 1
 

@@ -1,0 +1,114 @@
+"""Two runs on one ROS domain: the launchers (``lit up``, ``lit demo``, ``lit system-bench``)
+refuse a domain another launcher of this host holds, before they start anything; and a node
+notices another server of its service (nodes started without a launcher)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from lit_planner.up import DomainBusy, claim_domain
+from ros_helpers import reserve_domain
+
+from lit_planner import rosutil
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["up", "--no-record"],
+        ["demo"],
+        ["system-bench", "--calls", "1", "--episodes", "0", "--kills", "0"],
+    ],
+    ids=["up", "demo", "system-bench"],
+)
+def test_launchers_refuse_a_domain_another_launcher_holds(
+    tmp_path: Path, command: list[str]
+) -> None:
+    domain, lock = reserve_domain()
+    claim = claim_domain(domain, "the test's launcher")
+    try:
+        process = subprocess.run(
+            [sys.executable, "-m", "lit_planner.cli", *command, "--domain-id", str(domain)],
+            cwd=tmp_path,
+            env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+            capture_output=True, text=True, timeout=120, check=False,
+        )  # fmt: skip
+        assert process.returncode == 2, process.stdout + process.stderr
+        holder = f"in use on this host by the test's launcher (pid {os.getpid()}, since "
+        assert f"lit {command[0]}: ROS_DOMAIN_ID={domain} is {holder}" in process.stderr
+        assert "--domain-id" in process.stderr and "Traceback" not in process.stderr
+        assert not list(tmp_path.iterdir())  # no run folder, no bag: nothing started
+    finally:
+        claim.close()
+        if lock is not None:
+            lock.close()
+
+
+def test_a_claim_lasts_as_long_as_its_file() -> None:
+    domain, lock = reserve_domain()
+    try:
+        claim = claim_domain(domain, "first")
+        with pytest.raises(DomainBusy, match=r"by first \(pid"):
+            claim_domain(domain, "second")
+        claim.close()
+        claim_domain(domain, "third").close()  # released with the file
+    finally:
+        if lock is not None:
+            lock.close()
+
+
+def _until(predicate: object, timeout: float = 30.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():  # type: ignore[operator]
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def test_duplicate_server_watch_reports_a_second_server_that_stays(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import rclpy
+    from diagnostic_msgs.srv import AddDiagnostics
+    from rclpy.context import Context
+    from rclpy.signals import SignalHandlerOptions
+
+    domain, lock = reserve_domain()
+    context = Context()
+    rclpy.init(context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
+    nodes = []
+    try:
+        for name in ("watch_first", "watch_second"):
+            nodes.append(
+                rclpy.create_node(
+                    name, context=context, start_parameter_services=False, enable_rosout=False
+                )
+            )
+        first, second = nodes
+        first.create_service(AddDiagnostics, "/watch/service", lambda _req, res: res)
+        watch = rosutil.DuplicateServerWatch(first, "/watch/service")
+        assert _until(lambda: watch.check() == 1)
+        assert watch.since is None and not watch.reported
+
+        other = second.create_service(AddDiagnostics, "/watch/service", lambda _req, res: res)
+        assert _until(lambda: watch.check() == 2)
+        # Not yet: a server killed with SIGKILL stays in the graph until its lease runs out.
+        assert watch.since is not None and not watch.reported
+        monkeypatch.setattr(rosutil, "DEAD_SERVER_SECONDS", 0.0)
+        assert watch.check() == 2 and watch.reported
+
+        second.destroy_service(other)
+        assert _until(lambda: watch.check() == 1)
+        assert watch.since is None and not watch.reported
+    finally:
+        for node in nodes:
+            node.destroy_node()
+        context.try_shutdown()
+        if lock is not None:
+            lock.close()
