@@ -75,7 +75,8 @@ def test_interrupts_during_stop_wait_then_kill(tmp_path: Path) -> None:
         _read_until(launcher.stdout, "child: stopping slowly")  # stop() sent SIGTERM
         launcher.send_signal(signal.SIGINT)
         lines = _read_until(launcher.stdout, "still stopping")
-        assert "waiting for the learner to finish (it saves its checkpoint" in lines[-1]
+        why = "it saves its checkpoint and exports its tensors; at most"
+        assert f"waiting for the learner to finish ({why}" in lines[-1]
         assert "interrupt again to kill every process now" in lines[-1]
         os.kill(child_pid, 0)  # not left behind: still running, still waited for
         assert launcher.poll() is None

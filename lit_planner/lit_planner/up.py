@@ -150,18 +150,24 @@ class System:
             deadline = time.monotonic() + GRACE_SECONDS
             while process.poll() is None:
                 try:
-                    process.wait(max(0.0, deadline - time.monotonic()))
+                    remaining = deadline - time.monotonic()
+                    if remaining > 0:
+                        process.wait(remaining)
+                    else:
+                        process.kill()
+                        process.wait()
                 except subprocess.TimeoutExpired:
-                    process.kill()
+                    continue  # the grace is over: killed on the next pass
                 except KeyboardInterrupt:
                     if interrupted:
                         self._kill_all()
                         continue
                     interrupted = True
                     why = WHY_WAIT.get(name, "its shutdown")
+                    left = max(0.0, deadline - time.monotonic())
                     print(
-                        f"still stopping: waiting for the {name} to finish ({why}, at most "
-                        f"{GRACE_SECONDS:g} s); interrupt again to kill every process now",
+                        f"still stopping: waiting for the {name} to finish ({why}; at most "
+                        f"{left:.0f} s more); interrupt again to kill every process now",
                         file=sys.stderr,
                         flush=True,
                     )
