@@ -290,6 +290,31 @@ def test_listener_sees_events() -> None:
     assert recorder.decisions == len(result["decisions"])
 
 
+def test_listener_time_is_not_planning_time() -> None:
+    """What a listener does with an event (the planner node publishes it) is off the planner's
+    clock, as the external policy's answer is: a listener that takes a second over the first
+    batch, before the search starts, leaves t_init and the planning time as they would be."""
+    import time as clock
+
+    class Slow:
+        def __init__(self) -> None:
+            self.batches = 0
+
+        def on_batch(self, event: Any) -> None:
+            self.batches += 1
+            if self.batches == 1:
+                clock.sleep(1.0)
+
+    slow = Slow()
+    started = clock.perf_counter()
+    result = plan("np4", max_batches=3, listener=slow, time=30.0)
+    wall = clock.perf_counter() - started
+    assert slow.batches >= 1 and result["solved"]
+    assert wall >= 1.0
+    # The search of np4 takes milliseconds; with the second on the clock both would exceed it.
+    assert result["t_init"] < 1.0 and result["time"] < 1.0
+
+
 # --------------------------------------------------------------------------- OMPL baselines
 
 

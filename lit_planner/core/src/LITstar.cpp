@@ -579,9 +579,10 @@ namespace lit
             if (!checkEdge(source, target, fullCheck))
             {
                 blacklist(source, target);
-                if (source->reverseParent(reverseTag_) == target)
+                if (source->reverseParent(reverseTag_) == target || target->reverseParent(reverseTag_) == source)
                 {
-                    // The reverse search was too optimistic here: check its edges more densely (d <- 2d + 1).
+                    // An edge of the reverse tree (either direction): the reverse search was too
+                    // optimistic here; check its edges more densely (d <- 2d + 1).
                     ++sparseDepth_;
                     restartReverseSearch();
                 }
@@ -681,8 +682,7 @@ namespace lit
         event.pathStates = bestPathStates_.size();
         event.improvement = improvements_;
         event.iteration = counters_.iterations;
-        for (auto &listener : listeners_)
-            listener->onSolution(event);
+        notifyListeners([&event](PlannerListener &listener) { listener.onSolution(event); });
         adaptiveBatchsize();
     }
 
@@ -716,8 +716,7 @@ namespace lit
         event.prunedSamples = pruned;
         event.time = planningTime();
         (void)invalidBefore;
-        for (auto &listener : listeners_)
-            listener->onBatch(event);
+        notifyListeners([&event](PlannerListener &listener) { listener.onBatch(event); });
     }
 
     // ----------------------------------------------------------------------------------- LIT* decisions
@@ -789,9 +788,18 @@ namespace lit
     void LITstar::adaptiveBatchsize()
     {
         DecisionContext context = makeContext(DecisionKind::BatchSize);
-        const Features features = computeFeatures();
-        rhoLocalB_ = features.rhoLocalB;
-        context.features.rhoLocalB = features.rhoLocalB;
+        if (policy_->needsFeatures() || !listeners_.empty())
+        {
+            // A policy that ignores the features (fixed, fit) does not pay for them: they are
+            // computed only for the listeners then, with the clock paused.
+            const bool observeOnly = !policy_->needsFeatures() && clockRunning_;
+            if (observeOnly)
+                pauseClock();
+            rhoLocalB_ = computeFeatures().rhoLocalB;
+            if (observeOnly)
+                resumeClock();
+            context.features.rhoLocalB = rhoLocalB_;
+        }
         const double value = decide(context);
         batchSize_ = static_cast<unsigned int>(std::max(1L, std::lround(value)));
         ++counters_.batchDecisions;
@@ -802,8 +810,7 @@ namespace lit
         event.policy = policy_->name();
         event.time = planningTime();
         event.iteration = counters_.iterations;
-        for (auto &listener : listeners_)
-            listener->onDecision(event);
+        notifyListeners([&event](PlannerListener &listener) { listener.onDecision(event); });
     }
 
     std::size_t LITstar::adaptiveNeighborSize(State *centre)
@@ -828,8 +835,7 @@ namespace lit
             event.policy = policy_->name();
             event.time = planningTime();
             event.iteration = counters_.iterations;
-            for (auto &listener : listeners_)
-                listener->onDecision(event);
+            notifyListeners([&event](PlannerListener &listener) { listener.onDecision(event); });
             return k;
         }
         return neighbourCount(neighbourFactor_);

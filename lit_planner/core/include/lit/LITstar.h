@@ -161,6 +161,20 @@ namespace lit
         std::size_t neighbourCount(double neighbourFactor) const;
         void pauseClock();
         void resumeClock();
+        /** \brief Calls notify(listener) for every listener with the planner clock paused: what an
+         *  observer does with an event (a ROS node publishes it) is not planning time. */
+        template <typename Notify>
+        void notifyListeners(Notify &&notify)
+        {
+            if (listeners_.empty())
+                return;
+            const bool running = clockRunning_;
+            pauseClock();
+            for (auto &listener : listeners_)
+                notify(*listener);
+            if (running)
+                resumeClock();
+        }
 
         // Parameters.
         unsigned int fixedBatchSize_{100u};
