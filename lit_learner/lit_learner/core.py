@@ -62,7 +62,11 @@ class LearnerCore:
         """Episodes ended so far."""
         self._policy_version = 0
         self._pending_updates = dict.fromkeys(AGENT_NAMES, 0)
-        """Transitions stored since the last update round, counted from warm-up on."""
+        """Gradient steps owed to the transitions of ended episodes (counted from warm-up on)."""
+        self._owed_updates: dict[str, dict[str, int]] = {}
+        """Per open episode and agent: steps owed to its transitions stored so far. They become
+        pending when the episode ends: gradient work happens at episode ends (LEARNER.md), not
+        while the episode's planner is still planning."""
         self._published: tuple[int, dict[str, ActorSnapshot]] | None = None
         """(policy version, actor snapshot per agent) for decisions taken concurrently."""
         self._episode_terms: dict[str, dict[str, list[float]]] = {}
@@ -204,6 +208,8 @@ class LearnerCore:
         closed, _ = self.pairing.end(end)
         for transition in closed:
             self._store(transition)
+        for name, owed in self._owed_updates.pop(end.episode_id, {}).items():
+            self._pending_updates[name] += owed
         self.episodes += 1
         metrics: dict[str, float] = {}
         for name, (time, cost, penalty, steps) in self._episode_terms.pop(
@@ -275,7 +281,8 @@ class LearnerCore:
             transition.terminated,
         )
         if not agent.warming_up:
-            self._pending_updates[transition.agent] += 1
+            owed = self._owed_updates.setdefault(transition.episode_id, {})
+            owed[transition.agent] = owed.get(transition.agent, 0) + 1
         terms = self._episode_terms.setdefault(transition.episode_id, {}).setdefault(
             transition.agent, [0.0, 0.0, 0.0, 0.0]
         )
@@ -295,6 +302,7 @@ class LearnerCore:
             "episodes": self.episodes,
             "policy_version": self._policy_version,
             "pending_updates": dict(self._pending_updates),
+            "owed_updates": {e: dict(d) for e, d in self._owed_updates.items()},
             "episode_terms": {
                 e: {a: list(t) for a, t in d.items()} for e, d in self._episode_terms.items()
             },
@@ -355,6 +363,8 @@ class LearnerCore:
         core.episodes = state["episodes"]
         core._policy_version = state["policy_version"]
         core._pending_updates = dict(state["pending_updates"])
+        # Checkpoints written before owed updates existed counted them as pending already.
+        core._owed_updates = {e: dict(d) for e, d in state.get("owed_updates", {}).items()}
         core._episode_terms = {
             e: {a: list(t) for a, t in d.items()} for e, d in state["episode_terms"].items()
         }

@@ -194,6 +194,31 @@ def test_a_gradient_step_publishes_its_snapshot_with_its_version() -> None:
     assert old.policy_version == version
 
 
+def test_gradient_steps_are_owed_from_the_end_of_their_episode(tmp_path: Path) -> None:
+    """LEARNER.md: one update per new transition, run at episode end. Transitions stored while
+    an episode is still open (a decision closes the agent's previous step) owe their steps only
+    when the episode ends, also across a checkpoint taken in the middle of the episode."""
+    core = LearnerCore(small_config())
+    feed(core, script(6))  # past both warm-ups; every owed step taken
+    assert core.pending_updates == 0
+    (*decisions, end) = script(1, seed=4)
+    stored = {name: agent.transitions for name, agent in core.agents.items()}
+    for m in decisions:
+        core.decide(m)
+        assert core.pending_updates == 0  # the episode is still open
+    during = {n: a.transitions - stored[n] for n, a in core.agents.items()}
+    assert during["psi_K"] > 0  # transitions were stored, their steps wait
+
+    core.save_checkpoint(tmp_path / "mid.pt")
+    for c in (core, LearnerCore.load_checkpoint(tmp_path / "mid.pt")):
+        assert c.pending_updates == 0
+        c.close_episode(end)
+        new = {n: a.transitions - stored[n] for n, a in c.agents.items()}
+        assert new["psi_K"] == during["psi_K"] + 1  # the end closes the last step
+        assert c._pending_updates == new
+        assert not c._owed_updates
+
+
 def test_deciding_while_another_thread_trains() -> None:
     """The learner node's pattern: one thread chooses from published snapshots and commits
     under the core's lock; another takes gradient steps holding that lock only for bookkeeping
