@@ -70,7 +70,8 @@ class LearnerCore:
         self._published: tuple[int, dict[str, ActorSnapshot]] | None = None
         """(policy version, actor snapshot per agent) for decisions taken concurrently."""
         self._episode_terms: dict[str, dict[str, list[float]]] = {}
-        """Per episode and agent: summed reward terms [time, cost, penalty] and the step count."""
+        """Per episode and agent: summed reward terms [time, cost, penalty, search] and the step
+        count."""
 
     @property
     def policy_version(self) -> int:
@@ -170,7 +171,8 @@ class LearnerCore:
         :meth:`update_step` until nothing is pending).
 
         Returns:
-            Metrics: ``charts/return_<A>``, ``charts/steps_<A>``, ``rewards/<A>_time|cost|penalty``
+            Metrics: ``charts/return_<A>``, ``charts/steps_<A>``,
+            ``rewards/<A>_time|cost|penalty`` (and ``rewards/psi_K_search``)
             (sums over the episode's steps) for agents that stepped in this episode;
             ``losses/critic_<A>``, ``losses/actor_<A>``, ``losses/mean_q_<A>``,
             ``losses/td_abs_<A>`` (means over this round's updates) and ``charts/beta_<A>`` for
@@ -202,7 +204,8 @@ class LearnerCore:
 
         Returns:
             The episode's ``charts/return_<A>``, ``charts/steps_<A>`` and
-            ``rewards/<A>_time|cost|penalty`` for agents that stepped in it.
+            ``rewards/<A>_time|cost|penalty`` (and ``rewards/psi_K_search``) for agents that
+            stepped in it.
         """
         end.validate()
         closed, _ = self.pairing.end(end)
@@ -212,14 +215,16 @@ class LearnerCore:
             self._pending_updates[name] += owed
         self.episodes += 1
         metrics: dict[str, float] = {}
-        for name, (time, cost, penalty, steps) in self._episode_terms.pop(
+        for name, (time, cost, penalty, search, steps) in self._episode_terms.pop(
             end.episode_id, {}
         ).items():
-            metrics[f"charts/return_{name}"] = time + cost + penalty
+            metrics[f"charts/return_{name}"] = time + cost + penalty + search
             metrics[f"charts/steps_{name}"] = steps
             metrics[f"rewards/{name}_time"] = time
             metrics[f"rewards/{name}_cost"] = cost
             metrics[f"rewards/{name}_penalty"] = penalty
+            if name == "psi_K":  # only R_K has a search cost
+                metrics[f"rewards/{name}_search"] = search
         return metrics
 
     @property
@@ -284,10 +289,10 @@ class LearnerCore:
             owed = self._owed_updates.setdefault(transition.episode_id, {})
             owed[transition.agent] = owed.get(transition.agent, 0) + 1
         terms = self._episode_terms.setdefault(transition.episode_id, {}).setdefault(
-            transition.agent, [0.0, 0.0, 0.0, 0.0]
+            transition.agent, [0.0, 0.0, 0.0, 0.0, 0.0]
         )
         reward = transition.reward
-        for i, value in enumerate((reward.time, reward.cost, reward.penalty, 1.0)):
+        for i, value in enumerate((reward.time, reward.cost, reward.penalty, reward.search, 1.0)):
             terms[i] += value
 
     # ------------------------------------------------------------------ checkpoints
@@ -366,7 +371,9 @@ class LearnerCore:
         # Checkpoints written before owed updates existed counted them as pending already.
         core._owed_updates = {e: dict(d) for e, d in state.get("owed_updates", {}).items()}
         core._episode_terms = {
-            e: {a: list(t) for a, t in d.items()} for e, d in state["episode_terms"].items()
+            # Checkpoints from before the search term had its own slot: [time, cost, penalty, n].
+            e: {a: list(t) if len(t) == 5 else [*t[:3], 0.0, t[3]] for a, t in d.items()}
+            for e, d in state["episode_terms"].items()
         }
         torch.set_rng_state(state["rng"]["torch"])
         np.random.set_state(state["rng"]["numpy"])

@@ -18,17 +18,19 @@ class RewardTerms:
     """One step's reward, term by term; ``total`` is their sum."""
 
     time: float
-    """Speed term: w_t * kappa(n) / t_hat (B) or w_t / t_hat (K), 0 without an improvement; for K
-    minus the search cost of the step (:func:`search_cost`)."""
+    """Speed term: w_t * kappa(n) / t_hat (B) or w_t / t_hat (K), 0 without an improvement."""
     cost: float
     """Cost term: w_c * kappa(n) * c_ratio (B) or w_c * c_ratio (K); 0 without an improvement."""
     penalty: float
     """Penalty (<= 0): -w_u * n (B) or -w_s * path_states / 50 (K, only with an improvement)."""
+    search: float = 0.0
+    """Search cost (<= 0, K only): minus :func:`search_cost` of the step's planner time before
+    the first solution (the project's addition to R_K, logged as a term of its own)."""
 
     @property
     def total(self) -> float:
-        """time + cost + penalty."""
-        return self.time + self.cost + self.penalty
+        """time + cost + penalty + search."""
+        return self.time + self.cost + self.penalty + self.search
 
 
 def kappa(n: int, config: RewardConfig) -> float:
@@ -96,9 +98,10 @@ def neighbour_reward(
     solution also pays :func:`search_cost` for its planner time ``search`` = (start, end)."""
     paid = -search_cost(search[0], search[1], time_budget, config) if search else 0.0
     if not improved:
-        return RewardTerms(paid, 0.0, 0.0)
+        return RewardTerms(0.0, 0.0, 0.0, search=paid)
     return RewardTerms(
-        time=config.w_t / t_hat(step_time, time_budget, config) + paid,
+        time=config.w_t / t_hat(step_time, time_budget, config),
         cost=config.w_c * cost_ratio(cost, minimum_cost),
         penalty=-config.w_s * path_states / config.path_states_scale,
+        search=paid,
     )

@@ -316,6 +316,7 @@ def run_episode(
             improvements=len(result["improvements"]),
             path_states=len(result["path"]) if result["path"] else 0,
             truncated=truncated,
+            final_features=final_features(result),
         )
     )
     finished = time.perf_counter()
@@ -335,6 +336,18 @@ def run_episode(
         minimum_cost=minimum_cost(problem),
         interrupted=bool(interrupts),
     )
+
+
+def final_features(result: dict[str, Any]) -> dict[str, tuple[float, float, float]] | None:
+    """Each agent's features at the end of a LIT* query (``lit_core.solve``'s
+    ``final_features``), clipped to [0, 1] against rounding: the s' of its last transition."""
+    final = result.get("final_features")
+    if not final:
+        return None
+    return {
+        agent: tuple(min(max(float(v), 0.0), 1.0) for v in values)  # type: ignore[misc]
+        for agent, values in final.items()
+    }
 
 
 def minimum_cost(problem: Any) -> float:

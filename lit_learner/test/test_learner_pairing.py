@@ -62,7 +62,8 @@ def test_only_steps_taken_before_the_first_solution_pay_search_time() -> None:
     t3 = pairing.step(request("psi_K", "e", 3.0, 0.1, improvements=1, cost=4.0), 0.3)
     assert t1 is not None and t2 is not None and t3 is not None
     assert t1.reward.total == pytest.approx(-search_cost(0.5, 0.75, 10.0, REWARD))
-    assert t2.reward.time == pytest.approx(REWARD.w_t / 0.2 - search_cost(0.75, 2.0, 10.0, REWARD))
+    assert t2.reward.time == pytest.approx(REWARD.w_t / 0.2)
+    assert t2.reward.search == pytest.approx(-search_cost(0.75, 2.0, 10.0, REWARD))
     assert t3.reward.total == 0.0
 
 

@@ -59,11 +59,13 @@ def test_neighbour_reward_with_and_without_improvement() -> None:
 def test_neighbour_reward_charges_search_time_before_the_first_solution() -> None:
     # From 4 ms to 8 ms of a 0.4 s budget: w_search * ln 2, whether or not the step improved.
     quiet = neighbour_reward(False, 0.0, 0.4, None, 3.0, 0, CONFIG, search=(0.004, 0.008))
-    assert quiet.time == pytest.approx(-CONFIG.w_search * math.log(2.0))
-    assert quiet.total == pytest.approx(quiet.time)
+    assert quiet.search == pytest.approx(-CONFIG.w_search * math.log(2.0))
+    assert quiet.time == 0.0 and quiet.total == pytest.approx(quiet.search)
     found = neighbour_reward(True, 0.1, 0.4, 4.0, 3.0, 50, CONFIG, search=(0.004, 0.008))
-    assert found.time == pytest.approx(0.01 / 0.25 - CONFIG.w_search * math.log(2.0))
+    assert found.time == pytest.approx(0.01 / 0.25)  # each term logged on its own
+    assert found.search == pytest.approx(-CONFIG.w_search * math.log(2.0))
     assert found.cost == pytest.approx(0.75)
+    assert found.total == pytest.approx(found.time + found.cost + found.penalty + found.search)
     assert neighbour_reward(False, 0.0, 0.4, None, 3.0, 0, CONFIG).total == 0.0
 
 

@@ -145,6 +145,27 @@ def test_resume_needs_the_driver_state(tmp_path: Path) -> None:
         train.train(arguments(tmp_path / "run", resume=checkpoint))
 
 
+def test_the_episode_end_carries_each_agents_final_state() -> None:
+    """LEARNER.md: a transition pairs consecutive messages of one agent, and the planner closes
+    each episode with a final message; the last transition's s' is the state at the end (the
+    planner's features then), not a copy of the last decision's state."""
+    from lit_learner.core import LearnerCore
+
+    core = LearnerCore(small_config(seed=2))
+    ends = []
+    end_episode = core.end_episode
+    core.end_episode = lambda end: ends.append(end) or end_episode(end)  # type: ignore[method-assign]
+    spec = train.EpisodeSpec(0, "rrd4", 3, train.TRAINING_SEEDS[0] + 5)
+    outcome = train.run_episode(core, spec, train.PHASE_JOINT, "final-state")
+    assert outcome.actions["B"] and outcome.actions["psi_K"]
+    (end,) = ends
+    assert set(end.final_features) == {"B", "psi_K"}
+    for values in end.final_features.values():
+        assert len(values) == 3 and all(0.0 <= v <= 1.0 for v in values)
+    b, k = end.final_features["B"], end.final_features["psi_K"]
+    assert b[0] == k[0] and b[2] == k[2]  # rho_global and the measure are the agents' common part
+
+
 def test_training_moves_the_b_policy_towards_higher_value_on_np4(tmp_path: Path) -> None:
     """Honest stand-in for "the return improves".
 

@@ -555,7 +555,7 @@ class PlannerNode:
         return float(tensor.trilinear(context.rho_global, context.rho_local, context.measure))
 
     def _end_episode(self, job: Job, episode: DecisionSources, result: dict[str, Any]) -> None:
-        from lit_learner.train import BUDGET_TOLERANCE, minimum_cost
+        from lit_learner.train import BUDGET_TOLERANCE, final_features, minimum_cost
 
         problem = job.scenario
         budget = job.time or problem.time_budget
@@ -570,6 +570,9 @@ class PlannerNode:
             "truncated": bool(result["time"] >= budget * (1.0 - BUDGET_TOLERANCE)),
             "fallback_decisions": episode.fallbacks,
         }
+        final = final_features(result)
+        if final is not None:
+            payload["final_features"] = {agent: list(values) for agent, values in final.items()}
         answer = self.learner.call(
             self.envelopes["decide"].encode("EpisodeEnd", payload),
             max(1.0, 20 * self.params["decision_timeout"]),

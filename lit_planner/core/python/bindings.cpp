@@ -334,6 +334,13 @@ namespace
             counters["batch_decisions"] = c.batchDecisions;
             counters["neighbour_decisions"] = c.neighbourDecisions;
             result["policy"] = litstar->getPolicyName();
+            // The state at the end, per agent: the s' of each agent's last transition in training
+            // (the learner's EpisodeEnd). ψ_K's local ratio is taken around the start.
+            const Features f = litstar->computeFeatures();
+            py::dict finalFeatures;
+            finalFeatures["B"] = py::make_tuple(f.rhoGlobal, f.rhoLocalB, f.measure);
+            finalFeatures["psi_K"] = py::make_tuple(f.rhoGlobal, f.rhoLocalK, f.measure);
+            result["final_features"] = finalFeatures;
         }
         result["counters"] = counters;
         py::list decisions;
