@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import signal
 import time
 from pathlib import Path
@@ -315,6 +316,10 @@ def test_planner_survives_a_killed_learner_and_resumes(ros: RosSystem) -> None:
     assert ros.stop(planner, timeout=60.0) == 0, planner.tail()
     assert ros.stop(restarted, timeout=60.0) == 0, restarted.tail()
     _no_traceback(planner, restarted)
+    # Requests after fallbacks (after_fallback) and episode ends naming the agents that fell back
+    # (fallback_agents) are valid messages: the learner took every one of them.
+    assert "rejected:" not in restarted.text(), restarted.tail(40)
+    assert not re.search(r"episode \S+: learner: ", planner.text()), planner.tail(40)
 
 
 # ---------------------------------------------------------------------- 5. bad input

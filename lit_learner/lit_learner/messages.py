@@ -40,6 +40,10 @@ class DecisionRequest:
     """States on the current best path (0 without one)."""
     explore: bool = True
     """False: noise-free action (evaluation)."""
+    after_fallback: bool = False
+    """True: since this agent's previous request in the episode the planner executed fallback
+    values, not the learner's answer (it came too late, or the learner was not asked): the
+    agent's pending step is dropped instead of closed (its stored action was not executed)."""
 
     @property
     def features(self) -> Features:
@@ -93,9 +97,17 @@ class EpisodeEnd:
     final_features: dict[str, Features] | None = None
     """Optional raw features at the end per agent (``B``/``psi_K``), the s' of each agent's last
     step; an agent without an entry uses its last request's features (features move slowly)."""
+    fallback_agents: tuple[str, ...] = ()
+    """Agents whose last decisions were fallback values: their pending steps are dropped."""
 
     def validate(self) -> None:
         """Raises MessageError naming the bad field."""
+        unknown = set(self.fallback_agents) - set(AGENT_NAMES)
+        if unknown:
+            raise MessageError(
+                f"episode {self.episode_id!r}: unknown fallback agents {sorted(unknown)}; "
+                f"expected some of {AGENT_NAMES}"
+            )
         _validate_progress(
             self.episode_id,
             self.planning_time,

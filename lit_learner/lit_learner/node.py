@@ -204,6 +204,7 @@ class LearnerNode:
                     improvements=payload["improvements"],
                     path_states=payload["path_states"],
                     explore=payload.get("explore", True),
+                    after_fallback=payload.get("after_fallback", False),
                 )
                 # Without the lock: a gradient step in progress does not hold the decision up
                 # (the actor snapshot is the one published after the last step).
@@ -235,6 +236,7 @@ class LearnerNode:
                 path_states=payload["path_states"],
                 truncated=payload["truncated"],
                 final_features={k: tuple(v) for k, v in final.items()} if final else None,
+                fallback_agents=tuple(payload.get("fallback_agents", ())),
             )
             with self._lock:
                 self._apply_commits_locked()  # the episode's decisions, in order, first

@@ -94,7 +94,9 @@ class Pairing:
             episode.check(request.episode_id, request.planning_time)
 
     def step(self, request: DecisionRequest, action: float | None) -> Transition | None:
-        """Close the agent's pending step in this episode (if any) and open a new one.
+        """Close the agent's pending step in this episode (if any) and open a new one. After a
+        fallback (``request.after_fallback``) the pending step is dropped instead: the planner
+        did not execute its action, or executed others within it.
 
         Args:
             request: the decision request.
@@ -107,7 +109,7 @@ class Pairing:
         episode.observe(request.episode_id, request.planning_time, request.improvements)
         closed = None
         pending = episode.pending.pop(request.agent, None)
-        if pending is not None:
+        if pending is not None and not request.after_fallback:
             closed = self._close(
                 request.agent,
                 request.episode_id,
@@ -138,8 +140,8 @@ class Pairing:
         closed = []
         for agent in AGENT_NAMES:
             pending = episode.pending.pop(agent, None)
-            if pending is None:
-                continue
+            if pending is None or agent in end.fallback_agents:
+                continue  # a fallback value was executed last: the step is not the agent's
             final = (end.final_features or {}).get(agent, pending.state)
             closed.append(
                 self._close(

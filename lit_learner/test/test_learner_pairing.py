@@ -110,6 +110,28 @@ def test_episode_end_closes_every_pending_step(truncated: bool) -> None:
     assert pairing.end(end) == ([], {})  # a second end of the same episode closes nothing
 
 
+def test_steps_whose_actions_were_not_executed_are_dropped() -> None:
+    """LEARNER.md: the executed value is stored. A planner that executed fallback values (the
+    learner answered too late, or was not asked) says so with its agent's next request
+    (``after_fallback``) and at the end (``fallback_agents``): the pending step of that agent is
+    dropped, not closed into a transition with an action that did not run."""
+    from dataclasses import replace
+
+    pairing = Pairing(REWARD)
+    pairing.step(request("psi_K", "e", 0.0, 0.1), 0.1)
+    kept = pairing.step(request("psi_K", "e", 0.5, 0.2), 0.2)  # its answer came too late
+    assert kept is not None and kept.action == 0.1  # 0.1 ran from 0.0 to 0.5: a true step
+    after = replace(request("psi_K", "e", 1.5, 0.3), after_fallback=True)
+    assert pairing.step(after, 0.3) is None  # 0.2 never ran: dropped
+    pairing.step(request("B", "e", 1.6, 0.4), 0.4)
+    last = pairing.step(request("psi_K", "e", 2.0, 0.5), 0.5)
+    assert last is not None and (last.state, last.action) == ((0.3,) * 3, 0.3)
+
+    end = EpisodeEnd("e", 10.0, 10.0, None, 2.0, 0, 0, fallback_agents=("psi_K",))
+    closed, _ = pairing.end(end)
+    assert [t.agent for t in closed] == ["B"]  # psi_K's last step ended in fallback values
+
+
 def test_interleaved_episodes_are_kept_apart() -> None:
     pairing = Pairing(REWARD)
     pairing.step(request("B", "a", 0.0, 0.1), 0.1)

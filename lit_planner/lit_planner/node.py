@@ -114,6 +114,9 @@ class Job:
     request_seq: int | None = None
     """The plan request's envelope seq (for an Error that answers it)."""
     episode_id: str = ""
+    fell_back: set[str] = field(default_factory=set)
+    """Training: agents that executed a fallback value since their last answered learner call
+    (the learner drops their pending steps: its action was not the one executed)."""
     done: threading.Event = field(default_factory=threading.Event)
     result: dict[str, Any] | None = None
     error: BaseException | None = None
@@ -516,6 +519,8 @@ class PlannerNode:
                 "explore": bool(self.params["explore"]),
                 "dimension": int(context.dimension),
             }
+            if kind in job.fell_back:
+                payload["after_fallback"] = True
             started = time.perf_counter()
             episode.learner_calls += 1
             answer = self.learner.call(
@@ -532,6 +537,7 @@ class PlannerNode:
                     if success and reply.name == "DecideResponse":
                         # From encoding the request to the decoded, validated answer.
                         episode.add("learner", (time.perf_counter() - started) * 1e3)
+                        job.fell_back.discard(kind)
                         return float(reply.payload["value"])
                     reason = f"learner error: {reply.payload.get('message', '?')}"
             else:
@@ -546,6 +552,7 @@ class PlannerNode:
                     f"{self.params['learner_retry']:g} s use the fallback policy"
                 )
         episode.fallbacks += 1
+        job.fell_back.add(kind)
         tensor = self._fallback.get(kind)
         if tensor is None:
             episode.add("fallback-fixed")
@@ -570,6 +577,8 @@ class PlannerNode:
             "truncated": bool(result["time"] >= budget * (1.0 - BUDGET_TOLERANCE)),
             "fallback_decisions": episode.fallbacks,
         }
+        if job.fell_back:
+            payload["fallback_agents"] = sorted(job.fell_back)
         final = final_features(result)
         if final is not None:
             payload["final_features"] = {agent: list(values) for agent, values in final.items()}
