@@ -338,6 +338,17 @@ def run_episode(
     )
 
 
+DRAW_STREAM = 0x6C697464
+"""Second word of the seed of a new run's episode draws (scenario, instance, seed)."""
+
+
+def draw_generator(seed: int) -> np.random.Generator:
+    """The generator of a new run's episode draws: a stream of its own. The agents' generators
+    are seeded with seed + 0 (B) and seed + 1 (psi_K); one seeded with the bare seed would repeat
+    the B agent's numbers (its warm-up actions and exploration noise) in its draws."""
+    return np.random.default_rng([seed, DRAW_STREAM])
+
+
 def final_features(result: dict[str, Any]) -> dict[str, tuple[float, float, float]] | None:
     """Each agent's features at the end of a LIT* query (``lit_core.solve``'s
     ``final_features``), clipped to [0, 1] against rounding: the s' of its last transition."""
@@ -744,7 +755,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 config, reward=dataclasses.replace(config.reward, w_search=w_search)
             )
         core = LearnerCore(config)
-        rng = np.random.default_rng(args.seed)
+        rng = draw_generator(args.seed)
     distribution = TrainingDistribution(state.scenarios, rng)  # checks the names first
     run_dir.mkdir(parents=True, exist_ok=True)
     lock = _lock_run_folder(run_dir)  # held until this process ends

@@ -11,6 +11,7 @@ import csv
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("torch")
@@ -52,6 +53,16 @@ def test_training_distribution_never_draws_a_benchmark_query() -> None:
     assert all(
         spec.instance >= train.TRAINING_INSTANCES[0] for spec in specs if spec.scenario == "rrd8"
     )
+
+
+def test_episode_draws_do_not_repeat_an_agents_random_numbers() -> None:
+    from lit_learner.core import AGENT_SEED_OFFSET, LearnerCore
+
+    for seed in (0, 11):
+        core = LearnerCore(small_config(seed=seed))
+        draws = train.draw_generator(seed).random(8)
+        for name in AGENT_SEED_OFFSET:
+            assert not np.isin(core.agents[name].rng.random(8), draws).any()
 
 
 def test_training_distribution_rejects_an_instance_suffix() -> None:
