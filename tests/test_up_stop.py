@@ -61,36 +61,71 @@ def _gone(pid: int, timeout: float = 30.0) -> bool:
     return False
 
 
+class _Launcher:
+    """The launcher script, started; ``child_pid`` once its child is up and being stopped."""
+
+    def __init__(self, cwd: Path) -> None:
+        self.process = subprocess.Popen(
+            [sys.executable, "-c", LAUNCHER],
+            cwd=cwd,
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+            start_new_session=True,
+        )  # fmt: skip
+        self.child_pid: int | None = None
+
+    def stopping(self) -> None:
+        lines = _read_until(self.process.stdout, "child pid")
+        self.child_pid = int(lines[-1].split()[-1])
+        _read_until(self.process.stdout, "child: stopping slowly")  # stop() sent SIGTERM
+
+    def killed_everything(self) -> list[str]:
+        lines = _read_until(self.process.stdout, "codes")
+        assert lines[-1] == f"codes {{'learner': {-signal.SIGKILL}}}"
+        assert not any("Traceback" in line for line in lines)
+        assert self.process.wait(timeout=60) == 0
+        assert self.child_pid is not None and _gone(self.child_pid)
+        self.child_pid = None
+        return lines
+
+    def clean_up(self) -> None:
+        if self.process.poll() is None:
+            self.process.kill()
+        self.process.wait(timeout=60)
+        if self.child_pid is not None and not _gone(self.child_pid, timeout=0.0):
+            os.kill(self.child_pid, signal.SIGKILL)  # the launcher left it behind
+
+
 def test_interrupts_during_stop_wait_then_kill(tmp_path: Path) -> None:
-    launcher = subprocess.Popen(
-        [sys.executable, "-c", LAUNCHER],
-        cwd=tmp_path,
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        start_new_session=True,
-    )  # fmt: skip
-    child_pid = None
+    launcher = _Launcher(tmp_path)
     try:
-        lines = _read_until(launcher.stdout, "child pid")
-        child_pid = int(lines[-1].split()[-1])
-        _read_until(launcher.stdout, "child: stopping slowly")  # stop() sent SIGTERM
-        launcher.send_signal(signal.SIGINT)
-        lines = _read_until(launcher.stdout, "still stopping")
+        launcher.stopping()
+        launcher.process.send_signal(signal.SIGINT)
+        lines = _read_until(launcher.process.stdout, "still stopping")
         why = "it saves its checkpoint and exports its tensors; at most"
         assert f"waiting for the learner to finish ({why}" in lines[-1]
         assert "interrupt again to kill every process now" in lines[-1]
-        os.kill(child_pid, 0)  # not left behind: still running, still waited for
-        assert launcher.poll() is None
+        assert launcher.child_pid is not None
+        os.kill(launcher.child_pid, 0)  # not left behind: still running, still waited for
+        assert launcher.process.poll() is None
 
-        launcher.send_signal(signal.SIGINT)
-        lines = _read_until(launcher.stdout, "codes")
+        launcher.process.send_signal(signal.SIGINT)
+        lines = launcher.killed_everything()
         assert any("killed the processes still running" in line for line in lines)
-        assert lines[-1] == f"codes {{'learner': {-signal.SIGKILL}}}"
-        assert launcher.wait(timeout=60) == 0
-        assert _gone(child_pid)
-        child_pid = None
     finally:
-        if launcher.poll() is None:
-            launcher.kill()
-        launcher.wait(timeout=60)
-        if child_pid is not None and not _gone(child_pid, timeout=0.0):
-            os.kill(child_pid, signal.SIGKILL)  # the launcher left it behind
+        launcher.clean_up()
+
+
+def test_two_quick_interrupts_kill_without_a_traceback(tmp_path: Path) -> None:
+    """A double Ctrl-C: wherever the launcher is when the second one comes (printing the first
+    one's message, say), it kills its children and ends normally. (Two signals that arrive
+    before the first is handled count once, as the kernel delivers them; the grace then ends
+    the wait.)"""
+    launcher = _Launcher(tmp_path)
+    try:
+        launcher.stopping()
+        launcher.process.send_signal(signal.SIGINT)
+        time.sleep(0.05)
+        launcher.process.send_signal(signal.SIGINT)
+        launcher.killed_everything()
+    finally:
+        launcher.clean_up()

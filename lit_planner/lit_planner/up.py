@@ -34,6 +34,8 @@ STOP_ORDER = ("planner", "learner", "recorder")
 """Processes stop in this order: the recorder last, so it keeps the final messages."""
 GRACE_SECONDS = 20.0
 """SIGTERM → SIGKILL grace period per process (the learner may be exporting tensors)."""
+POLL_SECONDS = 0.1
+"""How often an interrupted stop looks at its signal count."""
 WHY_WAIT = {
     "learner": "it saves its checkpoint and exports its tensors",
     "recorder": "it writes the rest of the bag and closes it",
@@ -135,34 +137,41 @@ class System:
     def stop(self) -> dict[str, int | None]:
         """SIGTERM each child (planner, learner, recorder order), SIGKILL after the grace.
 
-        An interrupt (Ctrl-C) while a child is stopping does not leave it behind: the wait goes
-        on, and says what it waits for (the learner saves its checkpoint, the recorder closes the
-        bag). A second interrupt SIGKILLs every child still running.
+        An interrupt (Ctrl-C, or SIGTERM) while a child is stopping does not leave it behind: the
+        wait goes on, and says what it waits for (the learner saves its checkpoint, the recorder
+        closes the bag). A second interrupt SIGKILLs every child still running. (From the main
+        thread: the signals are counted, not raised, while this runs, so none can land half-way
+        through the handling of another.)
         """
+        interrupts = [0]
+        previous = {}
+        if threading.current_thread() is threading.main_thread():
+            for number in (signal.SIGINT, signal.SIGTERM):
+                previous[number] = signal.signal(
+                    number, lambda *_: interrupts.__setitem__(0, interrupts[0] + 1)
+                )
+        try:
+            return self._stop_all(interrupts)
+        finally:
+            for number, handler in previous.items():
+                signal.signal(number, handler)
+
+    def _stop_all(self, interrupts: list[int]) -> dict[str, int | None]:
         codes: dict[str, int | None] = {}
         order = [n for n in STOP_ORDER if n in self.children]
         order += [n for n in self.children if n not in order]
-        interrupted = False
+        told = killed = False
         for name in order:
             process = self.children[name].process
             if process.poll() is None:
                 process.send_signal(signal.SIGTERM)
             deadline = time.monotonic() + GRACE_SECONDS
             while process.poll() is None:
-                try:
-                    remaining = deadline - time.monotonic()
-                    if remaining > 0:
-                        process.wait(remaining)
-                    else:
-                        process.kill()
-                        process.wait()
-                except subprocess.TimeoutExpired:
-                    continue  # the grace is over: killed on the next pass
-                except KeyboardInterrupt:
-                    if interrupted:
-                        self._kill_all()
-                        continue
-                    interrupted = True
+                if interrupts[0] >= 2 and not killed:
+                    killed = True
+                    self._kill_all()
+                elif interrupts[0] == 1 and not told:
+                    told = True
                     why = WHY_WAIT.get(name, "its shutdown")
                     left = max(0.0, deadline - time.monotonic())
                     print(
@@ -171,6 +180,12 @@ class System:
                         file=sys.stderr,
                         flush=True,
                     )
+                if time.monotonic() >= deadline:
+                    process.kill()
+                try:
+                    process.wait(POLL_SECONDS)
+                except subprocess.TimeoutExpired:
+                    continue
             codes[name] = process.returncode
         return codes
 
@@ -368,10 +383,7 @@ def run(args: argparse.Namespace) -> int:
                 print(f"lit up: {', '.join(dead)} exited; stopping the others", flush=True)
                 break
     finally:
-        # From here an interrupt reaches System.stop (which waits on, or kills when repeated).
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        stop_on_sigterm()
-        codes = system.stop()
+        codes = system.stop()  # counts the interrupts that come while it waits
         claim.close()
     print("lit up: stopped " + ", ".join(f"{n} (exit {c})" for n, c in codes.items()), flush=True)
     return 0 if all(code == 0 for code in codes.values()) else 1
