@@ -694,7 +694,6 @@ namespace lit
         if (std::isfinite(bestCost_))
             pruned = graph_->prune(bestCost_, [this](State *state) { detachFromForwardTree(state); });
         counters_.prunedSamples += pruned;
-        const std::size_t invalidBefore = graph_->invalidDraws();
         const std::size_t checksBefore = graph_->validDraws() + graph_->invalidDraws();
         graph_->addBatch(batchSize_, bestCost_);
         counters_.collisionChecks += graph_->validDraws() + graph_->invalidDraws() - checksBefore;
@@ -715,7 +714,6 @@ namespace lit
         event.invalidSamples = graph_->numInvalid();
         event.prunedSamples = pruned;
         event.time = planningTime();
-        (void)invalidBefore;
         notifyListeners([&event](PlannerListener &listener) { listener.onBatch(event); });
     }
 

@@ -213,7 +213,6 @@ namespace lit
         double spaceMeasure_{0.0};
         double bestCost_{std::numeric_limits<double>::infinity()};
         std::vector<litstar::State *> bestPathStates_;
-        std::vector<ompl::base::State *> bestPathCopies_;
         double rhoLocalB_{0.0};
         unsigned int batchSize_{100u};
         double neighbourFactor_{M_E};
