@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
-from lit_planner.up import DomainBusy, claim_domain
+from lit_planner.up import DomainBusy, claim_domain, domain_claimed
 from ros_helpers import reserve_domain
 
 from lit_planner import rosutil
@@ -53,13 +53,33 @@ def test_a_claim_lasts_as_long_as_its_file() -> None:
     domain, lock = reserve_domain()
     try:
         claim = claim_domain(domain, "first")
+        assert domain_claimed(domain)
         with pytest.raises(DomainBusy, match=r"by first \(pid"):
             claim_domain(domain, "second")
         claim.close()
-        claim_domain(domain, "third").close()  # released with the file
+        assert not domain_claimed(domain)
+        with claim_domain(domain, "third"):  # released with the file
+            assert domain_claimed(domain)
+        assert not domain_claimed(domain)
     finally:
         if lock is not None:
             lock.close()
+
+
+def test_lit_test_does_not_pick_a_domain_a_launcher_holds() -> None:
+    from lit_planner.testing import reserve_ros_domain
+
+    domain, lock = reserve_domain()
+    if lock is not None:
+        lock.close()  # free for reserve_ros_domain, but held by a launcher:
+    with claim_domain(domain, "a launcher"):
+        chosen, chosen_lock = reserve_ros_domain([domain, domain + 1], start=0)
+        try:
+            # (None: domain + 1 is another test run's, and nothing was free to reserve.)
+            assert chosen == domain + 1 or chosen_lock is None
+        finally:
+            if chosen_lock is not None:
+                chosen_lock.close()
 
 
 def _until(predicate: object, timeout: float = 30.0) -> bool:

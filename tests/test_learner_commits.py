@@ -69,6 +69,13 @@ SCRIPT = textwrap.dedent(
         "fallback_decisions": 0})
     out["end"] = [ok, payload.get("transitions_stored"), len(learner._unapplied)]
     out["decisions_at_end"] = learner._decisions
+    # A planner that starts another episode has abandoned the one whose end never came.
+    for t in (0.1, 0.2):
+        call("DecideRequest", dict(decide("psi_K", t), episode_id="e2"))
+    out["e2_open"] = "planner/test|run-1|e2" in learner.core.pairing.episodes
+    call("DecideRequest", dict(decide("psi_K", 0.05), episode_id="e3"))
+    out["e2_after"] = "planner/test|run-1|e2" in learner.core.pairing.episodes
+    out["e3_open"] = "planner/test|run-1|e3" in learner.core.pairing.episodes
     learner.shutdown()
     learner.node.destroy_node()
     rclpy.shutdown()
@@ -104,3 +111,4 @@ def test_decisions_answered_while_the_lock_is_taken_are_recorded_after_in_order(
     assert out["queued_before_end"] == 1
     assert out["end"][0] is True and out["end"][2] == 0
     assert out["decisions_at_end"] == 4
+    assert (out["e2_open"], out["e2_after"], out["e3_open"]) == (True, False, True)

@@ -194,6 +194,21 @@ class LearnerCore:
         metrics.update(self.counters())
         return metrics
 
+    def open_episodes(self) -> set[str]:
+        """Episodes begun and not ended (or abandoned)."""
+        return set(self.pairing.episodes) | set(self._owed_updates) | set(self._episode_terms)
+
+    def abandon_episode(self, episode_id: str) -> bool:
+        """An episode whose end will not come (its planner moved on to the next one: the end
+        message was lost, or the planner died): the gradient steps its stored transitions owe
+        become due, its pending steps are dropped (they have no s'), and nothing of it is kept.
+        Returns whether anything of it was open."""
+        owed = self._owed_updates.pop(episode_id, {})
+        for name, count in owed.items():
+            self._pending_updates[name] += count
+        terms = self._episode_terms.pop(episode_id, None)
+        return self.pairing.abandon(episode_id) or bool(owed) or terms is not None
+
     def close_episode(self, end: EpisodeEnd) -> dict[str, float]:
         """Close the episode's pending steps and store their transitions, without training.
 

@@ -109,11 +109,17 @@ class LearnerNode:
         self._stopping = False
         self._planners: set[str] = set()
         self._decisions = 0
-        self._unapplied: collections.deque[tuple[Any, float | None, str]] = collections.deque()
+        self._unapplied: collections.deque[tuple[Any, float | None, str, str | None]] = (
+            collections.deque()
+        )
         """Answered decisions not recorded yet (the lock was taken); applied in order."""
         self._queue_lock = threading.Lock()
         """Guards ``_unapplied`` (held for an append or a pop only)."""
         self._latest_time: dict[str, float] = {}
+        self._open_episode: dict[str, str] = {}
+        """Each planner's (source's) episode in progress (serving thread). A planner plans one
+        episode at a time: its first request of another episode abandons an older one whose end
+        never came (see ``LearnerCore.abandon_episode``)."""
         """Planning time of each open episode's latest answered decision (serving thread)."""
         self._episodes_at_checkpoint = self.core.episodes
         self._episodes_at_export = self.core.episodes
@@ -168,6 +174,14 @@ class LearnerNode:
         if path.exists() and not p["fresh"]:
             core = LearnerCore.load_checkpoint(path)
             self.log.info(f"resumed from {path}: {core.episodes} episodes")
+            # Episodes open when the checkpoint was written: their planners fell back while this
+            # learner was down (those steps are not the agents'), and their gradient steps are
+            # due; an episode that goes on starts a new pairing here.
+            abandoned = sorted(core.open_episodes())
+            for episode in abandoned:
+                core.abandon_episode(episode)
+            if abandoned:
+                self.log.info(f"{len(abandoned)} episodes open in the checkpoint abandoned")
             return core
         train = p["train"]
         if train not in ("both", "B", "psi_K"):
@@ -222,8 +236,17 @@ class LearnerNode:
                     },
                 )
                 self._latest_time[episode] = decision.planning_time
+                abandoned = self._open_episode.get(message.source)
+                if abandoned == episode:
+                    abandoned = None
+                else:
+                    self._open_episode[message.source] = episode
+                    if abandoned is not None:
+                        self._latest_time.pop(abandoned, None)
                 # The pairing and the replay insert happen after the answer is on its way.
-                self._decide.defer(lambda: self._queue_commit(decision, a_norm, message.source))
+                self._decide.defer(
+                    lambda: self._queue_commit(decision, a_norm, message.source, abandoned)
+                )
                 return response
             final = payload.get("final_features")
             end = EpisodeEnd(
@@ -241,6 +264,8 @@ class LearnerNode:
             with self._lock:
                 self._apply_commits_locked()  # the episode's decisions, in order, first
                 self._latest_time.pop(episode, None)
+                if self._open_episode.get(message.source) == episode:
+                    del self._open_episode[message.source]
                 before = sum(agent.transitions for agent in self.core.agents.values())
                 metrics = self.core.close_episode(end)
                 stored = sum(agent.transitions for agent in self.core.agents.values()) - before
@@ -286,14 +311,17 @@ class LearnerNode:
                 f"before the previous message's {latest}"
             )
 
-    def _queue_commit(self, decision: Any, a_norm: float | None, source: str) -> None:
+    def _queue_commit(
+        self, decision: Any, a_norm: float | None, source: str, abandoned: str | None = None
+    ) -> None:
         """Record a decision that has been answered: now if the core's lock is free, else as
         soon as it is (the trainer applies what is waiting when it lets the lock go, and so does
         the next request or episode end). A checkpoint copies the state under the lock for tens
         of ms; the serving thread used to wait for it before taking the next request, and the
-        planner's 50 ms decision deadline ran out."""
+        planner's 50 ms decision deadline ran out. ``abandoned``: the same planner's previous
+        episode, whose end never came, is abandoned first."""
         with self._queue_lock:
-            self._unapplied.append((decision, a_norm, source))
+            self._unapplied.append((decision, a_norm, source, abandoned))
         self.apply_commits(block=False)
 
     def apply_commits(self, block: bool = True) -> None:
@@ -310,7 +338,12 @@ class LearnerNode:
             with self._queue_lock:
                 if not self._unapplied:
                     return
-                decision, a_norm, source = self._unapplied.popleft()
+                decision, a_norm, source, abandoned = self._unapplied.popleft()
+            if abandoned is not None and self.core.abandon_episode(abandoned):
+                self.log.warning(
+                    f"episode {abandoned} never ended (its planner started another one): its "
+                    "open steps are dropped, the gradient steps of its stored transitions are due"
+                )
             try:
                 self.core.commit(decision, a_norm)
             except Exception as exc:  # noqa: BLE001 - the others still count

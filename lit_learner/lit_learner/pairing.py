@@ -86,6 +86,11 @@ class Pairing:
         self.reward = reward
         self.episodes: dict[str, EpisodeProgress] = {}
 
+    def abandon(self, episode_id: str) -> bool:
+        """Forget an episode whose end will not come (its pending steps have no s'); whether it
+        was open."""
+        return self.episodes.pop(episode_id, None) is not None
+
     def check(self, request: DecisionRequest) -> None:
         """Raise the :class:`PairingError` that :meth:`step` would raise for ``request``, without
         changing anything."""

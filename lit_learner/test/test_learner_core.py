@@ -219,6 +219,23 @@ def test_gradient_steps_are_owed_from_the_end_of_their_episode(tmp_path: Path) -
         assert not c._owed_updates
 
 
+def test_an_abandoned_episode_releases_its_steps_and_is_forgotten() -> None:
+    """An episode whose end never comes (the end message was lost, the planner died): when it is
+    abandoned, the steps its stored transitions owe become due and nothing of it stays open."""
+    core = LearnerCore(small_config())
+    feed(core, script(6))  # past both warm-ups
+    (*decisions, _end) = script(1, seed=5)
+    before = {name: agent.transitions for name, agent in core.agents.items()}
+    for m in decisions:
+        core.decide(m)
+    stored = {n: a.transitions - before[n] for n, a in core.agents.items()}
+    assert core.pending_updates == 0 and core.open_episodes() == {decisions[0].episode_id}
+    assert core.abandon_episode(decisions[0].episode_id)
+    assert core._pending_updates == stored  # due now; the pending steps were dropped
+    assert core.open_episodes() == set()
+    assert not core.abandon_episode(decisions[0].episode_id)  # nothing left of it
+
+
 def test_deciding_while_another_thread_trains() -> None:
     """The learner node's pattern: one thread chooses from published snapshots and commits
     under the core's lock; another takes gradient steps holding that lock only for bookkeeping

@@ -385,11 +385,11 @@ class PlannerNode:
         training = p["policy"] == "training"
         drawn = p["episodes_from"] == "training" or (training and p["episodes_from"] != "scenario")
         if drawn:
-            import numpy as np
-            from lit_learner.train import TrainingDistribution
+            from lit_learner.train import TrainingDistribution, draw_generator
 
             names = scenarios.split_names(p["training_scenarios"])
-            distribution = TrainingDistribution(names, np.random.default_rng(p["training_seed"]))
+            # Not default_rng(seed): that would repeat a learner agent's numbers for equal seeds.
+            distribution = TrainingDistribution(names, draw_generator(p["training_seed"]))
         if training and not self.learner.wait(p["learner_wait"]):
             self.log.warning(
                 f"learner service {p['learner_service']} not found within "

@@ -47,7 +47,7 @@ def localhost_environment() -> None:
 
 DUPLICATE_CHECK_PERIOD = 5.0
 """Seconds between a node's checks for another server of its service (see
-:func:`warn_on_duplicate_server`)."""
+:class:`DuplicateServerWatch`)."""
 DEAD_SERVER_SECONDS = 25.0
 """How long a second server must stay in the graph before it counts as alive: a process killed
 with SIGKILL stays in it until its DDS lease (20 s) runs out, as the learner does when it is

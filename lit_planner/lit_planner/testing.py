@@ -28,6 +28,8 @@ from pathlib import Path
 from typing import IO
 from xml.etree import ElementTree
 
+from lit_planner.up import domain_claimed
+
 PYTHON_TEST_DIRS = ("tests", "lit_planner/test", "lit_learner/test", "lit_msgs_json/test")
 """Python test directories, relative to the checkout root; missing ones are skipped."""
 CTEST_GLOB = "lit_planner/core/build/*/CTestTestfile.cmake"
@@ -106,6 +108,9 @@ def reserve_ros_domain(
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
+            lock.close()
+            continue
+        if domain_claimed(domain):  # a `lit up` (or demo, system-bench) of this host runs there
             lock.close()
             continue
         return domain, lock

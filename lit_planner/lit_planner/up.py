@@ -20,13 +20,12 @@ import re
 import signal
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO
+from typing import IO, Self
 
 from lit_planner.rosutil import DEFAULT_DOMAIN_ID, LOCALHOST_ENV
 
@@ -200,37 +199,88 @@ class DomainBusy(RuntimeError):
     """Another launcher of this host runs its nodes on the domain (see :func:`claim_domain`)."""
 
 
-def claim_domain(domain_id: int, who: str) -> IO[str]:
-    """Hold this host's launcher lock of ``domain_id`` while the returned file stays open (it is
-    released when the file is closed or the process ends, however it ends).
+LAUNCH_LOCK_DIR = Path("/tmp")
+"""Where the launchers' domain locks live: one folder for the whole host (not ``$TMPDIR``, which
+differs between users and shells, while localhost discovery reaches them all)."""
+
+
+class DomainClaim:
+    """A launcher's hold on a domain (:func:`claim_domain`): released by :meth:`close`, at the
+    end of a ``with`` block, or when the process ends however it ends."""
+
+    def __init__(self, fd: int | None) -> None:
+        self._fd = fd
+
+    def close(self) -> None:
+        """Release the domain."""
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self.close()
+
+
+def domain_claimed(domain_id: int) -> bool:
+    """Whether a launcher holds ``domain_id`` now (for ``lit test``, which must not pick it)."""
+    try:
+        fd = os.open(LAUNCH_LOCK_DIR / f"lit-launch-domain-{domain_id}.lock", os.O_RDONLY)
+    except OSError:
+        return False  # no such file: never claimed
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(fd)  # releases the test's own lock too
+    return False
+
+
+def claim_domain(domain_id: int, who: str) -> DomainClaim:
+    """Hold this host's launcher lock of ``domain_id`` (``/tmp/lit-launch-domain-N.lock``).
 
     ``lit up``, ``lit demo`` and ``lit system-bench`` claim their domain before they start a
     node: two learners (or planners) on one domain serve the same services, DDS hands each
     request to either of them, and both recorders record both runs. Discovery stays on this host,
-    so a lock file in the temporary directory covers everything that can meet on the domain. It
-    does not see nodes started without a launcher; the learner node itself warns when another
-    learner serves its decide service.
+    so a lock file covers everything that can meet on the domain. It does not see nodes started
+    without a launcher; the nodes themselves warn when another server of their service stays
+    (:class:`lit_planner.rosutil.DuplicateServerWatch`). A lock file another user created is
+    locked read-only; when none can be opened at all, the run goes on unclaimed, with a warning.
 
     Raises:
         DomainBusy: another launcher holds the domain; the message names it and its PID.
     """
-    path = Path(tempfile.gettempdir()) / f"lit-launch-domain-{domain_id}.lock"
-    lock = open(path, "a+", encoding="utf-8")  # noqa: SIM115 - held by the caller
+    path = LAUNCH_LOCK_DIR / f"lit-launch-domain-{domain_id}.lock"
+    writable = True
     try:
-        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)  # not inherited by the children
+    except PermissionError:
+        try:
+            fd, writable = os.open(path, os.O_RDONLY), False  # another user's file
+        except OSError as error:
+            print(f"warning: ROS_DOMAIN_ID={domain_id} not claimed: {error}", file=sys.stderr)
+            return DomainClaim(None)
+    except OSError as error:
+        print(f"warning: ROS_DOMAIN_ID={domain_id} not claimed: {error}", file=sys.stderr)
+        return DomainClaim(None)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
-        lock.seek(0)
-        holder = lock.read().strip() or "another launcher"
-        lock.close()
+        holder = os.pread(fd, 4096, 0).decode("utf-8", "replace").strip()
+        os.close(fd)
         raise DomainBusy(
-            f"ROS_DOMAIN_ID={domain_id} is in use on this host by {holder}; its nodes would "
-            "answer this run's service calls. Stop it, or choose another --domain-id"
+            f"ROS_DOMAIN_ID={domain_id} is in use on this host by {holder or 'another launcher'}; "
+            "its nodes would answer this run's service calls. Stop it, or choose another "
+            "--domain-id"
         ) from None
-    lock.seek(0)
-    lock.truncate()
-    lock.write(f"{who} (pid {os.getpid()}, since {time.strftime('%H:%M:%S')})\n")
-    lock.flush()
-    return lock
+    if writable:
+        os.ftruncate(fd, 0)
+        text = f"{who} (pid {os.getpid()}, since {time.strftime('%H:%M:%S')})\n"
+        os.pwrite(fd, text.encode("utf-8"), 0)
+    return DomainClaim(fd)
 
 
 DEFAULT_SCENARIO = "np8"
