@@ -105,6 +105,16 @@ def test_importance_weights_are_at_most_one_and_one_for_the_rarest() -> None:
         np.testing.assert_allclose(batch.weight, expected, rtol=1e-6)
 
 
+def test_the_smallest_stored_priority_ignores_the_empty_leaves() -> None:
+    tree = SumTree(8)
+    tree.set(np.arange(3), np.array([2.0, 0.5, 3.0]))
+    assert tree.stored_min(3) == 0.5  # leaves 3..7 are empty (zero) and not stored
+    assert tree.stored_min(1) == 2.0
+    for filled in (0, 9):
+        with pytest.raises(ReplayError):
+            tree.stored_min(filled)
+
+
 def test_new_items_enter_at_the_largest_priority_so_far() -> None:
     replay = PrioritizedReplay(8, alpha=0.5, priority_eps=1e-6)
     replay.add((0, 0, 0), 0.0, 0.0, (0, 0, 0), False)
