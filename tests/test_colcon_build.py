@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+CORE = ROOT / "lit_planner" / "core"
 PACKAGES = {
     "lit_msgs_json": [],
     "lit_learner": ["lit_learner_node"],
@@ -63,9 +64,36 @@ def test_colcon_builds_the_workspace(tmp_path: Path) -> None:
     )  # fmt: skip
     assert probe.returncode == 0, probe.stdout + probe.stderr
     assert probe.stdout.startswith(str(install / "lit_core")), probe.stdout
+    _check_cpp_consumer(install, tmp_path, env)
     # The build works on copies: the source tree is left as it was.
     status = subprocess.run(
         ["git", "status", "--porcelain", "--", "ros2_ws", *PACKAGES],
         cwd=ROOT, capture_output=True, text=True, check=False,
     )  # fmt: skip
     assert "build/" not in status.stdout and ".egg-info" not in status.stdout, status.stdout
+
+
+def _check_cpp_consumer(install: Path, tmp_path: Path, env: dict[str, str]) -> None:
+    """The C++ library as another CMake project uses it: ``find_package(lit_core)`` in the sourced
+    workspace finds the installed headers, library and ``lit::core``; the example built against
+    them plans np8 with the shipped tensors and finds the first solution the extension module finds
+    for the same seed (the same planner, whichever way it is built)."""
+    from lit_planner import planning
+
+    lib = install / "lit_core"
+    assert (lib / "include/lit/LITstar.h").is_file()
+    assert (lib / "lib/cmake/lit_core/lit_coreConfig.cmake").is_file()
+    build = tmp_path / "example"
+    script = (
+        f". {install}/setup.sh && cmake -S {CORE / 'examples'} -B {build} "
+        f"&& cmake --build {build} && {build}/plan_narrow_passage {ROOT / 'tensors'} 0.2 1"
+    )
+    process = subprocess.run(
+        ["sh", "-c", script], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600,
+        check=False,
+    )  # fmt: skip
+    assert process.returncode == 0, process.stdout[-3000:] + process.stderr[-3000:]
+    assert "policy tensor, 8-D narrow passage" in process.stdout, process.stdout[-2000:]
+    assert "Exact solution" in process.stdout, process.stdout[-2000:]
+    reference = planning.plan("np8", "litstar", policy="tensor", seed=1, time=0.2)
+    assert f"cost {reference['c_init']:.4f};" in process.stdout, process.stdout[-2000:]

@@ -116,11 +116,11 @@ class LearnerNode:
         self._queue_lock = threading.Lock()
         """Guards ``_unapplied`` (held for an append or a pop only)."""
         self._latest_time: dict[str, float] = {}
+        """Planning time of each open episode's latest answered decision (serving thread)."""
         self._open_episode: dict[str, str] = {}
         """Each planner's (source's) episode in progress (serving thread). A planner plans one
         episode at a time: its first request of another episode abandons an older one whose end
         never came (see ``LearnerCore.abandon_episode``)."""
-        """Planning time of each open episode's latest answered decision (serving thread)."""
         self._episodes_at_checkpoint = self.core.episodes
         self._episodes_at_export = self.core.episodes
         self._last_checkpoint = time.monotonic()

@@ -1,0 +1,118 @@
+// LIT* in an OMPL program of one's own: the narrow passage in R^8 (a wall across x0 in [-0.1, 0.1]
+// with a free slab 0.05 < x1 < 0.15; the same problem as `./lit plan np8`), a validity checker
+// written here, OMPL's SimpleSetup, and LIT* with the trained lookup tensors (or FIT*'s rule when
+// no tensor folder is given).
+//
+//   plan_narrow_passage [TENSOR_DIR [SECONDS [SEED]]]
+//
+// Prints the status, the time to the first solution, its cost and the final cost; exits 0 when the
+// problem was solved.
+#include <lit/LITstar.h>
+#include <lit/LookupTensor.h>
+#include <lit/ParameterPolicy.h>
+#include <lit/PlannerListener.h>
+
+#include <ompl/base/objectives/PathLengthOptimizationObjective.h>
+#include <ompl/base/spaces/RealVectorStateSpace.h>
+#include <ompl/geometric/SimpleSetup.h>
+#include <ompl/util/Console.h>
+
+#include <cstdio>
+#include <exception>
+#include <memory>
+#include <string>
+
+namespace ob = ompl::base;
+namespace og = ompl::geometric;
+
+namespace
+{
+    constexpr unsigned int dimension = 8;
+
+    // The first solution's planner time and cost, as LIT* reports them.
+    class FirstSolution : public lit::PlannerListener
+    {
+    public:
+        void onSolution(const lit::SolutionEvent &event) override
+        {
+            if (event.improvement == 1u)
+            {
+                time = event.time;
+                cost = event.cost;
+            }
+        }
+        double time{-1.0};
+        double cost{-1.0};
+    };
+
+    // The tensor policy from a folder that `lit train --export` wrote. The sidecars (b_tensor.json,
+    // k_tensor.json) state the grid and the value ranges given here; the loader checks each file
+    // against them and throws lit::TensorError on any mismatch.
+    lit::ParameterPolicyPtr tensorPolicy(const std::string &folder)
+    {
+        const auto load = [&folder](const char *file, double low, double high) {
+            return std::make_shared<const lit::LookupTensor>(
+                lit::LookupTensor::load(folder + "/" + file, lit::TensorSpec{{{101u, 101u, 101u}}, low, high}));
+        };
+        return std::make_shared<lit::TensorPolicy>(load("b_tensor.npy", 20.0, 200.0),
+                                                   load("k_tensor.npy", 3.0, 15.0),
+                                                   lit::Interpolation::Trilinear);
+    }
+}  // namespace
+
+int main(int argc, char **argv)
+{
+    try
+    {
+        const std::string tensors = argc > 1 ? argv[1] : "";
+        const double seconds = argc > 2 ? std::stod(argv[2]) : 0.4;
+        const unsigned int seed = argc > 3 ? static_cast<unsigned int>(std::stoul(argv[3])) : 1u;
+        ompl::msg::setLogLevel(ompl::msg::LOG_WARN);
+
+        auto space = std::make_shared<ob::RealVectorStateSpace>(dimension);
+        space->setBounds(-0.5, 0.5);
+        og::SimpleSetup setup(space);
+        setup.setStateValidityChecker([](const ob::State *state) {
+            const double *x = state->as<ob::RealVectorStateSpace::StateType>()->values;
+            const bool inWall = x[0] >= -0.1 && x[0] <= 0.1;
+            const bool inGap = x[1] > 0.05 && x[1] < 0.15;
+            return !inWall || inGap;
+        });
+        // Edges are checked every 5e-6 of the space's largest extent (PDT's default).
+        setup.getSpaceInformation()->setStateValidityCheckingResolution(5e-6);
+        ob::ScopedState<> start(space), goal(space);
+        for (unsigned int i = 0; i < dimension; ++i)
+            start[i] = goal[i] = 0.0;
+        start[0] = -0.2;
+        goal[0] = 0.2;
+        setup.setStartAndGoalStates(start, goal);
+        setup.setOptimizationObjective(
+            std::make_shared<ob::PathLengthOptimizationObjective>(setup.getSpaceInformation()));
+
+        auto planner = std::make_shared<lit::LITstar>(setup.getSpaceInformation());
+        if (tensors.empty())
+            planner->setPolicyName("fit");
+        else
+            planner->setPolicy(tensorPolicy(tensors));
+        planner->setSeed(seed);
+        auto first = std::make_shared<FirstSolution>();
+        planner->addListener(first);
+        setup.setPlanner(planner);
+
+        const ob::PlannerStatus status = setup.solve(seconds);
+        const bool solved = status == ob::PlannerStatus::EXACT_SOLUTION;
+        std::printf("policy %s, %u-D narrow passage, %.3g s, seed %u: %s\n", planner->getPolicy()->name().c_str(),
+                    dimension, seconds, seed, status.asString().c_str());
+        if (solved)
+            std::printf("first solution after %.2f ms, cost %.4f; final cost %.4f (optimum 0.4236); "
+                        "%zu batches, %zu collision checks\n",
+                        first->time * 1e3, first->cost, planner->bestCost(), planner->counters().batches,
+                        planner->counters().collisionChecks);
+        return solved ? 0 : 1;
+    }
+    catch (const std::exception &error)
+    {
+        std::fprintf(stderr, "plan_narrow_passage: %s\n", error.what());
+        return 2;
+    }
+}
