@@ -83,6 +83,9 @@ def _check_cpp_consumer(install: Path, tmp_path: Path, env: dict[str, str]) -> N
     lib = install / "lit_core"
     assert (lib / "include/lit/LITstar.h").is_file()
     assert (lib / "lib/cmake/lit_core/lit_coreConfig.cmake").is_file()
+    # OMPL's paths come from the consumer's find_package(ompl), not from this build's machine.
+    targets = (lib / "lib/cmake/lit_core/lit_coreTargets.cmake").read_text()
+    assert "ompl-1.5" not in targets and "libompl" not in targets, targets
     build = tmp_path / "example"
     script = (
         f". {install}/setup.sh && cmake -S {CORE / 'examples'} -B {build} "
@@ -95,5 +98,7 @@ def _check_cpp_consumer(install: Path, tmp_path: Path, env: dict[str, str]) -> N
     assert process.returncode == 0, process.stdout[-3000:] + process.stderr[-3000:]
     assert "policy tensor, 8-D narrow passage" in process.stdout, process.stdout[-2000:]
     assert "Exact solution" in process.stdout, process.stdout[-2000:]
-    reference = planning.plan("np8", "litstar", policy="tensor", seed=1, time=0.2)
+    reference = planning.plan(
+        "np8", "litstar", policy="tensor", seed=1, time=0.2, tensors_dir=ROOT / "tensors"
+    )
     assert f"cost {reference['c_init']:.4f};" in process.stdout, process.stdout[-2000:]

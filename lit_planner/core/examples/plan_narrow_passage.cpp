@@ -1,5 +1,5 @@
 // LIT* in an OMPL program of one's own: the narrow passage in R^8 (a wall across x0 in [-0.1, 0.1]
-// with a free slab 0.05 < x1 < 0.15; the same problem as `./lit plan np8`), a validity checker
+// with a free slab 0.05 < x1 < 0.15; the same problem as `./lit plan --scenario np8`), a validity checker
 // written here, OMPL's SimpleSetup, and LIT* with the trained lookup tensors (or FIT*'s rule when
 // no tensor folder is given).
 //
@@ -19,6 +19,8 @@
 
 #include <cstdio>
 #include <exception>
+#include <limits>
+#include <stdexcept>
 #include <memory>
 #include <string>
 
@@ -45,9 +47,10 @@ namespace
         double cost{-1.0};
     };
 
-    // The tensor policy from a folder that `lit train --export` wrote. The sidecars (b_tensor.json,
-    // k_tensor.json) state the grid and the value ranges given here; the loader checks each file
-    // against them and throws lit::TensorError on any mismatch.
+    // The tensor policy from a folder that `lit train --export` wrote (both tensors). The grid and the
+    // value ranges given here are those of LIT*'s tensors, as their sidecars (b_tensor.json,
+    // k_tensor.json) state them; the loader checks each file against these (it does not read the
+    // sidecars, which the Python side validates) and throws lit::TensorError on any mismatch.
     lit::ParameterPolicyPtr tensorPolicy(const std::string &folder)
     {
         const auto load = [&folder](const char *file, double low, double high) {
@@ -66,7 +69,10 @@ int main(int argc, char **argv)
     {
         const std::string tensors = argc > 1 ? argv[1] : "";
         const double seconds = argc > 2 ? std::stod(argv[2]) : 0.4;
-        const unsigned int seed = argc > 3 ? static_cast<unsigned int>(std::stoul(argv[3])) : 1u;
+        const long long seed = argc > 3 ? std::stoll(argv[3]) : 1;
+        if (seed < 0 || seed > std::numeric_limits<unsigned int>::max())
+            throw std::invalid_argument("the seed must be between 0 and " +
+                                        std::to_string(std::numeric_limits<unsigned int>::max()));
         ompl::msg::setLogLevel(ompl::msg::LOG_WARN);
 
         auto space = std::make_shared<ob::RealVectorStateSpace>(dimension);
@@ -94,14 +100,14 @@ int main(int argc, char **argv)
             planner->setPolicyName("fit");
         else
             planner->setPolicy(tensorPolicy(tensors));
-        planner->setSeed(seed);
+        planner->setSeed(static_cast<unsigned int>(seed));
         auto first = std::make_shared<FirstSolution>();
         planner->addListener(first);
         setup.setPlanner(planner);
 
         const ob::PlannerStatus status = setup.solve(seconds);
         const bool solved = status == ob::PlannerStatus::EXACT_SOLUTION;
-        std::printf("policy %s, %u-D narrow passage, %.3g s, seed %u: %s\n", planner->getPolicy()->name().c_str(),
+        std::printf("policy %s, %u-D narrow passage, %.3g s, seed %lld: %s\n", planner->getPolicy()->name().c_str(),
                     dimension, seconds, seed, status.asString().c_str());
         if (solved)
             std::printf("first solution after %.2f ms, cost %.4f; final cost %.4f (optimum 0.4236); "
