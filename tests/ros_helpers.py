@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from lit_planner.testing import reserve_ros_domain
+from lit_planner.up import DomainClaim
 
 ROOT = Path(__file__).resolve().parents[1]
 """The repository."""
@@ -54,11 +55,20 @@ GRACE = 20.0
 _domains = itertools.count()
 
 
-def reserve_domain() -> tuple[int, IO[str] | None]:
-    """A ``ROS_DOMAIN_ID`` for one test from :data:`DOMAIN_RANGE`, and the lock reserving it
+def reserve_domain() -> tuple[int, DomainClaim | None]:
+    """A ``ROS_DOMAIN_ID`` for one test from :data:`DOMAIN_RANGE`, and the claim reserving it
     (``lit test``'s own reservation, searched from the PID and a per-process counter)."""
     low, high = DOMAIN_RANGE
     return reserve_ros_domain(range(low, high + 1), os.getpid() * 37 + next(_domains))
+
+
+def launcher_domain() -> int:
+    """A free ``ROS_DOMAIN_ID`` for a launcher the test starts (``lit up``, ``lit demo``,
+    ``lit system-bench``), which claims the domain itself: found free, then released to it."""
+    domain, claim = reserve_domain()
+    if claim is not None:
+        claim.close()
+    return domain
 
 
 @dataclass

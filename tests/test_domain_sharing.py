@@ -11,8 +11,8 @@ import time
 from pathlib import Path
 
 import pytest
-from lit_planner.up import DomainBusy, claim_domain, domain_claimed
-from ros_helpers import reserve_domain
+from lit_planner.up import DomainBusy, claim_domain
+from ros_helpers import launcher_domain, reserve_domain
 
 from lit_planner import rosutil
 
@@ -29,8 +29,8 @@ from lit_planner import rosutil
 def test_launchers_refuse_a_domain_another_launcher_holds(
     tmp_path: Path, command: list[str]
 ) -> None:
-    domain, lock = reserve_domain()
-    claim = claim_domain(domain, "the test's launcher")
+    domain, claim = reserve_domain()  # held as lit test holds its domains, as a launcher would
+    assert claim is not None, "no free test domain"
     try:
         process = subprocess.run(
             [sys.executable, "-m", "lit_planner.cli", *command, "--domain-id", str(domain)],
@@ -39,39 +39,40 @@ def test_launchers_refuse_a_domain_another_launcher_holds(
             capture_output=True, text=True, timeout=120, check=False,
         )  # fmt: skip
         assert process.returncode == 2, process.stdout + process.stderr
-        holder = f"in use on this host by the test's launcher (pid {os.getpid()}, since "
+        holder = f"in use on this host by lit test (pid {os.getpid()}, since "
         assert f"lit {command[0]}: ROS_DOMAIN_ID={domain} is {holder}" in process.stderr
         assert "--domain-id" in process.stderr and "Traceback" not in process.stderr
         assert not list(tmp_path.iterdir())  # no run folder, no bag: nothing started
     finally:
         claim.close()
-        if lock is not None:
-            lock.close()
+
+
+def _held(domain: int) -> bool:
+    """Whether someone holds ``domain`` (found by trying to claim it)."""
+    try:
+        claim_domain(domain, "probe").close()
+    except DomainBusy:
+        return True
+    return False
 
 
 def test_a_claim_lasts_as_long_as_its_file() -> None:
-    domain, lock = reserve_domain()
-    try:
-        claim = claim_domain(domain, "first")
-        assert domain_claimed(domain)
-        with pytest.raises(DomainBusy, match=r"by first \(pid"):
-            claim_domain(domain, "second")
-        claim.close()
-        assert not domain_claimed(domain)
-        with claim_domain(domain, "third"):  # released with the file
-            assert domain_claimed(domain)
-        assert not domain_claimed(domain)
-    finally:
-        if lock is not None:
-            lock.close()
+    domain = launcher_domain()
+    claim = claim_domain(domain, "first")
+    assert _held(domain)
+    with pytest.raises(DomainBusy, match=r"by first \(pid"):
+        claim_domain(domain, "second")
+    claim.close()
+    assert not _held(domain)
+    with claim_domain(domain, "third"):  # released with the file
+        assert _held(domain)
+    assert not _held(domain)
 
 
 def test_lit_test_does_not_pick_a_domain_a_launcher_holds() -> None:
     from lit_planner.testing import reserve_ros_domain
 
-    domain, lock = reserve_domain()
-    if lock is not None:
-        lock.close()  # free for reserve_ros_domain, but held by a launcher:
+    domain = launcher_domain()  # free for reserve_ros_domain, but held by a launcher:
     with claim_domain(domain, "a launcher"):
         chosen, chosen_lock = reserve_ros_domain([domain, domain + 1], start=0)
         try:
@@ -99,6 +100,7 @@ def test_duplicate_server_watch_reports_a_second_server_that_stays(
     from rclpy.context import Context
     from rclpy.signals import SignalHandlerOptions
 
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")  # read by rclpy.init
     domain, lock = reserve_domain()
     context = Context()
     rclpy.init(context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)

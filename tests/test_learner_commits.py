@@ -76,6 +76,8 @@ SCRIPT = textwrap.dedent(
     call("DecideRequest", dict(decide("psi_K", 0.05), episode_id="e3"))
     out["e2_after"] = "planner/test|run-1|e2" in learner.core.pairing.episodes
     out["e3_open"] = "planner/test|run-1|e3" in learner.core.pairing.episodes
+    out["open_episodes"] = sorted(learner.core.open_episodes())
+    out["open_by_source"] = dict(learner._open_episode)
     learner.shutdown()
     learner.node.destroy_node()
     rclpy.shutdown()
@@ -112,3 +114,6 @@ def test_decisions_answered_while_the_lock_is_taken_are_recorded_after_in_order(
     assert out["end"][0] is True and out["end"][2] == 0
     assert out["decisions_at_end"] == 4
     assert (out["e2_open"], out["e2_after"], out["e3_open"]) == (True, False, True)
+    # Nothing of e2 is kept anywhere (pairing, owed steps, reward terms); the ended e1 is not open.
+    assert out["open_episodes"] == ["planner/test|run-1|e3"]
+    assert list(out["open_by_source"].values()) == ["planner/test|run-1|e3"]

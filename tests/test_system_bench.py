@@ -11,23 +11,19 @@ import subprocess
 import sys
 import time
 
-from ros_helpers import reserve_domain
+from ros_helpers import launcher_domain
 
 
 def test_system_bench_prints_all_three_measurements() -> None:
-    domain, lock = reserve_domain()
-    try:
-        process = subprocess.run(
-            [
-                sys.executable, "-m", "lit_planner.cli", "system-bench", "--episodes", "2",
-                "--calls", "30", "--kills", "1", "--budget", "0.2", "--domain-id", str(domain),
-            ],
-            env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
-            capture_output=True, text=True, timeout=600, check=False,
-        )  # fmt: skip
-    finally:
-        if lock is not None:
-            lock.close()
+    domain = launcher_domain()
+    process = subprocess.run(
+        [
+            sys.executable, "-m", "lit_planner.cli", "system-bench", "--episodes", "2",
+            "--calls", "30", "--kills", "1", "--budget", "0.2", "--domain-id", str(domain),
+        ],
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+        capture_output=True, text=True, timeout=600, check=False,
+    )  # fmt: skip
     assert process.returncode == 0, process.stdout[-2000:] + process.stderr[-2000:]
     out = process.stdout
     assert "| decide psi_K | 30 |" in out and "| decide B | 30 |" in out
@@ -79,7 +75,7 @@ def test_parts_switched_off_and_ctrl_c_stops_every_child() -> None:
         capture_output=True, text=True, timeout=60, check=False,
     )  # fmt: skip
     assert nothing.returncode == 2 and "nothing to measure" in nothing.stderr
-    domain, lock = reserve_domain()
+    domain = launcher_domain()
     process = subprocess.Popen(
         [
             sys.executable, "-m", "lit_planner.cli", "system-bench", "--episodes", "0",
@@ -115,5 +111,3 @@ def test_parts_switched_off_and_ctrl_c_stops_every_child() -> None:
         for pid in children:
             if _alive(pid):
                 os.kill(pid, signal.SIGKILL)
-        if lock is not None:
-            lock.close()

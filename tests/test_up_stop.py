@@ -4,6 +4,7 @@ running. Real processes: a launcher script and a child that takes its time over 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -52,13 +53,14 @@ def _read_until(stream: object, text: str, timeout: float = 60.0) -> list[str]:
 
 def _gone(pid: int, timeout: float = 30.0) -> bool:
     deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
+    while True:  # checked at least once, also with timeout 0
         try:
             os.kill(pid, 0)
         except ProcessLookupError:
             return True
+        if time.monotonic() >= deadline:
+            return False
         time.sleep(0.05)
-    return False
 
 
 class _Launcher:
@@ -92,7 +94,8 @@ class _Launcher:
             self.process.kill()
         self.process.wait(timeout=60)
         if self.child_pid is not None and not _gone(self.child_pid, timeout=0.0):
-            os.kill(self.child_pid, signal.SIGKILL)  # the launcher left it behind
+            with contextlib.suppress(ProcessLookupError):  # it may end meanwhile
+                os.kill(self.child_pid, signal.SIGKILL)  # the launcher left it behind
 
 
 def test_interrupts_during_stop_wait_then_kill(tmp_path: Path) -> None:

@@ -30,7 +30,7 @@ import os
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +45,7 @@ from lit_planner.rosutil import (
     json_qos,
     retry_lost_answers,
     spin_node,
+    spin_quietly,
 )
 
 from lit_learner.errors import MessageError as CoreMessageError
@@ -150,7 +151,7 @@ class LearnerNode:
         self._export_executor = SingleThreadedExecutor()
         self._export_executor.add_node(self._export_node)
         self._export_thread = threading.Thread(
-            target=_spin_quietly,
+            target=spin_quietly,
             args=(self._export_executor, lambda: self._stopping),
             name="export",
             daemon=True,
@@ -264,10 +265,10 @@ class LearnerNode:
             with self._lock:
                 self._apply_commits_locked()  # the episode's decisions, in order, first
                 self._latest_time.pop(episode, None)
-                if self._open_episode.get(message.source) == episode:
-                    del self._open_episode[message.source]
                 before = sum(agent.transitions for agent in self.core.agents.values())
                 metrics = self.core.close_episode(end)
+                if self._open_episode.get(message.source) == episode:  # closed: not abandonable
+                    del self._open_episode[message.source]
                 stored = sum(agent.transitions for agent in self.core.agents.values()) - before
                 self._last_metrics.update(metrics)
                 self._planners.add(message.source)
@@ -340,6 +341,7 @@ class LearnerNode:
                     return
                 decision, a_norm, source, abandoned = self._unapplied.popleft()
             if abandoned is not None and self.core.abandon_episode(abandoned):
+                self._work.notify_all()  # its stored transitions' gradient steps are due
                 self.log.warning(
                     f"episode {abandoned} never ended (its planner started another one): its "
                     "open steps are dropped, the gradient steps of its stored transitions are due"
@@ -496,23 +498,6 @@ class LearnerNode:
             self.export("shutdown")
         self._publish_stats()  # the final state, then wait until the recorder has it
         flush_publishers([self.stats_publisher])
-
-
-def _spin_quietly(executor: Any, stopping: Callable[[], bool]) -> None:
-    """Spin until the executor is shut down; errors of a spin that races the shutdown (once
-    ``stopping()``, or the context is gone) are expected and not shown (see
-    ``lit_planner.rosutil._spin``)."""
-    from rclpy.executors import ExternalShutdownException
-
-    try:
-        executor.spin()
-    except (ExternalShutdownException, KeyboardInterrupt):
-        pass
-    except Exception:  # RCLError, InvalidHandle
-        import rclpy
-
-        if rclpy.ok() and not stopping():
-            raise
 
 
 def _finite_number(value: object) -> bool:

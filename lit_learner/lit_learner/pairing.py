@@ -138,10 +138,12 @@ class Pairing:
             The closed transitions (B first) and each agent's undiscounted episode return
             (agents that took no step are absent).
         """
-        episode = self.episodes.pop(end.episode_id, None)
+        episode = self.episodes.get(end.episode_id)
         if episode is None:
             return [], {}
+        # An end out of time order is refused with the episode still open (it can be abandoned).
         episode.observe(end.episode_id, end.planning_time, end.improvements)
+        del self.episodes[end.episode_id]
         closed = []
         for agent in AGENT_NAMES:
             pending = episode.pending.pop(agent, None)

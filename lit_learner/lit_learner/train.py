@@ -351,12 +351,15 @@ def draw_generator(seed: int) -> np.random.Generator:
 
 def final_features(result: dict[str, Any]) -> dict[str, tuple[float, float, float]] | None:
     """Each agent's features at the end of a LIT* query (``lit_core.solve``'s
-    ``final_features``), clipped to [0, 1] against rounding: the s' of its last transition."""
+    ``final_features``), clamped into [0, 1] as every feature sent is: the s' of its last
+    transition."""
+    from lit_planner.episode_messages import unit
+
     final = result.get("final_features")
     if not final:
         return None
     return {
-        agent: tuple(min(max(float(v), 0.0), 1.0) for v in values)  # type: ignore[misc]
+        agent: tuple(unit(v) for v in values)  # type: ignore[misc]
         for agent, values in final.items()
     }
 

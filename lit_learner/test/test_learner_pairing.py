@@ -161,6 +161,15 @@ def test_time_running_backwards_is_an_error() -> None:
         pairing.step(request("psi_K", "e", 1.0, 0.1), 0.1)
 
 
+def test_an_end_before_the_last_decision_is_refused_and_the_episode_stays_open() -> None:
+    pairing = Pairing(REWARD)
+    pairing.step(request("B", "e", 2.0, 0.1), 0.1)
+    with pytest.raises(PairingError, match=r"episode 'e': planning_time 1.0 is before"):
+        pairing.end(EpisodeEnd("e", 1.0, 10.0, None, 2.0, 0, 0))
+    assert "e" in pairing.episodes  # still open: its planner's next episode abandons it
+    assert pairing.abandon("e")
+
+
 def test_state_round_trip() -> None:
     pairing = Pairing(REWARD)
     pairing.step(request("B", "e", 0.0, 0.1), 0.1)

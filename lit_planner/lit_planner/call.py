@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import threading
 import time
@@ -172,7 +173,7 @@ def run(args: argparse.Namespace) -> int:
 def _request(args: argparse.Namespace) -> tuple[str, str]:
     from lit_msgs_json.envelope import Publisher
 
-    publisher = Publisher("lit_call", f"call-{uuid.uuid4().hex[:8]}")
+    publisher = Publisher(f"lit_call/{os.getpid()}", f"call-{uuid.uuid4().hex[:8]}")
     if args.service == "plan":
         payload: dict[str, Any] = {}
         if args.world is not None:
@@ -236,7 +237,8 @@ def _repeat(caller: ServiceCaller, text: str, args: argparse.Namespace) -> int:
     from lit_msgs_json.envelope import MessageError, Publisher, decode
 
     request = json.loads(text) if args.service == "decide" else None
-    publisher = Publisher("lit_call", f"call-{uuid.uuid4().hex[:8]}")
+    # A source of its own per process: the learner keeps one open episode per source.
+    publisher = Publisher(f"lit_call/{os.getpid()}", f"call-{uuid.uuid4().hex[:8]}")
     freeze_startup_objects()  # a full collection here would show up as a round trip's time
     times = []
     for index in range(20 + args.repeat):

@@ -175,11 +175,12 @@ def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
                 plans.append((seed, *client.plan(payload)))
     except (RuntimeError, TimeoutError, KeyboardInterrupt) as error:
         print(f"lit demo: {error or 'interrupted'}; stopping the nodes", file=sys.stderr)
-        system.stop()
-        return 1
+        return 1  # the nodes are stopped below
     finally:
-        codes = system.stop()
-        claim.close()
+        try:
+            codes = system.stop()
+        finally:
+            claim.close()
     wall = time.monotonic() - started
     budget = args.time if args.time is not None else scenario.time_budget
     return _report(scenario, training, plans, codes, bag, wall, budget)

@@ -522,13 +522,14 @@ def spin_node(
     return 0
 
 
-def _spin(executor: Any, stop: threading.Event, stopping: threading.Event) -> None:
-    """Spin until the executor is shut down; ``stop`` is set when it ends (for any reason).
+def spin_quietly(executor: Any, stopping: Callable[[], bool]) -> None:
+    """Spin until the executor is shut down.
 
-    ``stopping``: the shutdown has begun, so an error of a spin that races it is expected and not
-    shown: the signal's race with the context (PLATFORM_FACTS), and rclpy 7.1's own race in
-    ``Executor.shutdown``, which destroys its guard condition while a callback that became ready
-    just before (a timer's) is still to run (``InvalidHandle`` from ``GuardCondition.trigger``).
+    ``stopping()`` true: the shutdown has begun, so an error of a spin that races it is expected
+    and not shown: the signal's race with the context (PLATFORM_FACTS), and rclpy 7.1's own race
+    in ``Executor.shutdown``, which destroys its guard condition while a callback that became
+    ready just before (a timer's) is still to run (``InvalidHandle`` from
+    ``GuardCondition.trigger``).
     """
     from rclpy.executors import ExternalShutdownException
 
@@ -539,7 +540,13 @@ def _spin(executor: Any, stop: threading.Event, stopping: threading.Event) -> No
     except Exception:
         import rclpy
 
-        if rclpy.ok() and not stopping.is_set():
+        if rclpy.ok() and not stopping():
             raise
+
+
+def _spin(executor: Any, stop: threading.Event, stopping: threading.Event) -> None:
+    """:func:`spin_quietly`; ``stop`` is set when the spin ends (for any reason)."""
+    try:
+        spin_quietly(executor, stopping.is_set)
     finally:
         stop.set()

@@ -16,7 +16,6 @@ and the exit status is non-zero when anything failed, a runner broke, or no test
 from __future__ import annotations
 
 import argparse
-import fcntl
 import os
 import shutil
 import subprocess
@@ -25,10 +24,9 @@ import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
 from xml.etree import ElementTree
 
-from lit_planner.up import domain_claimed
+from lit_planner.up import DomainBusy, DomainClaim, claim_domain
 
 PYTHON_TEST_DIRS = ("tests", "lit_planner/test", "lit_learner/test", "lit_msgs_json/test")
 """Python test directories, relative to the checkout root; missing ones are skipped."""
@@ -88,32 +86,25 @@ def repo_root() -> Path:
 
 def reserve_ros_domain(
     domains: Sequence[int] = ROS_DOMAIN_IDS, start: int | None = None
-) -> tuple[int, IO[str] | None]:
+) -> tuple[int, DomainClaim | None]:
     """Pick a free ROS_DOMAIN_ID from ``domains``, searching from index ``start`` (default:
     derived from the PID).
 
-    A lock file per domain (``lit-ros-domain-N.lock`` in the temporary directory, held until the
-    returned file is closed) keeps concurrent test runs on this host out of each other's domain.
-    Returns the domain and its lock, or the first candidate and None when every one is taken
+    The domain is claimed with the launchers' lock (:func:`lit_planner.up.claim_domain`), held
+    until the returned claim is closed: concurrent test runs and ``lit up``, ``lit demo`` or
+    ``lit system-bench`` of this host keep out of each other's domain, whichever came first.
+    Returns the domain and its claim, or the first candidate and None when every one is taken
     (share one rather than refuse to test).
     """
     first = (os.getpid() if start is None else start) % len(domains)
     for offset in range(len(domains)):
         domain = domains[(first + offset) % len(domains)]
-        lock_path = Path(tempfile.gettempdir()) / f"lit-ros-domain-{domain}.lock"
         try:
-            lock = open(lock_path, "w")  # noqa: SIM115 -- held for the whole run
-        except OSError:
+            claim = claim_domain(domain, "lit test", warn=False)
+        except DomainBusy:
             continue
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            lock.close()
-            continue
-        if domain_claimed(domain):  # a `lit up` (or demo, system-bench) of this host runs there
-            lock.close()
-            continue
-        return domain, lock
+        if claim.held:
+            return domain, claim
     return domains[first], None
 
 

@@ -211,6 +211,11 @@ class DomainClaim:
     def __init__(self, fd: int | None) -> None:
         self._fd = fd
 
+    @property
+    def held(self) -> bool:
+        """Whether the lock is held (False when its file could not be opened)."""
+        return self._fd is not None
+
     def close(self) -> None:
         """Release the domain."""
         if self._fd is not None:
@@ -224,31 +229,17 @@ class DomainClaim:
         self.close()
 
 
-def domain_claimed(domain_id: int) -> bool:
-    """Whether a launcher holds ``domain_id`` now (for ``lit test``, which must not pick it)."""
-    try:
-        fd = os.open(LAUNCH_LOCK_DIR / f"lit-launch-domain-{domain_id}.lock", os.O_RDONLY)
-    except OSError:
-        return False  # no such file: never claimed
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        return True
-    finally:
-        os.close(fd)  # releases the test's own lock too
-    return False
-
-
-def claim_domain(domain_id: int, who: str) -> DomainClaim:
-    """Hold this host's launcher lock of ``domain_id`` (``/tmp/lit-launch-domain-N.lock``).
+def claim_domain(domain_id: int, who: str, *, warn: bool = True) -> DomainClaim:
+    """Hold this host's lock of ``domain_id`` (``/tmp/lit-launch-domain-N.lock``).
 
     ``lit up``, ``lit demo`` and ``lit system-bench`` claim their domain before they start a
-    node: two learners (or planners) on one domain serve the same services, DDS hands each
+    node, and ``lit test`` claims the domain of each run and test (it takes the next free one): two learners (or planners) on one domain serve the same services, DDS hands each
     request to either of them, and both recorders record both runs. Discovery stays on this host,
     so a lock file covers everything that can meet on the domain. It does not see nodes started
     without a launcher; the nodes themselves warn when another server of their service stays
     (:class:`lit_planner.rosutil.DuplicateServerWatch`). A lock file another user created is
-    locked read-only; when none can be opened at all, the run goes on unclaimed, with a warning.
+    locked read-only; when none can be opened at all, the run goes on unclaimed, with a warning
+    (``warn=False``: silently; the claim's :attr:`DomainClaim.held` is then False).
 
     Raises:
         DomainBusy: another launcher holds the domain; the message names it and its PID.
@@ -256,16 +247,15 @@ def claim_domain(domain_id: int, who: str) -> DomainClaim:
     path = LAUNCH_LOCK_DIR / f"lit-launch-domain-{domain_id}.lock"
     writable = True
     try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)  # not inherited by the children
+        # Not inherited by the children; no symbolic link followed in the shared /tmp.
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o666)
     except PermissionError:
         try:
-            fd, writable = os.open(path, os.O_RDONLY), False  # another user's file
+            fd, writable = os.open(path, os.O_RDONLY | os.O_NOFOLLOW), False  # another user's
         except OSError as error:
-            print(f"warning: ROS_DOMAIN_ID={domain_id} not claimed: {error}", file=sys.stderr)
-            return DomainClaim(None)
+            return _unclaimed(domain_id, error, warn)
     except OSError as error:
-        print(f"warning: ROS_DOMAIN_ID={domain_id} not claimed: {error}", file=sys.stderr)
-        return DomainClaim(None)
+        return _unclaimed(domain_id, error, warn)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
@@ -281,6 +271,12 @@ def claim_domain(domain_id: int, who: str) -> DomainClaim:
         text = f"{who} (pid {os.getpid()}, since {time.strftime('%H:%M:%S')})\n"
         os.pwrite(fd, text.encode("utf-8"), 0)
     return DomainClaim(fd)
+
+
+def _unclaimed(domain_id: int, error: OSError, warn: bool) -> DomainClaim:
+    if warn:
+        print(f"warning: ROS_DOMAIN_ID={domain_id} not claimed: {error}", file=sys.stderr)
+    return DomainClaim(None)
 
 
 DEFAULT_SCENARIO = "np8"
@@ -433,8 +429,10 @@ def run(args: argparse.Namespace) -> int:
                 print(f"lit up: {', '.join(dead)} exited; stopping the others", flush=True)
                 break
     finally:
-        codes = system.stop()  # counts the interrupts that come while it waits
-        claim.close()
+        try:
+            codes = system.stop()  # counts the interrupts that come while it waits
+        finally:
+            claim.close()
     print("lit up: stopped " + ", ".join(f"{n} (exit {c})" for n, c in codes.items()), flush=True)
     return 0 if all(code == 0 for code in codes.values()) else 1
 
