@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from lit_planner.testing import reserve_ros_domain
 
 from lit_planner import scenarios
 from lit_planner import tensor_files as tf
@@ -130,7 +131,12 @@ def test_plan_bad_input_is_one_line(args: list[str], message: str) -> None:
 
 
 def test_demo_solves_the_default_scenario(tmp_path: Path) -> None:
-    process = lit("demo", "--out", str(tmp_path))
+    # A free domain of its own: lit test holds the run's domain, and the demo claims the one it
+    # runs on (found free here, then released to the demo).
+    domain, claim = reserve_ros_domain(range(101, 233))
+    if claim is not None:
+        claim.close()
+    process = lit("demo", "--out", str(tmp_path), "--domain-id", str(domain))
     assert process.returncode == 0, process.stderr
     # Two ROS processes trained over ROS, the plan service answered, the bag accounts for all.
     assert "4 episodes over ROS" in process.stdout
