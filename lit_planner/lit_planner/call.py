@@ -37,6 +37,7 @@ from lit_planner.rosutil import (
     ServiceCaller,
     freeze_startup_objects,
     localhost_environment,
+    spin_quietly,
 )
 
 DEFAULT_TIMEOUT = 60.0
@@ -121,7 +122,8 @@ def run(args: argparse.Namespace) -> int:
     node = rclpy.create_node(f"lit_call_{uuid.uuid4().hex[:8]}")
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
+    # rclpy's SIGTERM handler shuts the context down under the spin: quiet then (see below).
+    spinner = threading.Thread(target=spin_quietly, args=(executor, lambda: False), daemon=True)
     spinner.start()
     caller: ServiceCaller | None = None
     try:
