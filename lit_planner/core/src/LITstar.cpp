@@ -371,7 +371,9 @@ namespace lit
         State *to = a->id_ < b->id_ ? b : a;
         unsigned int &done = checkedDepth(from, to);
         const unsigned int segments = segmentCount(from, to);
-        std::vector<std::pair<unsigned int, unsigned int>> intervals{{0u, segments}}, next;
+        auto &intervals = intervals_;
+        auto &next = nextIntervals_;
+        intervals.assign(1u, {0u, segments});
         unsigned int level = 0u;
         while (!intervals.empty() && level < depth)
         {

@@ -9,7 +9,11 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <map>
+#include <random>
 #include <tuple>
+#include <utility>
+#include <vector>
 
 using namespace lit;
 using litstar::RandomGeometricGraph;
@@ -128,7 +132,7 @@ TEST(Features, IncomingNeighboursMakeTheKNearestGraphSymmetric)
     litstar::State *b = graph.addValidSample({-0.31, 0.30});
     litstar::State *c = graph.addValidSample({-0.30, 0.31});
     litstar::State *far = graph.addValidSample({0.45, -0.45});
-    const auto contains = [](const std::vector<litstar::State *> &list, const litstar::State *s) {
+    const auto contains = [](const auto &list, const litstar::State *s) {
         return std::find(list.begin(), list.end(), s) != list.end();
     };
     EXPECT_TRUE(graph.incomingNeighbours(a).empty());  // nothing computed yet
@@ -148,4 +152,85 @@ TEST(Features, IncomingNeighboursMakeTheKNearestGraphSymmetric)
     EXPECT_EQ(graph.prune(1.0, [](litstar::State *) {}), 1u);
     for (litstar::State *s : {a, b, c})
         EXPECT_TRUE(graph.incomingNeighbours(s).empty());
+}
+
+TEST(Features, NeighbourCacheEqualsABruteForceScanWhateverTheSequenceOfK)
+{
+    // Samples arrive in batches, k goes up and down as a learned policy's psi_K does, and a prune reorders the
+    // samples: every answer must equal a fresh exact scan, and the incoming lists must mirror the k last asked.
+    BoxProblem problem = test::narrowPassage(4);
+    RandomGeometricGraph graph(problem.si, 1u);
+    std::mt19937 rng(7u);
+    std::uniform_real_distribution<double> coordinate(-0.5, 0.5);
+    std::uniform_int_distribution<std::size_t> kDraw(1u, 14u);
+    // A few exact duplicates and equal distances exercise the tie order (distance, then id).
+    const auto addBatch = [&](std::size_t count) {
+        for (std::size_t i = 0; i < count; ++i)
+        {
+            std::vector<double> x(4u);
+            for (double &v : x)
+                v = std::round(coordinate(rng) * 8.0) / 8.0;
+            graph.addValidSample(x);
+        }
+    };
+    const auto bruteForce = [&](const litstar::State *state, std::size_t k) {
+        std::vector<std::pair<double, const litstar::State *>> all;
+        for (const auto &other : graph.states())
+            if (other.get() != state)
+                all.emplace_back(graph.distance(state, other.get()), other.get());
+        std::sort(all.begin(), all.end(), [](const auto &a, const auto &b) {
+            return a.first != b.first ? a.first < b.first : a.second->id_ < b.second->id_;
+        });
+        std::vector<const litstar::State *> nearest;
+        for (std::size_t i = 0; i < std::min(k, all.size()); ++i)
+            nearest.push_back(all[i].second);
+        return nearest;
+    };
+    std::map<const litstar::State *, std::vector<const litstar::State *>> lastAnswer;
+    std::size_t asked = 0u;
+    for (int round = 0; round < 12; ++round)
+    {
+        addBatch(round == 0 ? 30u : 15u);
+        if (round == 6)
+        {
+            // Remove a quarter of the samples (by id), as a prune would; the cached lists must not name them.
+            std::vector<const litstar::State *> doomed;
+            for (const auto &state : graph.states())
+                if (state->id_ % 4u == 1u)
+                    doomed.push_back(state.get());
+            for (const auto &state : graph.states())
+            {
+                state->costToComeLowerBound_ = state->id_ % 4u == 1u ? 10.0 : 0.0;
+                state->costToGoLowerBound_ = 0.0;
+            }
+            ASSERT_EQ(graph.prune(5.0, [](litstar::State *) {}), doomed.size());
+            lastAnswer.clear();  // a prune clears the incoming lists: nothing has been asked in the new epoch
+        }
+        for (int query = 0; query < 40; ++query)
+        {
+            auto &states = graph.states();
+            litstar::State *state = states[std::uniform_int_distribution<std::size_t>(0u, states.size() - 1u)(rng)].get();
+            const std::size_t k = kDraw(rng);
+            const auto range = graph.neighbours(state, k);
+            const std::vector<const litstar::State *> got(range.begin(), range.end());
+            ASSERT_EQ(got, bruteForce(state, k)) << "round " << round << ", k " << k;
+            lastAnswer[state] = got;
+            ++asked;
+        }
+        // Incoming lists: s names t exactly when s was in t's last answer (the k nearest as last asked for,
+        // possibly before later batches).
+        for (const auto &s : graph.states())
+        {
+            std::vector<const litstar::State *> expected;
+            for (const auto &[t, answer] : lastAnswer)
+                if (std::find(answer.begin(), answer.end(), s.get()) != answer.end())
+                    expected.push_back(t);
+            const auto &incoming = graph.incomingNeighbours(s.get());
+            std::vector<const litstar::State *> got(incoming.begin(), incoming.end());
+            std::sort(got.begin(), got.end());
+            std::sort(expected.begin(), expected.end());
+            ASSERT_EQ(got, expected) << "round " << round;
+        }
+    }
+    EXPECT_EQ(asked, 480u);
 }

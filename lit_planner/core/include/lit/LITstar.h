@@ -15,6 +15,7 @@
 #include <memory>
 #include <queue>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace lit
@@ -221,6 +222,9 @@ namespace lit
         LITstarCounters counters_;
         ompl::base::State *interpolated_{nullptr};
         std::vector<litstar::State *> scratch_;
+        /** \brief checkEdge's bisection intervals (members, so an edge check does not allocate). */
+        std::vector<std::pair<unsigned int, unsigned int>> intervals_;
+        std::vector<std::pair<unsigned int, unsigned int>> nextIntervals_;
 
         // Planner clock: wall time in solve minus external-policy time.
         using Clock = std::chrono::steady_clock;

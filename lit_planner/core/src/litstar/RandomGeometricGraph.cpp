@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace lit::litstar
 {
@@ -44,6 +45,7 @@ namespace lit::litstar
         for (auto &state : states_)
             si_->freeState(state->raw_);
         states_.clear();
+        packed_.clear();
         for (auto *raw : invalid_)
             si_->freeState(raw);
         invalid_.clear();
@@ -56,7 +58,9 @@ namespace lit::litstar
 
     State *RandomGeometricGraph::createState(ompl::base::State *raw)
     {
-        states_.push_back(std::make_unique<State>(nextId_++, raw, coordinatesOf(raw)));
+        const double *x = coordinatesOf(raw);
+        states_.push_back(std::make_unique<State>(nextId_++, raw, x));
+        packed_.insert(packed_.end(), x, x + dim_);
         return states_.back().get();
     }
 
@@ -156,6 +160,9 @@ namespace lit::litstar
                 kept.push_back(std::move(state));
         }
         states_ = std::move(kept);
+        packed_.clear();
+        for (const auto &state : states_)
+            packed_.insert(packed_.end(), state->coordinates_, state->coordinates_ + dim_);
         std::vector<ompl::base::State *> keptInvalid;
         keptInvalid.reserve(invalid_.size());
         for (auto *raw : invalid_)
@@ -180,49 +187,72 @@ namespace lit::litstar
         return removed;
     }
 
-    void RandomGeometricGraph::scanNeighbours(State *state, std::size_t k, std::size_t from)
+    void RandomGeometricGraph::scanNeighbours(State *state, std::size_t cap, std::size_t from)
     {
-        // Merge the cached list with the candidates states_[from, end): a bounded max-heap on (distance, id).
-        std::vector<std::pair<double, State *>> best;
-        best.reserve(k + 1u);
-        auto worse = [](const std::pair<double, State *> &a, const std::pair<double, State *> &b) {
-            return closer(a.first, a.second, b.first, b.second);
-        };
-        for (std::size_t i = 0; i < state->neighbours_.size(); ++i)
-            best.emplace_back(state->neighbourDistances_[i], state->neighbours_[i]);
-        std::make_heap(best.begin(), best.end(), worse);
-        for (std::size_t i = from; i < states_.size(); ++i)
+        state->neighboursScanned_ = states_.size();
+        if (cap == 0u)
+            return;
+        // The candidates states_[from, end) that beat the cache's last entry (all while it is not full), sorted,
+        // then merged into the sorted cache and cut back to the cap. Most incremental scans find few or none.
+        auto &list = state->neighbours_;
+        auto &distances = state->neighbourDistances_;
+        const bool full = list.size() >= cap;
+        const double worstDistance = full ? distances.back() : std::numeric_limits<double>::infinity();
+        const State *worstState = full ? list.back() : nullptr;
+        // Squared distances over the packed coordinates (a linear sweep); a sum above the cache's last squared
+        // distance (with a margin far above rounding, so no tie is lost) is dropped without its sqrt, and the sqrt
+        // of a kept sum is bit-identical to distance(). (Leaving the sum early, dimension by dimension, measured
+        // slower in R^16: the branch costs more than the few dimensions it saves.)
+        const double bound = worstDistance * worstDistance * (1.0 + 1e-9);
+        const double *x = state->coordinates_;
+        const double *y = packed_.data() + from * dim_;
+        auto &candidates = candidates_;
+        candidates.clear();
+        for (std::size_t i = from; i < states_.size(); ++i, y += dim_)
         {
+            double sum = 0.0;
+            for (unsigned int j = 0u; j < dim_; ++j)
+                sum += (x[j] - y[j]) * (x[j] - y[j]);
+            if (sum > bound)
+                continue;  // farther than the cache's last entry
             State *other = states_[i].get();
             if (other == state)
                 continue;
-            const double d = distance(state, other);
-            if (best.size() < k)
-            {
-                best.emplace_back(d, other);
-                std::push_heap(best.begin(), best.end(), worse);
-            }
-            else if (k > 0u && closer(d, other, best.front().first, best.front().second))
-            {
-                std::pop_heap(best.begin(), best.end(), worse);
-                best.back() = {d, other};
-                std::push_heap(best.begin(), best.end(), worse);
-            }
+            const double d = std::sqrt(sum);
+            if (!full || closer(d, other, worstDistance, worstState))
+                candidates.emplace_back(d, other);
         }
-        std::sort_heap(best.begin(), best.end(), worse);
-        state->neighbours_.clear();
-        state->neighbourDistances_.clear();
-        for (const auto &[d, other] : best)
+        if (candidates.empty())
+            return;
+        auto order = [](const std::pair<double, State *> &a, const std::pair<double, State *> &b) {
+            return closer(a.first, a.second, b.first, b.second);
+        };
+        if (candidates.size() > cap)
         {
-            state->neighbours_.push_back(other);
-            state->neighbourDistances_.push_back(d);
+            std::nth_element(candidates.begin(), candidates.begin() + static_cast<std::ptrdiff_t>(cap),
+                             candidates.end(), order);
+            candidates.resize(cap);
         }
-        state->neighboursScanned_ = states_.size();
-        for (State *other : state->neighbours_)
+        std::sort(candidates.begin(), candidates.end(), order);
+        merged_.clear();
+        std::size_t i = 0u, j = 0u;
+        while (merged_.size() < cap && (i < list.size() || j < candidates.size()))
         {
-            auto &incoming = other->incomingNeighbours_;
-            if (std::find(incoming.begin(), incoming.end(), state) == incoming.end())
-                incoming.push_back(state);
+            if (j == candidates.size() ||
+                (i < list.size() && closer(distances[i], list[i], candidates[j].first, candidates[j].second)))
+            {
+                merged_.emplace_back(distances[i], list[i]);
+                ++i;
+            }
+            else
+                merged_.push_back(candidates[j++]);
+        }
+        list.clear();
+        distances.clear();
+        for (const auto &[d, other] : merged_)
+        {
+            list.push_back(other);
+            distances.push_back(d);
         }
     }
 
@@ -231,27 +261,45 @@ namespace lit::litstar
         auto &incoming = state->incomingNeighbours_;
         incoming.erase(std::remove_if(incoming.begin(), incoming.end(),
                                       [state](const State *other) {
-                                          return std::find(other->neighbours_.begin(), other->neighbours_.end(),
-                                                           state) == other->neighbours_.end();
+                                          const auto last = other->neighbours_.begin() +
+                                                            static_cast<std::ptrdiff_t>(std::min(
+                                                                other->neighboursK_, other->neighbours_.size()));
+                                          return std::find(other->neighbours_.begin(), last, state) == last;
                                       }),
                        incoming.end());
         return incoming;
     }
 
-    const std::vector<State *> &RandomGeometricGraph::neighbours(State *state, std::size_t k)
+    NeighbourRange RandomGeometricGraph::neighbours(State *state, std::size_t k)
     {
-        if (state->neighboursEpoch_ == pruneEpoch_ && state->neighboursK_ == k)
+        bool changed = false;
+        if (state->neighboursEpoch_ != pruneEpoch_ || k > state->neighboursCap_)
         {
-            if (state->neighboursScanned_ < states_.size())
-                scanNeighbours(state, k, state->neighboursScanned_);
-            return state->neighbours_;
+            state->neighbours_.clear();
+            state->neighbourDistances_.clear();
+            state->neighboursCap_ = k;
+            scanNeighbours(state, k, 0u);
+            state->neighboursEpoch_ = pruneEpoch_;
+            changed = true;
         }
-        state->neighbours_.clear();
-        state->neighbourDistances_.clear();
-        scanNeighbours(state, k, 0u);
-        state->neighboursEpoch_ = pruneEpoch_;
+        else if (state->neighboursScanned_ < states_.size())
+        {
+            scanNeighbours(state, state->neighboursCap_, state->neighboursScanned_);
+            changed = true;
+        }
+        const std::size_t size = std::min(k, state->neighbours_.size());
+        if (changed || k > state->neighboursK_)
+        {
+            // The incoming side: stale entries (beyond a later, smaller k) are dropped when read.
+            for (std::size_t i = 0; i < size; ++i)
+            {
+                auto &incoming = state->neighbours_[i]->incomingNeighbours_;
+                if (std::find(incoming.begin(), incoming.end(), state) == incoming.end())
+                    incoming.push_back(state);
+            }
+        }
         state->neighboursK_ = k;
-        return state->neighbours_;
+        return {state->neighbours_.data(), size};
     }
 
     double RandomGeometricGraph::ratioCalc() const

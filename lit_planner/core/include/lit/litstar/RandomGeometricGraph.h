@@ -3,8 +3,9 @@
  *  \brief LIT*'s sample sets: valid samples (the k-nearest RGG), invalid samples (kept for the features),
  *  informed batch sampling, pruning, and the observation features.
  *
- *  Nearest neighbours are exact linear scans over the samples' coordinates with per-state caches that are
- *  extended incrementally by each new batch. Profiling GNAT here (np8, 2 s) showed 70% of the planner's time in
+ *  Nearest neighbours are exact linear scans over the samples' packed coordinates with per-state caches that are
+ *  extended incrementally by each new batch and that serve any smaller k as a prefix (a learned psi_K changes k
+ *  at every expansion). Profiling GNAT here (np8, 2 s) showed 70% of the planner's time in
  *  GNAT's virtual distance calls: in R^8..R^16 it visits nearly every point anyway, and every batch invalidated
  *  every cache. */
 
@@ -22,6 +23,43 @@
 
 namespace lit::litstar
 {
+    /** \brief A read-only view of the first entries of a state's neighbour cache. */
+    class NeighbourRange
+    {
+    public:
+        NeighbourRange(State *const *first, std::size_t size) : first_(first), size_(size)
+        {
+        }
+        State *const *begin() const
+        {
+            return first_;
+        }
+        State *const *end() const
+        {
+            return first_ + size_;
+        }
+        std::size_t size() const
+        {
+            return size_;
+        }
+        bool empty() const
+        {
+            return size_ == 0u;
+        }
+        State *front() const
+        {
+            return *first_;
+        }
+        State *operator[](std::size_t i) const
+        {
+            return first_[i];
+        }
+
+    private:
+        State *const *first_;
+        std::size_t size_;
+    };
+
     class RandomGeometricGraph
     {
     public:
@@ -50,11 +88,13 @@ namespace lit::litstar
          *  \e beforeRemove runs on each valid state first. Returns the number of samples removed. */
         std::size_t prune(double maxCost, const std::function<void(State *)> &beforeRemove);
 
-        /** \brief The k nearest valid samples of \e state (itself excluded; ties by id), cached per state and
-         *  updated incrementally with the samples added since, until a prune or a new k invalidates it. */
-        const std::vector<State *> &neighbours(State *state, std::size_t k);
+        /** \brief The k nearest valid samples of \e state (itself excluded; sorted by distance, ties by id).
+         *  Cached per state and updated incrementally with the samples added since; a smaller k than cached is a
+         *  prefix of the cache, a larger one or a prune rescans. The range stays valid until the next call for
+         *  \e state or the next prune. */
+        NeighbourRange neighbours(State *state, std::size_t k);
 
-        /** \brief The samples that have \e state among their k nearest as last computed (the reverse direction of
+        /** \brief The samples that have \e state among their k nearest as last asked for (the reverse direction of
          *  neighbours()); together they make the k-nearest graph undirected. */
         const std::vector<State *> &incomingNeighbours(State *state);
 
@@ -126,13 +166,16 @@ namespace lit::litstar
     private:
         State *createState(ompl::base::State *raw);
         void computeLowerBounds(State *state) const;
-        void scanNeighbours(State *state, std::size_t k, std::size_t from);
+        /** \brief Merges states_[from, end) into \e state's cache of its \e cap nearest. */
+        void scanNeighbours(State *state, std::size_t cap, std::size_t from);
         static const double *coordinatesOf(const ompl::base::State *raw);
 
         ompl::base::SpaceInformationPtr si_;
         InformedSampler sampler_;
         std::vector<std::unique_ptr<State>> states_;
         std::vector<ompl::base::State *> invalid_;
+        /** \brief The valid samples' coordinates, dim_ per sample, in the order of states_ (for linear scans). */
+        std::vector<double> packed_;
         unsigned int dim_;
         /** \brief Incremented by every prune; neighbour caches of an older epoch are recomputed. */
         std::size_t pruneEpoch_{0u};
@@ -142,5 +185,8 @@ namespace lit::litstar
         std::size_t version_{0u};
         std::size_t invalidDraws_{0u};
         std::size_t validDraws_{0u};
+        /** \brief Scratch buffers of scanNeighbours (kept to avoid an allocation per scan). */
+        std::vector<std::pair<double, State *>> candidates_;
+        std::vector<std::pair<double, State *>> merged_;
     };
 }  // namespace lit::litstar

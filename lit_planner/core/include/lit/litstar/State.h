@@ -65,14 +65,17 @@ namespace lit::litstar
         /** \brief Bisection depth already checked on the edge to a neighbour (kept on the smaller id). */
         std::unordered_map<std::size_t, unsigned int> checkedDepth_;
 
-        /** \brief k-nearest cache with distances, sorted. Valid for (prune epoch, K); samples appended since
-         *  (index >= neighboursScanned_) are merged in incrementally. */
+        /** \brief Nearest-neighbour cache with distances, sorted by (distance, id): the neighboursCap_ nearest
+         *  samples, of which the first neighboursK_ (the k last asked for) are the current k nearest. Valid for a
+         *  prune epoch; samples appended since (index >= neighboursScanned_) are merged in incrementally, and any
+         *  k up to the cap is a prefix, so a policy that changes k does not force a rescan. */
         std::vector<State *> neighbours_;
         std::vector<double> neighbourDistances_;
         std::size_t neighboursEpoch_{std::numeric_limits<std::size_t>::max()};
         std::size_t neighboursK_{0u};
+        std::size_t neighboursCap_{0u};
         std::size_t neighboursScanned_{0u};
-        /** \brief Samples whose k-nearest list (as last computed) contains this sample: with them the neighbour
+        /** \brief Samples whose k-nearest list (as last asked for) contains this sample: with them the neighbour
          *  relation is symmetric, so the reverse and the forward search see the same (undirected) graph. Entries
          *  whose list has dropped this sample since are removed when read. */
         std::vector<State *> incomingNeighbours_;
