@@ -256,47 +256,71 @@ namespace lit::litstar
         }
     }
 
+    bool RandomGeometricGraph::inAskedPrefix(const State *owner, const State *state) const
+    {
+        // state was in owner's prefix at some point of this prune epoch, so owner has scanned it, and owner's
+        // cache is exact over what it scanned: state is in the prefix iff it is not farther than the prefix's
+        // last entry (distance, then id), or the prefix is the whole of a cache that is not full.
+        const auto &list = owner->neighbours_;
+        const std::size_t size = std::min(owner->neighboursK_, list.size());
+        if (size == 0u)
+            return false;
+        if (size == list.size() && list.size() < owner->neighboursCap_)
+            return true;
+        return !closer(owner->neighbourDistances_[size - 1u], list[size - 1u], distance(owner, state), state);
+    }
+
     const std::vector<State *> &RandomGeometricGraph::incomingNeighbours(State *state)
     {
         auto &incoming = state->incomingNeighbours_;
         incoming.erase(std::remove_if(incoming.begin(), incoming.end(),
-                                      [state](const State *other) {
-                                          const auto last = other->neighbours_.begin() +
-                                                            static_cast<std::ptrdiff_t>(std::min(
-                                                                other->neighboursK_, other->neighbours_.size()));
-                                          return std::find(other->neighbours_.begin(), last, state) == last;
-                                      }),
+                                      [this, state](const State *owner) { return !inAskedPrefix(owner, state); }),
                        incoming.end());
         return incoming;
     }
 
     NeighbourRange RandomGeometricGraph::neighbours(State *state, std::size_t k)
     {
-        bool changed = false;
-        if (state->neighboursEpoch_ != pruneEpoch_ || k > state->neighboursCap_)
+        const bool sameEpoch = state->neighboursEpoch_ == pruneEpoch_;
+        // The prefix asked for last time in this epoch is in its members' incoming lists already: remember its last
+        // entry and where the samples this call scans for the first time begin (ids grow along states_).
+        const std::size_t lastSize = sameEpoch ? std::min(state->neighboursK_, state->neighbours_.size()) : 0u;
+        // A prefix that was the whole of a cache that was not full held every sample scanned until then.
+        const bool wholeCache =
+            lastSize == state->neighbours_.size() && state->neighbours_.size() < state->neighboursCap_;
+        const double lastDistance = lastSize > 0u ? state->neighbourDistances_[lastSize - 1u] : 0.0;
+        const State *lastEntry = lastSize > 0u ? state->neighbours_[lastSize - 1u] : nullptr;
+        const std::size_t firstNewId = !sameEpoch ? 0u
+                                       : state->neighboursScanned_ < states_.size()
+                                           ? states_[state->neighboursScanned_]->id_
+                                           : std::numeric_limits<std::size_t>::max();
+        if (!sameEpoch || k > state->neighboursCap_)
         {
+            // A rescan: keep the cap a state has needed (a prune does not change what the policy asks for) and
+            // grow it geometrically, so a k that keeps rising (psi_K decided per expansion, or log q growing with
+            // the batches) rescans a few times per prune epoch rather than at every rise.
+            const std::size_t cap = state->neighboursCap_;
+            state->neighboursCap_ = !sameEpoch && k <= cap ? cap : std::max(k, cap + cap / 2u);
             state->neighbours_.clear();
             state->neighbourDistances_.clear();
-            state->neighboursCap_ = k;
-            scanNeighbours(state, k, 0u);
+            scanNeighbours(state, state->neighboursCap_, 0u);
             state->neighboursEpoch_ = pruneEpoch_;
-            changed = true;
         }
         else if (state->neighboursScanned_ < states_.size())
-        {
             scanNeighbours(state, state->neighboursCap_, state->neighboursScanned_);
-            changed = true;
-        }
         const std::size_t size = std::min(k, state->neighbours_.size());
-        if (changed || k > state->neighboursK_)
+        for (std::size_t i = 0; i < size; ++i)
         {
-            // The incoming side: stale entries (beyond a later, smaller k) are dropped when read.
-            for (std::size_t i = 0; i < size; ++i)
-            {
-                auto &incoming = state->neighbours_[i]->incomingNeighbours_;
-                if (std::find(incoming.begin(), incoming.end(), state) == incoming.end())
-                    incoming.push_back(state);
-            }
+            State *other = state->neighbours_[i];
+            const bool wasInPrefix =
+                lastSize > 0u && other->id_ < firstNewId &&
+                (wholeCache || !closer(lastDistance, lastEntry, state->neighbourDistances_[i], other));
+            if (wasInPrefix)
+                continue;
+            // Stale entries (from a larger k asked earlier) are dropped when the incoming list is read.
+            auto &incoming = other->incomingNeighbours_;
+            if (std::find(incoming.begin(), incoming.end(), state) == incoming.end())
+                incoming.push_back(state);
         }
         state->neighboursK_ = k;
         return {state->neighbours_.data(), size};

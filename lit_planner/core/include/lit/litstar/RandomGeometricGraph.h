@@ -166,6 +166,9 @@ namespace lit::litstar
     private:
         State *createState(ompl::base::State *raw);
         void computeLowerBounds(State *state) const;
+        /** \brief Whether \e state is among the k nearest that \e owner was last asked for, given that it was
+         *  at some point of this prune epoch. */
+        bool inAskedPrefix(const State *owner, const State *state) const;
         /** \brief Merges states_[from, end) into \e state's cache of its \e cap nearest. */
         void scanNeighbours(State *state, std::size_t cap, std::size_t from);
         static const double *coordinatesOf(const ompl::base::State *raw);
