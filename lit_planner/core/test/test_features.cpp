@@ -234,3 +234,44 @@ TEST(Features, NeighbourCacheEqualsABruteForceScanWhateverTheSequenceOfK)
     }
     EXPECT_EQ(asked, 480u);
 }
+
+TEST(Features, LocalRatioCountsASampleExactlyAtTheRadius)
+{
+    // The count uses squared distances with a sqrt only near the radius: a sample at exactly distance() counts,
+    // with one ulp less of radius it does not, for valid and invalid samples alike. One sample of the other kind
+    // sits at the centre, so each count shows in the ratio.
+    BoxProblem problem = test::narrowPassage(4);
+    RandomGeometricGraph graph(problem.si, 1u);
+    std::mt19937 rng(11u);
+    std::uniform_real_distribution<double> coordinate(-0.5, 0.5);
+    ompl::base::ScopedState<> centre(problem.si);
+    for (int trial = 0; trial < 400; ++trial)
+    {
+        std::vector<double> c(4u), x(4u);
+        for (unsigned int i = 0; i < 4u; ++i)
+        {
+            c[i] = coordinate(rng);
+            x[i] = coordinate(rng);
+            centre[i] = c[i];
+        }
+        graph.clear();
+        double d = 0.0;
+        const bool validProbe = trial % 2 == 0;
+        if (validProbe)
+        {
+            litstar::State *probe = graph.addValidSample(x);
+            graph.addInvalidSample(c);
+            d = graph.distance(c.data(), probe->coordinates_);
+        }
+        else
+        {
+            graph.addInvalidSample(x);
+            litstar::State *at = graph.addValidSample(c);
+            d = graph.distance(at->coordinates_, x.data());
+        }
+        const double with = graph.localRatio(centre.get(), d);
+        const double without = graph.localRatio(centre.get(), std::nextafter(d, 0.0));
+        EXPECT_DOUBLE_EQ(with, 0.5) << trial;
+        EXPECT_DOUBLE_EQ(without, validProbe ? 1.0 : 0.0) << trial;
+    }
+}

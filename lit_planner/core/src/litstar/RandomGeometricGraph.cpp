@@ -49,6 +49,7 @@ namespace lit::litstar
         for (auto *raw : invalid_)
             si_->freeState(raw);
         invalid_.clear();
+        packedInvalid_.clear();
         start_ = nullptr;
         goals_.clear();
         invalidDraws_ = validDraws_ = 0u;
@@ -114,6 +115,8 @@ namespace lit::litstar
             else
             {
                 invalid_.push_back(raw);
+                const double *x = coordinatesOf(raw);
+                packedInvalid_.insert(packedInvalid_.end(), x, x + dim_);
                 ++invalidDraws_;
             }
         }
@@ -137,6 +140,8 @@ namespace lit::litstar
         ompl::base::State *raw = si_->allocState();
         si_->getStateSpace()->copyFromReals(raw, x);
         invalid_.push_back(raw);
+        const double *c = coordinatesOf(raw);
+        packedInvalid_.insert(packedInvalid_.end(), c, c + dim_);
         ++version_;
     }
 
@@ -176,6 +181,9 @@ namespace lit::litstar
                 keptInvalid.push_back(raw);
         }
         invalid_ = std::move(keptInvalid);
+        packedInvalid_.clear();
+        for (const auto *raw : invalid_)
+            packedInvalid_.insert(packedInvalid_.end(), coordinatesOf(raw), coordinatesOf(raw) + dim_);
         if (removed > 0u)
         {
             // Incoming lists may hold removed states; they are rebuilt as the neighbour lists are recomputed.
@@ -332,14 +340,32 @@ namespace lit::litstar
         return total > 0.0 ? static_cast<double>(invalid_.size()) / total : 0.0;
     }
 
+    std::size_t RandomGeometricGraph::countWithin(const std::vector<double> &packed, const double *centre,
+                                                  double radius) const
+    {
+        // Squared distances against radius^2; only sums within rounding of it take the sqrt, so the count is
+        // exactly that of distance() <= radius.
+        const double squared = radius * radius;
+        const double inside = squared * (1.0 - 1e-9);
+        const double outside = squared * (1.0 + 1e-9);
+        std::size_t count = 0u;
+        const double *y = packed.data();
+        const double *stop = y + packed.size();
+        for (; y != stop; y += dim_)
+        {
+            double sum = 0.0;
+            for (unsigned int j = 0u; j < dim_; ++j)
+                sum += (centre[j] - y[j]) * (centre[j] - y[j]);
+            count += sum < inside || (sum <= outside && std::sqrt(sum) <= radius) ? 1u : 0u;
+        }
+        return count;
+    }
+
     double RandomGeometricGraph::localRatio(const ompl::base::State *centre, double radius) const
     {
         const double *c = coordinatesOf(centre);
-        std::size_t valid = 0u, invalid = 0u;
-        for (const auto &state : states_)
-            valid += distance(c, state->coordinates_) <= radius ? 1u : 0u;
-        for (const auto *raw : invalid_)
-            invalid += distance(c, coordinatesOf(raw)) <= radius ? 1u : 0u;
+        const std::size_t valid = countWithin(packed_, c, radius);
+        const std::size_t invalid = countWithin(packedInvalid_, c, radius);
         const double total = static_cast<double>(valid + invalid);
         return total > 0.0 ? static_cast<double>(invalid) / total : -1.0;
     }

@@ -169,6 +169,8 @@ namespace lit::litstar
         /** \brief Whether \e state is among the k nearest that \e owner was last asked for, given that it was
          *  at some point of this prune epoch. */
         bool inAskedPrefix(const State *owner, const State *state) const;
+        /** \brief How many of the packed points lie within \e radius of \e centre (as distance() <= radius). */
+        std::size_t countWithin(const std::vector<double> &packed, const double *centre, double radius) const;
         /** \brief Merges states_[from, end) into \e state's cache of its \e cap nearest. */
         void scanNeighbours(State *state, std::size_t cap, std::size_t from);
         static const double *coordinatesOf(const ompl::base::State *raw);
@@ -179,6 +181,8 @@ namespace lit::litstar
         std::vector<ompl::base::State *> invalid_;
         /** \brief The valid samples' coordinates, dim_ per sample, in the order of states_ (for linear scans). */
         std::vector<double> packed_;
+        /** \brief The same for invalid_ (for the local ratios). */
+        std::vector<double> packedInvalid_;
         unsigned int dim_;
         /** \brief Incremented by every prune; neighbour caches of an older epoch are recomputed. */
         std::size_t pruneEpoch_{0u};
