@@ -705,7 +705,7 @@ namespace lit
         sparseDepth_ = 1u;
         currentK_ = neighbourCount(neighbourFactor_);
         if (policy_->needsFeatures() && !bestPathStates_.empty())
-            rhoLocalB_ = computeFeatures().rhoLocalB;
+            rhoLocalB_ = pathLocalRatio();
         restartReverseSearch();
         expandForward(graph_->start());
 
@@ -731,6 +731,14 @@ namespace lit
         const double q = std::max(static_cast<double>(graph_->numValid()), 2.0);
         const double k = std::ceil(rewireFactor_ * neighbourFactor * (1.0 + 1.0 / n) * std::log(q));
         return static_cast<std::size_t>(std::max(1.0, k));
+    }
+
+    double LITstar::pathLocalRatio() const
+    {
+        std::vector<const ompl::base::State *> path;
+        for (const State *s : bestPathStates_)
+            path.push_back(s->raw_);
+        return graph_->localRatioCalc(path, nullptr, graph_->radius(rewireFactor_, getMeasure())).first;
     }
 
     Features LITstar::computeFeatures(const ompl::base::State *centre) const
@@ -795,7 +803,7 @@ namespace lit
             const bool observeOnly = !policy_->needsFeatures() && clockRunning_;
             if (observeOnly)
                 pauseClock();
-            rhoLocalB_ = computeFeatures().rhoLocalB;
+            rhoLocalB_ = pathLocalRatio();
             if (observeOnly)
                 resumeClock();
             context.features.rhoLocalB = rhoLocalB_;

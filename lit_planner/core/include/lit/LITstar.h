@@ -157,6 +157,8 @@ namespace lit
         void adaptiveBatchsize();
         std::size_t adaptiveNeighborSize(litstar::State *centre);
         double getMeasure() const;
+        /** \brief rho_local,B alone: the mean local ratio along the best path (rho_global without one). */
+        double pathLocalRatio() const;
         double decide(DecisionContext &context);
         DecisionContext makeContext(DecisionKind kind) const;
         std::size_t neighbourCount(double neighbourFactor) const;
