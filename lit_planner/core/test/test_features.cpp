@@ -190,7 +190,9 @@ TEST(Features, NeighbourCacheEqualsABruteForceScanWhateverTheSequenceOfK)
     std::size_t asked = 0u;
     for (int round = 0; round < 12; ++round)
     {
-        addBatch(round == 0 ? 30u : 15u);
+        // Round 0 starts with fewer samples than most k: caches that are not full, prefixes that are the whole
+        // cache, k above the number of samples.
+        addBatch(round == 0 ? 6u : 15u);
         if (round == 6)
         {
             // Remove a quarter of the samples (by id), as a prune would; the cached lists must not name them.

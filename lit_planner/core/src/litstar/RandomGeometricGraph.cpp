@@ -218,9 +218,7 @@ namespace lit::litstar
         candidates.clear();
         for (std::size_t i = from; i < states_.size(); ++i, y += dim_)
         {
-            double sum = 0.0;
-            for (unsigned int j = 0u; j < dim_; ++j)
-                sum += (x[j] - y[j]) * (x[j] - y[j]);
+            const double sum = squaredDistance(x, y);
             if (sum > bound)
                 continue;  // farther than the cache's last entry
             State *other = states_[i].get();
@@ -275,6 +273,8 @@ namespace lit::litstar
             return false;
         if (size == list.size() && list.size() < owner->neighboursCap_)
             return true;
+        if (list[size - 1u] == state)
+            return true;  // the boundary itself: decided without recomputing its distance
         return !closer(owner->neighbourDistances_[size - 1u], list[size - 1u], distance(owner, state), state);
     }
 
@@ -345,6 +345,8 @@ namespace lit::litstar
     {
         // Squared distances against radius^2; only sums within rounding of it take the sqrt, so the count is
         // exactly that of distance() <= radius.
+        if (!(radius >= 0.0))
+            return 0u;  // as distance() <= radius: nothing within a negative or NaN radius
         const double squared = radius * radius;
         const double inside = squared * (1.0 - 1e-9);
         const double outside = squared * (1.0 + 1e-9);
@@ -353,9 +355,7 @@ namespace lit::litstar
         const double *stop = y + packed.size();
         for (; y != stop; y += dim_)
         {
-            double sum = 0.0;
-            for (unsigned int j = 0u; j < dim_; ++j)
-                sum += (centre[j] - y[j]) * (centre[j] - y[j]);
+            const double sum = squaredDistance(centre, y);
             count += sum < inside || (sum <= outside && std::sqrt(sum) <= radius) ? 1u : 0u;
         }
         return count;

@@ -105,10 +105,16 @@ namespace lit::litstar
         }
         double distance(const double *a, const double *b) const
         {
+            return std::sqrt(squaredDistance(a, b));
+        }
+        /** \brief The sum that distance() takes the sqrt of. The neighbour scans and the local ratios use this
+         *  one function too, so their sums are the same to the bit as distance()'s. */
+        double squaredDistance(const double *a, const double *b) const
+        {
             double sum = 0.0;
             for (unsigned int i = 0; i < dim_; ++i)
                 sum += (a[i] - b[i]) * (a[i] - b[i]);
-            return std::sqrt(sum);
+            return sum;
         }
 
         /** \brief rho = |X_invalid| / (|X_valid| + |X_invalid|) (Eq. 4 of the paper); 0 without samples. */
