@@ -53,7 +53,7 @@ namespace lit::litstar
         start_ = nullptr;
         goals_.clear();
         invalidDraws_ = validDraws_ = 0u;
-        ++pruneEpoch_;
+        ++cacheEpoch_;
         ++version_;
     }
 
@@ -150,21 +150,61 @@ namespace lit::litstar
         if (!std::isfinite(maxCost))
             return 0u;
         std::size_t removed = 0u;
+        // keptBefore[i]: kept samples among states_[0, i), the new position of old position i.
+        std::vector<std::size_t> keptBefore(states_.size() + 1u, 0u);
+        for (std::size_t i = 0; i < states_.size(); ++i)
+        {
+            State *state = states_[i].get();
+            const bool terminal = state->isStart_ || state->isGoal_;
+            state->pruned_ = !terminal && state->costToComeLowerBound_ + state->costToGoLowerBound_ > maxCost;
+            keptBefore[i + 1u] = keptBefore[i] + (state->pruned_ ? 0u : 1u);
+        }
         std::vector<std::unique_ptr<State>> kept;
-        kept.reserve(states_.size());
+        kept.reserve(keptBefore.back());
         for (auto &state : states_)
         {
-            const bool terminal = state->isStart_ || state->isGoal_;
-            if (!terminal && state->costToComeLowerBound_ + state->costToGoLowerBound_ > maxCost)
+            if (!state->pruned_)
             {
-                beforeRemove(state.get());
-                si_->freeState(state->raw_);
-                ++removed;
-            }
-            else
                 kept.push_back(std::move(state));
+                continue;
+            }
+            beforeRemove(state.get());
+            si_->freeState(state->raw_);
+            state->raw_ = nullptr;
+            ++removed;
         }
-        states_ = std::move(kept);
+        if (removed > 0u)
+        {
+            // The neighbour caches stay exact without the removed samples: a cache held the cap nearest of what its
+            // sample had scanned, so what is left of it is the nearest of what is left, in the same order. A full
+            // cache that lost entries is full at its new size (samples beyond its old last entry are unknown).
+            for (auto &state : kept)
+            {
+                if (state->neighboursEpoch_ != cacheEpoch_)
+                    continue;
+                auto &list = state->neighbours_;
+                auto &distances = state->neighbourDistances_;
+                const bool full = list.size() >= state->neighboursCap_;
+                std::size_t out = 0u;
+                for (std::size_t i = 0; i < list.size(); ++i)
+                {
+                    if (list[i]->pruned_)
+                        continue;
+                    list[out] = list[i];
+                    distances[out] = distances[i];
+                    ++out;
+                }
+                if (out < list.size())
+                {
+                    list.resize(out);
+                    distances.resize(out);
+                    if (full)
+                        state->neighboursCap_ = out;
+                }
+                state->neighboursScanned_ = keptBefore[state->neighboursScanned_];
+            }
+        }
+        states_ = std::move(kept);  // destroys the removed samples
         packed_.clear();
         for (const auto &state : states_)
             packed_.insert(packed_.end(), state->coordinates_, state->coordinates_ + dim_);
@@ -186,10 +226,11 @@ namespace lit::litstar
             packedInvalid_.insert(packedInvalid_.end(), coordinatesOf(raw), coordinatesOf(raw) + dim_);
         if (removed > 0u)
         {
-            // Incoming lists may hold removed states; they are rebuilt as the neighbour lists are recomputed.
+            // Incoming lists may hold removed states: they are rebuilt as the samples are asked for their
+            // neighbours again (in the order a fresh start would rebuild them).
             for (auto &state : states_)
                 state->incomingNeighbours_.clear();
-            ++pruneEpoch_;  // cached neighbour lists may hold removed states and their positions shifted
+            ++incomingEpoch_;
             ++version_;
         }
         return removed;
@@ -264,7 +305,7 @@ namespace lit::litstar
 
     bool RandomGeometricGraph::inAskedPrefix(const State *owner, const State *state) const
     {
-        // state was in owner's prefix at some point of this prune epoch, so owner has scanned it, and owner's
+        // state was in owner's prefix at some point since the last prune, so owner has scanned it, and owner's
         // cache is exact over what it scanned: state is in the prefix iff it is not farther than the prefix's
         // last entry (distance, then id), or the prefix is the whole of a cache that is not full.
         const auto &list = owner->neighbours_;
@@ -289,9 +330,10 @@ namespace lit::litstar
 
     NeighbourRange RandomGeometricGraph::neighbours(State *state, std::size_t k)
     {
-        const bool sameEpoch = state->neighboursEpoch_ == pruneEpoch_;
-        // The prefix asked for last time in this epoch is in its members' incoming lists already: remember its last
-        // entry and where the samples this call scans for the first time begin (ids grow along states_).
+        const bool cacheValid = state->neighboursEpoch_ == cacheEpoch_;
+        // The prefix asked for last time since the last prune is in its members' incoming lists already: remember
+        // its last entry and where the samples this call scans for the first time begin (ids grow along states_).
+        const bool sameEpoch = cacheValid && state->incomingEpoch_ == incomingEpoch_;
         const std::size_t lastSize = sameEpoch ? std::min(state->neighboursK_, state->neighbours_.size()) : 0u;
         // A prefix that was the whole of a cache that was not full held every sample scanned until then.
         const bool wholeCache =
@@ -302,17 +344,17 @@ namespace lit::litstar
                                        : state->neighboursScanned_ < states_.size()
                                            ? states_[state->neighboursScanned_]->id_
                                            : std::numeric_limits<std::size_t>::max();
-        if (!sameEpoch || k > state->neighboursCap_)
+        if (!cacheValid || k > state->neighboursCap_)
         {
-            // A rescan: keep the cap a state has needed (a prune does not change what the policy asks for) and
-            // grow it geometrically, so a k that keeps rising (psi_K decided per expansion, or log q growing with
-            // the batches) rescans a few times per prune epoch rather than at every rise.
+            // A rescan (first use, or k above the cap): grow the cap geometrically, so a k that keeps rising
+            // (psi_K decided per expansion, or log q growing with the batches) rescans a few times rather than at
+            // every rise.
             const std::size_t cap = state->neighboursCap_;
-            state->neighboursCap_ = !sameEpoch && k <= cap ? cap : std::max(k, cap + cap / 2u);
+            state->neighboursCap_ = !cacheValid && k <= cap ? cap : std::max(k, cap + cap / 2u);
             state->neighbours_.clear();
             state->neighbourDistances_.clear();
             scanNeighbours(state, state->neighboursCap_, 0u);
-            state->neighboursEpoch_ = pruneEpoch_;
+            state->neighboursEpoch_ = cacheEpoch_;
         }
         else if (state->neighboursScanned_ < states_.size())
             scanNeighbours(state, state->neighboursCap_, state->neighboursScanned_);
@@ -331,6 +373,7 @@ namespace lit::litstar
                 incoming.push_back(state);
         }
         state->neighboursK_ = k;
+        state->incomingEpoch_ = incomingEpoch_;
         return {state->neighbours_.data(), size};
     }
 

@@ -90,8 +90,8 @@ namespace lit::litstar
 
         /** \brief The k nearest valid samples of \e state (itself excluded; sorted by distance, ties by id).
          *  Cached per state and updated incrementally with the samples added since; a smaller k than cached is a
-         *  prefix of the cache, a larger one or a prune rescans. The range stays valid until the next call for
-         *  \e state or the next prune. */
+         *  prefix of the cache, a larger one rescans, a prune filters the cache. The range stays valid until the
+         *  next call for \e state or the next prune. */
         NeighbourRange neighbours(State *state, std::size_t k);
 
         /** \brief The samples that have \e state among their k nearest as last asked for (the reverse direction of
@@ -173,7 +173,7 @@ namespace lit::litstar
         State *createState(ompl::base::State *raw);
         void computeLowerBounds(State *state) const;
         /** \brief Whether \e state is among the k nearest that \e owner was last asked for, given that it was
-         *  at some point of this prune epoch. */
+         *  at some point since the last prune. */
         bool inAskedPrefix(const State *owner, const State *state) const;
         /** \brief How many of the packed points lie within \e radius of \e centre (as distance() <= radius). */
         std::size_t countWithin(const std::vector<double> &packed, const double *centre, double radius) const;
@@ -190,8 +190,12 @@ namespace lit::litstar
         /** \brief The same for invalid_ (for the local ratios). */
         std::vector<double> packedInvalid_;
         unsigned int dim_;
-        /** \brief Incremented by every prune; neighbour caches of an older epoch are recomputed. */
-        std::size_t pruneEpoch_{0u};
+        /** \brief Incremented by clear(); neighbour caches of an older epoch are recomputed. (A prune filters
+         *  the caches instead.) */
+        std::size_t cacheEpoch_{0u};
+        /** \brief Incremented by every prune that removes samples, which clears the incoming lists: a state
+         *  registers its prefix in them again when next asked. */
+        std::size_t incomingEpoch_{0u};
         State *start_{nullptr};
         std::vector<State *> goals_;
         std::size_t nextId_{0u};

@@ -66,15 +66,20 @@ namespace lit::litstar
         std::unordered_map<std::size_t, unsigned int> checkedDepth_;
 
         /** \brief Nearest-neighbour cache with distances, sorted by (distance, id): the neighboursCap_ nearest
-         *  samples, of which the first neighboursK_ (the k last asked for) are the current k nearest. Valid for a
-         *  prune epoch; samples appended since (index >= neighboursScanned_) are merged in incrementally, and any
-         *  k up to the cap is a prefix, so a policy that changes k does not force a rescan. */
+         *  samples, of which the first neighboursK_ (the k last asked for) are the current k nearest. Valid until
+         *  the graph is cleared: a prune filters the removed samples out, samples appended since (index >=
+         *  neighboursScanned_) are merged in incrementally, and any k up to the cap is a prefix, so a policy that
+         *  changes k does not force a rescan. */
         std::vector<State *> neighbours_;
         std::vector<double> neighbourDistances_;
         std::size_t neighboursEpoch_{std::numeric_limits<std::size_t>::max()};
         std::size_t neighboursK_{0u};
         std::size_t neighboursCap_{0u};
         std::size_t neighboursScanned_{0u};
+        /** \brief The graph's incoming epoch in which this sample's prefix was last registered. */
+        std::size_t incomingEpoch_{std::numeric_limits<std::size_t>::max()};
+        /** \brief Set by a prune on the samples it removes, while the caches are filtered. */
+        bool pruned_{false};
         /** \brief Samples whose k-nearest list (as last asked for) contains this sample: with them the neighbour
          *  relation is symmetric, so the reverse and the forward search see the same (undirected) graph. Entries
          *  whose list has dropped this sample since are removed when read. */
