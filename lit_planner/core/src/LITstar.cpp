@@ -660,9 +660,18 @@ namespace lit
         const bool first = !std::isfinite(bestCost_);
         bestCost_ = goal->costToCome_;
         ++improvements_;
+        // The best path's samples are pinned: a prune never removes them. (Their straight-line bounds cannot exceed
+        // the path's cost in exact arithmetic, but in floating point a sample on a straight stretch could by an
+        // ulp, and bestPath() and the features read these states.) Pinned states are never pruned, so the old
+        // path's states are all still alive here.
+        for (State *s : bestPathStates_)
+            s->pinned_ = false;
         bestPathStates_.clear();
         for (State *s = goal; s != nullptr; s = s->forwardParent_)
+        {
+            s->pinned_ = true;
             bestPathStates_.push_back(s);
+        }
         std::reverse(bestPathStates_.begin(), bestPathStates_.end());
 
         auto path = std::make_shared<ompl::geometric::PathGeometric>(si_);

@@ -119,6 +119,14 @@ TEST(Features, PruningRemovesWhatCannotImproveAndKeepsTerminals)
     EXPECT_EQ(graph.numInvalid(), 1u);
     EXPECT_NE(graph.start(), nullptr);
     EXPECT_EQ(graph.goals().size(), 1u);
+    // A pinned sample (LIT* pins its best path's) stays whatever its heuristic.
+    litstar::State *pinned = graph.addValidSample({0.0, 0.45});  // heuristic 2 * sqrt(0.04 + 0.2025) = 0.985
+    pinned->pinned_ = true;
+    graph.addValidSample({0.0, -0.45});
+    EXPECT_EQ(graph.prune(0.5, [](litstar::State *) {}), 1u);
+    EXPECT_EQ(graph.numValid(), 4u);
+    EXPECT_TRUE(std::any_of(graph.states().begin(), graph.states().end(),
+                            [pinned](const auto &state) { return state.get() == pinned; }));
 }
 
 TEST(Features, IncomingNeighboursMakeTheKNearestGraphSymmetric)

@@ -155,8 +155,8 @@ namespace lit::litstar
         for (std::size_t i = 0; i < states_.size(); ++i)
         {
             State *state = states_[i].get();
-            const bool terminal = state->isStart_ || state->isGoal_;
-            state->pruned_ = !terminal && state->costToComeLowerBound_ + state->costToGoLowerBound_ > maxCost;
+            const bool kept = state->isStart_ || state->isGoal_ || state->pinned_;
+            state->pruned_ = !kept && state->costToComeLowerBound_ + state->costToGoLowerBound_ > maxCost;
             keptBefore[i + 1u] = keptBefore[i] + (state->pruned_ ? 0u : 1u);
         }
         std::vector<std::unique_ptr<State>> kept;

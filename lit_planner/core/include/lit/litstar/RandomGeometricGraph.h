@@ -84,7 +84,8 @@ namespace lit::litstar
         /** \brief Adds an invalid sample at \e x (no validity check; for tests and hand-built graphs). */
         void addInvalidSample(const std::vector<double> &x);
 
-        /** \brief Removes samples that cannot improve a solution of cost \e maxCost (heuristic > maxCost).
+        /** \brief Removes samples that cannot improve a solution of cost \e maxCost (heuristic > maxCost), except
+         *  the terminals and pinned samples.
          *  \e beforeRemove runs on each valid state first. Returns the number of samples removed. */
         std::size_t prune(double maxCost, const std::function<void(State *)> &beforeRemove);
 

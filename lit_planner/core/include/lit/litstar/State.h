@@ -80,6 +80,8 @@ namespace lit::litstar
         std::size_t incomingEpoch_{std::numeric_limits<std::size_t>::max()};
         /** \brief Set by a prune on the samples it removes, while the caches are filtered. */
         bool pruned_{false};
+        /** \brief Never pruned (LIT* pins its best path's samples). */
+        bool pinned_{false};
         /** \brief Samples whose k-nearest list (as last asked for) contains this sample: with them the neighbour
          *  relation is symmetric, so the reverse and the forward search see the same (undirected) graph. Entries
          *  whose list has dropped this sample since are removed when read. */
