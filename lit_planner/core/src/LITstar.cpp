@@ -236,6 +236,7 @@ namespace lit
         spaceMeasure_ = si_->getSpaceMeasure();
         if (interpolated_ == nullptr)
             interpolated_ = si_->allocState();
+        bestPathStates_.clear();  // they belonged to the graph replaced here
         graph_ = std::make_unique<litstar::RandomGeometricGraph>(si_, seed_);
         forwardQueue_ = std::make_unique<litstar::ForwardQueue>([this](litstar::Edge &edge) { computeKeys(edge); });
         graph_->setTerminals(start, goals);
@@ -742,12 +743,18 @@ namespace lit
         return static_cast<std::size_t>(std::max(1.0, k));
     }
 
-    double LITstar::pathLocalRatio() const
+    std::vector<const ompl::base::State *> LITstar::bestPathRawStates() const
     {
         std::vector<const ompl::base::State *> path;
+        path.reserve(bestPathStates_.size());
         for (const State *s : bestPathStates_)
             path.push_back(s->raw_);
-        return graph_->localRatioCalc(path, nullptr, graph_->radius(rewireFactor_, getMeasure())).first;
+        return path;
+    }
+
+    double LITstar::pathLocalRatio() const
+    {
+        return graph_->localRatioCalc(bestPathRawStates(), nullptr, graph_->radius(rewireFactor_, getMeasure())).first;
     }
 
     Features LITstar::computeFeatures(const ompl::base::State *centre) const
@@ -758,9 +765,7 @@ namespace lit
         features.rhoGlobal = graph_->ratioCalc();
         const double informed = getMeasure();
         features.measure = std::isfinite(bestCost_) ? measureFeature(dimension_, informed, spaceMeasure_) : 1.0;
-        std::vector<const ompl::base::State *> path;
-        for (const State *s : bestPathStates_)
-            path.push_back(s->raw_);
+        const std::vector<const ompl::base::State *> path = bestPathRawStates();
         const double radius = graph_->radius(rewireFactor_, informed);
         const auto [localB, localK] = graph_->localRatioCalc(path, centre ? centre : graph_->start()->raw_, radius);
         features.rhoLocalB = localB;

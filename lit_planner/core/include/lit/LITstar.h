@@ -159,6 +159,8 @@ namespace lit
         double getMeasure() const;
         /** \brief rho_local,B alone: the mean local ratio along the best path (rho_global without one). */
         double pathLocalRatio() const;
+        /** \brief The OMPL states of the best path (empty without a solution). */
+        std::vector<const ompl::base::State *> bestPathRawStates() const;
         double decide(DecisionContext &context);
         DecisionContext makeContext(DecisionKind kind) const;
         std::size_t neighbourCount(double neighbourFactor) const;

@@ -61,8 +61,19 @@ namespace lit::litstar
     {
         const double *x = coordinatesOf(raw);
         states_.push_back(std::make_unique<State>(nextId_++, raw, x));
-        packed_.insert(packed_.end(), x, x + dim_);
+        appendPacked(packed_, x);
         return states_.back().get();
+    }
+
+    void RandomGeometricGraph::appendPacked(std::vector<double> &packed, const double *x) const
+    {
+        packed.insert(packed.end(), x, x + dim_);
+    }
+
+    void RandomGeometricGraph::keepInvalid(ompl::base::State *raw)
+    {
+        invalid_.push_back(raw);
+        appendPacked(packedInvalid_, coordinatesOf(raw));
     }
 
     void RandomGeometricGraph::computeLowerBounds(State *state) const
@@ -114,9 +125,7 @@ namespace lit::litstar
             }
             else
             {
-                invalid_.push_back(raw);
-                const double *x = coordinatesOf(raw);
-                packedInvalid_.insert(packedInvalid_.end(), x, x + dim_);
+                keepInvalid(raw);
                 ++invalidDraws_;
             }
         }
@@ -139,9 +148,7 @@ namespace lit::litstar
     {
         ompl::base::State *raw = si_->allocState();
         si_->getStateSpace()->copyFromReals(raw, x);
-        invalid_.push_back(raw);
-        const double *c = coordinatesOf(raw);
-        packedInvalid_.insert(packedInvalid_.end(), c, c + dim_);
+        keepInvalid(raw);
         ++version_;
     }
 
@@ -207,7 +214,7 @@ namespace lit::litstar
         states_ = std::move(kept);  // destroys the removed samples
         packed_.clear();
         for (const auto &state : states_)
-            packed_.insert(packed_.end(), state->coordinates_, state->coordinates_ + dim_);
+            appendPacked(packed_, state->coordinates_);
         std::vector<ompl::base::State *> keptInvalid;
         keptInvalid.reserve(invalid_.size());
         for (auto *raw : invalid_)
@@ -223,7 +230,7 @@ namespace lit::litstar
         invalid_ = std::move(keptInvalid);
         packedInvalid_.clear();
         for (const auto *raw : invalid_)
-            packedInvalid_.insert(packedInvalid_.end(), coordinatesOf(raw), coordinatesOf(raw) + dim_);
+            appendPacked(packedInvalid_, coordinatesOf(raw));
         if (removed > 0u)
         {
             // Incoming lists may hold removed states: they are rebuilt as the samples are asked for their

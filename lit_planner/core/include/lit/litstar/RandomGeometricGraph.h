@@ -172,6 +172,10 @@ namespace lit::litstar
 
     private:
         State *createState(ompl::base::State *raw);
+        /** \brief Appends a point's dim_ coordinates to a packed array. */
+        void appendPacked(std::vector<double> &packed, const double *x) const;
+        /** \brief Adds an (owned) invalid state to invalid_ and its coordinates to packedInvalid_. */
+        void keepInvalid(ompl::base::State *raw);
         void computeLowerBounds(State *state) const;
         /** \brief Whether \e state is among the k nearest that \e owner was last asked for, given that it was
          *  at some point since the last prune. */
