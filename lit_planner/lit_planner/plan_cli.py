@@ -159,7 +159,10 @@ def summary_lines(result: Mapping[str, Any], scenario: Scenario) -> list[str]:
             f"{counters['edges_evaluated']} evaluated, {counters['edges_invalid']} found invalid"
         )
         lines += [f"samples    {samples}", f"edges      {edges}"]
-    lines.append(f"checks     {counters['validity_checks']} collision checks")
+    checks = f"checks     {counters['validity_checks']} collision checks"
+    if result.get("checks_init") is not None:
+        checks += f", {result['checks_init']} up to the first solution"
+    lines.append(checks)
     check = result.get("path_check")
     if check is not None:
         verdict = "passed" if check["ok"] else "FAILED"

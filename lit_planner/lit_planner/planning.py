@@ -257,7 +257,8 @@ def plan(
 
     Returns:
         The dict of ``lit_core.solve`` (``status``, ``solved``, ``message``, ``cost``, ``t_init``,
-        ``c_init``, ``improvements`` as (time, cost) tuples, ``path``, ``time``, ``counters``,
+        ``c_init``, ``checks_init`` (validity checks up to the first solution, None without
+        one), ``improvements`` as (time, cost) tuples, ``path``, ``time``, ``counters``,
         ``decisions``, ``planner``, ``seed``, LIT*'s ``policy``) plus ``policy`` (None for OMPL
         planners), ``scenario`` (name), ``instance``, ``dimension``, ``optimal_cost`` (None where
         unknown), ``time_budget`` (the limit given, None if none) and ``path_check`` (the

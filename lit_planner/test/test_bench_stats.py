@@ -184,6 +184,10 @@ def test_run_order_is_a_reproducible_shuffle() -> None:
 # --- summary schema -------------------------------------------------------------------------
 
 
+CHECKS_BASE = {"litstar-fixed": 100, "litstar-fit": 200}
+"""Run i's validity checks up to its first solution are base + 10 i in the records below."""
+
+
 def _record(run: int, planner: str = "litstar-fixed", solved: bool = True) -> dict[str, Any]:
     cost = 1.0 + run / 10
     return {
@@ -207,6 +211,7 @@ def _record(run: int, planner: str = "litstar-fixed", solved: bool = True) -> di
         "t_init": 0.01 if solved else None,
         "c_init": cost + 1 if solved else None,
         "c_final": cost if solved else None,
+        "checks_init": CHECKS_BASE.get(planner, 300) + 10 * run if solved else None,
         "improvements": [[0.01, cost + 1], [0.05, cost]] if solved else [],
         "time": 0.12,
         "wall_time": 0.125,
@@ -231,13 +236,12 @@ def _summary() -> dict[str, Any]:
     return {"records": records, "config": config, "cli": cli}
 
 
-def test_summary_validates_and_a_broken_one_is_rejected_naming_the_field(tmp_path: Any) -> None:
+def _write_summary(folder: Any, parts: dict[str, Any]) -> dict[str, Any]:
     from datetime import UTC, datetime
 
-    parts = _summary()
     now = datetime.now(UTC)
-    summary = parts["cli"].write_outputs(
-        tmp_path,
+    return parts["cli"].write_outputs(
+        folder,
         parts["records"],
         parts["config"],
         preset=None,
@@ -248,6 +252,43 @@ def test_summary_validates_and_a_broken_one_is_rejected_naming_the_field(tmp_pat
         estimate=(0.0, "test"),
         argv=["lit", "bench", "--test"],
     )
+
+
+def test_summary_reports_the_checks_up_to_the_first_solution(tmp_path: Any) -> None:
+    summary = _write_summary(tmp_path, _summary())
+    planners = summary["scenarios"]["np4"]["planners"]
+    # Runs 0..7: medians of 100..170 and 200..270; the unsolved planner's is infinite.
+    assert planners["litstar-fixed"]["checks_init"]["median"] == 135.0
+    assert planners["litstar-fit"]["checks_init"]["median"] == 235.0
+    assert planners["rrtconnect"]["checks_init"]["median"] == "inf"
+    row = summary["comparisons"]["fit"]["rows"]["np4"]
+    assert row["reference_medians"]["checks_init"] == 235.0
+    assert row["litstar_medians"]["checks_init"] == 135.0
+    assert row["improvement_percent"]["checks_init"] == pytest.approx(100 * 100 / 235)
+    text = (tmp_path / "summary.md").read_text()
+    assert "| np4 | 235 | 135 | +42.55 |" in text
+    assert "| LIT* (fixed) | 100% | 0.0100 [0.0100, 0.0100] " in text
+    assert "| 135 [100, 170] | 0 |" in text
+
+
+def test_records_without_checks_still_summarise(tmp_path: Any) -> None:
+    """Bags written before the checks were recorded: their summary says null, not 0."""
+    parts = _summary()
+    for record in parts["records"]:
+        del record["checks_init"]
+        codec.validate("BenchRun", record)
+    summary = _write_summary(tmp_path, parts)
+    assert summary["scenarios"]["np4"]["planners"]["litstar-fit"]["checks_init"] is None
+    row = summary["comparisons"]["fit"]["rows"]["np4"]
+    assert row["litstar_medians"]["checks_init"] is None
+    assert row["improvement_percent"]["checks_init"] is None
+    text = (tmp_path / "summary.md").read_text()
+    assert "Validity checks up to the first solution" not in text
+    assert "| — | 0 |" in text
+
+
+def test_summary_validates_and_a_broken_one_is_rejected_naming_the_field(tmp_path: Any) -> None:
+    summary = _write_summary(tmp_path, _summary())
     codec.validate("BenchSummary", summary)  # write_outputs validated it already; again, explicitly
     assert (tmp_path / "summary.json").is_file() and (tmp_path / "summary.md").is_file()
     stats_np4 = summary["scenarios"]["np4"]["planners"]["litstar-fixed"]
@@ -280,3 +321,6 @@ def test_run_record_schema_ties_solved_to_its_numbers() -> None:
     unsolved_with_cost = dict(_record(0, solved=False), c_final=1.0)
     with pytest.raises(SchemaError, match="c_final"):
         codec.validate("BenchRun", unsolved_with_cost)
+    unsolved_with_checks = dict(_record(0, solved=False), checks_init=12)
+    with pytest.raises(SchemaError, match="checks_init"):
+        codec.validate("BenchRun", unsolved_with_checks)

@@ -143,6 +143,26 @@ def test_max_batches_stops_litstar() -> None:
     assert result["counters"]["batches"] == 3
 
 
+def test_checks_up_to_the_first_solution() -> None:
+    """``checks_init`` counts the validity checks made when the first solution was found: a run
+    with the same seed stopped at that solution's iteration has made exactly as many, and
+    another full run repeats the count (no timing in it)."""
+    found: list[int] = []
+
+    class First:
+        def on_solution(self, event: Any) -> None:
+            if event.improvement == 1:
+                found.append(event.iteration)
+
+    full = plan("rrd4", seed=5, max_iterations=ITERATIONS, listener=First())
+    assert full["solved"] and len(found) == 1 and len(full["improvements"]) > 1
+    assert 0 < full["checks_init"] < full["counters"]["validity_checks"]
+    assert plan("rrd4", seed=5, max_iterations=ITERATIONS)["checks_init"] == full["checks_init"]
+    stopped = plan("rrd4", seed=5, max_iterations=found[0])
+    assert len(stopped["improvements"]) == 1
+    assert stopped["checks_init"] == full["checks_init"] == stopped["counters"]["validity_checks"]
+
+
 def test_tensor_policy_applies_lookups(tmp_path: Path) -> None:
     write_tensor_pair(tmp_path)
     b_values = tf.affine_test_tensor(*tf.AFFINE_TEST_COEFFICIENTS)
@@ -363,9 +383,13 @@ def test_ompl_baselines_give_sound_paths(planner: str, name: str) -> None:
         # times finer, may then catch it (seen once in many runs of irrtstar on rrd4). That is
         # OMPL's contract, not a planner bug: allow it, and only that.
         assert_sound(result, scenario, clip_allowance=scenario.resolution * scenario.max_extent)
+        assert 0 < result["checks_init"] <= result["counters"]["validity_checks"]
+        if planner == "rrtconnect":  # it stops at its first solution
+            assert result["checks_init"] == result["counters"]["validity_checks"]
     else:
         assert result["status"] in ("timeout", "approximate_solution")
         assert result["path"] == [] and result["path_check"] is None
+        assert result["checks_init"] is None
         assert math.isinf(result["cost"]) and math.isinf(result["t_init"])
 
 
@@ -386,6 +410,7 @@ def test_invalid_start_and_goal_are_reported(planner: str) -> None:
         assert result["status"] == status and words in result["message"]
         assert not result["solved"] and result["path"] == [] and result["path_check"] is None
         assert math.isinf(result["cost"]) and result["improvements"] == []
+        assert result["checks_init"] is None
         safe = json.loads(json.dumps(json_safe(result), allow_nan=False))
         assert safe["cost"] is None and safe["t_init"] is None and safe["c_init"] is None
 

@@ -31,6 +31,7 @@
 #include <atomic>
 #include <mutex>
 #include <thread>
+#include <tuple>
 
 namespace py = pybind11;
 using namespace lit;
@@ -87,12 +88,14 @@ namespace
     class RecordingListener : public PlannerListener
     {
     public:
-        explicit RecordingListener(py::object listener) : listener_(std::move(listener))
+        RecordingListener(py::object listener, std::shared_ptr<const BoxWorldValidityChecker> checker)
+          : listener_(std::move(listener)), checker_(std::move(checker))
         {
         }
         void onSolution(const SolutionEvent &event) override
         {
             solutions.push_back(event);
+            solutionChecks.push_back(checker_->calls());
             forward("on_solution", [&] { return py::cast(event); });
         }
         void onDecision(const DecisionEvent &event) override
@@ -106,6 +109,8 @@ namespace
             forward("on_batch", [&] { return py::cast(event); });
         }
         std::vector<SolutionEvent> solutions;
+        /** \brief The validity checker's calls when each solution was reported. */
+        std::vector<std::uint64_t> solutionChecks;
         std::vector<DecisionEvent> decisions;
         std::vector<BatchEvent> batches;
 
@@ -121,6 +126,7 @@ namespace
         }
         py::object listener_;
         bool hasListener_{!listener_.is_none()};
+        std::shared_ptr<const BoxWorldValidityChecker> checker_;
     };
 
     py::dict decisionDict(const DecisionEvent &event)
@@ -138,6 +144,14 @@ namespace
         d["measure"] = event.features.measure;
         return d;
     }
+
+    /** \brief One point of a run's cost curve, with the validity checks made up to it. */
+    struct Improvement
+    {
+        double time;
+        double cost;
+        std::uint64_t checks;
+    };
 
     /** \brief Start or goal problems that every planner should report the same way, without planning. */
     std::string checkTerminal(const char *what, const std::vector<double> &x, const BoxProblem &problem)
@@ -179,8 +193,8 @@ namespace
 
         ompl::base::PlannerPtr planner;
         std::shared_ptr<LITstar> litstar;
-        auto recorder = std::make_shared<RecordingListener>(listenerObject);
-        std::vector<std::pair<double, double>> improvements;
+        auto recorder = std::make_shared<RecordingListener>(listenerObject, problem.checker);
+        std::vector<Improvement> improvements;
         double elapsed = 0.0;
         if (status.empty())
         {
@@ -221,8 +235,8 @@ namespace
                     [&](const ompl::base::Planner *, const std::vector<const ompl::base::State *> &,
                         const ompl::base::Cost cost) {
                         const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - startTime).count();
-                        if (improvements.empty() || cost.value() < improvements.back().second)
-                            improvements.emplace_back(t, cost.value());
+                        if (improvements.empty() || cost.value() < improvements.back().cost)
+                            improvements.push_back({t, cost.value(), problem.checker->calls()});
                     });
             ompl::base::PlannerStatus plannerStatus;
             {
@@ -235,7 +249,7 @@ namespace
                     // watcher thread also polls the problem definition's solutions every 50 microseconds.
                     std::atomic<bool> done{false};
                     std::mutex mutex;
-                    std::vector<std::pair<double, double>> polled;
+                    std::vector<Improvement> polled;
                     std::thread watcher([&] {
                         std::size_t seen = 0u;
                         while (!done.load())
@@ -245,6 +259,7 @@ namespace
                             {
                                 seen = count;
                                 const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - startTime).count();
+                                const std::uint64_t checks = problem.checker->calls();
                                 double c = std::numeric_limits<double>::infinity();
                                 for (const auto &solution : problem.pdef->getSolutions())
                                     if (!solution.approximate_)
@@ -252,7 +267,7 @@ namespace
                                 if (std::isfinite(c))
                                 {
                                     std::lock_guard<std::mutex> lock(mutex);
-                                    polled.emplace_back(t, c);
+                                    polled.push_back({t, c, checks});
                                 }
                             }
                             std::this_thread::sleep_for(std::chrono::microseconds(50));
@@ -264,10 +279,12 @@ namespace
                     std::lock_guard<std::mutex> lock(mutex);
                     // Merge callback and polled events into one non-increasing cost curve.
                     polled.insert(polled.end(), improvements.begin(), improvements.end());
-                    std::sort(polled.begin(), polled.end());
+                    std::sort(polled.begin(), polled.end(), [](const Improvement &a, const Improvement &b) {
+                        return std::tie(a.time, a.cost, a.checks) < std::tie(b.time, b.cost, b.checks);
+                    });
                     improvements.clear();
                     for (const auto &event : polled)
-                        if (improvements.empty() || event.second < improvements.back().second - 1e-12)
+                        if (improvements.empty() || event.cost < improvements.back().cost - 1e-12)
                             improvements.push_back(event);
                 }
             }
@@ -277,8 +294,9 @@ namespace
             if (litstar)
             {
                 message = litstar->statusMessage();
-                for (const auto &event : recorder->solutions)
-                    improvements.emplace_back(event.time, event.cost);
+                for (std::size_t i = 0; i < recorder->solutions.size(); ++i)
+                    improvements.push_back(
+                        {recorder->solutions[i].time, recorder->solutions[i].cost, recorder->solutionChecks[i]});
             }
         }
 
@@ -296,19 +314,23 @@ namespace
                 path.append(py::cast(x));
             }
             // Planners that do not report intermediate solutions (RRT-Connect) still have a first solution.
-            if (improvements.empty() || cost < improvements.back().second - 1e-12)
-                improvements.emplace_back(elapsed, cost);
+            if (improvements.empty() || cost < improvements.back().cost - 1e-12)
+                improvements.push_back({elapsed, cost, problem.checker->calls()});
         }
         py::list improvementList;
-        for (const auto &[t, c] : improvements)
-            improvementList.append(py::make_tuple(t, c));
+        for (const auto &event : improvements)
+            improvementList.append(py::make_tuple(event.time, event.cost));
 
         result["status"] = status;
         result["solved"] = solved;
         result["message"] = message;
         result["cost"] = cost;
-        result["t_init"] = improvements.empty() ? py::cast(std::numeric_limits<double>::infinity()) : py::cast(improvements.front().first);
-        result["c_init"] = improvements.empty() ? py::cast(std::numeric_limits<double>::infinity()) : py::cast(improvements.front().second);
+        const double infinity = std::numeric_limits<double>::infinity();
+        result["t_init"] = improvements.empty() ? infinity : improvements.front().time;
+        result["c_init"] = improvements.empty() ? infinity : improvements.front().cost;
+        // Validity checks up to the first solution: deterministic for LIT*, unlike t_init. For AIT*, whose
+        // solutions are polled every 50 microseconds, it can include up to that much later work.
+        result["checks_init"] = improvements.empty() ? py::none() : py::cast(improvements.front().checks);
         result["improvements"] = improvementList;
         result["path"] = path;
         result["time"] = elapsed;
@@ -514,6 +536,7 @@ PYBIND11_MODULE(lit_core, m)
           py::arg("max_batches") = 0u, py::arg("params") = std::map<std::string, std::string>{},
           py::arg("listener") = py::none(),
           "Plans \e query with \e planner. LIT* stops on its own clock (time), iterations or batches; OMPL planners on "
-          "wall time. Returns a dict: status, solved, message, cost, t_init, c_init, improvements, path, time, "
+          "wall time. Returns a dict: status, solved, message, cost, t_init, c_init, checks_init (validity checks up to the "
+          "first solution, None without one), improvements, path, time, "
           "counters, decisions.");
 }

@@ -24,6 +24,9 @@ SUMMARY_SCHEMA_VERSION = 1
 """Version of :data:`SUMMARY_SCHEMA` that this module writes."""
 METRICS = ("t_init", "c_init", "c_final")
 """Per-run quantities whose medians the tables show."""
+EFFORT = "checks_init"
+"""Validity checks up to the first solution: the effort behind t_init, free of timing noise (for
+LIT* a function of seed and policy). Records written before 2026-12-01 do not carry it."""
 FIT_PLANNER = "litstar-fit"
 """FIT*'s batch rule on LIT*: the paper's Table I baseline."""
 LIT_CANDIDATES = (TENSOR_PLANNER, "litstar-fixed")
@@ -92,7 +95,23 @@ def planner_statistics(records: Sequence[Record]) -> dict[str, Any]:
     for metric in METRICS:
         estimate = stats.median_with_interval([record_value(r, metric) for r in records])
         result[metric] = median_summary(estimate)
+    effort = effort_values(records)
+    result[EFFORT] = None if effort is None else median_summary(stats.median_with_interval(effort))
     return result
+
+
+def effort_values(records: Sequence[Record]) -> list[float] | None:
+    """Each run's validity checks up to its first solution (inf when unsolved); None when a
+    solved record does not carry them (an older bag)."""
+    values = []
+    for record in records:
+        if not record["solved"]:
+            values.append(math.inf)
+        elif record.get(EFFORT) is None:
+            return None
+        else:
+            values.append(float(record[EFFORT]))
+    return values
 
 
 def curves(
@@ -163,6 +182,11 @@ def _medians(planner_stats: dict[str, Any]) -> dict[str, float]:
     return {m: _as_float(planner_stats[m]["median"]) for m in METRICS}
 
 
+def _effort_median(planner_stats: dict[str, Any]) -> float | None:
+    effort = planner_stats.get(EFFORT)
+    return None if effort is None else _as_float(effort["median"])
+
+
 def _as_float(value: float | str | None) -> float:
     return math.inf if value is None else float(value)
 
@@ -191,6 +215,11 @@ def comparisons(
         if FIT_PLANNER in per_planner:
             fit_medians = _medians(per_planner[FIT_PLANNER])
             fit_rows[name] = _comparison_row(FIT_PLANNER, fit_medians, lit_medians)
+            _add_effort(
+                fit_rows[name],
+                _effort_median(per_planner[FIT_PLANNER]),
+                _effort_median(per_planner[lit]),
+            )
         candidates = {
             p: (_medians(per_planner[p])["c_final"], _medians(per_planner[p])["t_init"])
             for p in ompl
@@ -199,6 +228,9 @@ def comparisons(
         best = stats.best_by_final_cost(candidates)
         if best is not None:
             best_rows[name] = _comparison_row(best, _medians(per_planner[best]), lit_medians)
+            _add_effort(
+                best_rows[name], _effort_median(per_planner[best]), _effort_median(per_planner[lit])
+            )
     return {
         "litstar": lit,
         "litstar_note": note,
@@ -220,6 +252,15 @@ def _comparison_row(
             m: stats.improvement_percent(reference_medians[m], lit_medians[m]) for m in METRICS
         },
     }
+
+
+def _add_effort(row: dict[str, Any], reference: float | None, lit: float | None) -> None:
+    """The median validity checks up to the first solution, into a comparison row."""
+    row["reference_medians"][EFFORT] = ext(reference)
+    row["litstar_medians"][EFFORT] = ext(lit)
+    row["improvement_percent"][EFFORT] = (
+        None if reference is None or lit is None else stats.improvement_percent(reference, lit)
+    )
 
 
 # --- Markdown -------------------------------------------------------------------------------
@@ -303,6 +344,7 @@ def markdown(summary: dict[str, Any]) -> str:
             ),
             "",
         ]
+        lines += _effort_table(comp["fit"]["rows"])
     else:
         lines += ["Not available: this benchmark did not run both LIT* and litstar-fit.", ""]
 
@@ -322,14 +364,18 @@ def markdown(summary: dict[str, Any]) -> str:
                 f"{fmt(optimum) if optimum is not None else 'unknown'})"
             ),
             "",
-            "| planner | success | median t_init (s) | median c_init | median c_final | invalid paths |",
-            "| --- | ---: | ---: | ---: | ---: | ---: |",
+            (
+                "| planner | success | median t_init (s) | median c_init | median c_final "
+                "| median checks to t_init | invalid paths |"
+            ),
+            "| --- | ---: | ---: | ---: | ---: | ---: | ---: |",
         ]
         for planner, entry in scenario["planners"].items():
+            effort = entry.get(EFFORT)
             lines.append(
                 f"| {label(planner)} | {entry['success_rate']:.0%} | {fmt_median(entry['t_init'])} "
                 f"| {fmt_median(entry['c_init'])} | {fmt_median(entry['c_final'])} "
-                f"| {entry['invalid_paths']} |"
+                f"| {'—' if effort is None else fmt_median(effort, 0)} | {entry['invalid_paths']} |"
             )
         lines += [""]
         for plot in summary["outputs"]["plots"].get(name, []):
@@ -358,6 +404,29 @@ def markdown(summary: dict[str, Any]) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+def _effort_table(rows: dict[str, Any]) -> list[str]:
+    """Markdown: the median validity checks up to the first solution, FIT* against LIT* (no
+    lines when no row has them: records from before they were recorded)."""
+    if all(row["reference_medians"].get(EFFORT) is None for row in rows.values()):
+        return []
+    lines = [
+        (
+            "Validity checks up to the first solution (medians; for LIT* and FIT* a function of "
+            "the seed and the policy, so free of the timing noise in t_init):"
+        ),
+        "",
+        "| scenario | FIT* checks | LIT* checks | checks ⇑ (%) |",
+        "| --- | ---: | ---: | ---: |",
+    ]
+    for name, row in rows.items():
+        ref, lit = row["reference_medians"].get(EFFORT), row["litstar_medians"].get(EFFORT)
+        lines.append(
+            f"| {name} | {fmt(ref, 0)} | {fmt(lit, 0)} "
+            f"| {fmt_percent(row['improvement_percent'].get(EFFORT))} |"
+        )
+    return lines + [""]
 
 
 def _comparison_table(rows: dict[str, Any], *, with_planner: bool) -> list[str]:

@@ -239,6 +239,7 @@ def make_record(
             "t_init": result["t_init"] if solved else None,
             "c_init": result["c_init"] if solved else None,
             "c_final": result["cost"] if solved else None,
+            "checks_init": result["checks_init"] if solved else None,
             "improvements": [list(pair) for pair in result["improvements"]] if solved else [],
             "time": result["time"],
             "wall_time": wall_time,
