@@ -87,6 +87,9 @@ def test_bench_records_same_seeds_and_valid_paths(
         if record["solved"]:
             assert record["path_valid"] is True and record["path"]
             assert record["improvements"][0] == [record["t_init"], record["c_init"]]
+            assert 0 < record["checks_init"] <= record["counters"]["validity_checks"]
+        else:
+            assert record["checks_init"] is None
 
 
 def test_bench_summary_is_complete_and_names_the_skipped_tensor_planner(

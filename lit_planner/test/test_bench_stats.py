@@ -269,6 +269,11 @@ def test_summary_reports_the_checks_up_to_the_first_solution(tmp_path: Any) -> N
     assert "| np4 | 235 | 135 | +42.55 |" in text
     assert "| LIT* (fixed) | 100% | 0.0100 [0.0100, 0.0100] " in text
     assert "| 135 [100, 170] | 0 |" in text
+    assert (report.fmt(103.5, None), report.fmt(104.0, None), report.fmt("inf", None)) == (
+        "103.5",
+        "104",
+        "∞",
+    )
 
 
 def test_records_without_checks_still_summarise(tmp_path: Any) -> None:
@@ -278,7 +283,8 @@ def test_records_without_checks_still_summarise(tmp_path: Any) -> None:
         del record["checks_init"]
         codec.validate("BenchRun", record)
     summary = _write_summary(tmp_path, parts)
-    assert summary["scenarios"]["np4"]["planners"]["litstar-fit"]["checks_init"] is None
+    for planner in ("litstar-fit", "rrtconnect"):  # solved every run / none
+        assert summary["scenarios"]["np4"]["planners"][planner]["checks_init"] is None
     row = summary["comparisons"]["fit"]["rows"]["np4"]
     assert row["litstar_medians"]["checks_init"] is None
     assert row["improvement_percent"]["checks_init"] is None

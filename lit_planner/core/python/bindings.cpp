@@ -328,8 +328,8 @@ namespace
         const double infinity = std::numeric_limits<double>::infinity();
         result["t_init"] = improvements.empty() ? infinity : improvements.front().time;
         result["c_init"] = improvements.empty() ? infinity : improvements.front().cost;
-        // Validity checks up to the first solution: deterministic for LIT*, unlike t_init. For AIT*, whose
-        // solutions are polled every 50 microseconds, it can include up to that much later work.
+        // Validity checks up to the first solution: deterministic for LIT*, unlike t_init. For AIT*, whose solutions
+        // are polled (sleep_for's 50 microseconds are a minimum), it can include a polling interval's work or more.
         result["checks_init"] = improvements.empty() ? py::none() : py::cast(improvements.front().checks);
         result["improvements"] = improvementList;
         result["path"] = path;

@@ -101,8 +101,10 @@ def planner_statistics(records: Sequence[Record]) -> dict[str, Any]:
 
 
 def effort_values(records: Sequence[Record]) -> list[float] | None:
-    """Each run's validity checks up to its first solution (inf when unsolved); None when a
-    solved record does not carry them (an older bag)."""
+    """Each run's validity checks up to its first solution (inf when unsolved); None when the
+    records do not carry them (an older bag), even if every run failed."""
+    if not any(EFFORT in record for record in records):
+        return None
     values = []
     for record in records:
         if not record["solved"]:
@@ -283,13 +285,16 @@ def label(planner: str) -> str:
     return PLANNER_LABELS.get(planner, planner)
 
 
-def fmt(value: float | str | None, digits: int = 4) -> str:
-    """A number for a table: ``∞`` for inf, ``—`` for None."""
+def fmt(value: float | str | None, digits: int | None = 4) -> str:
+    """A number for a table: ``∞`` for inf, ``—`` for None; ``digits`` None: a count (a median
+    of an even number of counts may end in .5, shown as such)."""
     if value is None:
         return "—"
     number = float(value)
     if math.isinf(number):
         return "∞"
+    if digits is None:
+        return f"{number:.0f}" if number.is_integer() else f"{number:.1f}"
     return f"{number:.{digits}f}"
 
 
@@ -301,7 +306,7 @@ def fmt_percent(value: float | None) -> str:
     return "—" if value is None else f"{value:+.2f}"
 
 
-def fmt_median(entry: dict[str, Any], digits: int = 4) -> str:
+def fmt_median(entry: dict[str, Any], digits: int | None = 4) -> str:
     """``median [lower, upper]``, or ``median (min–max)†`` when no interval exists."""
     median = fmt(entry["median"], digits)
     if entry["ci"] is not None:
@@ -375,7 +380,7 @@ def markdown(summary: dict[str, Any]) -> str:
             lines.append(
                 f"| {label(planner)} | {entry['success_rate']:.0%} | {fmt_median(entry['t_init'])} "
                 f"| {fmt_median(entry['c_init'])} | {fmt_median(entry['c_final'])} "
-                f"| {'—' if effort is None else fmt_median(effort, 0)} | {entry['invalid_paths']} |"
+                f"| {'—' if effort is None else fmt_median(effort, None)} | {entry['invalid_paths']} |"
             )
         lines += [""]
         for plot in summary["outputs"]["plots"].get(name, []):
@@ -423,7 +428,7 @@ def _effort_table(rows: dict[str, Any]) -> list[str]:
     for name, row in rows.items():
         ref, lit = row["reference_medians"].get(EFFORT), row["litstar_medians"].get(EFFORT)
         lines.append(
-            f"| {name} | {fmt(ref, 0)} | {fmt(lit, 0)} "
+            f"| {name} | {fmt(ref, None)} | {fmt(lit, None)} "
             f"| {fmt_percent(row['improvement_percent'].get(EFFORT))} |"
         )
     return lines + [""]
