@@ -200,6 +200,7 @@ def run_episode(
     b_range: tuple[float, float] = (20.0, 200.0),
     explore: bool = True,
     time_budget: float | None = None,
+    max_iterations: int = 0,
     recording: Any = None,
 ) -> EpisodeOutcome:
     """Plan one training query with the learner deciding, then close the episode.
@@ -214,6 +215,10 @@ def run_episode(
         b_tensor: ``lit_core.LookupTensor`` answering B in :data:`PHASE_K`.
         explore: exploration noise on (training) or off (evaluation).
         time_budget: planner seconds; the scenario's budget when None.
+        max_iterations: also end the query after this many LIT* iterations (0: no limit), a
+            truncation as the budget's end is. With a budget far above the query's planner time,
+            every reward's time term is at its floor (t-hat = 0.01, no search cost), so the
+            returns are a function of the actions alone: noise-free.
         recording: a :class:`lit_planner.bag.EpisodeRecording` that gets the query's messages
             (solution updates, observations, decisions, summary, path), or None.
 
@@ -290,6 +295,7 @@ def run_episode(
         policy=policy,
         time=budget,
         seed=spec.seed,
+        max_iterations=max_iterations,
         params={"decision_interval": decision_interval},
         listener=events,
         check_path=False,
@@ -304,7 +310,9 @@ def run_episode(
             f"episode {spec.index} ({problem.name}, seed {spec.seed}): {policy.failures} "
             "decisions fell back to the fixed values (NaN answers)"
         )
-    truncated = result["time"] >= budget * (1.0 - BUDGET_TOLERANCE)
+    truncated = result["time"] >= budget * (1.0 - BUDGET_TOLERANCE) or (
+        max_iterations > 0 and result["counters"]["iterations"] >= max_iterations
+    )
     ended = time.perf_counter()
     metrics = core.end_episode(
         EpisodeEnd(
@@ -387,9 +395,13 @@ def evaluate(
     instance: int = 0,
     agent: str = "B",
     decision_interval: int = DEFAULT_DECISION_INTERVAL,
+    time_budget: float | None = None,
+    max_iterations: int = 0,
     scratch: Path,
 ) -> list[float]:
-    """Noise-free returns of ``agent`` on fixed queries, measured on a throwaway copy of ``core``.
+    """Returns of ``agent`` without exploration noise on fixed queries, measured on a throwaway
+    copy of ``core``. ``time_budget`` and ``max_iterations`` as in :func:`run_episode` (an
+    iteration limit under a budget far above the planner time makes the returns deterministic).
 
     The copy (saved to and loaded from ``scratch``) absorbs the evaluation's transitions and
     updates, so evaluating never changes the learner being trained.
@@ -411,6 +423,8 @@ def evaluate(
             f"evaluation-{scenario}-{instance}-{seed}-{number}",
             decision_interval=decision_interval,
             explore=False,
+            time_budget=time_budget,
+            max_iterations=max_iterations,
         )
         returns.append(float(outcome.metrics[f"charts/return_{agent}"]))
     path.unlink(missing_ok=True)

@@ -216,6 +216,34 @@ def test_training_moves_the_b_policy_towards_higher_value_on_np4(tmp_path: Path)
     assert moved > 0.5  # at least half a unit of B somewhere on the visited states
 
 
+def test_an_iteration_limit_under_a_large_budget_gives_noise_free_returns(tmp_path: Path) -> None:
+    """Episodes that end on LIT*'s iterations, with a budget far above their planner time, have
+    every reward's time term at its floor: the same greedy policy earns the same return twice,
+    and the end counts as a truncation."""
+    from lit_learner.core import LearnerCore
+
+    core = LearnerCore(small_config(seed=1))
+    seed = train.TRAINING_SEEDS[0] + 7
+    returns = [
+        train.evaluate(
+            core,
+            "np4",
+            [seed, seed + 1],
+            time_budget=100.0,
+            max_iterations=1500,
+            scratch=tmp_path / f"scratch{i}",
+        )
+        for i in range(2)
+    ]
+    assert returns[0] == returns[1] and returns[0][0] != returns[0][1]
+    spec = train.EpisodeSpec(0, "np4", 0, seed)
+    outcome = train.run_episode(
+        core, spec, train.PHASE_B, "limited", time_budget=100.0, max_iterations=1500
+    )
+    assert outcome.result["counters"]["iterations"] == 1500 and outcome.truncated
+    assert outcome.result["time"] < 100.0
+
+
 def test_run_reports_bad_input_as_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
