@@ -216,9 +216,9 @@ def run_episode(
         explore: exploration noise on (training) or off (evaluation).
         time_budget: planner seconds; the scenario's budget when None.
         max_iterations: also end the query after this many LIT* iterations (0: no limit), a
-            truncation as the budget's end is. With a budget far above the query's planner time,
-            every reward's time term is at its floor (t-hat = 0.01, no search cost), so the
-            returns are a function of the actions alone: noise-free.
+            truncation as the budget's end is. With a budget at least 1000 times the query's
+            planner time, every reward's time term is at its floor (t-hat = 0.01, no search
+            cost), so the returns are a function of the actions alone: noise-free.
         recording: a :class:`lit_planner.bag.EpisodeRecording` that gets the query's messages
             (solution updates, observations, decisions, summary, path), or None.
 
@@ -401,7 +401,7 @@ def evaluate(
 ) -> list[float]:
     """Returns of ``agent`` without exploration noise on fixed queries, measured on a throwaway
     copy of ``core``. ``time_budget`` and ``max_iterations`` as in :func:`run_episode` (an
-    iteration limit under a budget far above the planner time makes the returns deterministic).
+    iteration limit under a budget 1000 times the planner time makes the returns deterministic).
 
     The copy (saved to and loaded from ``scratch``) absorbs the evaluation's transitions and
     updates, so evaluating never changes the learner being trained.

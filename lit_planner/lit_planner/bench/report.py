@@ -26,7 +26,8 @@ METRICS = ("t_init", "c_init", "c_final")
 """Per-run quantities whose medians the tables show."""
 EFFORT = "checks_init"
 """Validity checks up to the first solution: the effort behind t_init, free of timing noise (for
-LIT* a function of seed and policy). Records written before 2026-12-01 do not carry it."""
+LIT* a function of seed and policy). Records written before commit dc8015a (2026-12-01) do not
+carry it."""
 FIT_PLANNER = "litstar-fit"
 """FIT*'s batch rule on LIT*: the paper's Table I baseline."""
 LIT_CANDIDATES = (TENSOR_PLANNER, "litstar-fixed")
