@@ -224,7 +224,8 @@ def run_episode(
 
     Raises:
         TrainingError: the callback raised (the planner would otherwise silently fall back to the
-            fixed values) or the phase needs a tensor that is missing.
+            fixed values), the phase needs a tensor that is missing, or ``recording`` is given
+            with ``max_iterations``.
     """
     import lit_core
     from lit_planner.episode_messages import DecisionSources, EventLog
@@ -234,6 +235,10 @@ def run_episode(
 
     if phase == PHASE_K and b_tensor is None:
         raise TrainingError("the psi_K phase needs the B lookup tensor of the B phase")
+    if recording is not None and max_iterations:
+        # Bags do not record the limit, so a replay (lit replay tensors) would close the episode
+        # as terminated rather than truncated.
+        raise TrainingError("an episode limited by max_iterations cannot be recorded")
     problem = scenarios.get(spec.scenario, spec.instance)
     budget = problem.time_budget if time_budget is None else time_budget
     actions: dict[str, list[float]] = {"B": [], "psi_K": []}

@@ -242,6 +242,11 @@ def test_an_iteration_limit_under_a_large_budget_gives_noise_free_returns(tmp_pa
     )
     assert outcome.result["counters"]["iterations"] == 1500 and outcome.truncated
     assert outcome.result["time"] < 100.0
+    # A bag does not record the limit (its replay would call the end a termination): refused.
+    with pytest.raises(train.TrainingError, match="max_iterations cannot be recorded"):
+        train.run_episode(
+            core, spec, train.PHASE_B, "recorded", max_iterations=10, recording=object()
+        )
 
 
 def test_run_reports_bad_input_as_one_line(
