@@ -216,8 +216,8 @@ def run_episode(
         explore: exploration noise on (training) or off (evaluation).
         time_budget: planner seconds; the scenario's budget when None.
         max_iterations: also end the query after this many LIT* iterations (0: no limit), a
-            truncation as the budget's end is. With a budget at least 1000 times the query's
-            planner time, every reward's time term is at its floor (t-hat = 0.01, no search
+            truncation as the budget's end is. With the default reward constants and a budget at
+            least 1000 times the query's planner time, every reward's time term is at its floor (t-hat = 0.01, no search
             cost), so the returns are a function of the actions alone: noise-free.
         recording: a :class:`lit_planner.bag.EpisodeRecording` that gets the query's messages
             (solution updates, observations, decisions, summary, path), or None.

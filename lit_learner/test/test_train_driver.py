@@ -241,7 +241,7 @@ def test_an_iteration_limit_under_a_large_budget_gives_noise_free_returns(tmp_pa
         core, spec, train.PHASE_B, "limited", time_budget=100.0, max_iterations=1500
     )
     assert outcome.result["counters"]["iterations"] == 1500 and outcome.truncated
-    assert outcome.result["time"] < 100.0
+    assert outcome.result["time"] < 0.1  # the budget is over 1000 times the planner time
     # A bag does not record the limit (its replay would call the end a termination): refused.
     with pytest.raises(train.TrainingError, match="max_iterations cannot be recorded"):
         train.run_episode(

@@ -536,7 +536,7 @@ PYBIND11_MODULE(lit_core, m)
           py::arg("max_batches") = 0u, py::arg("params") = std::map<std::string, std::string>{},
           py::arg("listener") = py::none(),
           "Plans \e query with \e planner. LIT* stops on its own clock (time), iterations or batches; OMPL planners on "
-          "wall time. Returns a dict: status, solved, message, cost, t_init, c_init, checks_init (validity checks up to the "
-          "first solution, None without one), improvements, path, time, "
+          "wall time. Returns a dict: status, solved, message, cost, t_init, c_init, "
+          "checks_init (validity checks up to the first solution, None without one), improvements, path, time, "
           "counters, decisions.");
 }

@@ -399,6 +399,10 @@ def markdown(summary: dict[str, Any]) -> str:
             "the full range instead."
         ),
         (
+            "- Median checks to t_init: validity checks up to the first solution (— where the "
+            "records do not carry them: recorded before commit dc8015a)."
+        ),
+        (
             f"- Independent path check (numpy, 4× finer than the planners' resolution): {invalid} of "
             f"{solved} returned paths invalid."
         ),
