@@ -185,9 +185,13 @@ def _medians(planner_stats: dict[str, Any]) -> dict[str, float]:
     return {m: _as_float(planner_stats[m]["median"]) for m in METRICS}
 
 
-def _effort_median(planner_stats: dict[str, Any]) -> float | None:
+def _medians_with_effort(planner_stats: dict[str, Any]) -> dict[str, float | None]:
+    """:func:`_medians` plus the checks up to the first solution (None where not recorded)."""
     effort = planner_stats.get(EFFORT)
-    return None if effort is None else _as_float(effort["median"])
+    return {
+        **_medians(planner_stats),
+        EFFORT: None if effort is None else _as_float(effort["median"]),
+    }
 
 
 def _as_float(value: float | str | None) -> float:
@@ -214,15 +218,10 @@ def comparisons(
         per_planner = summary["planners"]
         if lit is None or lit not in per_planner:
             continue
-        lit_medians = _medians(per_planner[lit])
+        lit_medians = _medians_with_effort(per_planner[lit])
         if FIT_PLANNER in per_planner:
-            fit_medians = _medians(per_planner[FIT_PLANNER])
+            fit_medians = _medians_with_effort(per_planner[FIT_PLANNER])
             fit_rows[name] = _comparison_row(FIT_PLANNER, fit_medians, lit_medians)
-            _add_effort(
-                fit_rows[name],
-                _effort_median(per_planner[FIT_PLANNER]),
-                _effort_median(per_planner[lit]),
-            )
         candidates = {
             p: (_medians(per_planner[p])["c_final"], _medians(per_planner[p])["t_init"])
             for p in ompl
@@ -230,10 +229,8 @@ def comparisons(
         }
         best = stats.best_by_final_cost(candidates)
         if best is not None:
-            best_rows[name] = _comparison_row(best, _medians(per_planner[best]), lit_medians)
-            _add_effort(
-                best_rows[name], _effort_median(per_planner[best]), _effort_median(per_planner[lit])
-            )
+            best_medians = _medians_with_effort(per_planner[best])
+            best_rows[name] = _comparison_row(best, best_medians, lit_medians)
     return {
         "litstar": lit,
         "litstar_note": note,
@@ -245,25 +242,22 @@ def comparisons(
 
 
 def _comparison_row(
-    reference: str, reference_medians: dict[str, float], lit_medians: dict[str, float]
+    reference: str,
+    reference_medians: dict[str, float | None],
+    lit_medians: dict[str, float | None],
 ) -> dict[str, Any]:
+    """Medians of both and the improvement per metric (None where a median was not recorded)."""
+
+    def improvement(metric: str) -> float | None:
+        ref, ours = reference_medians[metric], lit_medians[metric]
+        return None if ref is None or ours is None else stats.improvement_percent(ref, ours)
+
     return {
         "reference": reference,
         "reference_medians": {m: ext(v) for m, v in reference_medians.items()},
         "litstar_medians": {m: ext(v) for m, v in lit_medians.items()},
-        "improvement_percent": {
-            m: stats.improvement_percent(reference_medians[m], lit_medians[m]) for m in METRICS
-        },
+        "improvement_percent": {m: improvement(m) for m in reference_medians},
     }
-
-
-def _add_effort(row: dict[str, Any], reference: float | None, lit: float | None) -> None:
-    """The median validity checks up to the first solution, into a comparison row."""
-    row["reference_medians"][EFFORT] = ext(reference)
-    row["litstar_medians"][EFFORT] = ext(lit)
-    row["improvement_percent"][EFFORT] = (
-        None if reference is None or lit is None else stats.improvement_percent(reference, lit)
-    )
 
 
 # --- Markdown -------------------------------------------------------------------------------
