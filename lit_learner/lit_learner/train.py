@@ -201,6 +201,7 @@ def run_episode(
     explore: bool = True,
     time_budget: float | None = None,
     max_iterations: int = 0,
+    effort_clock: float = 0.0,
     recording: Any = None,
 ) -> EpisodeOutcome:
     """Plan one training query with the learner deciding, then close the episode.
@@ -219,13 +220,20 @@ def run_episode(
             truncation as the budget's end is. With the default reward constants and a budget at
             least 1000 times the query's planner time, every reward's time term is at its floor (t-hat = 0.01, no search
             cost), so the returns are a function of the actions alone: noise-free.
+        effort_clock: 0 (default) gives the learner the planner clock. A positive value gives it
+            an effort clock instead: the planning time of every decision and of the episode's end
+            is the number of states LIT* has checked so far times ``effort_clock`` seconds. Its
+            rewards then depend on the seed and the actions alone, time terms included, unlike
+            the floored ones of ``max_iterations`` under a large budget; the planner still stops
+            on its own clock (``time_budget``), so pair it with ``max_iterations``.
         recording: a :class:`lit_planner.bag.EpisodeRecording` that gets the query's messages
             (solution updates, observations, decisions, summary, path), or None.
 
     Raises:
         TrainingError: the callback raised (the planner would otherwise silently fall back to the
-            fixed values), the phase needs a tensor that is missing, or ``recording`` is given
-            with ``max_iterations``.
+            fixed values), the phase needs a tensor that is missing, ``recording`` is given
+            with ``max_iterations`` or ``effort_clock``, or ``effort_clock`` is negative or
+            not finite.
     """
     import lit_core
     from lit_planner.episode_messages import DecisionSources, EventLog
@@ -239,6 +247,11 @@ def run_episode(
         # Bags do not record the limit, so a replay (lit replay tensors) would close the episode
         # as terminated rather than truncated.
         raise TrainingError("an episode limited by max_iterations cannot be recorded")
+    if not (math.isfinite(effort_clock) and effort_clock >= 0.0):
+        raise TrainingError(f"effort_clock must be finite and >= 0, got {effort_clock}")
+    if recording is not None and effort_clock:
+        # The bag's messages carry the planner clock; a replay would pair other rewards.
+        raise TrainingError("an episode on the effort clock cannot be recorded")
     problem = scenarios.get(spec.scenario, spec.instance)
     budget = problem.time_budget if time_budget is None else time_budget
     actions: dict[str, list[float]] = {"B": [], "psi_K": []}
@@ -266,7 +279,9 @@ def run_episode(
                     rho_global=context.rho_global,
                     rho_local=context.rho_local,
                     measure=context.measure,
-                    planning_time=context.planning_time,
+                    planning_time=(
+                        context.checks * effort_clock if effort_clock else context.planning_time
+                    ),
                     time_budget=budget,
                     cost=context.cost if context.has_solution else None,
                     minimum_cost=context.minimum_cost,
@@ -322,7 +337,11 @@ def run_episode(
     metrics = core.end_episode(
         EpisodeEnd(
             episode_id=episode_id,
-            planning_time=float(result["time"]),
+            planning_time=(
+                result["counters"]["collision_checks"] * effort_clock
+                if effort_clock
+                else float(result["time"])
+            ),
             time_budget=budget,
             cost=float(result["cost"]) if result["solved"] else None,
             minimum_cost=minimum_cost(problem),
@@ -402,11 +421,13 @@ def evaluate(
     decision_interval: int = DEFAULT_DECISION_INTERVAL,
     time_budget: float | None = None,
     max_iterations: int = 0,
+    effort_clock: float = 0.0,
     scratch: Path,
 ) -> list[float]:
     """Returns of ``agent`` without exploration noise on fixed queries, measured on a throwaway
-    copy of ``core``. ``time_budget`` and ``max_iterations`` as in :func:`run_episode` (an
-    iteration limit under a budget 1000 times the planner time makes the returns deterministic).
+    copy of ``core``. ``time_budget``, ``max_iterations`` and ``effort_clock`` as in
+    :func:`run_episode` (an iteration limit under a budget 1000 times the planner time, or an
+    iteration limit on the effort clock, makes the returns deterministic).
 
     The copy (saved to and loaded from ``scratch``) absorbs the evaluation's transitions and
     updates, so evaluating never changes the learner being trained.
@@ -430,6 +451,7 @@ def evaluate(
             explore=False,
             time_budget=time_budget,
             max_iterations=max_iterations,
+            effort_clock=effort_clock,
         )
         returns.append(float(outcome.metrics[f"charts/return_{agent}"]))
     path.unlink(missing_ok=True)

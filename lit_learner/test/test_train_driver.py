@@ -249,6 +249,68 @@ def test_an_iteration_limit_under_a_large_budget_gives_noise_free_returns(tmp_pa
         )
 
 
+def test_the_effort_clock_gives_noise_free_returns_with_their_time_terms(tmp_path: Path) -> None:
+    """On the effort clock (planning time = states checked x a constant) the learner's times are
+    counts: the same greedy policy earns the same return twice, and unlike the floored returns of
+    a large budget the time terms are alive (a tenth of the budget changes the return). The
+    decisions see the checks LIT* has made so far, in order, up to the query's total."""
+    import lit_core
+    from lit_learner.core import LearnerCore
+
+    core = LearnerCore(small_config(seed=1))
+    seed = train.TRAINING_SEEDS[0] + 7
+
+    def returns(budget: float, name: str) -> list[float]:
+        return train.evaluate(
+            core,
+            "np4",
+            [seed],
+            agent="psi_K",
+            time_budget=budget,
+            max_iterations=1500,
+            effort_clock=1e-6,
+            scratch=tmp_path / name,
+        )
+
+    first, again = returns(1.0, "a"), returns(1.0, "b")
+    assert first == again
+    # A tenth of the budget: every time term t / T is ten times larger (none at its floor).
+    assert returns(0.1, "c") != first
+
+    seen: list[tuple[int, float]] = []
+
+    def policy(context: lit_core.DecisionContext) -> float:
+        seen.append((context.checks, context.planning_time))
+        return 200.0 if context.kind == "B" else 5.0
+
+    from lit_planner import planning, scenarios
+
+    result = planning.plan(
+        scenarios.get("np4", 0),
+        policy=lit_core.ExternalPolicy(policy, decides_neighbour_factor=True),
+        time=100.0,
+        seed=seed,
+        max_iterations=1500,
+        check_path=False,
+    )
+    checks = [count for count, _ in seen]
+    assert len(checks) > 2 and checks == sorted(checks) and checks[-1] > checks[0]
+    assert checks[-1] <= result["counters"]["collision_checks"]
+    with pytest.raises(train.TrainingError, match="effort_clock must be finite and >= 0"):
+        train.run_episode(
+            core, train.EpisodeSpec(0, "np4", 0, seed), train.PHASE_B, "bad", effort_clock=-1.0
+        )
+    with pytest.raises(train.TrainingError, match="effort clock cannot be recorded"):
+        train.run_episode(
+            core,
+            train.EpisodeSpec(0, "np4", 0, seed),
+            train.PHASE_B,
+            "rec",
+            effort_clock=1e-6,
+            recording=object(),
+        )
+
+
 def test_run_reports_bad_input_as_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -454,7 +454,8 @@ PYBIND11_MODULE(lit_core, m)
         .def_readonly("space_measure", &DecisionContext::spaceMeasure)
         .def_readonly("minimum_cost", &DecisionContext::minimumCost)
         .def_readonly("expansions", &DecisionContext::expansions)
-        .def_readonly("batches", &DecisionContext::batches);
+        .def_readonly("batches", &DecisionContext::batches)
+        .def_readonly("checks", &DecisionContext::checks);
 
     py::class_<SolutionEvent>(m, "SolutionEvent")
         .def_readonly("time", &SolutionEvent::time)

@@ -788,6 +788,7 @@ namespace lit
         context.minimumCost = graph_->sampler().minimumCost();
         context.expansions = counters_.expansions;
         context.batches = counters_.batches;
+        context.checks = counters_.collisionChecks;
         context.features.rhoGlobal = graph_->ratioCalc();
         context.features.measure =
             context.hasSolution ? measureFeature(dimension_, context.informedMeasure, spaceMeasure_) : 1.0;

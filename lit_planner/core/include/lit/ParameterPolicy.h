@@ -60,6 +60,8 @@ namespace lit
         /** \brief Number of expansions so far (K decisions) / batches so far (B decisions). */
         std::size_t expansions{0u};
         std::size_t batches{0u};
+        /** \brief States checked so far (samples and edge points): a deterministic effort clock. */
+        std::size_t checks{0u};
     };
 
     /** \brief Range of B and psi_K that LIT* applies (the paper's limits). */
