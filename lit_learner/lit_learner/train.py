@@ -224,16 +224,18 @@ def run_episode(
             an effort clock instead: the planning time of every decision and of the episode's end
             is the number of states LIT* has checked so far times ``effort_clock`` seconds. Its
             rewards then depend on the seed and the actions alone, time terms included, unlike
-            the floored ones of ``max_iterations`` under a large budget; the planner still stops
-            on its own clock (``time_budget``), so pair it with ``max_iterations``.
+            the floored ones of ``max_iterations`` under a large budget, provided the query ends
+            on ``max_iterations`` (required with this clock): the planner still stops on its own
+            clock at ``time_budget``, so choose a budget the iterations never reach. The budget
+            also normalises the effort times (t-hat = effort time / budget, which may exceed 1).
         recording: a :class:`lit_planner.bag.EpisodeRecording` that gets the query's messages
             (solution updates, observations, decisions, summary, path), or None.
 
     Raises:
         TrainingError: the callback raised (the planner would otherwise silently fall back to the
             fixed values), the phase needs a tensor that is missing, ``recording`` is given
-            with ``max_iterations`` or ``effort_clock``, or ``effort_clock`` is negative or
-            not finite.
+            with ``max_iterations`` or ``effort_clock``, or ``effort_clock`` is negative, not
+            finite, or given without ``max_iterations``.
     """
     import lit_core
     from lit_planner.episode_messages import DecisionSources, EventLog
@@ -243,15 +245,19 @@ def run_episode(
 
     if phase == PHASE_K and b_tensor is None:
         raise TrainingError("the psi_K phase needs the B lookup tensor of the B phase")
-    if recording is not None and max_iterations:
-        # Bags do not record the limit, so a replay (lit replay tensors) would close the episode
-        # as terminated rather than truncated.
-        raise TrainingError("an episode limited by max_iterations cannot be recorded")
     if not (math.isfinite(effort_clock) and effort_clock >= 0.0):
         raise TrainingError(f"effort_clock must be finite and >= 0, got {effort_clock}")
     if recording is not None and effort_clock:
         # The bag's messages carry the planner clock; a replay would pair other rewards.
         raise TrainingError("an episode on the effort clock cannot be recorded")
+    if recording is not None and max_iterations:
+        # Bags do not record the limit, so a replay (lit replay tensors) would close the episode
+        # as terminated rather than truncated.
+        raise TrainingError("an episode limited by max_iterations cannot be recorded")
+    if effort_clock and not max_iterations:
+        raise TrainingError(
+            "effort_clock needs max_iterations (the planner's clock ends the query)"
+        )
     problem = scenarios.get(spec.scenario, spec.instance)
     budget = problem.time_budget if time_budget is None else time_budget
     actions: dict[str, list[float]] = {"B": [], "psi_K": []}

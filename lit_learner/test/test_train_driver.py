@@ -10,6 +10,7 @@ import argparse
 import csv
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -251,64 +252,93 @@ def test_an_iteration_limit_under_a_large_budget_gives_noise_free_returns(tmp_pa
 
 def test_the_effort_clock_gives_noise_free_returns_with_their_time_terms(tmp_path: Path) -> None:
     """On the effort clock (planning time = states checked x a constant) the learner's times are
-    counts: the same greedy policy earns the same return twice, and unlike the floored returns of
-    a large budget the time terms are alive (a tenth of the budget changes the return). The
-    decisions see the checks LIT* has made so far, in order, up to the query's total."""
-    import lit_core
+    counts: every time the learner sees is the check count at that moment times the constant, the
+    same greedy policy earns the same return twice, and unlike the floored returns of a large
+    budget the time terms are alive (a tenth of the budget changes the return)."""
     from lit_learner.core import LearnerCore
 
-    core = LearnerCore(small_config(seed=1))
     seed = train.TRAINING_SEEDS[0] + 7
+    spec = train.EpisodeSpec(0, "np4", 0, seed)
+    clock = 2.0**-20  # about 1 us per state, exact in binary: times / clock are integers
+    core = LearnerCore(small_config(seed=1))
+
+    # What run_episode sends: the planning times of the requests and of the episode's end.
+    times: list[float] = []
+    ends: list[float] = []
+    decide, end_episode = core.decide, core.end_episode
+
+    def seen_decide(request: Any) -> float:
+        times.append(request.planning_time)
+        return decide(request)
+
+    def seen_end(end: Any) -> Any:
+        ends.append(end.planning_time)
+        return end_episode(end)
+
+    core.decide, core.end_episode = seen_decide, seen_end  # type: ignore[method-assign]
+    outcome = train.run_episode(
+        core,
+        spec,
+        train.PHASE_JOINT,
+        "effort",
+        time_budget=1.0,
+        max_iterations=1500,
+        effort_clock=clock,
+    )
+    counts = [value / clock for value in times]
+    assert len(counts) > 2 and counts == sorted(counts) and counts[-1] > counts[0]
+    # The same query replayed with the learner's actions (the search is deterministic per seed)
+    # has the same check count at every decision.
+    import lit_core
+
+    from lit_planner import planning
+
+    queued = {kind: list(values) for kind, values in outcome.actions.items()}
+    replayed: list[int] = []
+
+    def replay(context: lit_core.DecisionContext) -> float:
+        replayed.append(context.checks)
+        return queued[context.kind].pop(0)
+
+    planning.plan(
+        "np4",
+        policy=lit_core.ExternalPolicy(replay, decides_neighbour_factor=True),
+        time=1.0,
+        seed=seed,
+        max_iterations=1500,
+        params={"decision_interval": train.DEFAULT_DECISION_INTERVAL},
+        check_path=False,
+    )
+    assert counts == replayed
+    assert outcome.result["counters"]["iterations"] == 1500  # the limit, not the budget, ended it
+    assert ends == [outcome.result["counters"]["collision_checks"] * clock]
+    assert ends[0] >= times[-1]
 
     def returns(budget: float, name: str) -> list[float]:
         return train.evaluate(
-            core,
+            LearnerCore(small_config(seed=1)),
             "np4",
             [seed],
             agent="psi_K",
             time_budget=budget,
             max_iterations=1500,
-            effort_clock=1e-6,
+            effort_clock=clock,
             scratch=tmp_path / name,
         )
 
     first, again = returns(1.0, "a"), returns(1.0, "b")
     assert first == again
-    # A tenth of the budget: every time term t / T is ten times larger (none at its floor).
+    # A tenth of the budget makes every t / T ten times larger: the return changes.
     assert returns(0.1, "c") != first
 
-    seen: list[tuple[int, float]] = []
-
-    def policy(context: lit_core.DecisionContext) -> float:
-        seen.append((context.checks, context.planning_time))
-        return 200.0 if context.kind == "B" else 5.0
-
-    from lit_planner import planning, scenarios
-
-    result = planning.plan(
-        scenarios.get("np4", 0),
-        policy=lit_core.ExternalPolicy(policy, decides_neighbour_factor=True),
-        time=100.0,
-        seed=seed,
-        max_iterations=1500,
-        check_path=False,
-    )
-    checks = [count for count, _ in seen]
-    assert len(checks) > 2 and checks == sorted(checks) and checks[-1] > checks[0]
-    assert checks[-1] <= result["counters"]["collision_checks"]
     with pytest.raises(train.TrainingError, match="effort_clock must be finite and >= 0"):
-        train.run_episode(
-            core, train.EpisodeSpec(0, "np4", 0, seed), train.PHASE_B, "bad", effort_clock=-1.0
-        )
-    with pytest.raises(train.TrainingError, match="effort clock cannot be recorded"):
-        train.run_episode(
-            core,
-            train.EpisodeSpec(0, "np4", 0, seed),
-            train.PHASE_B,
-            "rec",
-            effort_clock=1e-6,
-            recording=object(),
-        )
+        train.run_episode(core, spec, train.PHASE_B, "bad", max_iterations=10, effort_clock=-1.0)
+    with pytest.raises(train.TrainingError, match="effort_clock needs max_iterations"):
+        train.run_episode(core, spec, train.PHASE_B, "unlimited", effort_clock=clock)
+    with pytest.raises(
+        train.TrainingError, match="an episode on the effort clock cannot be recorded"
+    ):
+        train.run_episode(core, spec, train.PHASE_B, "rec", effort_clock=clock, recording=object())
 
 
 def test_run_reports_bad_input_as_one_line(

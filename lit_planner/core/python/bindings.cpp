@@ -455,7 +455,8 @@ PYBIND11_MODULE(lit_core, m)
         .def_readonly("minimum_cost", &DecisionContext::minimumCost)
         .def_readonly("expansions", &DecisionContext::expansions)
         .def_readonly("batches", &DecisionContext::batches)
-        .def_readonly("checks", &DecisionContext::checks);
+        .def_readonly("checks", &DecisionContext::checks,
+                      "States LIT* has checked so far (samples and edge points).");
 
     py::class_<SolutionEvent>(m, "SolutionEvent")
         .def_readonly("time", &SolutionEvent::time)
