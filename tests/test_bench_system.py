@@ -136,3 +136,63 @@ def test_bench_rejects_bad_input(tmp_path: Path) -> None:
     assert result.returncode == 2, result.stderr
     assert f"found no lookup tensors in {tmp_path / 'empty'} (given)" in result.stderr
     assert not (tmp_path / "y").exists() and not (tmp_path / "z").exists()
+
+
+def test_bench_times_lit_star_first_solutions_repeatedly(tmp_path: Path) -> None:
+    """--t-init-repeats K: each solved LIT* run's first solution is timed K times (the run, then
+    reruns stopped at the iteration that found it) and t_init is the smallest; the rest of the
+    record is the full run's. OMPL planners, whose reruns are other searches, are refused."""
+    out = tmp_path / "repeats"
+    result = _lit(
+        "bench", "--scenarios", "np4", "--planners", "litstar-fit,litstar-fixed", "--runs", "2",
+        "--time-scale", "0.25", "--t-init-repeats", "3", "--out", str(out), "--no-bag",
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "and 2 reruns to each first solution" in result.stderr
+    records = [
+        codec.loads("BenchRun", line)
+        for line in (out / "runs.jsonl").read_text(encoding="utf-8").splitlines()
+    ]
+    assert len(records) == 4 and all(record["solved"] for record in records)
+    for record in records:
+        runs = record["t_init_runs"]
+        assert len(runs) == 3 and record["t_init"] == min(runs)
+        assert record["improvements"][0] == [runs[0], record["c_init"]]  # the full run's curve
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    codec.validate("BenchSummary", summary)
+    assert summary["config"]["t_init_repeats"] == 3
+    assert "the smallest of 3 timings of its first solution" in result.stdout
+
+    for planners, repeats, message in (
+        ("litstar-fit,bitstar", "2", "benchmark those without it"),
+        ("litstar-fit", "0", "--t-init-repeats must be at least 1, got 0"),
+    ):
+        refused = _lit(
+            "bench", "--planners", planners, "--t-init-repeats", repeats,
+            "--out", str(tmp_path / "refused"), "--no-bag",
+        )  # fmt: skip
+        assert refused.returncode == 2 and message in refused.stderr, refused.stderr
+        assert not (tmp_path / "refused").exists()
+
+
+def test_a_rerun_that_finds_another_first_solution_is_an_error() -> None:
+    """The reruns must repeat the search; a record whose first solution they do not reproduce
+    (here: a tampered cost) is refused rather than given a smallest time of unlike runs."""
+    from lit_planner.bench import runner
+    from lit_planner.errors import PlannerError
+
+    from lit_planner import planning, scenarios
+
+    problem = scenarios.get("np4")
+    result = planning.plan(problem, "litstar-fit", time=0.1, seed=3, check_path=False)
+    assert result["solved"] and result["iteration_init"] >= 1
+    options = {"repeats": 2, "budget": 0.1, "seed": 3, "tensors_dir": None}
+    times = runner.time_first_solution(result, problem, "litstar-fit", **options)
+    assert times is not None and len(times) == 2 and times[0] == result["t_init"]
+    assert (
+        runner.time_first_solution(result, problem, "litstar-fit", **options | {"repeats": 1})
+        is None
+    )
+    tampered = dict(result, c_init=result["c_init"] * 1.5)
+    with pytest.raises(PlannerError, match="not deterministic"):
+        runner.time_first_solution(tampered, problem, "litstar-fit", **options)

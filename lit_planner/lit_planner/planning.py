@@ -259,8 +259,10 @@ def plan(
         The dict of ``lit_core.solve`` (``status``, ``solved``, ``message``, ``cost``, ``t_init``,
         ``c_init``, ``checks_init`` (validity checks up to the first solution, None without
         one), ``improvements`` as (time, cost) tuples, ``path``, ``time``, ``counters``,
-        ``decisions``, ``planner``, ``seed``, LIT*'s ``policy``) plus ``policy`` (None for OMPL
-        planners), ``scenario`` (name), ``instance``, ``dimension``, ``optimal_cost`` (None where
+        ``decisions``, ``planner``, ``seed``, LIT*'s ``policy`` and ``iteration_init`` (the
+        iteration that found the first solution: a rerun with that ``max_iterations`` stops
+        there)) plus ``policy`` and ``iteration_init`` (None for OMPL planners or without a
+        solution), ``scenario`` (name), ``instance``, ``dimension``, ``optimal_cost`` (None where
         unknown), ``time_budget`` (the limit given, None if none) and ``path_check`` (the
         independent re-check as a dict, None without a path or with ``check_path=False``).
 
@@ -310,6 +312,7 @@ def plan(
         listener=listener,
     )
     result.setdefault("policy", None)
+    result.setdefault("iteration_init", None)
     result.update(
         scenario=problem.name,
         instance=problem.instance,

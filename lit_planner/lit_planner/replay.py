@@ -1405,6 +1405,7 @@ def replay_bench(paths: Sequence[str | Path], out: Path) -> tuple[dict[str, Any]
             tensors_dir=Path(settings["tensors_dir"]),
             check_jobs=int(settings["check_jobs"]),
             skipped=tuple(runner.Skip(**skip) for skip in payload["skipped"]),
+            t_init_repeats=int(settings.get("t_init_repeats", 1)),  # 1 before it existed
         )
         started = datetime.fromisoformat(payload["started"])
         estimate = payload["estimate"]

@@ -156,6 +156,7 @@ def test_checks_up_to_the_first_solution() -> None:
 
     full = plan("rrd4", seed=5, max_iterations=ITERATIONS, listener=First())
     assert full["solved"] and len(found) == 1 and len(full["improvements"]) > 1
+    assert full["iteration_init"] == found[0]  # the result names it too (lit bench's reruns)
     assert 0 < full["checks_init"] < full["counters"]["validity_checks"]
     assert plan("rrd4", seed=5, max_iterations=ITERATIONS)["checks_init"] == full["checks_init"]
     stopped = plan("rrd4", seed=5, max_iterations=found[0])
@@ -373,6 +374,7 @@ def test_ompl_baselines_give_sound_paths(planner: str, name: str) -> None:
     scenario = scenarios.get(name)
     result = plan(name, planner, time=BASELINE_TIME)
     assert result["planner"] == planner and result["policy"] is None
+    assert result["iteration_init"] is None  # LIT*'s iterations only
     assert result["time_budget"] == BASELINE_TIME
     assert result["counters"]["validity_checks"] > 0
     if name == "np4":  # every baseline solves np4 within a few ms; rrd4 may take longer

@@ -356,6 +356,9 @@ namespace
             counters["batch_decisions"] = c.batchDecisions;
             counters["neighbour_decisions"] = c.neighbourDecisions;
             result["policy"] = litstar->getPolicyName();
+            // The iteration that found the first solution: max_iterations of a rerun that stops there.
+            result["iteration_init"] =
+                recorder->solutions.empty() ? py::none() : py::cast(recorder->solutions.front().iteration);
             // The state at the end, per agent: the s' of each agent's last transition in training
             // (the learner's EpisodeEnd). ψ_K's local ratio is taken around the start.
             const Features f = litstar->computeFeatures();

@@ -329,6 +329,16 @@ def markdown(summary: dict[str, Any]) -> str:
         ),
         "",
     ]
+    repeats = config.get("t_init_repeats", 1)
+    if repeats > 1:
+        lines += [
+            (
+                f"t_init of every solved run is the smallest of {repeats} timings of its first "
+                "solution: the run, then reruns of the same seed stopped there (the same search; "
+                "their first costs and checks are equal). Only LIT* planners were run."
+            ),
+            "",
+        ]
     for skip in summary["skipped"]:
         lines += [f"**{skip['planner']} {skip['reason']}.**", ""]
     lines += [f"{comp['litstar_note']}.", ""]

@@ -99,6 +99,10 @@ class BenchConfig:
     """Tensor folder of ``litstar-tensor``; None: :func:`planning.default_tensors_dir`."""
     check_jobs: int = 1
     """Worker processes for the independent path checks."""
+    t_init_repeats: int = 1
+    """LIT* planners only: each solved run's first solution is timed this many times in all, the
+    full run and then reruns of the same seed stopped at the first solution's iteration (the same
+    search, so only the timing noise differs); the record's t_init is the smallest."""
     skipped: tuple[Skip, ...] = ()
     """Planners that were asked for but do not run, with the reason."""
 
@@ -213,11 +217,17 @@ def make_record(
     wall_time: float,
     scenario: scenarios.Scenario,
     params: dict[str, str],
+    t_init_runs: Sequence[float] | None = None,
 ) -> dict[str, Any]:
-    """A ``BenchRun`` record from :func:`planning.plan`'s result (path not yet checked)."""
+    """A ``BenchRun`` record from :func:`planning.plan`'s result (path not yet checked).
+
+    ``t_init_runs``: the first solution's times of the repeated runs (:func:`time_first_solution`),
+    the full run's first; the record's ``t_init`` is then their minimum.
+    """
     solved = bool(result["solved"])
     core_planner, _ = planning.resolve_planner(planner)
-    return planning.json_safe(
+    repeated = solved and t_init_runs is not None and len(t_init_runs) > 1
+    record = planning.json_safe(
         {
             "schema": RUN_SCHEMA,
             "version": RUN_SCHEMA_VERSION,
@@ -236,7 +246,7 @@ def make_record(
             "status": result["status"],
             "message": result.get("message", ""),
             "solved": solved,
-            "t_init": result["t_init"] if solved else None,
+            "t_init": (min(t_init_runs) if repeated else result["t_init"]) if solved else None,
             "c_init": result["c_init"] if solved else None,
             "c_final": result["cost"] if solved else None,
             "checks_init": result["checks_init"] if solved else None,
@@ -251,6 +261,58 @@ def make_record(
             "optimal_cost": scenario.optimal_cost,
         }
     )
+    if repeated:
+        record["t_init_runs"] = [float(value) for value in t_init_runs]
+    return record
+
+
+def time_first_solution(
+    result: dict[str, Any],
+    problem: scenarios.Scenario,
+    planner: str,
+    *,
+    repeats: int,
+    budget: float,
+    seed: int,
+    tensors_dir: Path | None,
+) -> list[float] | None:
+    """The first solution's time of a solved LIT* run, then of ``repeats - 1`` reruns of the same
+    seed stopped at the iteration that found it (None when there is nothing to repeat).
+
+    LIT*'s search is a function of its seed and policy, so every rerun finds the same first
+    solution after the same work, and only the timing noise differs; a rerun that does not is an
+    error, as the comparison would then not be like for like.
+
+    Raises:
+        PlannerError: a rerun found another first solution (cost or validity checks differ).
+    """
+    if repeats <= 1 or not result["solved"] or result.get("iteration_init") is None:
+        return None
+    times = [float(result["t_init"])]
+    for _ in range(repeats - 1):
+        rerun = planning.plan(
+            problem,
+            planner,
+            time=budget,
+            seed=seed,
+            max_iterations=int(result["iteration_init"]),
+            tensors_dir=tensors_dir,
+            check_path=False,
+        )
+        same = (
+            rerun["solved"]
+            and rerun["c_init"] == result["c_init"]
+            and rerun["checks_init"] == result["checks_init"]
+        )
+        if not same:
+            raise PlannerError(
+                f"{planner} on {problem.name} seed {seed}: a rerun to the first solution found "
+                f"c_init {rerun['c_init']} after {rerun['checks_init']} checks, the run "
+                f"{result['c_init']} after {result['checks_init']}: not deterministic, so "
+                "--t-init-repeats cannot compare its times"
+            )
+        times.append(float(rerun["t_init"]))
+    return times
 
 
 def check_record_paths(records: list[dict[str, Any]], jobs: int = 1) -> None:
@@ -320,6 +382,15 @@ def run_benchmark(
                         check_path=False,
                     )
                     wall = time.perf_counter() - started
+                    t_init_runs = time_first_solution(
+                        result,
+                        problem,
+                        planner,
+                        repeats=config.t_init_repeats,
+                        budget=budget,
+                        seed=seed,
+                        tensors_dir=config.tensors_dir,
+                    )
                     scenario_records.append(
                         make_record(
                             result,
@@ -330,6 +401,7 @@ def run_benchmark(
                             wall_time=wall,
                             scenario=problem,
                             params={},
+                            t_init_runs=t_init_runs,
                         )
                     )
                     bar.update(min(budget, bar.total - bar.n))  # float sums overshoot
