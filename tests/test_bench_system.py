@@ -153,8 +153,8 @@ def test_bench_times_lit_star_first_solutions_repeatedly(tmp_path: Path) -> None
         codec.loads("BenchRun", line)
         for line in (out / "runs.jsonl").read_text(encoding="utf-8").splitlines()
     ]
-    assert len(records) == 4 and all(record["solved"] for record in records)
-    for record in records:
+    assert len(records) == 4
+    for record in filter(lambda record: record["solved"], records):
         runs = record["t_init_runs"]
         assert len(runs) == 3 and record["t_init"] == min(runs)
         assert record["improvements"][0] == [runs[0], record["c_init"]]  # the full run's curve
@@ -175,9 +175,13 @@ def test_bench_times_lit_star_first_solutions_repeatedly(tmp_path: Path) -> None
         assert not (tmp_path / "refused").exists()
 
 
-def test_a_rerun_that_finds_another_first_solution_is_an_error() -> None:
-    """The reruns must repeat the search; a record whose first solution they do not reproduce
-    (here: a tampered cost) is refused rather than given a smallest time of unlike runs."""
+def test_reruns_stop_at_the_first_solution_and_must_repeat_it(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The reruns run to the iteration that found the first solution with no time limit; they
+    must repeat the search: a record whose first solution they do not reproduce (here: a
+    tampered cost) is refused rather than given a smallest time of unlike runs. The record's
+    t_init is the smallest time, wherever it is."""
     from lit_planner.bench import runner
     from lit_planner.errors import PlannerError
 
@@ -186,9 +190,25 @@ def test_a_rerun_that_finds_another_first_solution_is_an_error() -> None:
     problem = scenarios.get("np4")
     result = planning.plan(problem, "litstar-fit", time=0.1, seed=3, check_path=False)
     assert result["solved"] and result["iteration_init"] >= 1
-    options = {"repeats": 2, "budget": 0.1, "seed": 3, "tensors_dir": None}
+    options = {"repeats": 2, "seed": 3, "tensors_dir": None}
+    calls: list[dict[str, object]] = []
+    real_plan = planning.plan
+
+    def spy(*args: object, **kwargs: object) -> dict[str, object]:
+        calls.append(kwargs)
+        return real_plan(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(planning, "plan", spy)
     times = runner.time_first_solution(result, problem, "litstar-fit", **options)
     assert times is not None and len(times) == 2 and times[0] == result["t_init"]
+    assert [(c["max_iterations"], c["time"], c["seed"]) for c in calls] == [
+        (result["iteration_init"], None, 3)
+    ]
+    record = runner.make_record(
+        result, planner="litstar-fit", run=0, order=0, budget=0.1, wall_time=0.1,
+        scenario=problem, params={}, t_init_runs=[0.003, 0.001, 0.002],
+    )  # fmt: skip
+    assert record["t_init"] == 0.001 and record["t_init_runs"] == [0.003, 0.001, 0.002]
     assert (
         runner.time_first_solution(result, problem, "litstar-fit", **options | {"repeats": 1})
         is None

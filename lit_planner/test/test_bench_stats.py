@@ -330,3 +330,12 @@ def test_run_record_schema_ties_solved_to_its_numbers() -> None:
     unsolved_with_checks = dict(_record(0, solved=False), checks_init=12)
     with pytest.raises(SchemaError, match="checks_init"):
         codec.validate("BenchRun", unsolved_with_checks)
+    # --t-init-repeats: only on solved LIT* records, with at least two times.
+    codec.validate("BenchRun", dict(_record(0), t_init_runs=[0.012, 0.01]))
+    for record in (
+        dict(_record(0, solved=False), t_init_runs=[0.012, 0.01]),
+        dict(_record(0, "aitstar"), t_init_runs=[0.012, 0.01]),
+        dict(_record(0), t_init_runs=[0.01]),
+    ):
+        with pytest.raises(SchemaError, match="t_init_runs"):
+            codec.validate("BenchRun", record)

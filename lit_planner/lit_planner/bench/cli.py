@@ -155,6 +155,12 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 130
+    except LitPlannerError as error:  # a --t-init-repeats rerun that did not repeat its run
+        print(
+            f"lit bench: {error}; {runs_path} holds the runs of the finished scenarios",
+            file=sys.stderr,
+        )
+        return 1
     finally:
         if main_thread and previous is not None:  # None: set outside Python, not restorable
             signal.signal(signal.SIGTERM, previous)

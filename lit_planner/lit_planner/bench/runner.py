@@ -272,7 +272,6 @@ def time_first_solution(
     planner: str,
     *,
     repeats: int,
-    budget: float,
     seed: int,
     tensors_dir: Path | None,
 ) -> list[float] | None:
@@ -290,20 +289,24 @@ def time_first_solution(
         return None
     times = [float(result["t_init"])]
     for _ in range(repeats - 1):
+        # No time limit: the iteration limit alone ends the rerun (a budget could cut off a
+        # rerun a little slower than a run that solved near its end).
         rerun = planning.plan(
             problem,
             planner,
-            time=budget,
+            time=None,
             seed=seed,
             max_iterations=int(result["iteration_init"]),
             tensors_dir=tensors_dir,
             check_path=False,
         )
-        same = (
-            rerun["solved"]
-            and rerun["c_init"] == result["c_init"]
-            and rerun["checks_init"] == result["checks_init"]
-        )
+        if not rerun["solved"]:
+            raise PlannerError(
+                f"{planner} on {problem.name} seed {seed}: a rerun stopped at iteration "
+                f"{result['iteration_init']} found no solution ({rerun['status']}), the run found "
+                f"its first there: not deterministic, so --t-init-repeats cannot compare its times"
+            )
+        same = rerun["c_init"] == result["c_init"] and rerun["checks_init"] == result["checks_init"]
         if not same:
             raise PlannerError(
                 f"{planner} on {problem.name} seed {seed}: a rerun to the first solution found "
@@ -387,7 +390,6 @@ def run_benchmark(
                         problem,
                         planner,
                         repeats=config.t_init_repeats,
-                        budget=budget,
                         seed=seed,
                         tensors_dir=config.tensors_dir,
                     )
