@@ -339,3 +339,16 @@ def test_run_record_schema_ties_solved_to_its_numbers() -> None:
     ):
         with pytest.raises(SchemaError, match="t_init_runs"):
             codec.validate("BenchRun", record)
+
+
+def test_bench_config_repeats_first_solutions_of_lit_star_only() -> None:
+    """The check lives in BenchConfig, so a benchmark set up through the API is held to it too."""
+    from lit_planner.bench import runner
+
+    config = runner.BenchConfig(("np4",), ("litstar-fit", "litstar-tensor"), 2, t_init_repeats=3)
+    assert config.t_init_repeats == 3
+    with pytest.raises(ValueError, match="single times of aitstar: benchmark those without it"):
+        runner.BenchConfig(("np4",), ("litstar-fit", "aitstar"), 2, t_init_repeats=2)
+    with pytest.raises(ValueError, match="must be at least 1, got 0"):
+        runner.BenchConfig(("np4",), ("litstar-fit",), 2, t_init_repeats=0)
+    assert runner.BenchConfig(("np4",), ("aitstar",), 2).t_init_repeats == 1

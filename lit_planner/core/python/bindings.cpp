@@ -543,5 +543,6 @@ PYBIND11_MODULE(lit_core, m)
           "Plans \e query with \e planner. LIT* stops on its own clock (time), iterations or batches; OMPL planners on "
           "wall time. Returns a dict: status, solved, message, cost, t_init, c_init, "
           "checks_init (validity checks up to the first solution, None without one), improvements, path, time, "
-          "counters, decisions.");
+          "counters, decisions; for LIT* also policy, iteration_init (the iteration of the first solution, None "
+          "without one) and final_features.");
 }

@@ -106,6 +106,18 @@ class BenchConfig:
     skipped: tuple[Skip, ...] = ()
     """Planners that were asked for but do not run, with the reason."""
 
+    def __post_init__(self) -> None:
+        if self.t_init_repeats < 1:
+            raise ValueError(f"--t-init-repeats must be at least 1, got {self.t_init_repeats}")
+        others = [p for p in self.planners if planning.resolve_planner(p)[0] != planning.LITSTAR]
+        if self.t_init_repeats > 1 and others:
+            raise ValueError(
+                f"--t-init-repeats {self.t_init_repeats} repeats LIT* runs only (OMPL's planners "
+                "draw from a shared generator, so a rerun is another search); the smallest of "
+                f"several times would be compared with single times of {', '.join(others)}: "
+                "benchmark those without it"
+            )
+
     def time_budget(self, scenario: scenarios.Scenario) -> float:
         """The budget every planner gets on ``scenario``."""
         return scenario.time_budget * self.time_scale
