@@ -190,7 +190,8 @@ def test_reruns_stop_at_the_first_solution_and_must_repeat_it(
     problem = scenarios.get("np4")
     result = planning.plan(problem, "litstar-fit", time=0.1, seed=3, check_path=False)
     assert result["solved"] and result["iteration_init"] >= 1
-    options = {"repeats": 2, "seed": 3, "tensors_dir": None}
+    policy = runner.benchmark_policies(["litstar-fit"])["litstar-fit"]
+    options = {"repeats": 2, "seed": 3, "policy": policy}
     calls: list[dict[str, object]] = []
     real_plan = planning.plan
 
@@ -201,8 +202,8 @@ def test_reruns_stop_at_the_first_solution_and_must_repeat_it(
     monkeypatch.setattr(planning, "plan", spy)
     times = runner.time_first_solution(result, problem, "litstar-fit", **options)
     assert times is not None and len(times) == 2 and times[0] == result["t_init"]
-    assert [(c["max_iterations"], c["time"], c["seed"]) for c in calls] == [
-        (result["iteration_init"], None, 3)
+    assert [(c["max_iterations"], c["time"], c["seed"], c["policy"]) for c in calls] == [
+        (result["iteration_init"], None, 3, policy)
     ]
     record = runner.make_record(
         result, planner="litstar-fit", run=0, order=0, budget=0.1, wall_time=0.1,
@@ -216,3 +217,37 @@ def test_reruns_stop_at_the_first_solution_and_must_repeat_it(
     tampered = dict(result, c_init=result["c_init"] * 1.5)
     with pytest.raises(PlannerError, match="not deterministic"):
         runner.time_first_solution(tampered, problem, "litstar-fit", **options)
+
+
+def test_a_benchmark_reads_its_tensors_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each LIT* policy object is made once per benchmark and reused by every run and rerun, so
+    the tensor files are read (and the caches refilled) before the first run only, not before
+    every timed run; the runs still use the tensors (their policy is ``tensor``)."""
+    from lit_planner.bench import runner
+
+    from lit_planner import planning
+
+    loads: list[str] = []
+    policies: list[object] = []
+    real_load, real_plan = planning.load_tensor, planning.plan
+
+    def counting_load(path: Path, output: str) -> object:
+        loads.append(output)
+        return real_load(path, output)
+
+    def spy_plan(*args: object, **kwargs: object) -> dict[str, object]:
+        policies.append(args[2] if len(args) > 2 else kwargs.get("policy"))
+        return real_plan(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(planning, "load_tensor", counting_load)
+    monkeypatch.setattr(planning, "plan", spy_plan)
+    config = runner.BenchConfig(
+        ("np4",), ("litstar-tensor", "litstar-fit"), 3, time_scale=0.5, t_init_repeats=2
+    )
+    with open(os.devnull, "w") as sink:
+        records = runner.run_benchmark(config, progress_file=sink)
+    assert sorted(loads) == ["B", "psi_K"]  # the shipped pair, once
+    assert len(records) == 6 and {r["policy"] for r in records} == {"tensor", "fit"}
+    assert sum(1 for r in records if r.get("t_init_runs")) == sum(r["solved"] for r in records)
+    assert len(policies) > len(records)  # the reruns too
+    assert len({id(p) for p in policies}) == 2  # one object per planner for all of them
