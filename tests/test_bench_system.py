@@ -241,13 +241,21 @@ def test_a_benchmark_reads_its_tensors_once(monkeypatch: pytest.MonkeyPatch) -> 
 
     monkeypatch.setattr(planning, "load_tensor", counting_load)
     monkeypatch.setattr(planning, "plan", spy_plan)
+    shipped = Path(__file__).resolve().parents[1] / "tensors"
     config = runner.BenchConfig(
-        ("np4",), ("litstar-tensor", "litstar-fit"), 3, time_scale=0.5, t_init_repeats=2
+        ("np4",),
+        ("litstar-tensor", "litstar-fit"),
+        3,
+        time_scale=0.5,
+        tensors_dir=shipped,
+        t_init_repeats=2,
     )
     with open(os.devnull, "w") as sink:
         records = runner.run_benchmark(config, progress_file=sink)
     assert sorted(loads) == ["B", "psi_K"]  # the shipped pair, once
     assert len(records) == 6 and {r["policy"] for r in records} == {"tensor", "fit"}
     assert sum(1 for r in records if r.get("t_init_runs")) == sum(r["solved"] for r in records)
-    assert len(policies) > len(records)  # the reruns too
+    assert len(policies) == len(records) + sum(r["solved"] for r in records)  # and the reruns
     assert len({id(p) for p in policies}) == 2  # one object per planner for all of them
+    tensor_records = [r for r in records if r["policy"] == "tensor"]
+    assert all(r["params"] == {"decision_interval": "10"} for r in tensor_records)  # as trained

@@ -19,6 +19,8 @@
   (``training_scenarios``, ``training_seed``) whatever the policy, ``scenario`` plans ``scenario``;
   empty: the distribution in training mode, the scenario otherwise. The same draws with two
   policies are the same problems (``lit system-bench`` compares them).
+- ``decision_interval``: expansions per psi_K decision; 0 (default): 1 in training, and for the
+  tensor policy the interval its psi_K tensor was trained with (else 1).
 - ``wait_for_subscribers: N`` holds the episodes back until every topic has N matched
   subscriptions (``lit up`` and ``lit demo`` set it for their recorder), so a recording starts
   with the first message.
@@ -77,7 +79,7 @@ PARAMETERS: dict[str, Any] = {
     "episodes": 0,
     "learner_service": DECIDE_SERVICE,
     "decision_timeout": 0.05,
-    "decision_interval": 1,
+    "decision_interval": 0,
     "learner_retry": 1.0,
     "learner_wait": 10.0,
     "tensors_dir": "",
@@ -140,6 +142,11 @@ class PlannerNode:
             raise SystemExit(
                 f"lit_planner_node: policy must be one of {MODES}, got {p['policy']!r}"
             )
+        if p["decision_interval"] < 0:
+            raise SystemExit(
+                "lit_planner_node: decision_interval must be 0 (training: 1; the tensor policy: "
+                f"the psi_K tensor's training interval) or more, got {p['decision_interval']}"
+            )
         if p["episodes_from"] not in ("", "training", "scenario"):
             raise SystemExit(
                 "lit_planner_node: episodes_from must be training, scenario or empty, got "
@@ -162,6 +169,9 @@ class PlannerNode:
         }
         self._publish_lock = threading.Lock()
         self._fallback = self._fallback_values()
+        from lit_planner.planning import TensorPolicyCache
+
+        self._tensor_policies = TensorPolicyCache()
         # Only the planning thread calls the learner: it spins the client's own node while it
         # waits, so answers do not queue behind the plan service on the shared executor.
         self.learner = ServiceCaller(node, p["learner_service"], private=True, suffix="learner")
@@ -458,8 +468,10 @@ class PlannerNode:
         )
         episode = DecisionSources()
         params: dict[str, object] = {}
-        if job.planner == "litstar":
+        if job.planner == "litstar" and self.params["decision_interval"] > 0:
             params["decision_interval"] = self.params["decision_interval"]
+        elif job.planner == "litstar" and job.policy == "training":
+            params["decision_interval"] = 1  # the learner decides psi_K at every expansion
         if job.policy == "training":
             budget = job.time or job.scenario.time_budget
             policy: Any = lit_core.ExternalPolicy(
@@ -468,6 +480,9 @@ class PlannerNode:
             )
         else:
             policy = job.policy or None
+            if job.planner == "litstar" and policy == "tensor":
+                # Read once and again only when the files change, not before every query.
+                policy = self._tensor_policies.get(self.params["tensors_dir"] or None)
         planning.quiet_ompl(job.planner)
         result = planning.plan(
             job.scenario,

@@ -21,6 +21,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import threading
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -128,7 +129,9 @@ def make_policy(
             trained lookup tensors) or ``external`` (``callback`` decides).
         tensors_dir: folder holding ``b_tensor.npy`` and/or ``k_tensor.npy`` with their sidecars
             (``tensor`` only); :func:`default_tensors_dir` when None. A missing tensor makes that
-            parameter fall back to its fixed value.
+            parameter fall back to its fixed value. The policy's ``decision_interval`` is the
+            psi_K tensor's training interval (:func:`trained_decision_interval`), which
+            :func:`plan` applies.
         interpolation: ``trilinear`` or ``nearest`` lookup (``tensor`` only).
         callback: ``callback(context: lit_core.DecisionContext) -> float`` answering B or psi_K
             (``external`` only). The planner's clock is paused while it runs; an answer that is
@@ -182,9 +185,101 @@ def make_policy(
             f"{' and/or '.join(TENSOR_FILES.values())} with their .json sidecars. Train and "
             "export them with `lit train --export DIR`, or use the fixed or fit policy"
         )
+    interval = 0
+    if "psi_K" in tensors:
+        interval = trained_decision_interval(folder / TENSOR_FILES["psi_K"])
     return lit_core.TensorPolicy(
-        tensors.get("B"), tensors.get("psi_K"), INTERPOLATIONS[interpolation]
+        tensors.get("B"), tensors.get("psi_K"), INTERPOLATIONS[interpolation], interval
     )
+
+
+def policy_params(policy: lit_core.ParameterPolicy | None) -> dict[str, str]:
+    """The planner parameters that :func:`plan` sets for ``policy`` when the caller gives none:
+    ``decision_interval`` for a ``tensor`` policy whose psi_K tensor names its training
+    interval, else nothing."""
+    if isinstance(policy, lit_core.TensorPolicy) and policy.decision_interval:
+        return {"decision_interval": str(policy.decision_interval)}
+    return {}
+
+
+def trained_decision_interval(path: Path) -> int:
+    """The expansions per psi_K decision that the psi_K tensor at ``path`` was trained with: its
+    sidecar's ``provenance.decision_interval`` (``lit train`` writes it), 0 where not given.
+
+    Raises:
+        TensorFileError: the sidecar is defective, or names an interval that is not a whole
+            number of at least 1.
+    """
+    from lit_planner import tensor_files
+
+    sidecar = tensor_files.read_sidecar(path)
+    value = sidecar.provenance.get("decision_interval")
+    if value is None:
+        return 0
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_SEED:
+        raise TensorFileError(
+            f"{tensor_files.sidecar_path(path)}: $.provenance.decision_interval must be a whole "
+            f"number of at least 1, got {value!r}"
+        )
+    return value
+
+
+class TensorPolicyCache:
+    """The ``tensor`` policy of a folder, made again only when its files change.
+
+    For a process that plans many queries with the same tensors (the planner node): reading and
+    checking two 4 MB tensors takes about 40 ms and, just before a timed search, evicts the
+    planner's data from the caches. A folder's tensor files and sidecars are compared by device,
+    inode, size and modification and change times (``os.stat``) at every :meth:`get`; a tensor
+    rewritten in place (as an export writes it), replaced, added or removed is read and checked
+    again, and a defective one raises as :func:`make_policy` does, dropping the cached policy.
+    Thread-safe.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._policies: dict[tuple[str, str], tuple[tuple[object, ...], Any]] = {}
+
+    def get(
+        self, tensors_dir: Path | str | None = None, interpolation: str = "trilinear"
+    ) -> lit_core.ParameterPolicy:
+        """:func:`make_policy` ``("tensor", tensors_dir, interpolation)``, from the cache while
+        the folder's tensor files and sidecars are unchanged.
+
+        Raises:
+            As :func:`make_policy`.
+        """
+        folder = default_tensors_dir() if tensors_dir is None else Path(tensors_dir)
+        key = (os.path.abspath(folder), interpolation)
+        # Taken before reading: files that change during the read are read again next time.
+        signature = tensor_files_signature(folder)
+        with self._lock:
+            cached = self._policies.get(key)
+            if cached is not None and cached[0] == signature:
+                return cached[1]
+            self._policies.pop(key, None)
+        policy = make_policy("tensor", folder, interpolation)
+        with self._lock:
+            self._policies[key] = (signature, policy)
+        return policy
+
+
+def tensor_files_signature(folder: Path) -> tuple[object, ...]:
+    """(device, inode, size, modification and change times in ns) of each tensor file and
+    sidecar in ``folder``, None for a missing one: what :class:`TensorPolicyCache` compares (the
+    change time is the one a copy that keeps the source's modification time cannot set)."""
+    signature: list[object] = []
+    for file_name in TENSOR_FILES.values():
+        for path in (folder / file_name, (folder / file_name).with_suffix(".json")):
+            try:
+                stat = path.stat()
+            except OSError:
+                signature.append(None)
+                continue
+            signature.append(
+                (stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns, stat.st_ctime_ns)
+            )
+    return tuple(signature)
 
 
 def load_tensor(path: Path, output: str) -> lit_core.LookupTensor:
@@ -249,6 +344,8 @@ def plan(
         max_iterations, max_batches: LIT* only; 0 means no limit.
         tensors_dir, interpolation: for the ``tensor`` policy (see :func:`make_policy`).
         params: planner parameters by their ``declareParam`` names (values are stringified).
+            Without ``decision_interval``, the ``tensor`` policy's psi_K tensor sets it to the
+            interval it was trained with (:func:`trained_decision_interval`), if known.
         listener: object with optional ``on_solution``, ``on_decision``, ``on_batch`` methods
             (LIT* only), called with the core's event objects as they happen.
         instance: instance of a random scenario family when ``scenario`` is a name.
@@ -286,6 +383,8 @@ def plan(
     else:
         policy_object = make_policy(policy_name, tensors_dir, interpolation)
 
+    # A psi_K tensor is used as it was trained: one decision every that many expansions.
+    params = {**policy_params(policy_object), **(params or {})}
     for label, value in (("max_iterations", max_iterations), ("max_batches", max_batches)):
         if not 0 <= value <= MAX_SEED:
             raise PlannerError(f"{label} must be between 0 and {MAX_SEED}, got {value}")
@@ -308,7 +407,7 @@ def plan(
         seed=seed,
         max_iterations=max_iterations,
         max_batches=max_batches,
-        params={key: _param_text(value) for key, value in (params or {}).items()},
+        params={key: _param_text(value) for key, value in params.items()},
         listener=listener,
     )
     result.setdefault("policy", None)

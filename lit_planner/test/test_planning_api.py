@@ -484,6 +484,105 @@ def test_bad_tensor_files_are_rejected(tmp_path: Path, defect: str, message: str
     assert "b_tensor.npy" in str(caught.value)
 
 
+def test_the_tensor_policy_cache_reads_again_only_changed_files(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The planner node's cache: the same policy object while the files are unchanged; a tensor
+    replaced by a new file is read and checked again, a defective one raises and is not kept, and
+    the folder works again once it is repaired."""
+    from lit_planner import planning
+
+    reads: list[str] = []
+    real_load = planning.load_tensor
+
+    def counting_load(path: Path, output: str) -> Any:
+        reads.append(output)
+        return real_load(path, output)
+
+    monkeypatch.setattr(planning, "load_tensor", counting_load)
+    folder = tmp_path / "tensors"
+    write_tensor_pair(folder)
+    cache = planning.TensorPolicyCache()
+    first = cache.get(folder)
+    assert cache.get(folder) is first and cache.get(str(folder)) is first
+    assert sorted(reads) == ["B", "psi_K"]
+    assert plan("np4", "litstar", first, max_iterations=ITERATIONS, seed=3)["policy"] == "tensor"
+
+    def replace_b(defect: str | None) -> None:
+        """A new B tensor and sidecar written beside the folder and moved in, as an export does."""
+        staging = tmp_path / "staging"
+        write_tensor_pair(staging, k=False)
+        if defect is not None:
+            corrupt(staging / "b_tensor.npy", defect)
+        for name in ("b_tensor.npy", "b_tensor.json"):
+            (staging / name).replace(folder / name)
+
+    replace_b(None)
+    second = cache.get(folder)
+    assert second is not first and reads.count("B") == 2 and reads.count("psi_K") == 2
+    replace_b("NaN")
+    with pytest.raises(TensorFileError, match="not finite"):
+        cache.get(folder)
+    with pytest.raises(TensorFileError, match="not finite"):  # not cached as good
+        cache.get(folder)
+    replace_b(None)
+    third = cache.get(folder)
+    assert third is not second
+    write_tensor_pair(folder)  # rewritten in place, as an export does: same inodes and sizes
+    fourth = cache.get(folder)
+    assert fourth is not third and cache.get(folder) is fourth
+    k_reads = reads.count("psi_K")
+    (folder / "k_tensor.npy").unlink()  # a removed tensor counts as a change too
+    fifth = cache.get(folder)
+    assert fifth is not fourth and cache.get(folder) is fifth
+    assert reads.count("psi_K") == k_reads  # only B was read again
+    for name in ("b_tensor.npy", "b_tensor.json", "k_tensor.json"):
+        (folder / name).unlink()
+    with pytest.raises(MissingTensorsError):
+        cache.get(folder)
+
+
+def test_a_psi_k_tensor_is_used_with_the_decision_interval_it_was_trained_with(
+    tmp_path: Path,
+) -> None:
+    """A psi_K tensor whose sidecar names its training interval (``lit train`` writes
+    ``provenance.decision_interval``) decides psi_K every that many expansions, unless the caller
+    gives ``decision_interval``; without one the planner's default (every expansion) holds, and a
+    malformed one is refused."""
+    from lit_planner import planning
+
+    def folder_with(interval: object) -> Path:
+        folder = tmp_path / f"k{interval!r}"
+        write_tensor_pair(folder, k=False)
+        provenance = {} if interval is None else {"decision_interval": interval}
+        values = tf.affine_test_tensor(*K_TENSOR_COEFFICIENTS)
+        tf.write_tensor(folder / "k_tensor.npy", values, "psi_K", provenance=provenance)
+        return folder
+
+    def decisions(policy: lit_core.ParameterPolicy, **params: int) -> tuple[int, int]:
+        result = plan("np4", "litstar", policy, max_iterations=ITERATIONS, seed=3, params=params)
+        counters = result["counters"]
+        return counters["neighbour_decisions"], counters["expansions"]
+
+    trained = make_policy("tensor", folder_with(7))
+    assert trained.decision_interval == 7
+    assert planning.policy_params(trained) == {"decision_interval": "7"}
+    made, expansions = decisions(trained)
+    assert expansions > 14 and made == -(-expansions // 7)  # expansions 1, 8, 15, ...
+    made, expansions = decisions(trained, decision_interval=1)  # the caller's value wins
+    assert made == expansions
+    unknown = make_policy("tensor", folder_with(None))
+    assert unknown.decision_interval == 0 and planning.policy_params(unknown) == {}
+    made, expansions = decisions(unknown)
+    assert made == expansions
+    b_only = tmp_path / "b-only"
+    write_tensor_pair(b_only, k=False)
+    assert make_policy("tensor", b_only).decision_interval == 0  # psi_K stays e: no decisions
+    for bad in (0, 2.5, "10", True):
+        with pytest.raises(TensorFileError, match="decision_interval must be a whole number"):
+            make_policy("tensor", folder_with(bad))
+
+
 def test_tensor_sidecar_problems_are_rejected(tmp_path: Path) -> None:
     write_tensor_pair(tmp_path, k=False)
     (tmp_path / "b_tensor.npy").rename(tmp_path / "k_tensor.npy")

@@ -510,8 +510,12 @@ PYBIND11_MODULE(lit_core, m)
         .def(py::init<int, double>(), py::arg("batch_size") = 100, py::arg("neighbour_factor") = M_E);
     py::class_<FitPolicy, ParameterPolicy, std::shared_ptr<FitPolicy>>(m, "FitPolicy").def(py::init<>());
     py::class_<TensorPolicy, ParameterPolicy, std::shared_ptr<TensorPolicy>>(m, "TensorPolicy")
-        .def(py::init<std::shared_ptr<const LookupTensor>, std::shared_ptr<const LookupTensor>, Interpolation>(),
-             py::arg("batch_tensor"), py::arg("neighbour_tensor"), py::arg("interpolation") = Interpolation::Trilinear);
+        .def(py::init<std::shared_ptr<const LookupTensor>, std::shared_ptr<const LookupTensor>, Interpolation,
+                      unsigned int>(),
+             py::arg("batch_tensor"), py::arg("neighbour_tensor"), py::arg("interpolation") = Interpolation::Trilinear,
+             py::arg("decision_interval") = 0u,
+             "decision_interval: the expansions per psi_K decision the psi_K tensor was trained with (0: not known)")
+        .def_property_readonly("decision_interval", &TensorPolicy::decisionInterval);
     py::class_<ExternalPolicy, ParameterPolicy, std::shared_ptr<ExternalPolicy>>(m, "ExternalPolicy")
         .def(py::init([](py::function callback, bool decidesNeighbourFactor) {
                  auto holder = std::make_shared<py::function>(std::move(callback));

@@ -55,8 +55,12 @@ namespace lit
     }
 
     TensorPolicy::TensorPolicy(std::shared_ptr<const LookupTensor> batchTensor,
-                               std::shared_ptr<const LookupTensor> neighbourTensor, Interpolation interpolation)
-      : batchTensor_(std::move(batchTensor)), neighbourTensor_(std::move(neighbourTensor)), interpolation_(interpolation)
+                               std::shared_ptr<const LookupTensor> neighbourTensor, Interpolation interpolation,
+                               unsigned int decisionInterval)
+      : batchTensor_(std::move(batchTensor))
+      , neighbourTensor_(std::move(neighbourTensor))
+      , interpolation_(interpolation)
+      , decisionInterval_(decisionInterval)
     {
     }
 

@@ -109,6 +109,10 @@ def run(args: argparse.Namespace) -> int:
     """Run ``lit bench``; 0 on success, 1 when a returned path failed the re-check, 2 bad input."""
     try:
         config, preset, requested = _config(args)
+        # The policies (the tensor files) are read once, here, before anything starts; the
+        # configuration with their SHA-256 is taken right after and goes into bag and summary.
+        policies = runner.benchmark_policies(config.planners, config.tensors_dir)
+        setups = planner_setups(config, policies)
         out = _out_dir(args.out)
     except (LitPlannerError, ValueError) as error:
         print(f"lit bench: {error}", file=sys.stderr)
@@ -129,7 +133,9 @@ def run(args: argparse.Namespace) -> int:
     recording = None
     if not args.no_bag:
         try:
-            recording = _start_recording(args, out, config, preset, requested, started, estimate)
+            recording = _start_recording(
+                args, out, config, preset, requested, started, estimate, setups
+            )
         except (bag.BagError, OSError) as error:
             print(f"lit bench: {error}", file=sys.stderr)
             return 2
@@ -148,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
     main_thread = threading.current_thread() is threading.main_thread()  # signals: main only
     previous = signal.signal(signal.SIGTERM, signal.default_int_handler) if main_thread else None
     try:
-        records = runner.run_benchmark(config, on_scenario_done=append)
+        records = runner.run_benchmark(config, on_scenario_done=append, policies=policies)
     except KeyboardInterrupt:
         print(
             f"lit bench: interrupted; {runs_path} holds the runs of the finished scenarios",
@@ -179,6 +185,7 @@ def run(args: argparse.Namespace) -> int:
         finished=finished,
         duration=duration,
         estimate=(estimate, formula),
+        planners=setups,
     )
     print((out / SUMMARY_MD).read_text(encoding="utf-8"))
     # Planner Arena database from OMPL benchmark logs (PyPI ompl, in its own process).
@@ -215,11 +222,13 @@ def write_outputs(
     estimate: tuple[float, str],
     argv: list[str] | None = None,
     recorded: dict[str, Any] | None = None,
+    planners: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Compute the statistics, draw the plots, validate and write summary.json and summary.md.
 
     ``recorded`` (``lit replay bench``): the recorded run's ``cwd``, ``machine``, ``versions`` and
-    ``planners`` instead of this process's.
+    ``planners`` instead of this process's. ``planners``: the planners' configuration as taken
+    when the benchmark read its policies (:func:`planner_setups` now when None).
     """
     from lit_msgs_json import codec
     from lit_planner.bench import environment, plots, report, stats
@@ -261,7 +270,7 @@ def write_outputs(
         ],
         "machine": recorded["machine"] if recorded else environment.machine(),
         "versions": recorded["versions"] if recorded else environment.versions(root),
-        "planners": recorded["planners"] if recorded else planner_setups(config),
+        "planners": (recorded["planners"] if recorded else planners or planner_setups(config)),
         "scenarios": summaries,
         "comparisons": report.comparisons(
             summaries, config.planners, [s.planner for s in config.skipped]
@@ -302,10 +311,15 @@ def summary_config(config: runner.BenchConfig, requested: list[str]) -> dict[str
     }
 
 
-def planner_setups(config: runner.BenchConfig) -> dict[str, Any]:
-    """The ``planners`` section of summary.json: every planner's configuration."""
+def planner_setups(
+    config: runner.BenchConfig, policies: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """The ``planners`` section of summary.json: every planner's configuration (``policies``:
+    the benchmark's policy objects, whose parameters are listed)."""
+    policies = policies or {}
     return {
-        name: runner.planner_setup(name, config.tensors_dir).to_dict() for name in config.planners
+        name: runner.planner_setup(name, config.tensors_dir, policies.get(name)).to_dict()
+        for name in config.planners
     }
 
 
@@ -317,6 +331,7 @@ def _start_recording(
     requested: list[str],
     started: datetime,
     estimate: float,
+    setups: dict[str, Any],
 ) -> bag.BenchRecording:
     """Open the run's bag and record its BenchConfig: everything ``lit replay bench`` needs
     besides the run records (the summary's config, command and environment)."""
@@ -334,7 +349,7 @@ def _start_recording(
         ],
         "machine": environment.machine(),
         "versions": environment.versions(Path(__file__).resolve().parents[3]),
-        "planners": planner_setups(config),
+        "planners": setups,
     }
     parent = args.bag_dir if args.bag_dir is not None else bag.default_bag_root()
     return bag.BenchRecording(bag.unique_directory(parent, out.name), out.name, payload)

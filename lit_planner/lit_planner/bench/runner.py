@@ -6,7 +6,9 @@ a fresh planner (``lit_core.solve`` builds planner, problem and validity checker
 draws from its own generator, seeded with the run's seed. OMPL 1.5.2's planners draw from OMPL's
 process-wide generator, which :func:`run_benchmark` seeds once with the first run's seed
 (OMPL accepts that seed once per process), so their runs are seeded as a sequence, not one by one.
-Runs stop on time, so no run repeats exactly anyway.
+Runs stop on time, so no run repeats exactly anyway. Each LIT* planner's policy object is made
+once per benchmark and shared by its runs (the planner resets it per problem), so no run reads
+the tensor files just before it is timed.
 
 Paths are re-checked independently (:func:`lit_planner.scenarios.check_path`) after each
 scenario's planning, in parallel worker processes, so the check neither runs while a planner is
@@ -24,16 +26,19 @@ import multiprocessing
 import random
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tqdm import tqdm
 
 from lit_planner import planning, scenarios
 from lit_planner.errors import MissingTensorsError, PlannerError
+
+if TYPE_CHECKING:
+    import lit_core
 
 RUN_SCHEMA = "lit_msgs_json/BenchRun"
 """Schema of one run record (a line of ``runs.jsonl``)."""
@@ -207,8 +212,12 @@ def benchmark_policies(planners: Sequence[str], tensors_dir: Path | None = None)
     return policies
 
 
-def planner_setup(name: str, tensors_dir: Path | None = None) -> PlannerSetup:
-    """The configuration of planner ``name`` as the benchmark runs it."""
+def planner_setup(
+    name: str, tensors_dir: Path | None = None, policy_object: Any = None
+) -> PlannerSetup:
+    """The configuration of planner ``name`` as the benchmark runs it; ``policy_object``: its
+    :func:`benchmark_policies` entry, whose parameters (:func:`planning.policy_params`) are
+    listed."""
     core, policy = planning.resolve_planner(name)
     tensors = None
     if policy == "tensor":
@@ -217,7 +226,7 @@ def planner_setup(name: str, tensors_dir: Path | None = None) -> PlannerSetup:
         for output, file_name in planning.TENSOR_FILES.items():
             path = folder / file_name
             tensors[output] = _sha256(path) if path.exists() else None
-    return PlannerSetup(name, core, policy, {}, tensors)
+    return PlannerSetup(name, core, policy, planning.policy_params(policy_object), tensors)
 
 
 def planning_estimate(
@@ -304,7 +313,7 @@ def time_first_solution(
     *,
     repeats: int,
     seed: int,
-    policy: Any,
+    policy: lit_core.ParameterPolicy | None,
 ) -> list[float] | None:
     """The first solution's time of a solved LIT* run, then of ``repeats - 1`` reruns of the same
     seed stopped at the iteration that found it (None when there is nothing to repeat).
@@ -375,6 +384,7 @@ def run_benchmark(
     config: BenchConfig,
     on_scenario_done: Callable[[list[dict[str, Any]]], None] | None = None,
     progress_file: Any = None,
+    policies: Mapping[str, Any] | None = None,
 ) -> list[dict[str, Any]]:
     """Run the benchmark; return every record in execution order.
 
@@ -383,12 +393,18 @@ def run_benchmark(
         on_scenario_done: called with a scenario's records once they are checked (the CLI
             appends them to ``runs.jsonl`` there, so an interrupted benchmark keeps its data).
         progress_file: where the progress bar goes (default stderr).
+        policies: :func:`benchmark_policies` of ``config``'s planners, made here when None.
+
+    Raises:
+        MissingTensorsError, TensorFileError: making the policies here failed.
+        PlannerError: a ``t_init_repeats`` rerun did not repeat its run.
     """
     import lit_core  # the C++ extension: only when planning really starts
 
     lit_core.set_global_seed(config.first_seed)
     problems = [scenario_for(name, config.instance) for name in config.scenarios]
-    policies = benchmark_policies(config.planners, config.tensors_dir)
+    if policies is None:
+        policies = benchmark_policies(config.planners, config.tensors_dir)
     total = sum(config.time_budget(p) for p in problems) * config.runs * len(config.planners)
     records: list[dict[str, Any]] = []
     bar = tqdm(
@@ -412,7 +428,7 @@ def run_benchmark(
                     result = planning.plan(
                         problem,
                         planner,
-                        policies[planner],
+                        policy=policies[planner],
                         time=budget,
                         seed=seed,
                         check_path=False,
@@ -435,7 +451,7 @@ def run_benchmark(
                             budget=budget,
                             wall_time=wall,
                             scenario=problem,
-                            params={},
+                            params=planning.policy_params(policies[planner]),
                             t_init_runs=t_init_runs,
                         )
                     )

@@ -195,8 +195,12 @@ namespace lit
     class TensorPolicy : public ParameterPolicy
     {
     public:
+        /** \brief \e decisionInterval: the expansions per psi_K decision the psi_K tensor was trained with
+         *  (0: not known). The policy does not apply it itself; lit_planner.planning.plan sets the planner's
+         *  decision_interval to it unless the caller gives one, so the tensor is used as it was trained. */
         TensorPolicy(std::shared_ptr<const LookupTensor> batchTensor,
-                     std::shared_ptr<const LookupTensor> neighbourTensor, Interpolation interpolation);
+                     std::shared_ptr<const LookupTensor> neighbourTensor, Interpolation interpolation,
+                     unsigned int decisionInterval = 0u);
         std::string name() const override
         {
             return "tensor";
@@ -212,11 +216,17 @@ namespace lit
             return static_cast<bool>(neighbourTensor_);
         }
         double decide(const DecisionContext &context) override;
+        /** \brief The psi_K tensor's training decision interval (0: not known). */
+        unsigned int decisionInterval() const
+        {
+            return decisionInterval_;
+        }
 
     private:
         std::shared_ptr<const LookupTensor> batchTensor_;
         std::shared_ptr<const LookupTensor> neighbourTensor_;
         Interpolation interpolation_;
+        unsigned int decisionInterval_;
     };
 
     /** \brief Delegates to a callable (the learner in training). Out-of-range answers are clamped; a NaN
