@@ -137,6 +137,50 @@ def test_plan_service_round_trip(ros: RosSystem, tmp_path: Path) -> None:
     _no_traceback(planner)
 
 
+def test_the_planner_node_uses_its_tensors_as_trained_and_sees_them_change(
+    ros: RosSystem, tmp_path: Path
+) -> None:
+    """With the tensor policy the node decides psi_K at the interval its tensor was trained with
+    (the shipped tensors: every 10 expansions) and keeps the tensors between queries, but reads
+    them again once they change: a defective export is answered with an Error naming the file,
+    the node keeps serving, and it plans again once the file is repaired."""
+    import shutil
+
+    import numpy as np
+
+    folder = tmp_path / "tensors"
+    folder.mkdir()
+    shipped = Path(__file__).resolve().parents[1] / "tensors"
+    for name in ("b_tensor.npy", "b_tensor.json", "k_tensor.npy", "k_tensor.json"):
+        shutil.copy2(shipped / name, folder / name)
+    planner = ros.planner(tensors_dir=str(folder))
+    _ready(planner)
+
+    def plan() -> Any:
+        return ros.call("--payload-only", "plan", "--scenario", "np4", "--time", "0.1")
+
+    for _ in range(2):
+        result = plan()
+        assert result.returncode == 0, result
+        counters = result.json()["counters"]
+        assert counters["expansions"] > 10
+        assert counters["neighbour_decisions"] == -(-counters["expansions"] // 10)
+
+    values = np.load(folder / "k_tensor.npy")
+    broken = values.copy()
+    broken[5, 5, 5] = np.nan
+    np.save(folder / "k_tensor.npy", broken)  # rewritten in place, as an export writes
+    result = plan()
+    assert result.returncode == 1, result
+    error = result.json()
+    assert "k_tensor.npy" in error["message"] and "not finite" in error["message"], error
+    np.save(folder / "k_tensor.npy", values)
+    result = plan()
+    assert result.returncode == 0 and result.json()["solved"] is True, result
+    assert planner.running()
+    _no_traceback(planner)
+
+
 def test_plan_requests_wait_in_the_queue_then_busy(ros: RosSystem) -> None:
     """A request arriving during a long one waits its turn; one beyond ``queue_limit`` is refused.
 
