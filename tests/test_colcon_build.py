@@ -101,4 +101,8 @@ def _check_cpp_consumer(install: Path, tmp_path: Path, env: dict[str, str]) -> N
     reference = planning.plan(
         "np8", "litstar", policy="tensor", seed=1, time=0.2, tensors_dir=ROOT / "tensors"
     )
-    assert f"cost {reference['c_init']:.4f};" in process.stdout, process.stdout[-2000:]
+    # The same search: the example decides psi_K every 10 expansions, as the Python side does
+    # from the shipped k_tensor.json (with another interval the search differs), so the first
+    # solution comes at the same iteration with the same cost.
+    first = f"(iteration {reference['iteration_init']}), cost {reference['c_init']:.4f};"
+    assert first in process.stdout, process.stdout[-2000:]

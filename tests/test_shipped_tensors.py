@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
 import yaml
 
 from lit_planner import replay, tensor_files
@@ -41,3 +42,12 @@ def test_shipped_tensors_trace_to_their_training_bag() -> None:
     for name in ("b_tensor.npy", "k_tensor.npy"):
         _, sidecar = tensor_files.read_tensor(TENSORS / name)
         assert sidecar.provenance == provenance
+    # lit replay tensors of this bag records the interval the tensors were trained with (from
+    # the bag's lit train command), and refuses to mix it with a bag of another interval.
+    from lit_learner.offline import recorded_decision_interval
+    from lit_planner.replay import ReplayError
+
+    assert recorded_decision_interval([bag]) == provenance["decision_interval"] == 10
+    other = Path(__file__).resolve().parents[1] / "bags" / "samples" / "bench_np4"
+    with pytest.raises(ReplayError, match="different decision intervals"):
+        recorded_decision_interval([bag, other])

@@ -60,6 +60,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--batch-size", type=int, default=None, metavar="N",
         help="transitions per gradient step, both agents (default: the learner's, 64 / 256)",
     )  # fmt: skip
+    parser.add_argument(
+        "--decision-interval", type=int, default=None, metavar="N",
+        help="expansions per psi_K decision in the recorded episodes, recorded with the tensors "
+        "so that the tensor policy applies it (default: from the bags: lit train records it; "
+        "1, the planner node's in training, for bags that do not name one)",
+    )  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
@@ -67,6 +73,11 @@ def run(args: argparse.Namespace) -> int:
     episodes, skipped = read_episodes(args.bags)
     if not episodes:
         raise ReplayError("no complete training episode in the given bags")
+    interval = args.decision_interval
+    if interval is None:
+        interval = recorded_decision_interval(args.bags)
+    elif interval < 1:
+        raise ReplayError(f"--decision-interval must be at least 1, got {interval}")
     core = train_offline(episodes, args.seed, args.train, args.warmup, args.batch_size)
     provenance = {
         "exported_by": "lit replay tensors",
@@ -77,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
         "batch_size": args.batch_size,
         "episodes": len(episodes),
         "decisions": sum(len(e.decisions) for e in episodes),
+        "decision_interval": interval,
     }
     paths = core.export_tensors(args.out, provenance)
     (Path(args.out) / "provenance.json").write_text(json.dumps(provenance, indent=2) + "\n")
@@ -88,6 +100,51 @@ def run(args: argparse.Namespace) -> int:
     for name, path in paths.items():
         print(f"  {name}: {path}")
     return 0
+
+
+def recorded_decision_interval(paths: list[Path]) -> int:
+    """The expansions per psi_K decision of the bags' episodes: the ``lit.decision_interval``
+    that ``lit train`` records, else the ``--decision-interval`` of a ``lit train`` command in
+    ``lit.command`` (a fresh run's; a resumed run's command does not name it), else 1 (the
+    planner node's interval in training, and ``lit train``'s default).
+
+    Raises:
+        ReplayError: the bags name different intervals, or a resumed ``lit train`` run's bag
+            names none (give ``--decision-interval``).
+    """
+    import shlex
+
+    from lit_learner.train import DECISION_INTERVAL_KEY, DEFAULT_DECISION_INTERVAL
+
+    found: dict[int, list[str]] = {}
+    for path in paths:
+        with BagReader(path) as reader:
+            custom = reader.facts.custom_data
+        value: int | None = None
+        if DECISION_INTERVAL_KEY in custom:
+            value = int(custom[DECISION_INTERVAL_KEY])
+        elif custom.get("lit.source") == "lit_train":
+            words = shlex.split(custom.get("lit.command", ""))
+            for index, word in enumerate(words):
+                if word == "--decision-interval" and index + 1 < len(words):
+                    value = int(words[index + 1])
+                elif word.startswith("--decision-interval="):
+                    value = int(word.split("=", 1)[1])
+            if value is None and "--resume" in words:
+                raise ReplayError(
+                    f"{path}: a resumed lit train run's bag does not say its decision interval; "
+                    "give --decision-interval (the first bag of the run names it)"
+                )
+        found.setdefault(DEFAULT_DECISION_INTERVAL if value is None else value, []).append(
+            str(path)
+        )
+    if len(found) > 1:
+        named = "; ".join(f"{value}: {', '.join(bags)}" for value, bags in sorted(found.items()))
+        raise ReplayError(
+            f"the bags were recorded with different decision intervals ({named}); replay one "
+            "interval at a time or give --decision-interval"
+        )
+    return next(iter(found))
 
 
 def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:

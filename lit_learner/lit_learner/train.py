@@ -60,9 +60,11 @@ SCHEDULES = ("b-then-k", "joint")
 DEFAULT_EPISODES = 200
 """Episodes when neither ``--episodes`` nor ``--minutes`` is given."""
 DEFAULT_DECISION_INTERVAL = 1
-"""psi_K is decided every this many expansions (the planner's ``decision_interval``). 1 is the
-planner's default, which the ``tensor`` policy uses in ``lit plan`` and ``lit bench``, so a K step
-means the same in training and in use."""
+"""psi_K is decided every this many expansions (the planner's ``decision_interval``). The exported
+psi_K tensor records it (``provenance.decision_interval``) and the ``tensor`` policy applies it,
+so a K step means the same in training and in use."""
+DECISION_INTERVAL_KEY = "lit.decision_interval"
+"""Bag metadata key of the run's decision interval (``lit replay tensors`` reads it)."""
 DEFAULT_CHECKPOINT_EVERY = 100
 """Episodes between periodic checkpoints."""
 KEEP_CHECKPOINTS = 2
@@ -966,7 +968,11 @@ def _open_bag(args: argparse.Namespace, state: DriverState, run_dir: Path) -> An
         unique_directory(parent, run_dir.resolve().name),
         state.run_id,
         "lit_train",
-        metadata={"lit.run_folder": str(run_dir)},
+        metadata={
+            "lit.run_folder": str(run_dir),
+            # lit replay tensors records it with the tensors it retrains from this bag.
+            DECISION_INTERVAL_KEY: str(state.decision_interval),
+        },
     )
 
 

@@ -100,6 +100,9 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path
     assert all(p["missing"] == 0 and p["leading"] == 0 for p in info["publishers"])
     episodes, _ = read_episodes([bag])
     assert len(episodes) == 12
+    from lit_learner.offline import recorded_decision_interval
+
+    assert recorded_decision_interval([bag]) == 10  # the bag names its run's interval
     assert all(e.summary is not None and e.summary["mode"] == "training" for e in episodes)
     sources = {d["source"] for e in episodes for d in e.decisions}
     assert sources == {"learner", "tensor"}  # psi_K phase: B from the B-phase tensor
@@ -146,6 +149,7 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path
     assert record["command"].startswith("lit train")
     assert (export_dir / CURVES_FILE).exists()
     policy = planning.make_policy("tensor", export_dir)
+    assert policy.decision_interval == 10  # used as trained
     result = planning.plan("np4", policy=policy, seed=1_000_321, time=0.05)
     assert result["solved"]
 

@@ -3,7 +3,10 @@
 // written here, OMPL's SimpleSetup, and LIT* with the trained lookup tensors (or FIT*'s rule when
 // no tensor folder is given).
 //
-//   plan_narrow_passage [TENSOR_DIR [SECONDS [SEED]]]
+//   plan_narrow_passage [TENSOR_DIR [SECONDS [SEED [DECISION_INTERVAL]]]]
+//
+// DECISION_INTERVAL: expansions per psi_K decision, default 10, the interval the shipped tensors were
+// trained with (k_tensor.json's provenance.decision_interval, which the Python side applies by itself).
 //
 // Prints the status, the time to the first solution, its cost and the final cost; exits 0 when the
 // problem was solved.
@@ -41,10 +44,12 @@ namespace
             {
                 time = event.time;
                 cost = event.cost;
+                iteration = event.iteration;
             }
         }
         double time{-1.0};
         double cost{-1.0};
+        std::size_t iteration{0u};
     };
 
     // The tensor policy from a folder that `lit train --export` wrote (both tensors). The grid and the
@@ -70,9 +75,12 @@ int main(int argc, char **argv)
         const std::string tensors = argc > 1 ? argv[1] : "";
         const double seconds = argc > 2 ? std::stod(argv[2]) : 0.4;
         const long long seed = argc > 3 ? std::stoll(argv[3]) : 1;
+        const long long interval = argc > 4 ? std::stoll(argv[4]) : 10;
         if (seed < 0 || seed > std::numeric_limits<unsigned int>::max())
             throw std::invalid_argument("the seed must be between 0 and " +
                                         std::to_string(std::numeric_limits<unsigned int>::max()));
+        if (interval < 1 || interval > 10000)
+            throw std::invalid_argument("the decision interval must be between 1 and 10000");
         ompl::msg::setLogLevel(ompl::msg::LOG_WARN);
 
         auto space = std::make_shared<ob::RealVectorStateSpace>(dimension);
@@ -100,6 +108,7 @@ int main(int argc, char **argv)
             planner->setPolicyName("fit");
         else
             planner->setPolicy(tensorPolicy(tensors));
+        planner->setDecisionInterval(static_cast<unsigned int>(interval));
         planner->setSeed(static_cast<unsigned int>(seed));
         auto first = std::make_shared<FirstSolution>();
         planner->addListener(first);
@@ -110,10 +119,10 @@ int main(int argc, char **argv)
         std::printf("policy %s, %u-D narrow passage, %.3g s, seed %lld: %s\n", planner->getPolicy()->name().c_str(),
                     dimension, seconds, seed, status.asString().c_str());
         if (solved)
-            std::printf("first solution after %.2f ms, cost %.4f; final cost %.4f (optimum 0.4236); "
+            std::printf("first solution after %.2f ms (iteration %zu), cost %.4f; final cost %.4f (optimum 0.4236); "
                         "%zu batches, %zu collision checks\n",
-                        first->time * 1e3, first->cost, planner->bestCost(), planner->counters().batches,
-                        planner->counters().collisionChecks);
+                        first->time * 1e3, first->iteration, first->cost, planner->bestCost(),
+                        planner->counters().batches, planner->counters().collisionChecks);
         return solved ? 0 : 1;
     }
     catch (const std::exception &error)
