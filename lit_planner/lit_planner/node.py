@@ -172,6 +172,12 @@ class PlannerNode:
         from lit_planner.planning import TensorPolicyCache
 
         self._tensor_policies = TensorPolicyCache()
+        if p["policy"] == "tensor":
+            # Read now, so that the first query does not pay for it just before its search.
+            try:
+                self._tensor_policies.get(p["tensors_dir"] or None)
+            except Exception as exc:  # noqa: BLE001 - each tensor query answers with it
+                self.log.error(f"tensor policy unusable for now: {exc}")
         # Only the planning thread calls the learner: it spins the client's own node while it
         # waits, so answers do not queue behind the plan service on the shared executor.
         self.learner = ServiceCaller(node, p["learner_service"], private=True, suffix="learner")
