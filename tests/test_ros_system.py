@@ -559,12 +559,20 @@ def test_bad_input_is_answered_with_errors(ros: RosSystem) -> None:
     planner = ros.planner()
     learner = ros.learner()
     _ready(planner, learner)
+    # The small requests go out at once; the two of over 1 MiB one at a time afterwards. Fast DDS
+    # carries a message larger than its shared-memory segment (512 KiB) in fragments, and with a
+    # dozen other clients starting at once one such request was seen lost (60 s without an answer).
+    small = [case for case in BAD_INPUT if case[2] is not OVERSIZE]
     calls = [
         ros.call_start("--payload-only", *arguments, stdin=stdin)
-        for _, arguments, stdin, *_ in BAD_INPUT
+        for _, arguments, stdin, *_ in small
     ]
-    for (case, _, _, code, field, words), call in zip(BAD_INPUT, calls, strict=True):
-        result = finish_call(call)
+    results = [finish_call(call) for call in calls]
+    for _, arguments, stdin, *_ in BAD_INPUT:
+        if stdin is OVERSIZE:
+            results.append(finish_call(ros.call_start("--payload-only", *arguments, stdin=stdin)))
+    ordered = small + [case for case in BAD_INPUT if case[2] is OVERSIZE]
+    for (case, _, _, code, field, words), result in zip(ordered, results, strict=True):
         assert result.returncode == 1, (
             f"{case}: {result}\nplanner:\n{planner.tail(60)}\nlearner:\n{learner.tail(30)}"
         )
