@@ -8,6 +8,7 @@ episode with every publisher's ``seq`` unbroken, and both sidecars carry the sam
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -28,7 +29,7 @@ def _bags_of(run_folder: str) -> list[Path]:
     return found
 
 
-def test_shipped_tensors_trace_to_their_training_bag() -> None:
+def test_shipped_tensors_trace_to_their_training_bag(tmp_path: Path) -> None:
     provenance = json.loads((TENSORS / "provenance.json").read_text(encoding="utf-8"))
     (bag,) = _bags_of(provenance["run_folder"])
     info = replay.bag_info(bag)
@@ -43,11 +44,27 @@ def test_shipped_tensors_trace_to_their_training_bag() -> None:
         _, sidecar = tensor_files.read_tensor(TENSORS / name)
         assert sidecar.provenance == provenance
     # lit replay tensors of this bag records the interval the tensors were trained with (from
-    # the bag's lit train command), and refuses to mix it with a bag of another interval.
+    # the bag's lit train command), also when given the .mcap file; a bench bag (no training
+    # episodes) does not count, a bag of another interval is refused together with it, and so is
+    # a --decision-interval that contradicts it.
     from lit_learner.offline import recorded_decision_interval
     from lit_planner.replay import ReplayError
 
-    assert recorded_decision_interval([bag]) == provenance["decision_interval"] == 10
-    other = Path(__file__).resolve().parents[1] / "bags" / "samples" / "bench_np4"
-    with pytest.raises(ReplayError, match="different decision intervals"):
+    assert recorded_decision_interval([bag]).value == provenance["decision_interval"] == 10
+    assert recorded_decision_interval(list(bag.glob("*.mcap"))).value == 10
+    samples = ROOT / "bags" / "samples"
+    assert recorded_decision_interval([bag, samples / "bench_np4"]).value == 10
+    other = tmp_path / "other"
+    shutil.copytree(samples / "bench_np4", other)
+    metadata = yaml.safe_load((other / "metadata.yaml").read_text(encoding="utf-8"))
+    custom = metadata["rosbag2_bagfile_information"]["custom_data"]
+    custom.update({"lit.source": "lit_train", "lit.decision_interval": "3"})
+    (other / "metadata.yaml").write_text(yaml.safe_dump(metadata), encoding="utf-8")
+    with pytest.raises(ReplayError, match="different psi_K decision intervals"):
         recorded_decision_interval([bag, other])
+    with pytest.raises(ReplayError, match="--decision-interval 1 contradicts the bags"):
+        recorded_decision_interval([bag], 1)
+    custom["lit.decision_interval"] = "ten"
+    (other / "metadata.yaml").write_text(yaml.safe_dump(metadata), encoding="utf-8")
+    with pytest.raises(ReplayError, match="not a whole number"):
+        recorded_decision_interval([other])

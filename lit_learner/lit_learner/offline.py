@@ -25,6 +25,9 @@ from typing import Any
 
 from lit_planner.replay import BagReader, Envelope, ReplayError, Skipped, decode
 
+MAX_INTERVAL = 2**32 - 1
+"""Largest psi_K decision interval (the planner's unsigned parameter)."""
+
 OBSERVATION, DECISION = "lit_msgs_json/Observation", "lit_msgs_json/Decision"
 SOLUTION, SUMMARY = "lit_msgs_json/SolutionUpdate", "lit_msgs_json/EpisodeSummary"
 
@@ -63,21 +66,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--decision-interval", type=int, default=None, metavar="N",
         help="expansions per psi_K decision in the recorded episodes, recorded with the tensors "
-        "so that the tensor policy applies it (default: from the bags: lit train records it; "
-        "1, the planner node's in training, for bags that do not name one)",
+        "so that the tensor policy applies it; must agree with bags that name one (lit train's "
+        "do) (default: the bags' own, else 1, the planner node's default in training)",
     )  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
     """Read, train, export; print what was used."""
+    interval = recorded_decision_interval(args.bags, args.decision_interval)
     episodes, skipped = read_episodes(args.bags)
     if not episodes:
         raise ReplayError("no complete training episode in the given bags")
-    interval = args.decision_interval
-    if interval is None:
-        interval = recorded_decision_interval(args.bags)
-    elif interval < 1:
-        raise ReplayError(f"--decision-interval must be at least 1, got {interval}")
     core = train_offline(episodes, args.seed, args.train, args.warmup, args.batch_size)
     provenance = {
         "exported_by": "lit replay tensors",
@@ -88,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
         "batch_size": args.batch_size,
         "episodes": len(episodes),
         "decisions": sum(len(e.decisions) for e in episodes),
-        "decision_interval": interval,
+        "decision_interval": interval.value,
     }
     paths = core.export_tensors(args.out, provenance)
     (Path(args.out) / "provenance.json").write_text(json.dumps(provenance, indent=2) + "\n")
@@ -97,54 +96,133 @@ def run(args: argparse.Namespace) -> int:
         f"{sum(a.transitions for a in core.agents.values())} transitions, "
         f"policy version {core.policy_version}; skipped {sum(skipped.counts.values())} messages"
     )
+    print(f"  psi_K decision interval {interval.value} ({interval.source})")
     for name, path in paths.items():
         print(f"  {name}: {path}")
     return 0
 
 
-def recorded_decision_interval(paths: list[Path]) -> int:
-    """The expansions per psi_K decision of the bags' episodes: the ``lit.decision_interval``
-    that ``lit train`` records, else the ``--decision-interval`` of a ``lit train`` command in
-    ``lit.command`` (a fresh run's; a resumed run's command does not name it), else 1 (the
-    planner node's interval in training, and ``lit train``'s default).
+@dataclass(frozen=True)
+class RecordedInterval:
+    """The psi_K decision interval that ``lit replay tensors`` records with its tensors."""
+
+    value: int
+    """Expansions per psi_K decision."""
+    source: str
+    """Where it came from, for the user."""
+
+
+def bag_decision_interval(path: Path) -> int | None:
+    """The psi_K decision interval that bag ``path`` names: ``lit train`` writes it into the
+    metadata (``lit.decision_interval``); for older ``lit train`` bags it is the
+    ``--decision-interval`` of the recorded command (default 1) unless that run was resumed (a
+    resumed run keeps its checkpoint's interval). None when the bag does not say (recorder and
+    bench bags, a bare ``.mcap`` without its ``metadata.yaml``, a salvaged bag).
 
     Raises:
-        ReplayError: the bags name different intervals, or a resumed ``lit train`` run's bag
-            names none (give ``--decision-interval``).
+        ReplayError: the bag's metadata names an interval that is not a whole number of at
+            least 1.
     """
     import shlex
 
-    from lit_learner.train import DECISION_INTERVAL_KEY, DEFAULT_DECISION_INTERVAL
+    import yaml
 
-    found: dict[int, list[str]] = {}
+    from lit_learner.train import DECISION_INTERVAL_KEY, add_arguments
+
+    metadata = (path if path.is_dir() else path.parent) / "metadata.yaml"
+    try:
+        info = yaml.safe_load(metadata.read_text(encoding="utf-8")) or {}
+        custom = (info.get("rosbag2_bagfile_information") or {}).get("custom_data") or {}
+    except (OSError, yaml.YAMLError, AttributeError):
+        return None
+    if DECISION_INTERVAL_KEY in custom:
+        text = str(custom[DECISION_INTERVAL_KEY])
+        if not text.isdigit() or not 1 <= int(text) <= MAX_INTERVAL:
+            raise ReplayError(
+                f"{path}: metadata {DECISION_INTERVAL_KEY} is {text!r}, not a whole number "
+                f"between 1 and {MAX_INTERVAL}"
+            )
+        return int(text)
+    if custom.get("lit.source") != "lit_train":
+        return None
+    words = shlex.split(str(custom.get("lit.command", "")))
+    if "train" not in words:
+        return None
+    parser = argparse.ArgumentParser(add_help=False, exit_on_error=False)
+    add_arguments(parser)
+    try:
+        known, _ = parser.parse_known_args(words[words.index("train") + 1 :])
+    except (argparse.ArgumentError, SystemExit):
+        return None
+    if known.resume is not None or not 1 <= known.decision_interval <= MAX_INTERVAL:
+        return None
+    return int(known.decision_interval)
+
+
+def recorded_decision_interval(paths: list[Path], given: int | None = None) -> RecordedInterval:
+    """The psi_K decision interval of the bags' training episodes (:func:`bag_decision_interval`
+    of each bag that holds any; bench bags hold none and are not asked). ``given`` (the
+    ``--decision-interval`` option) must agree with every bag that names one and stands for
+    those that do not; without it, bags that do not name one count as 1, the planner node's
+    interval in training by default.
+
+    Raises:
+        ReplayError: ``given`` is not between 1 and :data:`MAX_INTERVAL`, two bags name different
+            intervals, or ``given`` contradicts a bag.
+    """
+    from lit_planner.bag import BENCH_SOURCE
+
+    if given is not None and not 1 <= given <= MAX_INTERVAL:
+        raise ReplayError(f"--decision-interval must be between 1 and {MAX_INTERVAL}, got {given}")
+    named: dict[int, list[str]] = {}
+    silent: list[str] = []
     for path in paths:
-        with BagReader(path) as reader:
-            custom = reader.facts.custom_data
-        value: int | None = None
-        if DECISION_INTERVAL_KEY in custom:
-            value = int(custom[DECISION_INTERVAL_KEY])
-        elif custom.get("lit.source") == "lit_train":
-            words = shlex.split(custom.get("lit.command", ""))
-            for index, word in enumerate(words):
-                if word == "--decision-interval" and index + 1 < len(words):
-                    value = int(words[index + 1])
-                elif word.startswith("--decision-interval="):
-                    value = int(word.split("=", 1)[1])
-            if value is None and "--resume" in words:
-                raise ReplayError(
-                    f"{path}: a resumed lit train run's bag does not say its decision interval; "
-                    "give --decision-interval (the first bag of the run names it)"
-                )
-        found.setdefault(DEFAULT_DECISION_INTERVAL if value is None else value, []).append(
-            str(path)
-        )
-    if len(found) > 1:
-        named = "; ".join(f"{value}: {', '.join(bags)}" for value, bags in sorted(found.items()))
+        if _bag_source(path) == BENCH_SOURCE:
+            continue
+        value = bag_decision_interval(path)
+        if value is None:
+            silent.append(str(path))
+        else:
+            named.setdefault(value, []).append(str(path))
+    listed = "; ".join(f"{value}: {', '.join(bags)}" for value, bags in sorted(named.items()))
+    if len(named) > 1:
         raise ReplayError(
-            f"the bags were recorded with different decision intervals ({named}); replay one "
-            "interval at a time or give --decision-interval"
+            f"the bags were recorded with different psi_K decision intervals ({listed}); "
+            "replay the bags of one interval at a time"
         )
-    return next(iter(found))
+    if given is not None:
+        if named and given not in named:
+            raise ReplayError(
+                f"--decision-interval {given} contradicts the bags, which name {listed}"
+            )
+        return RecordedInterval(given, "--decision-interval")
+    if named:
+        ((value, bags),) = named.items()
+        if silent:
+            return RecordedInterval(
+                value,
+                f"named by {', '.join(bags)}; {', '.join(silent)} name none (taken to be the "
+                "same; give --decision-interval to state it)",
+            )
+        return RecordedInterval(value, "named by the bags")
+    return RecordedInterval(
+        1,
+        "the bags name none: taken to be 1, the planner node's interval in training by default; "
+        "give --decision-interval if they were recorded at another",
+    )
+
+
+def _bag_source(path: Path) -> str | None:
+    import yaml
+
+    metadata = (path if path.is_dir() else path.parent) / "metadata.yaml"
+    try:
+        info = yaml.safe_load(metadata.read_text(encoding="utf-8")) or {}
+        custom = (info.get("rosbag2_bagfile_information") or {}).get("custom_data") or {}
+    except (OSError, yaml.YAMLError, AttributeError):
+        return None
+    source = custom.get("lit.source")
+    return None if source is None else str(source)
 
 
 def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:

@@ -6,7 +6,8 @@
 //   plan_narrow_passage [TENSOR_DIR [SECONDS [SEED [DECISION_INTERVAL]]]]
 //
 // DECISION_INTERVAL: expansions per psi_K decision, default 10, the interval the shipped tensors were
-// trained with (k_tensor.json's provenance.decision_interval, which the Python side applies by itself).
+// trained with. Give your tensors' own: k_tensor.json's provenance.decision_interval, which the Python
+// side applies by itself (1 where it names none).
 //
 // Prints the status, the time to the first solution, its cost and the final cost; exits 0 when the
 // problem was solved.
