@@ -102,7 +102,7 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path
     assert len(episodes) == 12
     from lit_learner.offline import recorded_decision_interval
 
-    assert recorded_decision_interval([bag]) == 10  # the bag names its run's interval
+    assert recorded_decision_interval([bag]).value == 10  # the bag names its interval
     assert all(e.summary is not None and e.summary["mode"] == "training" for e in episodes)
     sources = {d["source"] for e in episodes for d in e.decisions}
     assert sources == {"learner", "tensor"}  # psi_K phase: B from the B-phase tensor
