@@ -106,3 +106,11 @@ def _check_cpp_consumer(install: Path, tmp_path: Path, env: dict[str, str]) -> N
     # solution comes at the same iteration with the same cost.
     first = f"(iteration {reference['iteration_init']}), cost {reference['c_init']:.4f};"
     assert first in process.stdout, process.stdout[-2000:]
+    # ... and the comparison tells intervals apart: at every expansion the first solution comes
+    # at another iteration (on this query its cost happens to be the same).
+    every = subprocess.run(
+        ["sh", "-c", f". {install}/setup.sh && {build}/plan_narrow_passage {ROOT / 'tensors'} 0.2 1 1"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600, check=False,
+    )  # fmt: skip
+    assert every.returncode == 0 and "Exact solution" in every.stdout, every.stdout + every.stderr
+    assert first not in every.stdout, every.stdout
