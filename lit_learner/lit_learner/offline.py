@@ -125,16 +125,9 @@ def bag_decision_interval(path: Path) -> int | None:
     """
     import shlex
 
-    import yaml
-
     from lit_learner.train import DECISION_INTERVAL_KEY, add_arguments
 
-    metadata = (path if path.is_dir() else path.parent) / "metadata.yaml"
-    try:
-        info = yaml.safe_load(metadata.read_text(encoding="utf-8")) or {}
-        custom = (info.get("rosbag2_bagfile_information") or {}).get("custom_data") or {}
-    except (OSError, yaml.YAMLError, AttributeError):
-        return None
+    custom = _bag_custom_data(path)
     if DECISION_INTERVAL_KEY in custom:
         text = str(custom[DECISION_INTERVAL_KEY])
         if not text.isdigit() or not 1 <= int(text) <= MAX_INTERVAL:
@@ -213,6 +206,13 @@ def recorded_decision_interval(paths: list[Path], given: int | None = None) -> R
 
 
 def _bag_source(path: Path) -> str | None:
+    source = _bag_custom_data(path).get("lit.source")
+    return None if source is None else str(source)
+
+
+def _bag_custom_data(path: Path) -> dict[str, Any]:
+    """The ``custom_data`` of the bag's ``metadata.yaml`` (beside a ``.mcap`` file given
+    instead of the folder); empty when there is none or it cannot be read."""
     import yaml
 
     metadata = (path if path.is_dir() else path.parent) / "metadata.yaml"
@@ -220,9 +220,8 @@ def _bag_source(path: Path) -> str | None:
         info = yaml.safe_load(metadata.read_text(encoding="utf-8")) or {}
         custom = (info.get("rosbag2_bagfile_information") or {}).get("custom_data") or {}
     except (OSError, yaml.YAMLError, AttributeError):
-        return None
-    source = custom.get("lit.source")
-    return None if source is None else str(source)
+        return {}
+    return dict(custom) if isinstance(custom, dict) else {}
 
 
 def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
