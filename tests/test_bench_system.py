@@ -219,7 +219,9 @@ def test_reruns_stop_at_the_first_solution_and_must_repeat_it(
         runner.time_first_solution(tampered, problem, "litstar-fit", **options)
 
 
-def test_a_benchmark_reads_its_tensors_once(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_benchmark_reads_its_tensors_once(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
     """Each LIT* policy object is made once per benchmark and reused by every run and rerun, so
     the tensor files are read (and the caches refilled) before the first run only, not before
     every timed run; the runs still use the tensors (their policy is ``tensor``)."""
@@ -259,3 +261,16 @@ def test_a_benchmark_reads_its_tensors_once(monkeypatch: pytest.MonkeyPatch) -> 
     assert len({id(p) for p in policies}) == 2  # one object per planner for all of them
     tensor_records = [r for r in records if r["policy"] == "tensor"]
     assert all(r["params"] == {"decision_interval": "10"} for r in tensor_records)  # as trained
+    # The summary names the parameter the tensor set.
+    from datetime import UTC, datetime
+
+    from lit_planner.bench import cli
+
+    setups = cli.planner_setups(config, runner.benchmark_policies(config.planners, shipped))
+    now = datetime.now(UTC)
+    cli.write_outputs(
+        tmp_path, records, config, preset=None, requested=list(config.planners), started=now,
+        finished=now, duration=0.0, estimate=(0.0, "-"), planners=setups,
+    )  # fmt: skip
+    summary = (tmp_path / "summary.md").read_text(encoding="utf-8")
+    assert "Planner parameters set: litstar-tensor: decision_interval 10 (" in summary

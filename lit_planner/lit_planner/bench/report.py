@@ -342,6 +342,21 @@ def markdown(summary: dict[str, Any]) -> str:
     for skip in summary["skipped"]:
         lines += [f"**{skip['planner']} {skip['reason']}.**", ""]
     lines += [f"{comp['litstar_note']}.", ""]
+    changed = {
+        name: setup["params"] for name, setup in summary["planners"].items() if setup.get("params")
+    }
+    if changed:
+        described = "; ".join(
+            f"{name}: " + ", ".join(f"{key} {value}" for key, value in sorted(params.items()))
+            for name, params in changed.items()
+        )
+        lines += [
+            (
+                f"Planner parameters set: {described} (a ψ_K tensor's decision_interval is the "
+                "one it was trained with)."
+            ),
+            "",
+        ]
 
     lines += ["## LIT* against FIT* (the paper's Table I)", ""]
     if comp["fit"]["rows"]:
