@@ -212,15 +212,17 @@ def _bag_source(path: Path) -> str | None:
 
 def _bag_custom_data(path: Path) -> dict[str, Any]:
     """The ``custom_data`` of the bag's ``metadata.yaml`` (beside a ``.mcap`` file given
-    instead of the folder); empty when there is none or it cannot be read."""
-    import yaml
+    instead of the folder); empty without one (a salvaged or bare ``.mcap``).
+
+    Raises:
+        ReplayError: the metadata file is not rosbag2's.
+    """
+    from lit_planner.replay import load_metadata
 
     metadata = (path if path.is_dir() else path.parent) / "metadata.yaml"
-    try:
-        info = yaml.safe_load(metadata.read_text(encoding="utf-8")) or {}
-        custom = (info.get("rosbag2_bagfile_information") or {}).get("custom_data") or {}
-    except (OSError, yaml.YAMLError, AttributeError):
+    if not metadata.is_file():
         return {}
+    custom = load_metadata(metadata).get("custom_data") or {}
     return dict(custom) if isinstance(custom, dict) else {}
 
 

@@ -475,9 +475,9 @@ class PlannerNode:
         episode = DecisionSources()
         params: dict[str, object] = {}
         if job.planner == "litstar" and self.params["decision_interval"] > 0:
+            # 0: the planner's default (1; the learner decides psi_K at every expansion) or, with
+            # the tensor policy, the interval its psi_K tensor was trained with (planning.plan).
             params["decision_interval"] = self.params["decision_interval"]
-        elif job.planner == "litstar" and job.policy == "training":
-            params["decision_interval"] = 1  # the learner decides psi_K at every expansion
         if job.policy == "training":
             budget = job.time or job.scenario.time_budget
             policy: Any = lit_core.ExternalPolicy(

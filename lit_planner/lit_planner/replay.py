@@ -289,7 +289,7 @@ class BagReader:
         version, storage = None, None
         metadata_file = self.path / "metadata.yaml"
         if self.path.is_dir() and metadata_file.is_file():
-            info = _load_metadata(metadata_file)
+            info = load_metadata(metadata_file)
             version = info.get("version")
             storage = info.get("storage_identifier")
             custom = dict(info.get("custom_data") or custom)
@@ -376,7 +376,12 @@ def _mcap_damage(path: Path) -> str | None:
     return None
 
 
-def _load_metadata(path: Path) -> dict[str, Any]:
+def load_metadata(path: Path) -> dict[str, Any]:
+    """The ``rosbag2_bagfile_information`` of a bag's ``metadata.yaml``.
+
+    Raises:
+        ReplayError: not a rosbag2 metadata file (names the file).
+    """
     from ruamel.yaml import YAML
 
     try:
@@ -1223,7 +1228,7 @@ def _salvaged_custom_data(source: Path) -> dict[str, str]:
     if not metadata.is_file():
         return {}
     try:
-        custom = _load_metadata(metadata).get("custom_data") or {}
+        custom = load_metadata(metadata).get("custom_data") or {}
         return {str(k): str(v) for k, v in custom.items()}
     except (ReplayError, AttributeError):
         return {}
