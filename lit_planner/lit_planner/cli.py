@@ -69,6 +69,10 @@ COMMANDS: dict[str, Command] = {
         "lit_learner.train",
         "train the Fuzzy-DDPG policy (B, then psi_K) in-process against LIT*; export lookup tensors",
     ),
+    "tensors": Command(
+        "lit_planner.tensors_cli",
+        "make lookup tensors without training: constant ones, a baseline for lit bench --tensors",
+    ),
     "test": Command(
         "lit_planner.testing", "run all tests: C++ (ctest) and Python (pytest)", run="main"
     ),

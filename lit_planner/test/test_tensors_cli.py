@@ -1,0 +1,83 @@
+"""``lit tensors constant``: constant lookup tensors the tensor policy plays as they are."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from lit_planner import tensor_files as tf
+
+
+def lit(*args: str) -> subprocess.CompletedProcess[str]:
+    """Run the ``lit`` entry point in this interpreter (the checkout's .venv)."""
+    return subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+
+
+def test_constant_tensors_are_what_the_planner_decides(tmp_path: Path) -> None:
+    out = tmp_path / "constant"
+    process = lit("tensors", "constant", "--b", "150", "--psi-k", "6.5", "--out", str(out))
+    assert process.returncode == 0, process.stderr
+    for name, output, value in (("b_tensor", "B", 150.0), ("k_tensor", "psi_K", 6.5)):
+        data, sidecar = tf.read_tensor(out / f"{name}.npy")  # validates file, sidecar and hash
+        assert sidecar.output == output and (data == value).all()
+        assert sidecar.provenance["constant"] == value
+        assert sidecar.provenance["command"].startswith("lit tensors constant --b 150")
+        assert "decision_interval" not in sidecar.provenance  # the planner's default applies
+    planned = lit(
+        "plan", "--scenario", "np4", "--policy", "tensor", "--tensors", str(out),
+        "--iterations", "3000", "--json",
+    )  # fmt: skip
+    assert planned.returncode == 0, planned.stderr
+    result = json.loads(planned.stdout)
+    kinds = {"B": [], "psi_K": []}  # type: dict[str, list[float]]
+    for decision in result["decisions"]:
+        kinds[decision["kind"]].append(decision["value"])
+    assert kinds["B"] and kinds["psi_K"]  # both decided: solutions were found, and expansions
+    assert set(kinds["B"]) == {150.0} and set(kinds["psi_K"]) == {6.5}
+
+
+def test_one_tensor_alone_and_the_fallback_of_the_other(tmp_path: Path) -> None:
+    process = lit("tensors", "constant", "--psi-k", "3", "--out", str(tmp_path))
+    assert process.returncode == 0, process.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["k_tensor.json", "k_tensor.npy"]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        ([], "give --b and/or --psi-k: the value(s) to write"),
+        (["--b", "201"], "B = 201 is outside its range 20..200"),
+        (["--b", "100", "--psi-k", "2.5"], "psi_K = 2.5 is outside its range 3..15"),
+        (["--psi-k", "nan"], "psi_K = nan is outside its range 3..15"),
+        (["--b", "100"], "b_tensor.npy: already there; choose another --out"),
+    ],
+)
+def test_bad_input_is_one_line_and_writes_nothing(
+    tmp_path: Path, args: list[str], message: str
+) -> None:
+    (tmp_path / "b_tensor.npy").write_bytes(b"kept")  # somebody's file: must survive
+    process = lit("tensors", "constant", *args, "--out", str(tmp_path))
+    assert process.returncode == 2
+    assert process.stdout == ""
+    (line,) = process.stderr.strip().splitlines()
+    assert line.startswith("lit tensors: ") and line.endswith(message)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b_tensor.npy"]
+    assert (tmp_path / "b_tensor.npy").read_bytes() == b"kept"
+
+
+def test_a_file_as_the_folder_is_refused(tmp_path: Path) -> None:
+    target = tmp_path / "file"
+    target.write_text("x")
+    process = lit("tensors", "constant", "--b", "100", "--out", str(target))
+    assert process.returncode == 2 and "a file, not a folder" in process.stderr
+    assert target.read_text() == "x"
