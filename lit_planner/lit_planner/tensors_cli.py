@@ -1,8 +1,14 @@
-"""``lit tensors``: make lookup tensors without training.
+"""``lit tensors``: look into lookup tensors, and make them without training.
 
 ::
 
+    lit tensors info [DIR]
     lit tensors constant --b 200 --psi-k 6 --out DIR
+
+``info`` checks each tensor of a folder as the planner does (the C++ reader's checks plus the data
+hash) and prints what it holds: the output and its range, the spread of its values over the grid,
+the decision interval the tensor policy applies, and where it came from. ``--json`` prints one
+JSON object.
 
 ``constant`` writes ``b_tensor`` and/or ``k_tensor`` (with their sidecars) that hold one value
 everywhere. The ``tensor`` policy then plays a constant policy through the same files, lookups and
@@ -11,13 +17,16 @@ of a parameter can do: a bound a learned policy of that parameter has to beat to
 anything about the features. A parameter left out gets no file and falls back to the fixed value
 (B = 100, psi_K = e), as with trained tensors.
 
-Exit status: 0 written, 2 bad input (a value outside the output's range, no value, a tensor file
+Exit status: ``info`` 0 when every tensor in the folder passed its checks, 2 when the folder
+holds none or one is defective (that one named with its problem; the others are still shown).
+``constant`` 0 written, 2 bad input (a value outside the output's range, no value, a tensor file
 already in the folder), reported as one line on stderr; nothing is written then.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import shlex
 import sys
@@ -38,6 +47,20 @@ EXIT_BAD_INPUT = 2
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``lit tensors``."""
     commands = parser.add_subparsers(dest="tensors_command", metavar="ACTION", required=True)
+    info = commands.add_parser(
+        "info",
+        help="check a folder's tensors and show what they hold and where they came from",
+        description="Check each tensor of the folder as the planner does and show its output, "
+        "the spread of its values, the decision interval it is used with, and its provenance.",
+    )
+    info.add_argument(
+        "folder",
+        nargs="?",
+        type=Path,
+        metavar="DIR",
+        help=f"tensor folder (default: ${planning.TENSORS_ENV}, else the checkout's tensors/)",
+    )
+    info.add_argument("--json", action="store_true", help="print one JSON object")
     constant = commands.add_parser(
         "constant",
         help="write tensors that hold one value everywhere (a constant policy for lit bench)",
@@ -58,6 +81,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``lit tensors``; its exit status."""
+    if args.tensors_command == "info":
+        return _info(args)
     try:
         written = write_constant(args.out, args.b, args.psi_k, command=_command())
     except LitPlannerError as error:
@@ -67,6 +92,108 @@ def run(args: argparse.Namespace) -> int:
         print(f"lit tensors: {path}: {output} = {_value(args, output):g} everywhere")
     print(f"lit tensors: use them with --tensors {args.out} (lit bench, lit plan --policy tensor)")
     return EXIT_WRITTEN
+
+
+PERCENTILES = (0, 5, 25, 50, 75, 95, 100)
+"""Spread of a tensor's values shown by ``info``."""
+PROVENANCE_SHOWN = ("command", "constant", "episodes", "wall_time_s", "git_commit", "note")
+"""Provenance entries ``info`` prints in its readable form (``--json`` gives all)."""
+
+
+def describe(folder: Path) -> dict[str, object]:
+    """What ``lit tensors info`` shows of ``folder``: one entry per tensor file name, each either
+    a description or ``{"error": message}`` for a defective tensor.
+
+    Raises:
+        TensorFileError: ``folder`` is not a folder or holds no tensor.
+    """
+    if not folder.is_dir():
+        raise TensorFileError(f"{folder}: not a folder")
+    found = {
+        output: folder / name
+        for output, name in planning.TENSOR_FILES.items()
+        if (folder / name).exists() or tensor_files.sidecar_path(folder / name).exists()
+    }
+    if not found:
+        raise TensorFileError(
+            f"{folder}: no tensors ({' or '.join(planning.TENSOR_FILES.values())} with sidecars)"
+        )
+    tensors: dict[str, object] = {}
+    for output, path in found.items():
+        try:
+            values, sidecar = tensor_files.read_tensor(path)
+            if sidecar.output != output:
+                raise TensorFileError(f"{path}: holds {sidecar.output}, expected {output}")
+            interval = planning.trained_decision_interval(path) if output == "psi_K" else None
+        except TensorFileError as error:
+            tensors[path.name] = {"error": str(error)}
+            continue
+        spread = np.percentile(values, PERCENTILES)
+        entry: dict[str, object] = {
+            "output": output,
+            "range": list(sidecar.value_range),
+            "rounding": sidecar.rounding,
+            "interpolation": sidecar.interpolation,
+            "percentiles": {f"p{p}": float(v) for p, v in zip(PERCENTILES, spread, strict=True)},
+            "created": sidecar.created,
+            "policy_version": sidecar.policy_version,
+            "data_sha256": sidecar.data_sha256,
+            "checkpoint_sha256": sidecar.checkpoint_sha256,
+            "provenance": dict(sidecar.provenance),
+        }
+        if output == "psi_K":
+            entry["decision_interval"] = interval or None
+        tensors[path.name] = entry
+    return {"folder": str(folder), "tensors": tensors}
+
+
+def _info(args: argparse.Namespace) -> int:
+    folder = planning.default_tensors_dir() if args.folder is None else args.folder
+    try:
+        document = describe(folder)
+    except TensorFileError as error:
+        print(f"lit tensors: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    tensors = document["tensors"]
+    assert isinstance(tensors, dict)
+    defective = [entry["error"] for entry in tensors.values() if "error" in entry]
+    if args.json:
+        print(json.dumps(document))
+    else:
+        print(f"{folder}:")
+        for name, entry in tensors.items():
+            print("\n".join(_info_lines(name, entry)))
+    for message in defective:
+        print(f"lit tensors: {message}", file=sys.stderr)
+    return EXIT_BAD_INPUT if defective else EXIT_WRITTEN
+
+
+def _info_lines(name: str, entry: dict[str, object]) -> list[str]:
+    if "error" in entry:
+        return [f"  {name}: DEFECTIVE (see below)"]
+    low, high = entry["range"]  # type: ignore[misc]
+    spread = entry["percentiles"]
+    assert isinstance(spread, dict)
+    head = (
+        f"  {name}: {entry['output']} in {low:g}..{high:g} (rounding {entry['rounding']}), "
+        f"{entry['interpolation']} lookup, checked"
+    )
+    lines = [
+        head,
+        "    values      " + ", ".join(f"{key} {value:.4g}" for key, value in spread.items()),
+    ]
+    if entry["output"] == "psi_K":
+        interval = entry["decision_interval"]
+        lines.append(
+            f"    interval    psi_K decided every {interval} expansions (as trained)"
+            if interval
+            else "    interval    not named: the planner's default (every expansion) applies"
+        )
+    provenance = entry["provenance"]
+    assert isinstance(provenance, dict)
+    lines.append(f"    created     {entry['created']}, policy version {entry['policy_version']}")
+    lines += [f"    {key:<11s} {provenance[key]}" for key in PROVENANCE_SHOWN if key in provenance]
+    return lines
 
 
 def write_constant(

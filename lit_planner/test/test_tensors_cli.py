@@ -81,3 +81,51 @@ def test_a_file_as_the_folder_is_refused(tmp_path: Path) -> None:
     process = lit("tensors", "constant", "--b", "100", "--out", str(target))
     assert process.returncode == 2 and "a file, not a folder" in process.stderr
     assert target.read_text() == "x"
+
+
+def test_info_shows_the_shipped_tensors() -> None:
+    process = lit("tensors", "info", "--json")
+    assert process.returncode == 0, process.stderr
+    document = json.loads(process.stdout)
+    b, k = document["tensors"]["b_tensor.npy"], document["tensors"]["k_tensor.npy"]
+    assert b["output"] == "B" and k["output"] == "psi_K"
+    assert k["decision_interval"] == k["provenance"]["decision_interval"]
+    for entry in (b, k):
+        low, high = entry["range"]
+        spread = list(entry["percentiles"].values())
+        assert low <= spread[0] <= spread[-1] <= high and spread == sorted(spread)
+    readable = lit("tensors", "info")
+    assert readable.returncode == 0 and "checked" in readable.stdout
+    assert f"psi_K decided every {k['decision_interval']} expansions" in readable.stdout
+
+
+def test_info_names_a_defective_tensor_and_still_shows_the_other(tmp_path: Path) -> None:
+    assert (
+        lit("tensors", "constant", "--b", "80", "--psi-k", "4", "--out", str(tmp_path)).returncode
+        == 0
+    )
+    data = bytearray((tmp_path / "k_tensor.npy").read_bytes())
+    data[-1] ^= 0xFF  # one flipped byte: the hash no longer matches
+    (tmp_path / "k_tensor.npy").write_bytes(bytes(data))
+    process = lit("tensors", "info", str(tmp_path))
+    assert process.returncode == 2
+    assert (
+        "k_tensor.npy: DEFECTIVE" in process.stdout
+        and "b_tensor.npy: B in 20..200" in process.stdout
+    )
+    (line,) = process.stderr.strip().splitlines()
+    assert "k_tensor.npy: data SHA-256" in line
+    assert "interval    not named" not in process.stdout
+
+
+@pytest.mark.parametrize("make", ["empty", "file"])
+def test_info_without_tensors_is_one_line(tmp_path: Path, make: str) -> None:
+    target = tmp_path / "t"
+    if make == "empty":
+        target.mkdir()
+    else:
+        target.write_text("x")
+    process = lit("tensors", "info", str(target))
+    assert process.returncode == 2 and process.stdout == ""
+    (line,) = process.stderr.strip().splitlines()
+    assert line.startswith(f"lit tensors: {target}: ")
