@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
+from cli_helpers import lit
 from lit_planner.testing import reserve_ros_domain
 
 from lit_planner import scenarios
@@ -19,17 +18,6 @@ REQUIRED_FIELDS = {
     "status", "solved", "cost", "t_init", "c_init", "improvements", "path", "counters",
     "planner", "scenario", "seed", "policy", "time", "message", "decisions", "path_check",
 }  # fmt: skip
-
-
-def lit(*args: str) -> subprocess.CompletedProcess[str]:
-    """Run the ``lit`` entry point in this interpreter (the checkout's .venv)."""
-    return subprocess.run(
-        [sys.executable, "-m", "lit_planner.cli", *args],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=False,
-    )
 
 
 def plan_json(*args: str, returncode: int = 0) -> dict[str, Any]:

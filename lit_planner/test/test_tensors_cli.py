@@ -3,24 +3,12 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from cli_helpers import lit
 
 from lit_planner import tensor_files as tf
-
-
-def lit(*args: str) -> subprocess.CompletedProcess[str]:
-    """Run the ``lit`` entry point in this interpreter (the checkout's .venv)."""
-    return subprocess.run(
-        [sys.executable, "-m", "lit_planner.cli", *args],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=False,
-    )
 
 
 def test_constant_tensors_are_what_the_planner_decides(tmp_path: Path) -> None:
