@@ -352,3 +352,62 @@ def test_bench_config_repeats_first_solutions_of_lit_star_only() -> None:
     with pytest.raises(ValueError, match="must be at least 1, got 0"):
         runner.BenchConfig(("np4",), ("litstar-fit",), 2, t_init_repeats=0)
     assert runner.BenchConfig(("np4",), ("aitstar",), 2).t_init_repeats == 1
+
+
+def test_paired_ratios_follow_the_rule_for_failures() -> None:
+    """Per seed LIT* / reference; unsolved = infinite: only LIT* failed -> inf, only the reference
+    failed -> 0, both failed -> no pair."""
+
+    def record(seed: int, planner: str, t: float | None) -> dict[str, Any]:
+        base = _record(seed, planner, solved=t is not None)
+        if t is not None:
+            base["t_init"], base["c_init"] = t, 2 * t
+        return base
+
+    ours = [record(0, "litstar-tensor", 1.0), record(1, "litstar-tensor", 3.0)]
+    ours += [record(2, "litstar-tensor", None), record(3, "litstar-tensor", 1.0)]
+    ours += [record(4, "litstar-tensor", None)]
+    theirs = [record(0, "litstar-fit", 2.0), record(1, "litstar-fit", 2.0)]
+    theirs += [record(2, "litstar-fit", 1.0), record(3, "litstar-fit", None)]
+    theirs += [record(4, "litstar-fit", None)]
+    result = report.paired(ours, theirs)
+    assert result["pairs"] == 4  # seed 4: both failed
+    # Ratios 0.5, 1.5, inf, 0 -> sorted 0, 0.5, 1.5, inf: median 1.0, no interval (n < 8).
+    t = result["t_init"]
+    assert t["ratio"]["median"] == 1.0 and t["ratio"]["ci"] is None
+    assert (t["ratio"]["min"], t["ratio"]["max"]) == (0.0, "inf")
+    assert t["improvement_percent"] == 0.0
+    assert result["c_init"]["ratio"]["median"] == 1.0  # c_init = 2 t: the same ratios
+    # Pairing by seed, not by order: shuffled records give the same result.
+    assert report.paired(ours[::-1], theirs) == result
+    # Mostly LIT* failures: an infinite median ratio has no improvement.
+    worse = report.paired([record(s, "litstar-tensor", None) for s in range(3)], theirs[:3])
+    assert worse["t_init"]["ratio"]["median"] == "inf"
+    assert worse["t_init"]["improvement_percent"] is None
+
+
+def test_summary_compares_the_same_queries_pairwise(tmp_path: Any) -> None:
+    parts = _summary()
+    for record in parts["records"]:
+        if record["planner"] == "litstar-fit" and record["solved"]:
+            record["t_init"] = 0.01 * (1.25 + record["run"] / 100)  # LIT* 20..25 % faster
+    summary = _write_summary(tmp_path, parts)  # validates against the schema
+    pair = summary["comparisons"]["fit"]["rows"]["np4"]["paired"]
+    assert pair["pairs"] == 8 and pair["t_init"]["ratio"]["ci"] is not None
+    expected = np.median([1 / (1.25 + run / 100) for run in range(8)])
+    assert pair["t_init"]["ratio"]["median"] == pytest.approx(expected)
+    assert pair["t_init"]["improvement_percent"] == pytest.approx((1 - expected) * 100)
+    assert pair["c_init"]["improvement_percent"] == pytest.approx(0.0)
+    text = (tmp_path / "summary.md").read_text()
+    assert "| scenario | queries | t_init ratio | t_init ⇑ (%) | c_init ratio |" in text
+    assert f"| np4 | 8 | {report.fmt(expected, 3)} [" in text
+    # Against the best OMPL planner (AIT* here) the same queries were run: paired as well.
+    assert summary["comparisons"]["best_ompl"]["rows"]["np4"]["paired"]["pairs"] == 8
+    # Records of other queries (another first seed for FIT*): no pairing, no table.
+    parts = _summary()
+    for record in parts["records"]:
+        if record["planner"] == "litstar-fit":
+            record["seed"] += 100
+    summary = _write_summary(tmp_path / "other", parts)
+    assert "paired" not in summary["comparisons"]["fit"]["rows"]["np4"]
+    assert "| scenario | queries |" not in (tmp_path / "other" / "summary.md").read_text()

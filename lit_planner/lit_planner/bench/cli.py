@@ -273,7 +273,7 @@ def write_outputs(
         "planners": (recorded["planners"] if recorded else planners or planner_setups(config)),
         "scenarios": summaries,
         "comparisons": report.comparisons(
-            summaries, config.planners, [s.planner for s in config.skipped]
+            summaries, config.planners, [s.planner for s in config.skipped], records
         ),
         "statistics": {
             "interval_rule": report.CI_RULE,

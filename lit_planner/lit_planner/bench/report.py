@@ -199,9 +199,13 @@ def _as_float(value: float | str | None) -> float:
 
 
 def comparisons(
-    summaries: dict[str, Any], planners: Sequence[str], skipped: Sequence[str]
+    summaries: dict[str, Any],
+    planners: Sequence[str],
+    skipped: Sequence[str],
+    records: Sequence[Record] = (),
 ) -> dict[str, Any]:
-    """Table I (LIT* against FIT*) and LIT* against the best OMPL planner, per scenario."""
+    """Table I (LIT* against FIT*) and LIT* against the best OMPL planner, per scenario; with the
+    run ``records``, each row also compares the two query by query (:func:`paired`)."""
     lit = next((p for p in LIT_CANDIDATES if p in planners), None)
     if lit == TENSOR_PLANNER:
         note = "LIT* is litstar-tensor (trained lookup tensors)"
@@ -214,6 +218,7 @@ def comparisons(
     fit_rows: dict[str, Any] = {}
     best_rows: dict[str, Any] = {}
     ompl = [p for p in planners if p in planning.OMPL_PLANNERS]
+    grouped = group(records)
     for name, summary in summaries.items():
         per_planner = summary["planners"]
         if lit is None or lit not in per_planner:
@@ -222,6 +227,7 @@ def comparisons(
         if FIT_PLANNER in per_planner:
             fit_medians = _medians_with_effort(per_planner[FIT_PLANNER])
             fit_rows[name] = _comparison_row(FIT_PLANNER, fit_medians, lit_medians)
+            _add_paired(fit_rows[name], grouped.get(name, {}), lit, FIT_PLANNER)
         candidates = {
             p: (_medians(per_planner[p])["c_final"], _medians(per_planner[p])["t_init"])
             for p in ompl
@@ -231,6 +237,7 @@ def comparisons(
         if best is not None:
             best_medians = _medians_with_effort(per_planner[best])
             best_rows[name] = _comparison_row(best, best_medians, lit_medians)
+            _add_paired(best_rows[name], grouped.get(name, {}), lit, best)
     return {
         "litstar": lit,
         "litstar_note": note,
@@ -258,6 +265,62 @@ def _comparison_row(
         "litstar_medians": {m: ext(v) for m, v in lit_medians.items()},
         "improvement_percent": {m: improvement(m) for m in reference_medians},
     }
+
+
+PAIRED_METRICS = ("t_init", "c_init")
+"""What :func:`paired` compares query by query."""
+PAIRED_RULE = (
+    "query by query: each seed that both planners ran is one pair; per pair the ratio LIT* / "
+    "reference (an unsolved run counts as infinite: ratio inf when only LIT* failed, 0 when only "
+    "the reference failed; pairs where both failed are left out); the median of the ratios with "
+    "its 99% interval (the interval rule above); improvement = (1 - ratio) x 100, so an interval "
+    "of the ratio that contains 1 means no difference at this confidence"
+)
+"""The paired comparison in words, written into both outputs."""
+
+
+def paired(lit_records: Sequence[Record], reference_records: Sequence[Record]) -> dict[str, Any]:
+    """LIT* against a reference on the same queries: :data:`PAIRED_RULE`.
+
+    Pairing removes what differs between queries (how hard a seed's samples make it), which the
+    ratio of the two medians keeps, so small differences show with fewer runs.
+    """
+    reference = {(r["instance"], r["seed"]): r for r in reference_records}
+    pairs = [(r, reference[(r["instance"], r["seed"])]) for r in lit_records]
+    pairs = [(ours, ref) for ours, ref in pairs if ours["solved"] or ref["solved"]]
+    result: dict[str, Any] = {"pairs": len(pairs)}
+    for metric in PAIRED_METRICS:
+        ratios = [
+            _ratio(record_value(ours, metric), record_value(ref, metric)) for ours, ref in pairs
+        ]
+        estimate = stats.median_with_interval(ratios)
+        improvement = None
+        if math.isfinite(estimate.median):
+            improvement = (1.0 - estimate.median) * 100.0
+        result[metric] = {"ratio": median_summary(estimate), "improvement_percent": improvement}
+    return result
+
+
+def _ratio(ours: float, reference: float) -> float:
+    if math.isinf(ours):
+        return math.inf
+    if math.isinf(reference):
+        return 0.0
+    return ours / reference if reference > 0.0 else math.inf
+
+
+def _add_paired(
+    row: dict[str, Any], by_planner: dict[str, list[Record]], lit: str, reference: str
+) -> None:
+    """Adds :func:`paired` to a comparison row when both planners' records are at hand and share
+    their queries."""
+    ours, theirs = by_planner.get(lit, []), by_planner.get(reference, [])
+    if not ours or not theirs:
+        return
+    keys = {(r["instance"], r["seed"]) for r in theirs}
+    if any((r["instance"], r["seed"]) not in keys for r in ours):
+        return
+    row["paired"] = paired(ours, theirs)
 
 
 # --- Markdown -------------------------------------------------------------------------------
@@ -370,6 +433,7 @@ def markdown(summary: dict[str, Any]) -> str:
             "",
         ]
         lines += _effort_table(comp["fit"]["rows"])
+        lines += _paired_table(comp["fit"]["rows"])
     else:
         lines += ["Not available: this benchmark did not run both LIT* and litstar-fit.", ""]
 
@@ -413,6 +477,7 @@ def markdown(summary: dict[str, Any]) -> str:
         "## Notes",
         "",
         f"- {CI_RULE}",
+        f"- Paired comparison, {PAIRED_RULE}.",
         (
             "- Brackets: the 99% interval of the median; † (min–max): too few runs for a 99% interval, "
             "the full range instead."
@@ -454,6 +519,33 @@ def _effort_table(rows: dict[str, Any]) -> list[str]:
         lines.append(
             f"| {name} | {fmt(ref, None)} | {fmt(lit, None)} "
             f"| {fmt_percent(row['improvement_percent'].get(EFFORT))} |"
+        )
+    return lines + [""]
+
+
+def _paired_table(rows: dict[str, Any]) -> list[str]:
+    """Markdown: the query-by-query comparison with FIT* (no lines when no row has one)."""
+    if not any("paired" in row for row in rows.values()):
+        return []
+    lines = [
+        (
+            "Query by query (each seed under both policies): the median of LIT*'s value over "
+            "FIT*'s, with its 99% interval; ⇑ = (1 − ratio) × 100. An interval that contains 1: "
+            "no difference at this confidence."
+        ),
+        "",
+        "| scenario | queries | t_init ratio | t_init ⇑ (%) | c_init ratio | c_init ⇑ (%) |",
+        "| --- | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for name, row in rows.items():
+        pair = row.get("paired")
+        if pair is None:
+            continue
+        t, c = pair["t_init"], pair["c_init"]
+        lines.append(
+            f"| {name} | {pair['pairs']} | {fmt_median(t['ratio'], 3)} "
+            f"| {fmt_percent(t['improvement_percent'])} | {fmt_median(c['ratio'], 3)} "
+            f"| {fmt_percent(c['improvement_percent'])} |"
         )
     return lines + [""]
 
