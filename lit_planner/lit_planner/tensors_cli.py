@@ -15,12 +15,14 @@ everywhere. The ``tensor`` policy then plays a constant policy through the same 
 planner code as trained tensors, so ``lit bench --tensors DIR`` measures what the best constant
 of a parameter can do: a bound a learned policy of that parameter has to beat to have learned
 anything about the features. A parameter left out gets no file and falls back to the fixed value
-(B = 100, psi_K = e), as with trained tensors.
+(B = 100, psi_K = e), as with trained tensors. ``--decision-interval N`` names the psi_K
+decision interval in the sidecar, as ``lit train`` does, and the tensor policy applies it.
 
 Exit status: ``info`` 0 when every tensor in the folder passed its checks, 2 when the folder
 holds none or one is defective (that one named with its problem; the others are still shown).
-``constant`` 0 written, 2 bad input (a value outside the output's range, no value, a tensor file
-already in the folder), reported as one line on stderr; nothing is written then.
+``constant`` 0 written, 2 bad input (a value outside the output's range, a B that is not a whole
+number, no value, any tensor file already in the folder) or a failed write, reported as one line
+on stderr; nothing is written then (a failed write removes what it wrote).
 """
 
 from __future__ import annotations
@@ -70,9 +72,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     low_b, high_b = _range("B")
     low_k, high_k = _range("psi_K")
-    constant.add_argument("--b", type=float, metavar="B", help=f"batch size, {low_b:g}..{high_b:g}")
+    constant.add_argument(
+        "--b", type=int, metavar="B", help=f"batch size, a whole number {low_b:g}..{high_b:g}"
+    )
     constant.add_argument(
         "--psi-k", type=float, metavar="PSI", help=f"neighbour factor psi_K, {low_k:g}..{high_k:g}"
+    )
+    constant.add_argument(
+        "--decision-interval",
+        type=int,
+        metavar="N",
+        help="with --psi-k: decide psi_K every N expansions, as a tensor trained with "
+        "lit train --decision-interval N is used (default: not named, the planner's every "
+        "expansion)",
     )
     constant.add_argument(
         "--out", type=Path, required=True, metavar="DIR", help="folder to write into (created)"
@@ -84,12 +96,20 @@ def run(args: argparse.Namespace) -> int:
     if args.tensors_command == "info":
         return _info(args)
     try:
-        written = write_constant(args.out, args.b, args.psi_k, command=_command())
+        written = write_constant(
+            args.out,
+            args.b,
+            args.psi_k,
+            command=_command(),
+            decision_interval=args.decision_interval,
+        )
     except LitPlannerError as error:
         print(f"lit tensors: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
     for output, path in written.items():
         print(f"lit tensors: {path}: {output} = {_value(args, output):g} everywhere")
+    if args.decision_interval:
+        print(f"lit tensors: psi_K is decided every {args.decision_interval} expansions")
     print(f"lit tensors: use them with --tensors {args.out} (lit bench, lit plan --policy tensor)")
     return EXIT_WRITTEN
 
@@ -197,14 +217,22 @@ def _info_lines(name: str, entry: dict[str, object]) -> list[str]:
 
 
 def write_constant(
-    folder: Path, b: float | None, psi_k: float | None, command: str | None = None
+    folder: Path,
+    b: float | None,
+    psi_k: float | None,
+    command: str | None = None,
+    decision_interval: int | None = None,
 ) -> dict[str, Path]:
     """Write a constant ``b_tensor`` (value ``b``) and/or ``k_tensor`` (``psi_k``) into
-    ``folder``; returns the ``.npy`` paths written by output name.
+    ``folder``; returns the ``.npy`` paths written by output name. ``decision_interval`` (with
+    ``psi_k``) goes into the psi_K sidecar's provenance, which the tensor policy applies.
 
     Raises:
-        TensorFileError: no value, a value outside its output's range or not finite, or a tensor
-            file or sidecar already in ``folder`` (checked before anything is written).
+        TensorFileError: no value, a value outside its output's range or not finite, B not a whole
+            number, an interval below 1 or without ``psi_k``, ``folder`` not a folder, any tensor
+            file or sidecar already in it (a tensor left there would be played with the new one),
+            or the files could not be written (then none of them stays). All but the last are
+            checked before anything is written.
     """
     values = {output: value for output, value in (("B", b), ("psi_K", psi_k)) if value is not None}
     if not values:
@@ -213,23 +241,46 @@ def write_constant(
         low, high = _range(output)
         if not (math.isfinite(value) and low <= value <= high):
             raise TensorFileError(f"{output} = {value:g} is outside its range {low:g}..{high:g}")
+    if b is not None and b != round(b):
+        raise TensorFileError(f"B = {b:g} is not a whole number")
+    if decision_interval is not None:
+        if psi_k is None:
+            raise TensorFileError("--decision-interval applies to psi_K: give --psi-k too")
+        if not 1 <= decision_interval <= planning.MAX_SEED:
+            raise TensorFileError(
+                f"--decision-interval must be a whole number 1..{planning.MAX_SEED}, "
+                f"got {decision_interval}"
+            )
     if folder.exists() and not folder.is_dir():
         raise TensorFileError(f"{folder}: a file, not a folder")
-    targets = {output: folder / planning.TENSOR_FILES[output] for output in values}
-    for path in targets.values():
-        for existing in (path, tensor_files.sidecar_path(path)):
+    for name in planning.TENSOR_FILES.values():
+        for existing in (folder / name, tensor_files.sidecar_path(folder / name)):
             if existing.exists():
                 raise TensorFileError(f"{existing}: already there; choose another --out")
-    folder.mkdir(parents=True, exist_ok=True)
+    targets = {output: folder / planning.TENSOR_FILES[output] for output in values}
     created = datetime.now(UTC)
-    for output, path in targets.items():
-        tensor_files.write_tensor(
-            path,
-            np.full(tensor_files.TENSOR_SHAPE, values[output], dtype=tensor_files.TENSOR_DTYPE),
-            output,
-            provenance={"constant": values[output]} | ({"command": command} if command else {}),
-            created=created,
-        )
+    written: list[Path] = []
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        for output, path in targets.items():
+            stored = float(np.float32(values[output]))
+            provenance: dict[str, object] = {"constant": stored}
+            if command:
+                provenance["command"] = command
+            if output == "psi_K" and decision_interval is not None:
+                provenance["decision_interval"] = decision_interval
+            written += [path, tensor_files.sidecar_path(path)]
+            tensor_files.write_tensor(
+                path,
+                np.full(tensor_files.TENSOR_SHAPE, stored, dtype=tensor_files.TENSOR_DTYPE),
+                output,
+                provenance=provenance,
+                created=created,
+            )
+    except OSError as error:
+        for path in written:
+            path.unlink(missing_ok=True)
+        raise TensorFileError(f"{folder}: tensors not written: {error}") from error
     return targets
 
 

@@ -48,6 +48,10 @@ def test_one_tensor_alone_and_the_fallback_of_the_other(tmp_path: Path) -> None:
         (["--b", "100", "--psi-k", "2.5"], "psi_K = 2.5 is outside its range 3..15"),
         (["--psi-k", "nan"], "psi_K = nan is outside its range 3..15"),
         (["--b", "100"], "b_tensor.npy: already there; choose another --out"),
+        # Another parameter's tensor would be played with the new one: refused as well.
+        (["--psi-k", "6"], "b_tensor.npy: already there; choose another --out"),
+        (["--b", "100", "--decision-interval", "10"], "applies to psi_K: give --psi-k too"),
+        (["--psi-k", "6", "--decision-interval", "0"], "got 0"),
     ],
 )
 def test_bad_input_is_one_line_and_writes_nothing(
@@ -72,7 +76,8 @@ def test_a_file_as_the_folder_is_refused(tmp_path: Path) -> None:
 
 
 def test_info_shows_the_shipped_tensors() -> None:
-    process = lit("tensors", "info", "--json")
+    shipped = str(Path(__file__).resolve().parents[2] / "tensors")
+    process = lit("tensors", "info", shipped, "--json")
     assert process.returncode == 0, process.stderr
     document = json.loads(process.stdout)
     b, k = document["tensors"]["b_tensor.npy"], document["tensors"]["k_tensor.npy"]
@@ -82,7 +87,7 @@ def test_info_shows_the_shipped_tensors() -> None:
         low, high = entry["range"]
         spread = list(entry["percentiles"].values())
         assert low <= spread[0] <= spread[-1] <= high and spread == sorted(spread)
-    readable = lit("tensors", "info")
+    readable = lit("tensors", "info", shipped)
     assert readable.returncode == 0 and "checked" in readable.stdout
     assert f"psi_K decided every {k['decision_interval']} expansions" in readable.stdout
 
@@ -117,3 +122,40 @@ def test_info_without_tensors_is_one_line(tmp_path: Path, make: str) -> None:
     assert process.returncode == 2 and process.stdout == ""
     (line,) = process.stderr.strip().splitlines()
     assert line.startswith(f"lit tensors: {target}: ")
+
+
+def test_a_decision_interval_is_what_the_tensor_policy_applies(tmp_path: Path) -> None:
+    from lit_planner import planning
+
+    process = lit(
+        "tensors", "constant", "--psi-k", "5", "--decision-interval", "7", "--out", str(tmp_path)
+    )
+    assert process.returncode == 0, process.stderr
+    assert planning.trained_decision_interval(tmp_path / "k_tensor.npy") == 7
+    policy = planning.make_policy("tensor", tmp_path)
+    assert planning.policy_params(policy) == {"decision_interval": "7"}
+    info = json.loads(lit("tensors", "info", str(tmp_path), "--json").stdout)
+    assert info["tensors"]["k_tensor.npy"]["decision_interval"] == 7
+
+
+def test_a_failed_write_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from lit_planner import tensors_cli
+
+    real = tf.write_tensor
+    calls = []
+
+    def second_fails(*args: object, **kwargs: object) -> object:
+        calls.append(args)
+        if len(calls) == 2:
+            raise OSError(28, "No space left on device")
+        return real(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(tf, "write_tensor", second_fails)
+    with pytest.raises(tensors_cli.TensorFileError, match="tensors not written: .*No space left"):
+        tensors_cli.write_constant(tmp_path, 100, 6.0)
+    assert list(tmp_path.iterdir()) == []
+    # A parent that is a file: one line, exit 2.
+    (tmp_path / "file").write_text("x")
+    process = lit("tensors", "constant", "--b", "100", "--out", str(tmp_path / "file" / "sub"))
+    assert process.returncode == 2 and "tensors not written" in process.stderr
+    assert len(process.stderr.strip().splitlines()) == 1

@@ -267,10 +267,13 @@ def _comparison_row(
     }
 
 
+LITSTAR_PREFIX = "litstar"
+"""Planner names of LIT* with a policy (``litstar-fit`` and so on)."""
 PAIRED_METRICS = ("t_init", "c_init")
 """What :func:`paired` compares query by query."""
 PAIRED_RULE = (
-    "query by query: each seed that both planners ran is one pair; per pair the ratio LIT* / "
+    "query by query (LIT* against FIT*, whose runs a seed fixes): each (instance, seed) that "
+    "both planners ran is one pair; per pair the ratio LIT* / "
     "reference (an unsolved run counts as infinite: ratio inf when only LIT* failed, 0 when only "
     "the reference failed; pairs where both failed are left out); the median of the ratios with "
     "its 99% interval (the interval rule above); improvement = (1 - ratio) x 100, so an interval "
@@ -279,19 +282,29 @@ PAIRED_RULE = (
 """The paired comparison in words, written into both outputs."""
 
 
-def paired(lit_records: Sequence[Record], reference_records: Sequence[Record]) -> dict[str, Any]:
-    """LIT* against a reference on the same queries: :data:`PAIRED_RULE`.
+def paired(
+    lit_records: Sequence[Record], reference_records: Sequence[Record]
+) -> dict[str, Any] | None:
+    """LIT* against a reference on the same queries: :data:`PAIRED_RULE`; None when there is no
+    pair, or when a query occurs twice on either side (records of two runs: which to pair?).
 
     Pairing removes what differs between queries (how hard a seed's samples make it), which the
-    ratio of the two medians keeps, so small differences show with fewer runs.
+    ratio of the two medians keeps, so small differences show with fewer runs. Only planners
+    whose runs a seed fixes can be paired: LIT* with any policy (OMPL's planners draw from one
+    process-wide generator, so their seed does not fix their samples; see
+    :mod:`lit_planner.bench.runner`).
     """
-    reference = {(r["instance"], r["seed"]): r for r in reference_records}
-    pairs = [(r, reference[(r["instance"], r["seed"])]) for r in lit_records]
-    pairs = [(ours, ref) for ours, ref in pairs if ours["solved"] or ref["solved"]]
+    ours, reference = _by_query(lit_records), _by_query(reference_records)
+    if ours is None or reference is None:
+        return None
+    pairs = [(ours[key], reference[key]) for key in sorted(ours.keys() & reference.keys())]
+    pairs = [(mine, ref) for mine, ref in pairs if mine["solved"] or ref["solved"]]
+    if not pairs:
+        return None
     result: dict[str, Any] = {"pairs": len(pairs)}
     for metric in PAIRED_METRICS:
         ratios = [
-            _ratio(record_value(ours, metric), record_value(ref, metric)) for ours, ref in pairs
+            _ratio(record_value(mine, metric), record_value(ref, metric)) for mine, ref in pairs
         ]
         estimate = stats.median_with_interval(ratios)
         improvement = None
@@ -301,26 +314,32 @@ def paired(lit_records: Sequence[Record], reference_records: Sequence[Record]) -
     return result
 
 
+def _by_query(records: Sequence[Record]) -> dict[tuple[int, int], Record] | None:
+    """Records by (instance, seed); None when a query occurs twice."""
+    by_query = {(r["instance"], r["seed"]): r for r in records}
+    return by_query if len(by_query) == len(records) else None
+
+
 def _ratio(ours: float, reference: float) -> float:
     if math.isinf(ours):
         return math.inf
     if math.isinf(reference):
         return 0.0
-    return ours / reference if reference > 0.0 else math.inf
+    if reference > 0.0:
+        return ours / reference
+    return 1.0 if ours == 0.0 else math.inf
 
 
 def _add_paired(
     row: dict[str, Any], by_planner: dict[str, list[Record]], lit: str, reference: str
 ) -> None:
-    """Adds :func:`paired` to a comparison row when both planners' records are at hand and share
-    their queries."""
-    ours, theirs = by_planner.get(lit, []), by_planner.get(reference, [])
-    if not ours or not theirs:
+    """Adds :func:`paired` to a comparison row when the reference is a LIT* planner (a seed fixes
+    its run) and the two have pairs."""
+    if not reference.startswith(LITSTAR_PREFIX):
         return
-    keys = {(r["instance"], r["seed"]) for r in theirs}
-    if any((r["instance"], r["seed"]) not in keys for r in ours):
-        return
-    row["paired"] = paired(ours, theirs)
+    result = paired(by_planner.get(lit, []), by_planner.get(reference, []))
+    if result is not None:
+        row["paired"] = result
 
 
 # --- Markdown -------------------------------------------------------------------------------
