@@ -3,6 +3,8 @@
 ``tensors/provenance.json`` names the run folder; exactly one bag under ``bags/`` was recorded by
 that run (``lit.run_folder`` in its metadata). The bag holds one episode summary per trained
 episode with every publisher's ``seq`` unbroken, and both sidecars carry the same provenance.
+The shipped evaluations (``tensors/evaluation_summary.md``, ``tensors/paper/summary.md``) are what
+``lit replay bench`` makes of their shipped bags.
 """
 
 from __future__ import annotations
@@ -68,3 +70,30 @@ def test_shipped_tensors_trace_to_their_training_bag(tmp_path: Path) -> None:
     (other / "metadata.yaml").write_text(yaml.safe_dump(metadata), encoding="utf-8")
     with pytest.raises(ReplayError, match="not a whole number"):
         recorded_decision_interval([other])
+
+
+@pytest.mark.parametrize(
+    ("bag", "summary"),
+    [
+        ("tensor-eval-20261201d", "evaluation_summary.md"),
+        ("tensor-paper-20261201", "paper/summary.md"),
+    ],
+)
+def test_shipped_evaluations_are_what_their_bags_give(
+    tmp_path: Path, bag: str, summary: str
+) -> None:
+    """The shipped tables (the numbers the READMEs quote) regenerate from the shipped bags: `lit
+    replay bench` writes the same summary.md, text for text."""
+    import subprocess
+    import sys
+
+    process = subprocess.run(
+        [
+            sys.executable, "-m", "lit_planner.cli", "replay", "bench",
+            str(ROOT / "bags" / "shipped" / bag), "--out", str(tmp_path / "out"),
+        ],
+        capture_output=True, text=True, timeout=300, check=False,
+    )  # fmt: skip
+    assert process.returncode == 0, process.stderr
+    regenerated = (tmp_path / "out" / "summary.md").read_text(encoding="utf-8")
+    assert regenerated == (TENSORS / summary).read_text(encoding="utf-8")
