@@ -204,6 +204,7 @@ def run_episode(
     time_budget: float | None = None,
     max_iterations: int = 0,
     effort_clock: float = 0.0,
+    limit_terminates: bool = False,
     recording: Any = None,
 ) -> EpisodeOutcome:
     """Plan one training query with the learner deciding, then close the episode.
@@ -230,6 +231,10 @@ def run_episode(
             on ``max_iterations`` (required with this clock): the planner still stops on its own
             clock at ``time_budget``, so choose a budget the iterations never reach. The budget
             also normalises the effort times (t-hat = effort time / budget, which may exceed 1).
+        limit_terminates: an end on ``max_iterations`` (required) is a termination instead of a
+            truncation: the learner does not bootstrap across it. The limit is then the task's
+            horizon, as in a fixed-horizon toy task; real training keeps every end on a limit or
+            the budget a truncation (LEARNER.md), and an end on the budget stays one here too.
         recording: a :class:`lit_planner.bag.EpisodeRecording` that gets the query's messages
             (solution updates, observations, decisions, summary, path), or None.
 
@@ -237,7 +242,8 @@ def run_episode(
         TrainingError: the callback raised (the planner would otherwise silently fall back to the
             fixed values), the phase needs a tensor that is missing, ``recording`` is given
             with ``max_iterations`` or ``effort_clock``, or ``effort_clock`` is negative, not
-            finite, or given without ``max_iterations``.
+            finite, or ``effort_clock`` or ``limit_terminates`` is given without
+            ``max_iterations``.
     """
     import lit_core
     from lit_planner.episode_messages import DecisionSources, EventLog
@@ -260,6 +266,8 @@ def run_episode(
         raise TrainingError(
             "effort_clock needs max_iterations (the planner's clock ends the query)"
         )
+    if limit_terminates and not max_iterations:
+        raise TrainingError("limit_terminates needs max_iterations (the limit that terminates)")
     problem = scenarios.get(spec.scenario, spec.instance)
     budget = problem.time_budget if time_budget is None else time_budget
     actions: dict[str, list[float]] = {"B": [], "psi_K": []}
@@ -339,7 +347,9 @@ def run_episode(
             "decisions fell back to the fixed values (NaN answers)"
         )
     truncated = result["time"] >= budget * (1.0 - BUDGET_TOLERANCE) or (
-        max_iterations > 0 and result["counters"]["iterations"] >= max_iterations
+        max_iterations > 0
+        and result["counters"]["iterations"] >= max_iterations
+        and not limit_terminates
     )
     ended = time.perf_counter()
     metrics = core.end_episode(
@@ -430,16 +440,49 @@ def evaluate(
     time_budget: float | None = None,
     max_iterations: int = 0,
     effort_clock: float = 0.0,
+    limit_terminates: bool = False,
     scratch: Path,
 ) -> list[float]:
     """Returns of ``agent`` without exploration noise on fixed queries, measured on a throwaway
-    copy of ``core``. ``time_budget``, ``max_iterations`` and ``effort_clock`` as in
-    :func:`run_episode` (an iteration limit under a budget 1000 times the planner time, or an
-    iteration limit on the effort clock, makes the returns deterministic).
+    copy of ``core``. ``time_budget``, ``max_iterations``, ``effort_clock`` and
+    ``limit_terminates`` as in :func:`run_episode` (an iteration limit under a budget 1000 times
+    the planner time, or an iteration limit on the effort clock, makes the returns
+    deterministic).
 
     The copy (saved to and loaded from ``scratch``) absorbs the evaluation's transitions and
     updates, so evaluating never changes the learner being trained.
     """
+    outcomes = evaluate_outcomes(
+        core,
+        scenario,
+        seeds,
+        instance=instance,
+        agent=agent,
+        decision_interval=decision_interval,
+        time_budget=time_budget,
+        max_iterations=max_iterations,
+        effort_clock=effort_clock,
+        limit_terminates=limit_terminates,
+        scratch=scratch,
+    )
+    return [float(outcome.metrics[f"charts/return_{agent}"]) for outcome in outcomes]
+
+
+def evaluate_outcomes(
+    core: Any,
+    scenario: str,
+    seeds: Sequence[int],
+    *,
+    instance: int = 0,
+    agent: str = "B",
+    decision_interval: int = DEFAULT_DECISION_INTERVAL,
+    time_budget: float | None = None,
+    max_iterations: int = 0,
+    effort_clock: float = 0.0,
+    limit_terminates: bool = False,
+    scratch: Path,
+) -> list[EpisodeOutcome]:
+    """:func:`evaluate`'s episodes whole (actions, planner result, every metric)."""
     from lit_learner.core import LearnerCore
 
     scratch.mkdir(parents=True, exist_ok=True)
@@ -447,23 +490,25 @@ def evaluate(
     core.save_checkpoint(path)
     probe = LearnerCore.load_checkpoint(path)
     phase = PHASE_B if agent == "B" else PHASE_JOINT
-    returns = []
+    outcomes = []
     for number, seed in enumerate(seeds):
         spec = EpisodeSpec(number, scenario, instance, seed)
-        outcome = run_episode(
-            probe,
-            spec,
-            phase,
-            f"evaluation-{scenario}-{instance}-{seed}-{number}",
-            decision_interval=decision_interval,
-            explore=False,
-            time_budget=time_budget,
-            max_iterations=max_iterations,
-            effort_clock=effort_clock,
+        outcomes.append(
+            run_episode(
+                probe,
+                spec,
+                phase,
+                f"evaluation-{scenario}-{instance}-{seed}-{number}",
+                decision_interval=decision_interval,
+                explore=False,
+                time_budget=time_budget,
+                max_iterations=max_iterations,
+                effort_clock=effort_clock,
+                limit_terminates=limit_terminates,
+            )
         )
-        returns.append(float(outcome.metrics[f"charts/return_{agent}"]))
     path.unlink(missing_ok=True)
-    return returns
+    return outcomes
 
 
 # --------------------------------------------------------------------------------------------

@@ -69,6 +69,11 @@ COMMANDS: dict[str, Command] = {
         "lit_learner.train",
         "train the Fuzzy-DDPG policy (B, then psi_K) in-process against LIT*; export lookup tensors",
     ),
+    "toy": Command(
+        "lit_learner.toy",
+        "train the B agent on a fixed toy query (np2, 1000 iterations as its horizon): greedy "
+        "return against constant B",
+    ),
     "tensors": Command(
         "lit_planner.tensors_cli",
         "make lookup tensors without training: constant ones, a baseline for lit bench --tensors",
