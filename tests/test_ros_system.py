@@ -44,8 +44,11 @@ TRAINING = {
     "policy": "training",
     "time_budget": 0.2,
     "training_scenarios": "np4,np8",
-    # Generous: a loaded machine must not turn learner decisions into fallbacks here.
-    "decision_timeout": 1.0,
+    # Generous: a loaded machine must not turn learner decisions into fallbacks here. 1 s was not
+    # enough once on a 2-core CI runner with two planners, the learner and the recorder running
+    # (test_two_planners_train_one_learner). A learner that is down still falls back: the tests of
+    # fallbacks set their own, short deadlines.
+    "decision_timeout": 10.0,
     "learner_wait": 300.0,
 }
 """Planner parameters of a short training run."""
@@ -297,7 +300,9 @@ def test_two_planners_train_one_learner(ros: RosSystem) -> None:
     for topic in topics:
         summaries = recording.payloads(topic)
         assert len(summaries) == 2, (topic, summaries)
-        assert all(_learned(summary) for summary in summaries), summaries
+        assert all(_learned(summary) for summary in summaries), [
+            (s["episode_id"], s["learner_calls"], s["fallback_decisions"]) for s in summaries
+        ]
     _no_traceback(learner, *planners)
 
 
