@@ -220,9 +220,10 @@ def run_episode(
         explore: exploration noise on (training) or off (evaluation).
         time_budget: planner seconds; the scenario's budget when None.
         max_iterations: also end the query after this many LIT* iterations (0: no limit), a
-            truncation as the budget's end is. With the default reward constants and a budget at
-            least 1000 times the query's planner time, every reward's time term is at its floor (t-hat = 0.01, no search
-            cost), so the returns are a function of the actions alone: noise-free.
+            truncation as the budget's end is (unless ``limit_terminates``). With the default
+            reward constants and a budget at least 1000 times the query's planner time, every
+            reward's time term is at its floor (t-hat = 0.01, no search cost), so the returns
+            are a function of the actions alone: noise-free.
         effort_clock: 0 (default) gives the learner the planner clock. A positive value gives it
             an effort clock instead: the planning time of every decision and of the episode's end
             is the number of states LIT* has checked so far times ``effort_clock`` seconds. Its
@@ -487,8 +488,11 @@ def evaluate_outcomes(
 
     scratch.mkdir(parents=True, exist_ok=True)
     path = scratch / "evaluation.ckpt"
-    core.save_checkpoint(path)
-    probe = LearnerCore.load_checkpoint(path)
+    try:
+        core.save_checkpoint(path)
+        probe = LearnerCore.load_checkpoint(path)
+    finally:
+        path.unlink(missing_ok=True)
     phase = PHASE_B if agent == "B" else PHASE_JOINT
     outcomes = []
     for number, seed in enumerate(seeds):
@@ -507,7 +511,6 @@ def evaluate_outcomes(
                 limit_terminates=limit_terminates,
             )
         )
-    path.unlink(missing_ok=True)
     return outcomes
 
 

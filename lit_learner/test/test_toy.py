@@ -9,6 +9,7 @@ returns; nothing here compares wall-clock times.
 from __future__ import annotations
 
 import csv
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -69,8 +70,10 @@ def test_the_toy_task_is_deterministic_and_ends_as_a_termination(tmp_path: Path)
         "max_iterations": TASK.max_iterations,
         "effort_clock": TASK.effort_clock,
     }
+    size = replay.size
     truncated = train.run_episode(core, spec, train.PHASE_B, "truncates", **limited)
     assert truncated.truncated
+    assert replay.size == size + truncated.metrics["charts/steps_B"]
     assert replay.terminated[replay.size - 1] == 0.0  # its last step bootstraps
     with pytest.raises(train.TrainingError, match="limit_terminates needs max_iterations"):
         train.run_episode(core, spec, train.PHASE_B, "no-limit", limit_terminates=True)
@@ -104,7 +107,21 @@ def test_lit_toy_writes_curves_constants_plot_and_summary(tmp_path: Path, capsys
         "200": toy.constant(TASK, 200).greedy_return,
     }
     assert (out / toy.PLOT_FILE).stat().st_size > 10_000
-    assert not (out / "scratch").exists()
+    assert sorted(path.name for path in out.iterdir()) == sorted(
+        [toy.CURVES_FILE, toy.CONSTANTS_FILE, toy.PLOT_FILE, toy.SUMMARY_FILE]
+    )
+
+
+def test_lit_toy_keeps_other_files_in_its_folder(tmp_path: Path) -> None:
+    """An --out folder that holds other files: they stay; the toy's own files are overwritten."""
+    out = tmp_path / "toy"
+    (out / "scratch").mkdir(parents=True)
+    (out / "scratch" / "mine.txt").write_text("keep")
+    (out / toy.SUMMARY_FILE).write_text("old")
+    argv = ["toy", "--episodes", "1", "--constants", "20", "--out", str(out), "--no-progress"]
+    assert cli.main(argv) == 0
+    assert (out / "scratch" / "mine.txt").read_text() == "keep"
+    assert (out / toy.SUMMARY_FILE).read_text().startswith("# lit toy:")
 
 
 @pytest.mark.parametrize(
@@ -113,6 +130,8 @@ def test_lit_toy_writes_curves_constants_plot_and_summary(tmp_path: Path, capsys
         (["--query-seed", "7"], "not a training seed"),
         (["--constants", "10"], "outside the B agent's range"),
         (["--episodes", "0"], "--episodes >= 1"),
+        (["--every", "0"], "--every >= 1"),
+        (["--constants", "201"], "outside the B agent's range"),
         (["--scenario", "xx9"], "xx9"),
     ],
 )
@@ -126,8 +145,47 @@ def test_lit_toy_refuses_bad_options_before_writing(
     assert not out.exists()
 
 
-def test_lit_toy_refuses_a_malformed_seed_list(capsys) -> None:
+@pytest.mark.parametrize(
+    ("seeds", "message"),
+    [
+        ("1,x", "not a list of seeds like 1,3,5-8"),
+        ("1-3,2", "seeds given twice in '1-3,2': [2]"),
+        ("5-3", "empty seed range '5-3'"),
+        ("", "not a list of seeds"),
+    ],
+)
+def test_lit_toy_refuses_a_malformed_seed_list(capsys, seeds: str, message: str) -> None:
     with pytest.raises(SystemExit) as exit_info:
-        cli.main(["toy", "--learner-seeds", "1,x"])
+        cli.main(["toy", "--learner-seeds", seeds])
     assert exit_info.value.code == 2
-    assert "not a list of seeds like 1,3,5-8" in capsys.readouterr().err
+    assert message in capsys.readouterr().err
+
+
+def test_lit_toy_reports_an_output_folder_it_cannot_make(tmp_path: Path, capsys) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    argv = ["toy", "--constants", "20", "--out", str(blocker / "toy"), "--no-progress"]
+    assert cli.main(argv) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("lit toy: cannot make --out ") and len(error.splitlines()) == 1
+
+
+def test_ctrl_c_during_a_toy_episode_stops_lit_toy_with_130(
+    tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``run_episode`` closes the episode it was in when Ctrl-C arrived and says so; the toy
+    then stops (exit 130) instead of training on, and leaves no scratch files."""
+    real = train.run_episode
+    calls = []
+
+    def interrupted_on_the_third(*args, **kwargs):
+        outcome = real(*args, **kwargs)
+        calls.append(outcome)
+        return dataclasses.replace(outcome, interrupted=len(calls) == 3)
+
+    monkeypatch.setattr(train, "run_episode", interrupted_on_the_third)
+    out = tmp_path / "toy"
+    argv = ["toy", "--episodes", "5", "--constants", "20", "--out", str(out), "--no-progress"]
+    assert cli.main(argv) == 130
+    assert "interrupted" in capsys.readouterr().err
+    assert len(calls) == 3 and list(out.iterdir()) == []
