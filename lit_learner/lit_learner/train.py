@@ -431,41 +431,18 @@ def histogram(values: Sequence[float], low: float, high: float, bins: int) -> li
 
 
 def evaluate(
-    core: Any,
-    scenario: str,
-    seeds: Sequence[int],
-    *,
-    instance: int = 0,
-    agent: str = "B",
-    decision_interval: int = DEFAULT_DECISION_INTERVAL,
-    time_budget: float | None = None,
-    max_iterations: int = 0,
-    effort_clock: float = 0.0,
-    limit_terminates: bool = False,
-    scratch: Path,
+    core: Any, scenario: str, seeds: Sequence[int], *, agent: str = "B", **options: Any
 ) -> list[float]:
     """Returns of ``agent`` without exploration noise on fixed queries, measured on a throwaway
-    copy of ``core``. ``time_budget``, ``max_iterations``, ``effort_clock`` and
-    ``limit_terminates`` as in :func:`run_episode` (an iteration limit under a budget 1000 times
-    the planner time, or an iteration limit on the effort clock, makes the returns
-    deterministic).
+    copy of ``core``; ``options`` (``scratch`` required) as in :func:`evaluate_outcomes`.
+    ``time_budget``, ``max_iterations``, ``effort_clock`` and ``limit_terminates`` act as in
+    :func:`run_episode` (an iteration limit under a budget 1000 times the planner time, or an
+    iteration limit on the effort clock, makes the returns deterministic).
 
     The copy (saved to and loaded from ``scratch``) absorbs the evaluation's transitions and
     updates, so evaluating never changes the learner being trained.
     """
-    outcomes = evaluate_outcomes(
-        core,
-        scenario,
-        seeds,
-        instance=instance,
-        agent=agent,
-        decision_interval=decision_interval,
-        time_budget=time_budget,
-        max_iterations=max_iterations,
-        effort_clock=effort_clock,
-        limit_terminates=limit_terminates,
-        scratch=scratch,
-    )
+    outcomes = evaluate_outcomes(core, scenario, seeds, agent=agent, **options)
     return [float(outcome.metrics[f"charts/return_{agent}"]) for outcome in outcomes]
 
 
