@@ -8,7 +8,7 @@ it (``run_episode(limit_terminates=True)``). Real training keeps an end on the b
 (LEARNER.md); a fixed horizon is what makes this a task whose return a policy can be judged on.
 The learner's clock is the effort clock (planning time = states checked x 0.1 us, budget 1 s), so
 every episode is a function of the seed and the actions alone: the greedy return is
-deterministic, and a rerun on the same machine prints the same numbers. The planner still stops
+deterministic, and a rerun on the same machine gives the same returns. The planner still stops
 on its own clock at the budget; the command refuses a query that ended there (a machine too slow
 for 1000 iterations of np2 in a second).
 
@@ -237,9 +237,9 @@ def _seeds(text: str) -> list[int]:
     """``1,3,5-8`` -> [1, 3, 5, 6, 7, 8]."""
     seeds: list[int] = []
     for part in text.split(","):
-        first, _, last = part.strip().partition("-")
+        first, dash, last = part.strip().partition("-")
         try:
-            low, high = int(first), int(last or first)
+            low, high = int(first), int(last if dash else first)
         except ValueError:
             raise argparse.ArgumentTypeError(
                 f"not a list of seeds like 1,3,5-8: {text!r}"
@@ -255,11 +255,15 @@ def _seeds(text: str) -> list[int]:
 
 def _integers(text: str) -> list[int]:
     try:
-        return [int(part) for part in text.split(",")]
+        values = [int(part) for part in text.split(",")]
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"not a comma-separated list of integers: {text!r}"
         ) from None
+    repeated = sorted({value for value in values if values.count(value) > 1})
+    if repeated:
+        raise argparse.ArgumentTypeError(f"values given twice in {text!r}: {repeated}")
+    return values
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -273,7 +277,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="one training run per learner seed, e.g. 1-8 (default 1)",
     )
     parser.add_argument(
-        "--episodes", type=int, default=DEFAULT_EPISODES, help="training episodes per run"
+        "--episodes",
+        type=int,
+        default=DEFAULT_EPISODES,
+        help=f"training episodes per run (default {DEFAULT_EPISODES})",
     )
     parser.add_argument(
         "--every",
@@ -298,7 +305,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out",
         type=Path,
-        help="output folder (default runs/toy-<UTC time>); its earlier toy files are overwritten",
+        help="output folder, written at the end (default runs/toy-<UTC time>); its earlier toy "
+        "files are overwritten, other files kept",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
@@ -328,26 +336,31 @@ def toy(args: argparse.Namespace) -> str:
     lit_core.set_log_level("warn")  # OMPL's parameter messages, once per episode, say nothing
     task = ToyTask(scenario=args.scenario, seed=args.query_seed)
     task.check()
-    scenarios.get(task.scenario, task.instance)  # an unknown scenario fails before any output
+    if "/" in task.scenario:
+        raise ToyError(
+            f"--scenario {task.scenario}: give the family and dimension only (e.g. np2, wg4)"
+        )
+    problem = scenarios.get(task.scenario, task.instance)  # unknown: fails before any output
+    if problem.family_spec.randomised:
+        raise ToyError(
+            f"--scenario {task.scenario}: the toy plans instance 0, which for a family with "
+            "random layouts is a benchmark layout; use a fixed-layout family (np, wg)"
+        )
     if args.episodes < 1 or args.every < 1:
         raise ToyError(f"need --episodes >= 1 and --every >= 1, got {args.episodes}, {args.every}")
     for value in args.constants:
         check_constant(value)
     out = args.out or Path("runs") / time.strftime("toy-%Y%m%dT%H%M%SZ", time.gmtime())
-    if out.exists() and not out.is_dir():
-        raise ToyError(f"--out {out} is a file")
+    _check_writable(out)
 
     started = time.perf_counter()
-    # First: a machine too slow for the horizon is refused before any folder is made.
+    # A machine too slow for the horizon is refused here, before the long part.
     constants = [(value, constant(task, value)) for value in args.constants]
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise ToyError(f"cannot make --out {out}: {error}") from None
     curves: dict[int, list[Evaluation]] = {}
     progress = _progress(len(args.learner_seeds) * args.episodes, args.no_progress)
-    # The greedy evaluations' checkpoint copies: a folder of their own, removed at the end.
-    scratch = tempfile.TemporaryDirectory(prefix=".toy-scratch-", dir=out)
+    # The greedy evaluations' checkpoint copies, outside --out: a failed or killed run leaves
+    # nothing there.
+    scratch = tempfile.TemporaryDirectory(prefix="lit-toy-")
     try:
         for seed in args.learner_seeds:
 
@@ -366,6 +379,7 @@ def toy(args: argparse.Namespace) -> str:
         scratch.cleanup()
     seconds = time.perf_counter() - started
 
+    out.mkdir(parents=True, exist_ok=True)
     _write_csv(
         out / CURVES_FILE,
         [{"learner_seed": seed, **asdict(e)} for seed, curve in curves.items() for e in curve],
@@ -375,6 +389,20 @@ def toy(args: argparse.Namespace) -> str:
     summary = _summary(task, args, curves, constants, seconds, out)
     (out / SUMMARY_FILE).write_text(summary + "\n")
     return summary
+
+
+def _check_writable(out: Path) -> None:
+    """Refuse an --out folder that cannot be made, before any training (made and removed again
+    if it is new: the results are written only at the end, so a failed run leaves nothing)."""
+    if out.exists():
+        if not out.is_dir():
+            raise ToyError(f"--out {out} is a file")
+        return
+    try:
+        out.mkdir(parents=True)
+        out.rmdir()
+    except OSError as error:
+        raise ToyError(f"cannot make --out {out}: {error}") from None
 
 
 def _progress(total: int, disabled: bool) -> Any:
