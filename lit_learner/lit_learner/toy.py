@@ -298,9 +298,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         + ",".join(map(str, DEFAULT_CONSTANTS))
         + ")",
     )
-    parser.add_argument("--scenario", default=task.scenario, help="the toy query's scenario")
     parser.add_argument(
-        "--query-seed", type=int, default=task.seed, help="its planner seed (a training seed)"
+        "--scenario",
+        default=task.scenario,
+        help=f"the toy query's scenario, a fixed-layout family (default {task.scenario})",
+    )
+    parser.add_argument(
+        "--query-seed",
+        type=int,
+        default=task.seed,
+        help=f"its planner seed, a training seed (default {task.seed})",
     )
     parser.add_argument(
         "--out",
