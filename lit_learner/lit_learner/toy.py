@@ -79,6 +79,17 @@ class ToyTask:
             )
         if self.max_iterations < 1:
             raise ToyError(f"max_iterations must be >= 1, got {self.max_iterations}")
+        from lit_planner import scenarios
+
+        if "/" in self.scenario:
+            raise ToyError(
+                f"--scenario {self.scenario}: give the family and dimension only (e.g. np2, wg4)"
+            )
+        if scenarios.get(self.scenario, self.instance).family_spec.randomised:
+            raise ToyError(
+                f"--scenario {self.scenario}: the toy plans instance {self.instance}, a benchmark "
+                "layout of a family with random layouts; use a fixed-layout family (np, wg)"
+            )
 
     def run(self, core: Any, index: int, episode_id: str, explore: bool) -> train.EpisodeOutcome:
         """One episode of the task with ``core`` deciding B."""
@@ -93,12 +104,14 @@ class ToyTask:
             effort_clock=self.effort_clock,
             limit_terminates=True,
         )
-        if outcome.interrupted:
-            raise KeyboardInterrupt  # the episode was closed; stop here
         self.ended_on_the_limit(outcome)
         return outcome
 
     def ended_on_the_limit(self, outcome: train.EpisodeOutcome) -> None:
+        """Refuse an episode that did not end on the horizon; Ctrl-C during it (the episode
+        was closed) stops here as ``KeyboardInterrupt``."""
+        if outcome.interrupted:
+            raise KeyboardInterrupt
         iterations = outcome.result["counters"]["iterations"]
         # truncated: the planner's clock reached the budget too (perhaps at the last iteration)
         if iterations != self.max_iterations or outcome.truncated:
@@ -162,8 +175,6 @@ def greedy(core: Any, task: ToyTask, episode: int, scratch: Path) -> Evaluation:
         limit_terminates=True,
         scratch=scratch,
     )
-    if outcome.interrupted:
-        raise KeyboardInterrupt
     task.ended_on_the_limit(outcome)
     return _evaluation(episode, outcome)
 
@@ -338,21 +349,9 @@ def toy(args: argparse.Namespace) -> str:
     """What ``lit toy`` does; returns the summary it printed into ``summary.md``."""
     import lit_core
 
-    from lit_planner import scenarios
-
     lit_core.set_log_level("warn")  # OMPL's parameter messages, once per episode, say nothing
     task = ToyTask(scenario=args.scenario, seed=args.query_seed)
-    task.check()
-    if "/" in task.scenario:
-        raise ToyError(
-            f"--scenario {task.scenario}: give the family and dimension only (e.g. np2, wg4)"
-        )
-    problem = scenarios.get(task.scenario, task.instance)  # unknown: fails before any output
-    if problem.family_spec.randomised:
-        raise ToyError(
-            f"--scenario {task.scenario}: the toy plans instance 0, which for a family with "
-            "random layouts is a benchmark layout; use a fixed-layout family (np, wg)"
-        )
+    task.check()  # an unknown or random-layout scenario fails before any output
     if args.episodes < 1 or args.every < 1:
         raise ToyError(f"need --episodes >= 1 and --every >= 1, got {args.episodes}, {args.every}")
     for value in args.constants:

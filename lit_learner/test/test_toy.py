@@ -133,7 +133,7 @@ def test_lit_toy_keeps_other_files_in_its_folder(tmp_path: Path) -> None:
         (["--every", "0"], "--every >= 1"),
         (["--constants", "201"], "outside the B agent's range"),
         (["--scenario", "xx9"], "xx9"),
-        (["--scenario", "rrd4"], "random layouts is a benchmark layout"),
+        (["--scenario", "rrd4"], "a benchmark layout of a family with random layouts"),
         (["--scenario", "np2/0"], "family and dimension only"),
     ],
 )
