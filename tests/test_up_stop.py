@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -77,7 +78,12 @@ class _Launcher:
 
     def stopping(self) -> None:
         lines = _read_until(self.process.stdout, "child pid")
-        self.child_pid = int(lines[-1].split()[-1])
+        # The launcher's print and System's echo thread (the child's "ready: child") share stdout,
+        # and a print writes its text and its newline separately: a CI run once read the line
+        # "child pid 1234" followed on the same line by the echoed child output.
+        found = re.search(r"child pid (\d+)", lines[-1])
+        assert found, lines
+        self.child_pid = int(found.group(1))
         _read_until(self.process.stdout, "child: stopping slowly")  # stop() sent SIGTERM
 
     def killed_everything(self) -> list[str]:
