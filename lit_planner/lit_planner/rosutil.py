@@ -10,6 +10,7 @@ from __future__ import annotations
 import gc
 import os
 import signal
+import sys
 import threading
 import time
 import warnings
@@ -525,11 +526,13 @@ def spin_node(
 def spin_quietly(executor: Any, stopping: Callable[[], bool]) -> None:
     """Spin until the executor is shut down.
 
-    ``stopping()`` true: the shutdown has begun, so an error of a spin that races it is expected
-    and not shown: the signal's race with the context (PLATFORM_FACTS), and rclpy 7.1's own race
-    in ``Executor.shutdown``, which destroys its guard condition while a callback that became
-    ready just before (a timer's) is still to run (``InvalidHandle`` from
-    ``GuardCondition.trigger``).
+    While the shutdown has begun (``stopping()`` true, or the context no longer ok), the two
+    races it is known to cause are expected and not shown: the signal's race with the context
+    (``RCLError``, PLATFORM_FACTS), and rclpy 7.1's own race in ``Executor.shutdown``, which
+    destroys its guard condition while a callback that became ready just before (a timer's) is
+    still to run (``InvalidHandle`` from ``GuardCondition.trigger``). Any other error raised by a
+    callback while stopping is reported on stderr (one line, with its type) rather than lost; the
+    stop goes on. Outside a shutdown every error propagates.
     """
     from rclpy.executors import ExternalShutdownException
 
@@ -537,11 +540,26 @@ def spin_quietly(executor: Any, stopping: Callable[[], bool]) -> None:
         executor.spin()
     except (ExternalShutdownException, KeyboardInterrupt):
         pass
-    except Exception:
+    except Exception as exc:
         import rclpy
 
         if rclpy.ok() and not stopping():
             raise
+        if not _is_shutdown_race(exc):
+            print(
+                f"warning: while stopping, the executor raised {type(exc).__name__}: {exc}",
+                file=sys.stderr,
+                flush=True,
+            )
+
+
+def _is_shutdown_race(exc: BaseException) -> bool:
+    """Whether ``exc`` is one of the errors a spin racing its shutdown raises (see above)."""
+    try:
+        from rclpy._rclpy_pybind11 import InvalidHandle, RCLError
+    except ImportError:  # pragma: no cover - rclpy without its extension cannot spin at all
+        return False
+    return isinstance(exc, (InvalidHandle, RCLError))
 
 
 def _spin(executor: Any, stop: threading.Event, stopping: threading.Event) -> None:
