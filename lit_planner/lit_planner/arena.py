@@ -222,7 +222,9 @@ def read_runs(path: Path) -> list[dict[str, Any]]:
         except json.JSONDecodeError as error:
             raise ArenaError(f"{path}:{number}: not JSON ({error})") from error
         if not isinstance(record, dict):
-            raise ArenaError(f"{path}:{number}: expected a JSON object, got {type(record).__name__}")
+            raise ArenaError(
+                f"{path}:{number}: expected a JSON object, got {type(record).__name__}"
+            )
         records.append(record)
     return records
 
@@ -345,7 +347,9 @@ def _run_properties(record: Mapping[str, Any], time_limit: float | None) -> dict
         "final cost REAL": c_final,
         "initial cost REAL": c_init,
         "time to first solution REAL": t_init,
-        "time of last improvement REAL": improvements[-1][0] if improvements and solved else math.inf,
+        "time of last improvement REAL": improvements[-1][0]
+        if improvements and solved
+        else math.inf,
         "improvements INTEGER": len(improvements),
     }
     for key, name in (("seed", "seed"), ("instance", "instance"), ("run", "run index"),
@@ -459,7 +463,9 @@ def _common_properties(runs: Sequence[Mapping[str, Any]]) -> dict[str, str]:
     """Settings every run of a planner shares: its policy and planner parameters."""
     common: dict[str, str] = {}
     policies = {str(run.get("policy")) for run in runs if run.get("policy") is not None}
-    if len(policies) == 1 and len([run for run in runs if run.get("policy") is not None]) == len(runs):
+    if len(policies) == 1 and len([run for run in runs if run.get("policy") is not None]) == len(
+        runs
+    ):
         common["policy"] = policies.pop()
     params = [run.get("params") for run in runs]
     if params and all(isinstance(p, Mapping) for p in params):

@@ -63,23 +63,49 @@ OPTIMUM_SLACK = 1e-9
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``lit crosscheck``."""
-    parser.add_argument("--scenarios", default=",".join(DEFAULT_SCENARIOS),
-                        help="comma-separated scenario names (default: %(default)s)")
-    parser.add_argument("--runs", type=int, default=DEFAULT_RUNS,
-                        help="runs per planner and scenario; LIT* uses seeds SEED.. "
-                             "(default: %(default)s)")
-    parser.add_argument("--time", type=float, default=DEFAULT_TIME,
-                        help="seconds per run, for every planner (default: %(default)s)")
-    parser.add_argument("--seed", type=int, default=1,
-                        help="LIT*'s first seed; also seeds OMPL 2.0.1's generator (default: 1)")
-    parser.add_argument("--litstar", default=DEFAULT_LITSTAR,
-                        choices=("litstar", "litstar-fixed", "litstar-fit", "litstar-tensor"),
-                        help="LIT* variant to check (default: %(default)s)")
-    parser.add_argument("--planners", default=",".join(OMPL2_PLANNERS),
-                        help="OMPL 2.0.1 planners, comma-separated (default: %(default)s)")
-    parser.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE,
-                        help="relative tolerance on the best costs (default: %(default)s)")
-    parser.add_argument("--json", metavar="FILE", help="also write every run and the verdict as JSON")
+    parser.add_argument(
+        "--scenarios",
+        default=",".join(DEFAULT_SCENARIOS),
+        help="comma-separated scenario names (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--runs",
+        type=int,
+        default=DEFAULT_RUNS,
+        help="runs per planner and scenario; LIT* uses seeds SEED.. (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--time",
+        type=float,
+        default=DEFAULT_TIME,
+        help="seconds per run, for every planner (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=1,
+        help="LIT*'s first seed; also seeds OMPL 2.0.1's generator (default: 1)",
+    )
+    parser.add_argument(
+        "--litstar",
+        default=DEFAULT_LITSTAR,
+        choices=("litstar", "litstar-fixed", "litstar-fit", "litstar-tensor"),
+        help="LIT* variant to check (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--planners",
+        default=",".join(OMPL2_PLANNERS),
+        help="OMPL 2.0.1 planners, comma-separated (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--tolerance",
+        type=float,
+        default=DEFAULT_TOLERANCE,
+        help="relative tolerance on the best costs (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--json", metavar="FILE", help="also write every run and the verdict as JSON"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -156,7 +182,9 @@ def crosscheck(
             "planners": list(planners), "runs": runs, "time": time, "seed": first_seed,
         })  # fmt: skip
         if response["process"].get("lit_core_loaded"):
-            raise ompl2.Ompl2Error("the OMPL 2.0.1 worker reports lit_core loaded; refusing its results")
+            raise ompl2.Ompl2Error(
+                "the OMPL 2.0.1 worker reports lit_core loaded; refusing its results"
+            )
         validations = iter(response["validations"])
         for lit_run in lit_runs:
             lit_run["validation"] = next(validations) if lit_run["solved"] else None
@@ -200,7 +228,9 @@ def _rows(
     lit_row = _row(scenario, litstar, litstar, lit_runs)
     rows = [lit_row]
     for name in planners:
-        row = _row(scenario, name, OMPL2_LABELS[name], [r for r in ompl_runs if r["planner"] == name])
+        row = _row(
+            scenario, name, OMPL2_LABELS[name], [r for r in ompl_runs if r["planner"] == name]
+        )
         row["difference"] = _difference(lit_row["best_cost"], row["best_cost"])
         row["agrees"] = agree(lit_row["best_cost"], row["best_cost"], tolerance)
         row["ok"] = row["ok"] and row["agrees"]
@@ -219,7 +249,9 @@ def _row(
     costs = finals if len(solved) == len(runs) else finals + [math.inf] * (len(runs) - len(solved))
     best = min(finals) if finals else None
     optimum = scenario.optimal_cost
-    below_optimum = optimum is not None and best is not None and best < optimum * (1 - OPTIMUM_SLACK)
+    below_optimum = (
+        optimum is not None and best is not None and best < optimum * (1 - OPTIMUM_SLACK)
+    )
     return {
         "scenario": scenario.key,
         "planner": planner,

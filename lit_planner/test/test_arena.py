@@ -102,8 +102,9 @@ def test_export_writes_logs_and_database_in_a_separate_process(bench_dir: Path) 
 
     planners = [name for (name,) in query(db, "SELECT name FROM plannerConfigs ORDER BY id")]
     assert planners == ["litstar-fixed", "bitstar"]
-    assert query(db, "SELECT settings FROM plannerConfigs WHERE name = 'litstar-fixed'")[0][0] \
-        .startswith("policy = fixed")
+    assert query(db, "SELECT settings FROM plannerConfigs WHERE name = 'litstar-fixed'")[0][
+        0
+    ].startswith("policy = fixed")
     runs = query(db, "SELECT p.name, r.seed, r.solved, r.status, r.best_cost, r.final_cost, "
                      "r.initial_cost, r.time_to_first_solution, r.time, r.validity_checks, "
                      "r.improvements, r.instance, r.correct_solution FROM runs r "
@@ -143,8 +144,15 @@ def test_log_text_follows_the_ompl_format(bench_dir: Path) -> None:
     text = arena.benchmark_log("np4", [r for r in records if r["scenario"] == "np4"])
     lines = text.splitlines()
     assert lines[0] == "OMPL version 1.5.2" and lines[1] == "Experiment np4"
-    for expected in ("0.12 seconds per run", "2 runs per planner", "1 enum type", "2 planners",
-                     "2 progress properties for each run", "best cost REAL", "status ENUM"):
+    for expected in (
+        "0.12 seconds per run",
+        "2 runs per planner",
+        "1 enum type",
+        "2 planners",
+        "2 progress properties for each run",
+        "best cost REAL",
+        "status ENUM",
+    ):
         assert expected in lines, expected
     assert lines[lines.index("1 enum type") + 1].startswith("status|Unknown status|Invalid start")
     assert lines[-1] == "."

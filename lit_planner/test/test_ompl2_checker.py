@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from lit_planner.ompl2.checker import BoxWorldChecker
 
 from lit_planner import planning, scenarios
-from lit_planner.ompl2.checker import BoxWorldChecker
 
 SCENARIOS = ("np4", "np8", "wg4", "rrd4", "rrd8")
 

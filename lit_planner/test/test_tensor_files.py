@@ -178,8 +178,10 @@ def test_read_sidecar_requires_both_files(tmp_path: Path, b_tensor: Path) -> Non
         ({"data_sha256": "0" * 63}, r"\$\.data_sha256: .*\(rule: pattern\)"),
         (
             {"output": {"name": "B", "range": [20, 190], "rounding": "half_away_from_zero"}},
-            r"\$\.output\.range \[20\.0, 190\.0\] must be the increasing \[min, max\] "
-            r"of \$\.tsk\.consequents",
+            (
+                r"\$\.output\.range \[20\.0, 190\.0\] must be the increasing \[min, max\] "
+                r"of \$\.tsk\.consequents"
+            ),
         ),
     ],
 )
