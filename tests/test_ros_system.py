@@ -532,12 +532,12 @@ BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
         "PlanRequest is not accepted",
     ),
     (
-        "decide: version 2",
-        ["raw", DECIDE, json.dumps(_envelope("DecideRequest", _decide_payload(), version=2))],
+        "decide: version 3",
+        ["raw", DECIDE, json.dumps(_envelope("DecideRequest", _decide_payload(), version=3))],
         None,
         "version",
         "$.version",
-        "got version 2",
+        "got version 3 of DecideRequest, expected versions 1, 2",
     ),
     (
         "decide: NaN",

@@ -18,9 +18,11 @@ from lit_msgs_json.codec import dumps, load_schema, loads, schema_names, validat
 from lit_msgs_json.envelope import (
     MAX_MESSAGE_BYTES,
     MESSAGE_VERSIONS,
+    OLDER_VERSIONS,
     Message,
     MessageError,
     Publisher,
+    accepted_versions,
     decode,
 )
 from lit_msgs_json.errors import SchemaError, UnknownSchemaError
@@ -28,11 +30,13 @@ from lit_msgs_json.errors import SchemaError, UnknownSchemaError
 __all__ = [
     "MAX_MESSAGE_BYTES",
     "MESSAGE_VERSIONS",
+    "OLDER_VERSIONS",
     "Message",
     "MessageError",
     "Publisher",
     "SchemaError",
     "UnknownSchemaError",
+    "accepted_versions",
     "decode",
     "dumps",
     "load_schema",

@@ -45,9 +45,9 @@ MAX_NESTING = 64
 """Deepest nesting of arrays and objects a message may have (the schemas need far less)."""
 
 MESSAGE_VERSIONS: dict[str, int] = {
-    "DecideRequest": 1,
+    "DecideRequest": 2,
     "DecideResponse": 1,
-    "EpisodeEnd": 1,
+    "EpisodeEnd": 2,
     "EpisodeEndResponse": 1,
     "PlanRequest": 1,
     "PlanResponse": 1,
@@ -58,8 +58,27 @@ MESSAGE_VERSIONS: dict[str, int] = {
     "LearnerStats": 1,
     "Error": 1,
 }
-"""Current version of every message schema, by short name. File formats (``TensorSidecar``,
-``BenchRun``, ``BenchSummary``) and ``Envelope`` itself are not messages."""
+"""Current version of every message schema, by short name: what a :class:`Publisher` sends.
+A message's version rises whenever its payload schema changes, added optional fields included,
+so that a receiver built before the change rejects the message with a ``version`` error naming
+both versions instead of a ``payload`` error about a field it does not know. File formats
+(``TensorSidecar``, ``BenchRun``, ``BenchSummary``) and ``Envelope`` itself are not messages."""
+
+OLDER_VERSIONS: dict[str, dict[int, tuple[str, ...]]] = {
+    # version 2 (2026-11-30): the planner's fallback marks, for the learner's pairing
+    "DecideRequest": {1: ("after_fallback",)},
+    "EpisodeEnd": {1: ("fallback_agents",)},
+}
+"""Older versions a receiver still decodes, by short name: for each, the payload fields that
+version did not have. Such a message is checked against the current schema and must not carry
+those fields (a ``payload`` error names the field); its :attr:`Message.version` is the version
+sent, and the missing fields take their schema defaults."""
+
+
+def accepted_versions(name: str) -> tuple[int, ...]:
+    """The versions of message ``name`` (short name) that :func:`decode` takes, oldest first."""
+    return (*sorted(OLDER_VERSIONS.get(name, {})), MESSAGE_VERSIONS[name])
+
 
 ERROR_CODES: tuple[str, ...] = (
     "json",
@@ -164,7 +183,7 @@ class Message:
     name: str
     """Short schema name, e.g. ``DecideRequest``."""
     version: int
-    """Schema version (equal to ``MESSAGE_VERSIONS[name]``)."""
+    """Schema version as sent: ``MESSAGE_VERSIONS[name]`` or one of ``OLDER_VERSIONS[name]``."""
     seq: int
     """The sender's sequence number."""
     stamp_ns: int
@@ -469,11 +488,17 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
             request_schema=short,
             request_seq=seq,
         )
-    expected = MESSAGE_VERSIONS[short]
-    if obj["version"] != expected:
+    versions = accepted_versions(short)
+    version = obj["version"]
+    if version not in versions:
+        expected = (
+            f"version {versions[0]}"
+            if len(versions) == 1
+            else "versions " + ", ".join(map(str, versions))
+        )
         raise MessageError(
             "version",
-            f"got version {obj['version']} of {short}, expected version {expected}",
+            f"got version {version} of {short}, expected {expected}",
             field="$.version",
             rule="version",
             request_schema=short,
@@ -482,9 +507,20 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
 
     # 7. the payload
     _check_payload(short, obj["payload"], seq, plain=plain)
+    for name in OLDER_VERSIONS.get(short, {}).get(version, ()):
+        if name in obj["payload"]:
+            raise MessageError(
+                "payload",
+                f"{name} is not a field of version {int(version)} of {short} "
+                f"(the current version {MESSAGE_VERSIONS[short]} has it)",
+                field=f"$.payload.{name}",
+                rule="version",
+                request_schema=short,
+                request_seq=seq,
+            )
     return Message(
         name=short,
-        version=expected,
+        version=int(version),
         seq=int(obj["seq"]),
         stamp_ns=int(obj["stamp_ns"]),
         source=obj["source"],

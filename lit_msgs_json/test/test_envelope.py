@@ -17,9 +17,11 @@ import lit_msgs_json
 from lit_msgs_json import (
     MAX_MESSAGE_BYTES,
     MESSAGE_VERSIONS,
+    OLDER_VERSIONS,
     Message,
     MessageError,
     Publisher,
+    accepted_versions,
     decode,
     load_schema,
     schema_names,
@@ -249,7 +251,7 @@ def envelope_text(payload: object, name: str = "DecideRequest", /, **fields: obj
     """A hand-made envelope around ``payload`` (fields override or, as ``...``, delete)."""
     doc: dict[str, object] = {
         "schema": f"lit_msgs_json/{name}",
-        "version": 1,
+        "version": MESSAGE_VERSIONS.get(name, 1),
         "seq": 3,
         "stamp_ns": 1_715_240_100_000_000_000,
         "source": "planner/host/4711",
@@ -281,7 +283,16 @@ def with_(name: str, **changes: object) -> dict[str, Any]:
 def test_message_versions_name_every_message_schema() -> None:
     assert set(MESSAGE_VERSIONS) == set(schema_names()) - FILE_FORMATS - {"Envelope"}
     assert set(EXAMPLES) == set(MESSAGE_VERSIONS)
-    assert all(version == 1 for version in MESSAGE_VERSIONS.values())
+    # version 2 of the two the planner's fallback marks went into (optional fields)
+    assert {name: v for name, v in MESSAGE_VERSIONS.items() if v != 1} == {
+        "DecideRequest": 2,
+        "EpisodeEnd": 2,
+    }
+    assert set(OLDER_VERSIONS) <= set(MESSAGE_VERSIONS)
+    for name, older in OLDER_VERSIONS.items():
+        properties = load_schema(name)["properties"]
+        assert all(version < MESSAGE_VERSIONS[name] for version in older)
+        assert all(field in properties for fields in older.values() for field in fields)
     assert lit_msgs_json.MAX_MESSAGE_BYTES == MAX_MESSAGE_BYTES == 1_048_576
 
 
@@ -316,7 +327,8 @@ def test_round_trip_of_every_message(name: str, payload: dict[str, Any]) -> None
     text = publisher.encode(name, payload, stamp_ns=123)
     assert payload == before
     message = decode(text)
-    assert message == Message(name, 1, 0, 123, "planner/host/4711", "run-1", payload)
+    version = MESSAGE_VERSIONS[name]
+    assert message == Message(name, version, 0, 123, "planner/host/4711", "run-1", payload)
     assert message.schema == f"lit_msgs_json/{name}"
     assert decode(text.encode("utf-8"), accept=name) == message
     assert decode(text, accept=[f"lit_msgs_json/{name}", "Error"]) == message
@@ -743,7 +755,7 @@ ENVELOPE_FAILURES: list[tuple[str, dict[str, object], str, str, str, str | None,
         "Envelope",
         3,
     ),
-    ("wrong-version", {"version": 2}, "version", "$.version", "version", DR, 3),
+    ("wrong-version", {"version": 3}, "version", "$.version", "version", DR, 3),
 ]
 
 # (id, schema, payload, field, rule): the envelope is fine, the payload is not
@@ -932,8 +944,11 @@ def test_decode_failure_messages_explain() -> None:
     assert f"message is {size} bytes, more than the limit of {MAX_MESSAGE_BYTES} bytes" in (
         message(GOOD + " " * MAX_MESSAGE_BYTES)
     )
-    assert "got version 2 of DecideRequest, expected version 1" in message(
-        envelope_text({}, version=2)
+    assert "got version 3 of DecideRequest, expected versions 1, 2" in message(
+        envelope_text({}, version=3)
+    )
+    assert "got version 2 of PlanRequest, expected version 1" in message(
+        envelope_text({}, "PlanRequest", version=2)
     )
     assert "known: DecideRequest, DecideResponse, Decision, EpisodeEnd," in message(
         envelope_text({}, "Foo")
@@ -977,9 +992,10 @@ def test_size_limit_boundary() -> None:
 
 
 def test_decoded_integers_are_ints() -> None:
-    text = GOOD.replace('"seq": 3', '"seq": 3.0').replace('"version": 1', '"version": 1.0')
+    text = GOOD.replace('"seq": 3', '"seq": 3.0').replace('"version": 2', '"version": 2.0')
+    assert text != GOOD.replace('"seq": 3', '"seq": 3.0')
     message = decode(text)
-    assert (message.seq, message.version) == (3, 1)
+    assert (message.seq, message.version) == (3, 2)
     assert type(message.seq) is int and type(message.version) is int
 
 
@@ -1042,3 +1058,38 @@ def test_documents_json_cannot_carry_get_the_reference_answer() -> None:
     assert not reference.is_valid(plan)
     with pytest.raises(lit_msgs_json.SchemaError):
         validate("PlanRequest", plan)
+
+
+# ---------------------------------------------------------------------------------------------
+# Older versions
+
+
+def test_publishers_send_the_current_version() -> None:
+    for name in ("DecideRequest", "EpisodeEnd", "PlanRequest"):
+        doc = json.loads(Publisher("p", "r").encode(name, EXAMPLES[name]))
+        assert doc["version"] == MESSAGE_VERSIONS[name]
+    assert accepted_versions("DecideRequest") == (1, 2)
+    assert accepted_versions("EpisodeEnd") == (1, 2)
+    assert accepted_versions("PlanRequest") == (1,)
+
+
+@pytest.mark.parametrize(
+    ("name", "field", "value"),
+    [("DecideRequest", "after_fallback", True), ("EpisodeEnd", "fallback_agents", ["B"])],
+)
+def test_version_1_is_decoded_without_the_fields_version_2_added(
+    name: str, field: str, value: object
+) -> None:
+    payload = {key: v for key, v in EXAMPLES[name].items() if key != field}
+    message = decode(envelope_text(payload, name, version=1), accept=name)
+    assert (message.name, message.version, message.payload) == (name, 1, payload)
+    # the same payload in version 2 is fine too (the field is optional) ...
+    assert decode(envelope_text(payload, name, version=2)).version == 2
+    # ... the field itself is not part of version 1
+    with pytest.raises(MessageError) as info:
+        decode(envelope_text({**payload, field: value}, name, version=1))
+    error = info.value
+    assert (error.code, error.field, error.rule) == ("payload", f"$.payload.{field}", "version")
+    assert (error.request_schema, error.request_seq) == (name, 3)
+    assert f"{field} is not a field of version 1 of {name}" in str(error)
+    assert decode(envelope_text({**payload, field: value}, name, version=2)).payload[field] == value

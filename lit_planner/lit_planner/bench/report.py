@@ -20,7 +20,7 @@ from lit_planner.bench.runner import TENSOR_PLANNER
 
 SUMMARY_SCHEMA = "lit_msgs_json/BenchSummary"
 """Schema of ``summary.json``."""
-SUMMARY_SCHEMA_VERSION = 1
+SUMMARY_SCHEMA_VERSION = 2
 """Version of :data:`SUMMARY_SCHEMA` that this module writes."""
 METRICS = ("t_init", "c_init", "c_final")
 """Per-run quantities whose medians the tables show."""
