@@ -274,3 +274,34 @@ def test_a_benchmark_reads_its_tensors_once(
     )  # fmt: skip
     summary = (tmp_path / "summary.md").read_text(encoding="utf-8")
     assert "Planner parameters set: litstar-tensor: decision_interval 10 (" in summary
+
+
+def test_the_bench_command_reads_its_tensors_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``lit bench`` checks that the tensor planner can run (selecting the planners) and then
+    benchmarks with the very policy object that check made: the files are read once."""
+    import argparse
+
+    from lit_planner.bench import cli, runner
+
+    from lit_planner import planning
+
+    loads: list[str] = []
+    real_load = planning.load_tensor
+
+    def counting_load(path: Path, output: str) -> object:
+        loads.append(output)
+        return real_load(path, output)
+
+    monkeypatch.setattr(planning, "load_tensor", counting_load)
+    shipped = Path(__file__).resolve().parents[1] / "tensors"
+    parser = argparse.ArgumentParser()
+    cli.add_arguments(parser)
+    args = parser.parse_args(
+        ["--scenarios", "np4", "--planners", "litstar-tensor,litstar-fit", "--runs", "1",
+         "--tensors", str(shipped), "--no-bag"]
+    )  # fmt: skip
+    config, _, _, made = cli._config(args)
+    policies = runner.benchmark_policies(config.planners, config.tensors_dir, made)
+    assert sorted(loads) == ["B", "psi_K"]
+    assert policies["litstar-tensor"] is made["litstar-tensor"]
+    assert isinstance(policies["litstar-fit"], type(planning.make_policy("fit")))

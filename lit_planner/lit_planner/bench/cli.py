@@ -108,10 +108,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run ``lit bench``; 0 on success, 1 when a returned path failed the re-check, 2 bad input."""
     try:
-        config, preset, requested = _config(args)
-        # The policies (the tensor files) are read once, here, before anything starts; the
-        # configuration with their SHA-256 is taken right after and goes into bag and summary.
-        policies = runner.benchmark_policies(config.planners, config.tensors_dir)
+        config, preset, requested, made = _config(args)
+        # The policies (the tensor files) are read once, when the planners are selected, before
+        # anything starts; the configuration with their SHA-256 is taken right after and goes
+        # into bag and summary.
+        policies = runner.benchmark_policies(config.planners, config.tensors_dir, made)
         setups = planner_setups(config, policies)
         out = _out_dir(args.out)
     except (LitPlannerError, ValueError) as error:
@@ -355,7 +356,9 @@ def _start_recording(
     return bag.BenchRecording(bag.unique_directory(parent, out.name), out.name, payload)
 
 
-def _config(args: argparse.Namespace) -> tuple[runner.BenchConfig, str | None, list[str]]:
+def _config(
+    args: argparse.Namespace,
+) -> tuple[runner.BenchConfig, str | None, list[str], dict[str, Any]]:
     preset_name = next((name for name in runner.PRESETS if getattr(args, name)), None)
     preset = runner.PRESETS[preset_name] if preset_name else runner.PRESETS["paper"]
     # An option given but empty (--scenarios "") is an error below, not the preset's list.
@@ -390,7 +393,7 @@ def _config(args: argparse.Namespace) -> tuple[runner.BenchConfig, str | None, l
                 f"scenario {name!r}: give the instance with --instance, not in the name"
             )
         runner.scenario_for(name, args.instance)
-    running, skipped = runner.select_planners(planners, args.tensors)
+    running, skipped, made = runner.select_planners(planners, args.tensors)
     if not running:
         raise ValueError("none of the requested planners can run")
     config = runner.BenchConfig(  # checks --t-init-repeats against the planners
@@ -405,7 +408,7 @@ def _config(args: argparse.Namespace) -> tuple[runner.BenchConfig, str | None, l
         skipped=tuple(skipped),
         t_init_repeats=args.t_init_repeats,
     )
-    return config, preset_name, planners
+    return config, preset_name, planners, made
 
 
 def _out_dir(requested: Path | None) -> Path:

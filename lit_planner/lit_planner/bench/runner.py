@@ -164,9 +164,11 @@ def scenario_for(name: str, instance: int = 0) -> scenarios.Scenario:
 
 def select_planners(
     planners: Sequence[str], tensors_dir: Path | None = None
-) -> tuple[list[str], list[Skip]]:
+) -> tuple[list[str], list[Skip], dict[str, Any]]:
     """Split ``planners`` into those that run and those skipped (no trained tensors in the
-    default folder, ``$LIT_TENSORS`` or the checkout's ``tensors/``).
+    default folder, ``$LIT_TENSORS`` or the checkout's ``tensors/``); the third item holds the
+    policy objects made on the way (the ``tensor`` policy's, to be handed to
+    :func:`benchmark_policies` so that the files are read once).
 
     Raises:
         MissingTensorsError: ``tensors_dir`` was given and holds no tensors.
@@ -179,23 +181,26 @@ def select_planners(
             raise PlannerError(
                 f"lit bench runs the named planners only ({', '.join(ALL_PLANNERS)}), not {name!r}"
             )
-    running, skipped = [], []
+    running, skipped, made = [], [], {}
     for name in planners:
         if name == TENSOR_PLANNER:
             try:
-                planning.make_policy("tensor", tensors_dir)
+                made[name] = planning.make_policy("tensor", tensors_dir)
             except MissingTensorsError as error:
                 if tensors_dir is not None:  # asked for by name: not skipped quietly
                     raise
                 skipped.append(Skip(name, SKIPPED_NO_TENSORS, str(error)))
                 continue
         running.append(name)
-    return running, skipped
+    return running, skipped, made
 
 
-def benchmark_policies(planners: Sequence[str], tensors_dir: Path | None = None) -> dict[str, Any]:
+def benchmark_policies(
+    planners: Sequence[str], tensors_dir: Path | None = None, made: dict[str, Any] | None = None
+) -> dict[str, Any]:
     """Each planner's LIT* policy object (None for the OMPL planners), made once per benchmark
-    and reused by all its runs and reruns (the planner resets a policy for each problem).
+    and reused by all its runs and reruns (the planner resets a policy for each problem);
+    ``made``: policy objects already made (:func:`select_planners`), used as they are.
 
     The ``tensor`` policy's files are read here, before the first run, as a planner node reads
     them once: reading them (two 4 MB tensors, checked and hashed) just before every timed run
@@ -208,7 +213,10 @@ def benchmark_policies(planners: Sequence[str], tensors_dir: Path | None = None)
     policies: dict[str, Any] = {}
     for name in planners:
         _, policy = planning.resolve_planner(name)
-        policies[name] = None if policy is None else planning.make_policy(policy, tensors_dir)
+        if made is not None and name in made:
+            policies[name] = made[name]
+        else:
+            policies[name] = None if policy is None else planning.make_policy(policy, tensors_dir)
     return policies
 
 
