@@ -522,6 +522,14 @@ class DriverState:
     """Commands that resumed the run, in order."""
     checkpoint_every: int = DEFAULT_CHECKPOINT_EVERY
     """``--checkpoint-every`` of the run (a resume keeps it unless given again)."""
+    max_iterations: int = 0
+    """``--max-iterations``: each query also ends after this many LIT* iterations (0: none)."""
+    effort_clock: float = 0.0
+    """``--effort-clock``: seconds of learner time per checked state (0: the planner clock)."""
+    limit_terminates: bool = False
+    """``--limit-terminates``: an end on the iteration limit is a termination."""
+    budget_scale: float = 1.0
+    """``--budget-scale``: each query's time budget is the scenario's times this."""
 
     def save(self, path: Path) -> None:
         path.write_text(json.dumps(dataclasses.asdict(self), indent=2) + "\n")
@@ -582,6 +590,12 @@ def provenance(state: DriverState, run_dir: Path) -> dict[str, Any]:
         "schedule": state.schedule,
         "scenarios": state.scenarios,
         "decision_interval": state.decision_interval,
+        "episode_limits": {
+            "max_iterations": state.max_iterations,
+            "effort_clock_s_per_check": state.effort_clock,
+            "limit_terminates": state.limit_terminates,
+            "budget_scale": state.budget_scale,
+        },
         "seed": state.seed,
         "training_seeds": list(TRAINING_SEEDS),
         "training_instances_of_random_families": list(TRAINING_INSTANCES),
@@ -629,6 +643,37 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="decide psi_K every N expansions (planner parameter decision_interval)",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the learner and the draws")
+    parser.add_argument(
+        "--max-iterations",
+        type=int,
+        default=None,
+        metavar="N",
+        help="also end each query after N LIT* iterations, a truncation like the budget's end "
+        "(default 0: no limit; needs --no-bag; a new run only)",
+    )
+    parser.add_argument(
+        "--limit-terminates",
+        action="store_true",
+        default=None,
+        help="an end on --max-iterations is a termination (a fixed horizon, as `lit toy` "
+        "uses), not a truncation (a new run only)",
+    )
+    parser.add_argument(
+        "--effort-clock",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="the learner's clock counts checked states, SECONDS each, instead of planner time: "
+        "rewards free of timing noise (needs --max-iterations to end the queries, and a "
+        "--budget-scale they never reach; a new run only)",
+    )
+    parser.add_argument(
+        "--budget-scale",
+        type=float,
+        default=None,
+        metavar="X",
+        help="each query's time budget is the scenario's times X (default 1; a new run only)",
+    )
     parser.add_argument(
         "--w-search",
         type=float,
@@ -722,6 +767,47 @@ def _finished(state: DriverState) -> bool:
     )
 
 
+def _episode_limits(args: argparse.Namespace) -> dict[str, Any]:
+    """The episode options given (``--max-iterations``, ``--limit-terminates``,
+    ``--effort-clock``, ``--budget-scale``) as :class:`DriverState` fields, checked.
+
+    Raises:
+        TrainingError: a value out of range, or a combination :func:`run_episode` refuses.
+    """
+    limits = {
+        name: getattr(args, name, None)
+        for name in ("max_iterations", "limit_terminates", "effort_clock", "budget_scale")
+    }
+    limits = {name: value for name, value in limits.items() if value is not None}
+    iterations = limits.get("max_iterations", 0)
+    clock = limits.get("effort_clock", 0.0)
+    scale = limits.get("budget_scale", 1.0)
+    if iterations < 0:
+        raise TrainingError(f"--max-iterations must be 0 or more, got {iterations}")
+    if not (math.isfinite(clock) and clock >= 0.0):
+        raise TrainingError(f"--effort-clock must be finite and >= 0, got {clock}")
+    if not (math.isfinite(scale) and scale > 0.0):
+        raise TrainingError(f"--budget-scale must be finite and positive, got {scale}")
+    if (clock or limits.get("limit_terminates")) and not iterations:
+        needs = "--effort-clock" if clock else "--limit-terminates"
+        raise TrainingError(f"{needs} needs --max-iterations (the limit that ends the queries)")
+    if (iterations or clock) and not args.no_bag and args.resume is None:
+        raise TrainingError(
+            "episodes with --max-iterations or --effort-clock cannot be recorded (a bag carries "
+            "neither, so lit replay tensors would pair other rewards); add --no-bag"
+        )
+    return limits
+
+
+def _time_budget(spec: EpisodeSpec, scale: float) -> float | None:
+    """The query's time budget: the scenario's, times ``scale`` (None: the scenario's)."""
+    if scale == 1.0:
+        return None
+    from lit_planner import scenarios
+
+    return scenarios.get(spec.scenario, spec.instance).time_budget * scale
+
+
 def _check_folders(args: argparse.Namespace) -> None:
     """Refuse, before any training, folders that cannot be written (a file in the way)."""
     for label, value in (
@@ -766,12 +852,16 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             raise TrainingError(f"{label} must be positive, got {value}")
 
     _check_folders(args)
+    limits = _episode_limits(args)
     w_search = args.w_search
     if w_search is not None and not (math.isfinite(w_search) and w_search >= 0):
         raise TrainingError(f"--w-search must be finite and >= 0, got {w_search}")
     if args.resume is not None:
         if w_search is not None:
             raise TrainingError("--w-search is set when a run starts; --resume keeps the run's")
+        if limits:
+            given = ", ".join("--" + name.replace("_", "-") for name in limits)
+            raise TrainingError(f"{given}: set when a run starts; --resume keeps the run's")
         checkpoint = Path(args.resume)
         if not checkpoint.exists():
             raise TrainingError(f"--resume {checkpoint}: no such checkpoint")
@@ -790,6 +880,11 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             raise TrainingError(
                 f"--minutes {args.minutes:g} with --resume is the new total, and the checkpoint "
                 f"has trained {state.elapsed / 60.0:.1f} minutes already"
+            )
+        if (state.max_iterations or state.effort_clock) and not args.no_bag:
+            raise TrainingError(
+                "this run limits its episodes (--max-iterations or --effort-clock), which a bag "
+                "cannot carry; resume it with --no-bag"
             )
         run_dir = Path(args.out) if args.out else checkpoint.resolve().parent.parent
         core = LearnerCore.load_checkpoint(checkpoint)
@@ -825,6 +920,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             checkpoint_every=(
                 DEFAULT_CHECKPOINT_EVERY if args.checkpoint_every is None else args.checkpoint_every
             ),
+            **limits,
         )
         config = hooks.learner_config or LearnerConfig(seed=args.seed)
         if w_search is not None:
@@ -885,6 +981,10 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 b_tensor=b_tensor,
                 b_range=b_range,
                 recording=recording,
+                time_budget=_time_budget(spec, state.budget_scale),
+                max_iterations=state.max_iterations,
+                effort_clock=state.effort_clock,
+                limit_terminates=state.limit_terminates,
             )
             state.episode += 1
             state.elapsed = time.perf_counter() - session_start

@@ -478,3 +478,71 @@ def test_resume_keeps_the_runs_checkpoint_interval_and_one_process_per_run(
             train.train(arguments(run_dir, episodes=6, resume=final))
     with pytest.raises(train.TrainingError, match="--checkpoint-every must be 0 or more"):
         train.train(arguments(tmp_path / "other", episodes=2, checkpoint_every=-1))
+
+
+def test_episode_limits_apply_to_every_episode_and_carry_over_a_resume(tmp_path: Path) -> None:
+    """``--max-iterations``, ``--limit-terminates``, ``--effort-clock`` and ``--budget-scale``
+    reach every episode of the run (and of its resumption, which keeps them), and the provenance
+    names them."""
+    seen: list[train.EpisodeOutcome] = []
+    hooks = train.TrainingHooks(learner_config=small_config(), on_episode=seen.append)
+    limits = {
+        "max_iterations": 300,
+        "limit_terminates": True,
+        "effort_clock": 1e-7,
+        "budget_scale": 20.0,
+        "no_bag": True,
+    }
+    run = tmp_path / "run"
+    train.train(arguments(run, scenarios="np4", episodes=2, **limits), hooks=hooks)
+    train.train(
+        arguments(run, episodes=3, no_bag=True, resume=run / "checkpoints" / "final.ckpt"),
+        hooks=hooks,
+    )
+    assert len(seen) == 3
+    for outcome in seen:  # each ended on the limit, as a termination, on the effort clock
+        assert outcome.result["counters"]["iterations"] == 300
+        assert not outcome.truncated
+        assert outcome.result["time"] < 0.2 * 20  # far inside the scaled np4 budget
+    record = json.loads((run / train.PROVENANCE_FILE).read_text())
+    assert record["episode_limits"] == {
+        "max_iterations": 300,
+        "effort_clock_s_per_check": 1e-7,
+        "limit_terminates": True,
+        "budget_scale": 20.0,
+    }
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"max_iterations": -1, "no_bag": True}, "--max-iterations must be 0 or more, got -1"),
+        ({"effort_clock": 1e-7, "no_bag": True}, "--effort-clock needs --max-iterations"),
+        ({"limit_terminates": True, "no_bag": True}, "--limit-terminates needs --max-iterations"),
+        ({"max_iterations": 10, "effort_clock": float("nan"), "no_bag": True}, "finite and >= 0"),
+        ({"budget_scale": 0.0}, "--budget-scale must be finite and positive, got 0.0"),
+        ({"max_iterations": 10}, "cannot be recorded .* add --no-bag"),
+    ],
+)
+def test_episode_limits_refuse_bad_values(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], options: dict[str, object], message: str
+) -> None:
+    import re
+
+    args = arguments(tmp_path / "run", scenarios="np4", episodes=1, **options)
+    assert train.run(args) == 2
+    assert re.search(message, capsys.readouterr().err)
+    assert not (tmp_path / "run").exists()  # refused before anything was written
+
+
+def test_a_resume_keeps_the_episode_limits(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    run = tmp_path / "run"
+    limited = {"max_iterations": 200, "no_bag": True}
+    train.train(arguments(run, scenarios="np4", episodes=1, **limited))
+    final = run / "checkpoints" / "final.ckpt"
+    assert train.run(arguments(run, episodes=2, resume=final, max_iterations=300)) == 2
+    assert "--max-iterations: set when a run starts" in capsys.readouterr().err
+    assert train.run(arguments(run, episodes=2, resume=final)) == 2  # would record a bag
+    assert "resume it with --no-bag" in capsys.readouterr().err
