@@ -309,6 +309,29 @@ def test_two_planners_train_one_learner(ros: RosSystem) -> None:
 # ---------------------------------------------------------------------- 4. a learner crash
 
 
+def test_the_first_learner_call_waits_longer_than_the_others(ros: RosSystem) -> None:
+    """Fast DDS drops a server's first answers to a client it has not matched yet (the server
+    sends again about 100 ms later), so the planner's first call to the learner waits
+    ``first_decision_timeout``; every later call waits ``decision_timeout``. With no learner at
+    all every call times out, and each episode's warning names the deadline it waited."""
+    planner = ros.planner(
+        policy="training",
+        episodes=4,
+        exit_when_done=True,
+        time_budget=0.05,
+        training_scenarios="np4",
+        learner_service="/nobody/decide",  # served by no one
+        learner_wait=0.2,
+        learner_retry=0.02,
+        first_decision_timeout=0.6,
+        decision_timeout=0.05,
+    )
+    assert planner.wait(timeout=120.0) == 0, planner.tail()
+    waited = re.findall(r"learner did not answer within (\d+) ms", planner.text())
+    assert waited[:1] == ["600"], planner.tail()
+    assert len(waited) >= 2 and set(waited[1:]) == {"50"}, waited
+
+
 def test_planner_survives_a_killed_learner_and_resumes(ros: RosSystem) -> None:
     """SIGKILL the learner mid-training: fallback decisions, then training resumes on restart."""
     recording = ros.recorder([EPISODE])

@@ -26,6 +26,8 @@ import pytest
         (["--planner-param", "foo:=1"], "--planner-param: unknown parameter foo; known: scenario"),
         (["--learner-param", "checkpoint_evry:=5"], "unknown parameter checkpoint_evry"),
         (["--bag", "EXISTING"], "exists already"),
+        (["--domain-id", "233"], "233 is not a ROS domain id Fast DDS can use (0-232)"),
+        (["--domain-id", "x"], "--domain-id: not a whole number: 'x'"),
     ],
 )
 def test_bad_options_start_nothing(tmp_path: Path, options: list[str], message: str) -> None:
@@ -49,6 +51,10 @@ def test_bad_options_start_nothing(tmp_path: Path, options: list[str], message: 
         (["demo", "--time", "-1"], "lit demo: --time must be a positive number"),
         (["demo", "--local", "--time", "0"], "lit demo: --time must be a positive number"),
         (["demo", "--plans", "0"], "lit demo: --plans must be 1 or more"),
+        (["demo", "--training-budget", "0"], "--training-budget must be a positive number"),
+        (["demo", "--training-budget", "inf"], "--training-budget must be a positive number"),
+        (["demo", "--domain-id", "300"], "300 is not a ROS domain id Fast DDS can use"),
+        (["system-bench", "--domain-id", "-1"], "-1 is not a ROS domain id Fast DDS can use"),
         (["call", "--timeout", "-1", "decide"], "--timeout must be a positive number"),
         (["call", "--wait", "nan", "decide"], "--wait must be a positive number"),
         (["call", "decide", "--repeat", "0"], "--repeat must be 1 or more"),
@@ -67,6 +73,29 @@ def test_demo_and_call_refuse_bad_options_before_starting(
     assert process.returncode == 2, process.stdout + process.stderr
     assert message in process.stderr and "Traceback" not in process.stderr
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    "command",
+    [["demo"], ["up", "--no-record"], ["system-bench", "--calls", "1", "--episodes", "0"]],
+)
+def test_a_bad_ros_domain_id_in_the_environment_is_named(
+    tmp_path: Path, command: list[str]
+) -> None:
+    """``$ROS_DOMAIN_ID`` is the default of ``--domain-id``: a value Fast DDS cannot use stops
+    the launcher with one line (it used to be a traceback from building the options, or Fast DDS
+    errors from every process)."""
+    for value, message in (("abc", "not a whole number: 'abc'"), ("500", "500 is not a ROS")):
+        process = subprocess.run(
+            [sys.executable, "-m", "lit_planner.cli", *command],
+            cwd=tmp_path,
+            env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=value),
+            capture_output=True, text=True, timeout=120, check=False,
+        )  # fmt: skip
+        assert process.returncode == 2, process.stdout + process.stderr
+        assert f"$ROS_DOMAIN_ID: {message}" in process.stderr
+        assert "Traceback" not in process.stderr
+        assert not list(tmp_path.iterdir())
 
 
 def test_sigterm_stops_lit_call_without_a_traceback() -> None:

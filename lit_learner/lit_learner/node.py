@@ -76,6 +76,17 @@ PARAMETERS: dict[str, Any] = {
 """The node's ROS parameters and their defaults."""
 
 
+MESSAGE_SCHEMAS = (
+    "DecideRequest",
+    "DecideResponse",
+    "EpisodeEnd",
+    "EpisodeEndResponse",
+    "Error",
+    "LearnerStats",
+)
+"""The messages the learner node reads and writes (their validators are built at start-up)."""
+
+
 class LearnerNode:
     """Owns the ROS node and the :class:`~lit_learner.core.LearnerCore`."""
 
@@ -98,6 +109,7 @@ class LearnerNode:
         self.source = node.get_fully_qualified_name()
         self.core = self._load_core()
         self.core.publish()  # the actor snapshots that decisions read without the lock
+        self._warm_up()
         self._lock = threading.Lock()
         """The core's bookkeeping: pairing, replay buffer, counters (held briefly)."""
         self._networks = threading.Lock()
@@ -132,11 +144,6 @@ class LearnerNode:
         self.stats = Publisher(self.source, self.run_id)
         self._string = String
         self.stats_publisher = node.create_publisher(String, STATS_TOPIC, json_qos())
-        # Decisions are served from a thread and node of their own, outside the executor: the
-        # round trip is on the planner's critical path (see DirectService).
-        self._decide = DirectService(
-            node, f"{NODE_NAME}_decide", AddDiagnostics, p["service"], self._serve
-        )
         # The export service lives on a helper node with its own executor thread: an export takes
         # seconds, and the decision service must keep answering meanwhile.
         self._export_node = Node(
@@ -161,10 +168,42 @@ class LearnerNode:
         DuplicateServerWatch(node, p["service"]).start()
         self._trainer = threading.Thread(target=self._train, name="trainer", daemon=True)
         self._trainer.start()
+        # Decisions are served from a thread and node of their own, outside the executor: the
+        # round trip is on the planner's critical path (see DirectService). The service is made
+        # last, so that a planner that sees it finds everything else in place.
+        self._decide = DirectService(
+            node, f"{NODE_NAME}_decide", AddDiagnostics, p["service"], self._serve
+        )
         self.log.info(
             f"ready: {p['service']}, {self.core.episodes} episodes and policy version "
             f"{self.core.policy_version} so far, checkpoint {p['checkpoint']}"
         )
+
+    def _warm_up(self) -> None:
+        """Do once, before serving, the work that a first decision would otherwise pay for: the
+        message validators (about 10 ms each) and a noise-free action of each agent (torch's
+        first forward pass), so that the planner's first call meets its deadline (50 ms by
+        default) as the later ones do. Nothing is recorded and no random number is drawn."""
+        from lit_learner.messages import DecisionRequest
+        from lit_msgs_json import prepare
+
+        prepare(MESSAGE_SCHEMAS)
+        for agent in self.core.agents:
+            request = DecisionRequest(
+                agent=agent,
+                episode_id="warm-up",
+                rho_global=0.5,
+                rho_local=0.5,
+                measure=1.0,
+                planning_time=0.0,
+                time_budget=1.0,
+                cost=None,
+                minimum_cost=1.0,
+                improvements=0,
+                path_states=0,
+                explore=False,
+            )
+            self.core.choose(request, published=True)
 
     def _load_core(self) -> Any:
         from lit_learner.config import LearnerConfig

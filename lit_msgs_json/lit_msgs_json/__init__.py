@@ -14,7 +14,7 @@ Messages travel in a versioned envelope (see ``lit_msgs_json.envelope``)::
 
 from __future__ import annotations
 
-from lit_msgs_json.codec import dumps, load_schema, loads, schema_names, validate
+from lit_msgs_json.codec import dumps, load_schema, loads, prepare, schema_names, validate
 from lit_msgs_json.envelope import (
     MAX_MESSAGE_BYTES,
     MESSAGE_VERSIONS,
@@ -41,6 +41,7 @@ __all__ = [
     "dumps",
     "load_schema",
     "loads",
+    "prepare",
     "schema_names",
     "validate",
 ]

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from functools import cache
 from importlib.resources import files
 from typing import Any
@@ -87,6 +87,20 @@ def valid_envelope(name: str, obj: object) -> bool:
         UnknownSchemaError: no schema of that name ships with the package.
     """
     return bool(_fast_envelope_validator(name.removeprefix("lit_msgs_json/")).is_valid(obj))
+
+
+def prepare(names: Iterable[str]) -> None:
+    """Build the validators of schemas ``names`` now (each is otherwise built at its first use,
+    which takes about 10 ms): a node calls this at start-up so that its first request is
+    answered as fast as the later ones.
+
+    Raises:
+        UnknownSchemaError: no schema of that name ships with the package.
+    """
+    for name in names:
+        short = name.removeprefix("lit_msgs_json/")
+        _fast_validator(short)
+        _fast_envelope_validator(short)
 
 
 def dumps(name: str, obj: object, **kwargs: Any) -> str:

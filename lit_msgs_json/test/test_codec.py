@@ -172,3 +172,15 @@ def test_a_huge_violating_value_is_shortened_in_the_message() -> None:
     message = str(caught.value)
     assert len(message) < MAX_DETAIL + 100 and "…" in message
     assert message.startswith("PlanRequest: $.") and message.endswith("(rule: maxItems)")
+
+
+def test_prepare_builds_the_validators_ahead_and_names_unknown_schemas() -> None:
+    from lit_msgs_json.errors import UnknownSchemaError
+
+    from lit_msgs_json import codec, prepare
+
+    codec._fast_envelope_validator.cache_clear()
+    prepare(["DecideRequest", "lit_msgs_json/EpisodeEnd"])
+    assert codec._fast_envelope_validator.cache_info().currsize == 2
+    with pytest.raises(UnknownSchemaError):
+        prepare(["NoSuchMessage"])

@@ -28,12 +28,15 @@ from typing import Any, Self
 
 from lit_planner import plan_cli, planning, scenarios
 from lit_planner.errors import LitPlannerError
+from lit_planner.rosutil import add_domain_option, resolve_domain_id
 from lit_planner.scenarios import Scenario
 
 DEMO_PLANNER = planning.LITSTAR
 """The planner the demo runs."""
 DEMO_DOMAIN_ID = 91
 """Default ROS domain of the demo (its own, so it does not meet a running ``lit up``)."""
+MAX_TRAINING_BUDGET = 3600.0
+"""Largest ``--training-budget`` (the messages' limit on a time budget)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -53,15 +56,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--time", type=float, metavar="SECONDS", help="inference time budget (default: scenario's)"
     )
-    parser.add_argument("--training-episodes", type=int, default=4)
-    parser.add_argument("--training-budget", type=float, default=0.3, metavar="SECONDS")
-    parser.add_argument("--plans", type=int, default=3, help="inference plans (default 3)")
     parser.add_argument(
-        "--domain-id",
+        "--training-episodes",
         type=int,
-        default=int(os.environ.get("ROS_DOMAIN_ID", DEMO_DOMAIN_ID)),
-        help="ROS domain of the run (default: $ROS_DOMAIN_ID, else %(default)s)",
+        default=4,
+        metavar="N",
+        help="training episodes over ROS before the plans (default: %(default)s; 0: none)",
     )
+    parser.add_argument(
+        "--training-budget",
+        type=float,
+        default=0.3,
+        metavar="SECONDS",
+        help="planner time of each training episode (default: %(default)s)",
+    )
+    parser.add_argument("--plans", type=int, default=3, help="inference plans (default 3)")
+    add_domain_option(parser, DEMO_DOMAIN_ID)
     parser.add_argument(
         "--out",
         type=Path,
@@ -83,6 +93,17 @@ def run(args: argparse.Namespace) -> int:
                 f"--plans must be 1 or more and --training-episodes 0 or more, got {args.plans} "
                 f"and {args.training_episodes}"
             )
+        budget = args.training_budget
+        if not args.local and not (math.isfinite(budget) and 0 < budget <= MAX_TRAINING_BUDGET):
+            raise LitPlannerError(
+                f"--training-budget must be a positive number of seconds up to "
+                f"{MAX_TRAINING_BUDGET:g}, got {budget}"
+            )
+        if not args.local:
+            try:
+                args.domain_id = resolve_domain_id(args.domain_id, DEMO_DOMAIN_ID)
+            except ValueError as error:
+                raise LitPlannerError(str(error)) from None
     except LitPlannerError as error:
         print(f"lit demo: {error}", file=sys.stderr)
         return plan_cli.EXIT_BAD_INPUT
@@ -296,7 +317,15 @@ def _report(
     budget: float,
 ) -> int:
     print()
-    print(f"Training over ROS ({len(training)} episodes; learner decided every B and psi_K):")
+    fell_back = sum(e["fallback_decisions"] for e in training)
+    if fell_back:
+        who = (
+            f"{fell_back} decisions fell back to the tensors: the learner was late or "
+            "unreachable, see the planner's warnings"
+        )
+    else:
+        who = "the learner decided every B and psi_K"
+    print(f"Training over ROS ({len(training)} episodes; {who}):")
     print("| episode | scenario | solved | c_final | learner decisions | fallbacks |")
     print("|---|---|---|---|---|---|")
     for i, e in enumerate(training):

@@ -12,7 +12,12 @@
   each decision calls the learner's ``/lit/learner/decide`` with a deadline of
   ``decision_timeout`` s. A late or absent learner: that decision falls back to the tensor policy
   (``fixed`` without tensors), the episode is marked, a warning is logged, and for
-  ``learner_retry`` s no call is tried; then training resumes with the learner.
+  ``learner_retry`` s no call is tried; then training resumes with the learner. The node's first
+  call waits up to ``first_decision_timeout`` s instead: Fast DDS drops a server's first answers
+  to a client it has not matched yet and the server sends again about 100 ms later
+  (``rosutil.send_response``), so a first call under load took 60-250 ms and fell back, and with
+  it every decision of the next ``learner_retry`` s (whole `lit demo` episodes). The planner's
+  clock is paused meanwhile, as for every call.
 - Other policies with ``episodes > 0``: that many inference queries on ``scenario`` (seeds
   ``seed``, ``seed + 1``, ...), then the node keeps serving.
 - ``episodes_from``: ``training`` draws the episodes from the training distribution
@@ -79,6 +84,7 @@ PARAMETERS: dict[str, Any] = {
     "episodes": 0,
     "learner_service": DECIDE_SERVICE,
     "decision_timeout": 0.05,
+    "first_decision_timeout": 1.0,
     "decision_interval": 0,
     "learner_retry": 1.0,
     "learner_wait": 10.0,
@@ -134,6 +140,8 @@ class PlannerNode:
         from std_msgs.msg import String
         from trajectory_msgs.msg import JointTrajectory
 
+        from lit_msgs_json import MESSAGE_VERSIONS, prepare
+
         self.node = node = Node(NODE_NAME)
         self.log = node.get_logger()
         p = self._declare(**PARAMETERS)
@@ -168,6 +176,11 @@ class PlannerNode:
             for name in ("observation", "decision", "solution", "episode", "decide", "reply")
         }
         self._publish_lock = threading.Lock()
+        self._called_learner = False
+        """Whether the learner was called yet (the first call: ``first_decision_timeout``)."""
+        # The validators of every message the node reads or writes, built now rather than in
+        # the first query (about 10 ms each, inside a learner call's deadline or a plan).
+        prepare(MESSAGE_VERSIONS)
         self._fallback = self._fallback_values()
         from lit_planner.planning import TensorPolicyCache
 
@@ -544,10 +557,13 @@ class PlannerNode:
                 payload["after_fallback"] = True
             started = time.perf_counter()
             episode.learner_calls += 1
+            deadline = self.params[
+                "decision_timeout" if self._called_learner else "first_decision_timeout"
+            ]
             answer = self.learner.call(
-                self.envelopes["decide"].encode("DecideRequest", payload),
-                self.params["decision_timeout"],
+                self.envelopes["decide"].encode("DecideRequest", payload), deadline
             )
+            self._called_learner = True
             if answer is not None:
                 success, text = answer
                 try:
@@ -562,9 +578,7 @@ class PlannerNode:
                         return float(reply.payload["value"])
                     reason = f"learner error: {reply.payload.get('message', '?')}"
             else:
-                reason = (
-                    f"learner did not answer within {self.params['decision_timeout'] * 1e3:.0f} ms"
-                )
+                reason = f"learner did not answer within {deadline * 1e3:.0f} ms"
                 self._learner_down_until = time.monotonic() + self.params["learner_retry"]
             if not episode.warned:
                 episode.warned = True

@@ -7,6 +7,7 @@ loop), and shutdown tolerates the race between SIGTERM and a spinning executor.
 
 from __future__ import annotations
 
+import argparse
 import gc
 import os
 import signal
@@ -521,6 +522,53 @@ def spin_node(
             except (ExternalShutdownException, RuntimeError):
                 pass
     return 0
+
+
+MAX_DOMAIN_ID = 232
+"""Largest ROS domain id Fast DDS can use on Linux (it computes its ports from the id; above
+this it fails at start-up with "Calculated port number is too high")."""
+
+
+def domain_id(text: str) -> int:
+    """An argparse ``type``: a ROS domain id, 0..:data:`MAX_DOMAIN_ID`."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if not 0 <= value <= MAX_DOMAIN_ID:
+        raise argparse.ArgumentTypeError(
+            f"{value} is not a ROS domain id Fast DDS can use (0-{MAX_DOMAIN_ID})"
+        )
+    return value
+
+
+def add_domain_option(parser: argparse.ArgumentParser, default: int) -> None:
+    """``--domain-id N``; :func:`resolve_domain_id` turns its value into the domain to use."""
+    parser.add_argument(
+        "--domain-id",
+        type=domain_id,
+        default=None,
+        metavar="N",
+        help=f"ROS domain of the run, 0-{MAX_DOMAIN_ID} (default: $ROS_DOMAIN_ID when set, "
+        f"else {default})",
+    )
+
+
+def resolve_domain_id(value: int | None, default: int) -> int:
+    """The domain of ``--domain-id`` (``value``), else of ``$ROS_DOMAIN_ID``, else ``default``.
+
+    Raises:
+        ValueError: ``$ROS_DOMAIN_ID`` is set to something that is not a usable domain id.
+    """
+    if value is not None:
+        return value
+    text = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    if not text:
+        return default
+    try:
+        return domain_id(text)
+    except argparse.ArgumentTypeError as error:
+        raise ValueError(f"$ROS_DOMAIN_ID: {error}; set it right or give --domain-id") from None
 
 
 def spin_quietly(executor: Any, stopping: Callable[[], bool]) -> None:

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import signal
 import subprocess
@@ -32,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from lit_planner.echo_node import ECHO_SERVICE
+from lit_planner.rosutil import add_domain_option, resolve_domain_id
 from lit_planner.up import DomainBusy, System, claim_domain
 
 DEFAULT_DOMAIN_ID = 94
@@ -50,11 +50,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--calls", type=_count, default=2000, help="decide round trips per agent (0: skip part 1)"
     )
     parser.add_argument("--kills", type=_count, default=3, help="learner SIGKILLs (0: skip part 3)")
-    parser.add_argument(
-        "--domain-id",
-        type=int,
-        default=int(os.environ.get("ROS_DOMAIN_ID", DEFAULT_DOMAIN_ID)),
-    )
+    add_domain_option(parser, DEFAULT_DOMAIN_ID)
 
 
 def _count(text: str) -> int:
@@ -70,6 +66,11 @@ def run(args: argparse.Namespace) -> int:
     if not (args.calls or args.episodes or args.kills):
         print("lit system-bench: --calls, --episodes and --kills are all 0: nothing to measure",
               file=sys.stderr)  # fmt: skip
+        return 2
+    try:
+        args.domain_id = resolve_domain_id(args.domain_id, DEFAULT_DOMAIN_ID)
+    except ValueError as error:
+        print(f"lit system-bench: {error}", file=sys.stderr)
         return 2
     try:
         claim = claim_domain(args.domain_id, "lit system-bench")

@@ -27,7 +27,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Self
 
-from lit_planner.rosutil import DEFAULT_DOMAIN_ID, LOCALHOST_ENV
+from lit_planner.rosutil import (
+    DEFAULT_DOMAIN_ID,
+    LOCALHOST_ENV,
+    add_domain_option,
+    resolve_domain_id,
+)
 
 STOP_ORDER = ("planner", "learner", "recorder")
 """Processes stop in this order: the recorder last, so it keeps the final messages."""
@@ -285,9 +290,7 @@ DEFAULT_SCENARIO = "np8"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``lit up``."""
-    parser.add_argument(
-        "--domain-id", type=int, default=int(os.environ.get("ROS_DOMAIN_ID", DEFAULT_DOMAIN_ID))
-    )
+    add_domain_option(parser, DEFAULT_DOMAIN_ID)
     parser.add_argument(
         "--policy", default="training", choices=("training", "tensor", "fit", "fixed")
     )
@@ -377,6 +380,11 @@ def run(args: argparse.Namespace) -> int:
     run_id = args.run_id or time.strftime("up-%Y%m%d-%H%M%S")
     bag = None if args.no_record else (args.bag or default_bag_root() / run_id).absolute()
     problem = _check(args, run_id, bag)
+    if problem is None:
+        try:
+            args.domain_id = resolve_domain_id(args.domain_id, DEFAULT_DOMAIN_ID)
+        except ValueError as error:
+            problem = str(error)
     if problem is not None:
         print(f"lit up: {problem}", file=sys.stderr)
         return 2
