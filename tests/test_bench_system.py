@@ -305,3 +305,16 @@ def test_the_bench_command_reads_its_tensors_once(monkeypatch: pytest.MonkeyPatc
     assert sorted(loads) == ["B", "psi_K"]
     assert policies["litstar-tensor"] is made["litstar-tensor"]
     assert isinstance(policies["litstar-fit"], type(planning.make_policy("fit")))
+
+
+def test_bench_refuses_a_bag_dir_with_no_bag(tmp_path: Path) -> None:
+    """``--bag-dir`` says where the bag goes, ``--no-bag`` that there is none: refused together,
+    before the run folder or the bag folder exists."""
+    out, bags = tmp_path / "out", tmp_path / "bags"
+    result = _lit("bench", "--quick", "--bag-dir", str(bags), "--no-bag", "--out", str(out))
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.splitlines() == [
+        f"lit bench: --bag-dir {bags} and --no-bag contradict each other: choose one"
+    ]
+    assert result.stdout == ""
+    assert not out.exists() and not bags.exists()

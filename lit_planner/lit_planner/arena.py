@@ -129,6 +129,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """``lit arena RESULTS_DIR``: exit 0 on success, 2 on bad input or a failed conversion."""
+    problem = database_name_problem(args.database)
+    if problem is not None:
+        print(f"lit arena: --database {args.database!r}: {problem}", file=sys.stderr)
+        return 2
     try:
         export = export_arena(args.results_dir, database=args.database)
     except (ArenaError, ompl2.Ompl2Error) as error:
@@ -165,9 +169,13 @@ def export_arena(
         timeout: seconds the converter process may take.
 
     Raises:
-        ArenaError: no records, a malformed runs file or record.
+        ArenaError: no records, a malformed runs file or record, a database name that is not
+            a plain file name.
         lit_planner.ompl2.Ompl2Error: the converter process failed.
     """
+    problem = database_name_problem(database)
+    if problem is not None:
+        raise ArenaError(f"database {database!r}: {problem}")
     folder = Path(results_dir)
     runs_path = folder / RUNS_FILE
     if records is None:
@@ -186,6 +194,17 @@ def export_arena(
         converter=str(response.get("converter", "")),
         process=dict(response.get("process", {})),
     )
+
+
+def database_name_problem(name: str) -> str | None:
+    """Why ``name`` is not a plain file name inside the run folder, or None when it is.
+
+    A path separator or ``..`` would put the database elsewhere (``../escape.db``).
+    """
+    separators = "/" + os.sep + (os.altsep or "")
+    if name in ("", ".", "..") or any(sep in name for sep in separators):
+        return "expected a file name inside RESULTS_DIR, without a path separator or '..'"
+    return None
 
 
 def convert_logs(

@@ -42,16 +42,23 @@ from lit_planner.rosutil import (
 
 DEFAULT_TIMEOUT = 60.0
 """Seconds to wait for an answer (a plan's own time budget is added)."""
+DEFAULT_WAIT = 15.0
+"""Seconds to wait for the service to appear."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``lit call {plan,decide,export,raw}``."""
-    parser.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the service")
+    parser.add_argument(
+        "--wait",
+        type=float,
+        default=DEFAULT_WAIT,
+        help="seconds to wait for the service to appear (default: %(default)g)",
+    )
     parser.add_argument(
         "--timeout",
         type=float,
         default=None,
-        help=f"seconds to wait for the answer (default {DEFAULT_TIMEOUT:g}, plus the plan's --time "
+        help=f"seconds to wait for the answer (default: {DEFAULT_TIMEOUT:g}, plus the plan's --time "
         "for plan)",
     )
     parser.add_argument(
@@ -62,41 +69,90 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     where = plan.add_mutually_exclusive_group(required=True)
     where.add_argument("--scenario", help="registered scenario, e.g. np8 or rrd8/3")
     where.add_argument("--world", type=Path, help="JSON file with an explicit world")
-    plan.add_argument("--time", type=float, help="time budget, s (default: the scenario's)")
-    plan.add_argument("--planner", help="litstar (default) or an OMPL baseline, e.g. aitstar")
-    plan.add_argument("--policy", choices=("fixed", "fit", "tensor"), help="LIT*'s policy")
-    plan.add_argument("--seed", type=int)
-    plan.add_argument("--start", type=_vector, help="override the start, e.g. 0.1,0.2,...")
-    plan.add_argument("--goal", type=_vector, help="override the goal")
-    plan.add_argument("--namespace", default="/", help="the planner node's namespace")
-    plan.add_argument("--request-id", help="echoed in the response")
+    plan.add_argument(
+        "--time", type=float, help="time budget, s (default: the scenario's; a world's: 1)"
+    )
+    plan.add_argument(
+        "--planner", help="litstar or an OMPL baseline, e.g. aitstar (default: litstar)"
+    )
+    plan.add_argument(
+        "--policy",
+        choices=("fixed", "fit", "tensor"),
+        help="LIT*'s policy (default: the planner node's)",
+    )
+    plan.add_argument("--seed", type=int, help="seed (default: the planner node's)")
+    plan.add_argument(
+        "--start",
+        type=_vector,
+        help="override the start, e.g. 0.1,0.2,... (default: the scenario's or world's)",
+    )
+    plan.add_argument(
+        "--goal", type=_vector, help="override the goal (default: the scenario's or world's)"
+    )
+    plan.add_argument(
+        "--namespace", default="/", help="the planner node's namespace (default: %(default)s)"
+    )
+    plan.add_argument("--request-id", help="echoed in the response (default: none)")
     decide = commands.add_parser("decide", help="call /lit/learner/decide")
-    decide.add_argument("--agent", choices=("B", "psi_K"), default="B")
-    decide.add_argument("--episode-id", default=None)
-    decide.add_argument("--rho-global", type=float, default=0.1)
-    decide.add_argument("--rho-local", type=float, default=0.1)
-    decide.add_argument("--measure", type=float, default=0.5)
-    decide.add_argument("--planning-time", type=float, default=0.0)
-    decide.add_argument("--time-budget", type=float, default=1.0)
-    decide.add_argument("--cost", type=float, default=None)
-    decide.add_argument("--minimum-cost", type=float, default=1.0)
-    decide.add_argument("--improvements", type=int, default=0)
-    decide.add_argument("--path-states", type=int, default=0)
-    decide.add_argument("--explore", action="store_true", help="exploration noise on")
-    decide.add_argument("--service-name", default=DECIDE_SERVICE)
+    decide.add_argument(
+        "--agent",
+        choices=("B", "psi_K"),
+        default="B",
+        help="the agent that decides (default: %(default)s)",
+    )
+    decide.add_argument(
+        "--episode-id", default=None, help="the episode (default: a new one, call-<hex>)"
+    )
+    for option, default, meaning in (
+        ("--rho-global", 0.1, "feature rho_global in [0, 1]"),
+        ("--rho-local", 0.1, "feature rho_local in [0, 1]"),
+        ("--measure", 0.5, "feature m in [0, 1]"),
+        ("--planning-time", 0.0, "planner clock since the episode started, s"),
+        ("--time-budget", 1.0, "the episode's time budget, s"),
+    ):
+        decide.add_argument(
+            option, type=float, default=default, help=f"{meaning} (default: %(default)g)"
+        )
+    decide.add_argument(
+        "--cost", type=float, default=None, help="current best cost (default: none, no solution)"
+    )
+    decide.add_argument(
+        "--minimum-cost",
+        type=float,
+        default=1.0,
+        help="start-goal straight-line distance (default: %(default)g)",
+    )
+    decide.add_argument(
+        "--improvements", type=int, default=0, help="solution improvements so far (default: 0)"
+    )
+    decide.add_argument(
+        "--path-states", type=int, default=0, help="states on the best path (default: 0)"
+    )
+    decide.add_argument(
+        "--explore", action="store_true", help="exploration noise on (default: off)"
+    )
+    decide.add_argument(
+        "--service-name", default=DECIDE_SERVICE, help="service to call (default: %(default)s)"
+    )
     decide.add_argument(
         "--repeat",
         type=int,
         default=1,
         metavar="N",
         help="benchmark: send N requests one after another (after 20 warm-up calls) and print "
-        "the round-trip median and p99",
+        "the round-trip median and p99 (default: %(default)s, no benchmark)",
     )
     commands.add_parser("export", help="call /lit/learner/export (write the lookup tensors)")
     raw = commands.add_parser("raw", help="send TEXT unchanged to an AddDiagnostics service")
     raw.add_argument("name", help="service name, e.g. /lit/planner/plan")
     raw.add_argument("text", help="the request text ('-': read standard input)")
-    raw.add_argument("--repeat", type=int, default=1, metavar="N", help="benchmark, as for decide")
+    raw.add_argument(
+        "--repeat",
+        type=int,
+        default=1,
+        metavar="N",
+        help="benchmark, as for decide (default: %(default)s)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -176,16 +232,19 @@ def run(args: argparse.Namespace) -> int:
 def _request(args: argparse.Namespace) -> tuple[str, str]:
     from lit_msgs_json.envelope import Publisher
 
+    from lit_planner import scenarios
+
     publisher = Publisher(f"lit_call/{os.getpid()}", f"call-{uuid.uuid4().hex[:8]}")
     if args.service == "plan":
         payload: dict[str, Any] = {}
         if args.world is not None:
+            data = _read_world(args.world)
             try:
-                document = json.loads(args.world.read_text(encoding="utf-8"))
+                document = json.loads(data.decode("utf-8"))
             except ValueError as exc:  # JSONDecodeError, UnicodeDecodeError
-                raise ValueError(f"{args.world}: not valid JSON: {exc}") from exc
+                raise ValueError(f"--world {args.world}: not valid JSON: {exc}") from exc
             if not isinstance(document, dict):
-                raise ValueError(f"{args.world}: expected a JSON object")
+                raise ValueError(f"--world {args.world}: expected a JSON object")
             if "world" in document:
                 payload.update(document)
             else:
@@ -198,6 +257,9 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
                     if key in document:
                         payload[key] = document[key]
         else:
+            # The planner checks the name too; a wrong one is refused here with the message
+            # `lit plan` gives instead of the schema's pattern error, and nothing is sent.
+            scenarios.get(args.scenario)  # ScenarioError is a ValueError
             payload["scenario"] = args.scenario
         for key in ("time", "planner", "policy", "seed", "start", "goal", "request_id"):
             value = getattr(args, key)
@@ -227,6 +289,21 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
         return EXPORT_SERVICE, ""
     text = sys.stdin.read() if args.text == "-" else args.text
     return args.name, text
+
+
+def _read_world(path: Path) -> bytes:
+    """The bytes of ``--world``'s file; a missing, unreadable or non-file path as one message."""
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        problem = "no such file"
+    except IsADirectoryError:
+        problem = "a folder, not a file"
+    except PermissionError:
+        problem = "not readable (permission denied)"
+    except OSError as exc:
+        problem = f"cannot read it: {exc.strerror or exc}"
+    raise ValueError(f"--world {path}: {problem}")
 
 
 def _repeat(caller: ServiceCaller, text: str, args: argparse.Namespace) -> int:

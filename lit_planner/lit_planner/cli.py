@@ -76,7 +76,8 @@ COMMANDS: dict[str, Command] = {
     ),
     "tensors": Command(
         "lit_planner.tensors_cli",
-        "make lookup tensors without training: constant ones, a baseline for lit bench --tensors",
+        "check lookup tensors as the planner does (info) and make constant ones without "
+        "training, a baseline for lit bench --tensors (constant)",
     ),
     "test": Command(
         "lit_planner.testing", "run all tests: C++ (ctest) and Python (pytest)", run="main"

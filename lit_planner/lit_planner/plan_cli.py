@@ -93,11 +93,8 @@ def run(args: argparse.Namespace) -> int:
     """Plan as ``args`` say; the exit status of ``lit plan``."""
     try:
         scenario = scenarios.get(args.scenario, args.instance)
+        _check_policy_name(args.policy)
         planner, policy = planning.resolve_planner(args.planner, args.policy)
-        if policy == "external":
-            raise PlannerError(
-                "the external policy needs a callable and is not available on the command line"
-            )
         planning.check_seed(args.seed)
         if policy != "tensor" and (args.tensors is not None or args.interpolation is not None):
             raise PlannerError(
@@ -125,6 +122,21 @@ def run(args: argparse.Namespace) -> int:
     else:
         print("\n".join(summary_lines(result, scenario)))
     return EXIT_SOLVED if result["solved"] else EXIT_UNSOLVED
+
+
+def _check_policy_name(policy: str | None) -> None:
+    """Refuse a policy the command line cannot configure, naming only those it can.
+
+    :func:`lit_planner.planning.resolve_planner` knows ``external`` too, which needs a callable.
+    """
+    if policy == "external":
+        raise PlannerError(
+            "the external policy needs a callable and is not available on the command line"
+        )
+    if policy is not None and policy not in planning.NAMED_POLICIES:
+        raise PlannerError(
+            f"unknown policy {policy!r}; expected one of {', '.join(planning.NAMED_POLICIES)}"
+        )
 
 
 def summary_lines(result: Mapping[str, Any], scenario: Scenario) -> list[str]:

@@ -48,6 +48,12 @@ EXIT_BAD_INPUT = 2
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``lit tensors``."""
+    # Replaces the one-line summary of `lit --help` (lit_planner.cli), which names only `constant`.
+    parser.description = (
+        "Look into lookup tensors and make them without training: info checks a folder's tensors "
+        "and shows what they hold; constant writes tensors holding one value everywhere, a "
+        "baseline for lit bench --tensors."
+    )
     commands = parser.add_subparsers(dest="tensors_command", metavar="ACTION", required=True)
     info = commands.add_parser(
         "info",

@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import sqlite3
 import subprocess
 import sys
@@ -168,6 +169,27 @@ def test_lit_arena_command(bench_dir: Path) -> None:
     assert "2 OMPL benchmark logs" in process.stdout and "benchmark.db" in process.stdout
     assert "lit_core loaded there: False" in process.stdout
     assert (bench_dir / "benchmark.db").is_file()
+
+
+@pytest.mark.parametrize("name", ["../escape.db", "sub/arena.db", "..", ".", ""])
+def test_database_must_be_a_file_name_in_the_run_folder(bench_dir: Path, name: str) -> None:
+    """``--database`` names a file in RESULTS_DIR: a path out of (or into) it is refused."""
+    before = sorted(p.relative_to(bench_dir.parent) for p in bench_dir.parent.rglob("*"))
+    process = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "arena", str(bench_dir), "--database", name],
+        capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert process.returncode == 2, process.stdout + process.stderr
+    assert process.stdout == ""
+    assert process.stderr == (
+        f"lit arena: --database {name!r}: expected a file name inside RESULTS_DIR, without a "
+        "path separator or '..'\n"
+    )
+    # Nothing written: no logs, no database here or beside the run folder.
+    assert sorted(p.relative_to(bench_dir.parent) for p in bench_dir.parent.rglob("*")) == before
+    with pytest.raises(arena.ArenaError, match=re.escape(f"database {name!r}: expected a file")):
+        arena.export_arena(bench_dir, database=name)
+    assert sorted(p.relative_to(bench_dir.parent) for p in bench_dir.parent.rglob("*")) == before
 
 
 def test_missing_and_malformed_runs_files(tmp_path: Path) -> None:

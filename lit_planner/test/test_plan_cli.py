@@ -101,6 +101,7 @@ def test_plan_summary_is_readable() -> None:
         (["--scenario", "xx9"], "unknown scenario 'xx9'"),
         (["--planner", "eitstar"], "unknown planner 'eitstar'"),
         (["--policy", "learned"], "unknown policy 'learned'"),
+        (["--policy", "external"], "external policy needs a callable"),
         (["--planner", "aitstar", "--policy", "fit"], "applies to litstar only"),
         (["--policy", "tensor", "--tensors", "/nonexistent/tensors"], "no lookup tensors"),
         (["--planner", "bitstar", "--iterations", "5"], "stops on time only"),
@@ -116,6 +117,13 @@ def test_plan_bad_input_is_one_line(args: list[str], message: str) -> None:
     assert process.stdout == ""
     lines = process.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("lit plan: ") and message in lines[0]
+
+
+def test_plan_offers_only_the_policies_it_takes() -> None:
+    """``external`` needs a callable: an unknown policy's message must not offer it."""
+    process = lit("plan", "--policy", "foo", "--json")
+    assert process.returncode == 2 and process.stdout == ""
+    assert process.stderr == "lit plan: unknown policy 'foo'; expected one of fixed, fit, tensor\n"
 
 
 def test_demo_solves_the_default_scenario(tmp_path: Path) -> None:

@@ -159,3 +159,15 @@ def test_a_failed_write_leaves_nothing(tmp_path: Path, monkeypatch: pytest.Monke
     process = lit("tensors", "constant", "--b", "100", "--out", str(tmp_path / "file" / "sub"))
     assert process.returncode == 2 and "tensors not written" in process.stderr
     assert len(process.stderr.strip().splitlines()) == 1
+
+
+def test_help_describes_both_actions() -> None:
+    """The description covers ``info`` too, not only the constant tensors."""
+    process = lit("tensors", "--help")
+    assert process.returncode == 0, process.stderr
+    usage, description = process.stdout.split("\n\n")[:2]
+    assert usage.startswith("usage: lit tensors")
+    description = " ".join(description.split())
+    assert description.startswith("Look into lookup tensors and make them without training")
+    assert "info checks a folder's tensors" in description
+    assert "constant writes tensors" in description

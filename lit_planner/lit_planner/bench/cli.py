@@ -359,6 +359,8 @@ def _start_recording(
 def _config(
     args: argparse.Namespace,
 ) -> tuple[runner.BenchConfig, str | None, list[str], dict[str, Any]]:
+    if args.no_bag and args.bag_dir is not None:
+        raise ValueError(f"--bag-dir {args.bag_dir} and --no-bag contradict each other: choose one")
     preset_name = next((name for name in runner.PRESETS if getattr(args, name)), None)
     preset = runner.PRESETS[preset_name] if preset_name else runner.PRESETS["paper"]
     # An option given but empty (--scenarios "") is an error below, not the preset's list.

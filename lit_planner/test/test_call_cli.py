@@ -1,0 +1,123 @@
+"""``lit call`` refuses bad arguments with one line and exit 2 before it sends anything, and its
+help names every option's default."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from lit_planner import call
+
+
+def lit_call(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    """``lit call ARGS``; a long --wait: a refusal must come before any wait for a service."""
+    return subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "call", "--wait", "600", *args],
+        cwd=cwd,
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+        capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+
+
+def refusal(process: subprocess.CompletedProcess[str]) -> str:
+    """The one line of a refused ``lit call``."""
+    assert process.returncode == 2, process.stdout + process.stderr
+    assert process.stdout == ""
+    lines = process.stderr.strip().splitlines()
+    assert len(lines) == 1, process.stderr
+    assert lines[0].startswith("lit call: error: ")
+    return lines[0]
+
+
+@pytest.mark.parametrize("name", ["foo", "xy8", "NP8", "np8/"])
+def test_plan_refuses_an_unknown_scenario_as_lit_plan_does(tmp_path: Path, name: str) -> None:
+    """Not the schema's pattern error from the planner: the scenario registry's own message."""
+    line = refusal(lit_call("plan", "--scenario", name, cwd=tmp_path))
+    assert line == (
+        f"lit call: error: unknown scenario {name!r}: expected <family><dim>[/<instance>] with "
+        "family one of ['np', 'rr', 'rrd', 'wg'], e.g. 'np8' or 'rrd8/3'"
+    )
+
+
+def test_plan_refuses_a_scenario_the_registry_refuses(tmp_path: Path) -> None:
+    line = refusal(lit_call("plan", "--scenario", "np8/3", cwd=tmp_path))
+    assert line == "lit call: error: scenario 'np8/3': family 'np' has only instance 0, not 3"
+
+
+def test_plan_refuses_a_missing_world_file_or_a_folder(tmp_path: Path) -> None:
+    missing = tmp_path / "nonexistent.json"
+    line = refusal(lit_call("plan", "--world", str(missing), cwd=tmp_path))
+    assert line == f"lit call: error: --world {missing}: no such file"
+    line = refusal(lit_call("plan", "--world", str(tmp_path), cwd=tmp_path))
+    assert line == f"lit call: error: --world {tmp_path}: a folder, not a file"
+    (tmp_path / "bad.json").write_bytes(b"\xff\xfe")
+    line = refusal(lit_call("plan", "--world", "bad.json", cwd=tmp_path))
+    assert line.startswith("lit call: error: --world bad.json: not valid JSON: ")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json"]
+
+
+def test_an_unreadable_world_file_is_one_message(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """(Made unreadable by a stand-in: as root, chmod 000 does not stop a read.)"""
+
+    def refuse(self: Path) -> bytes:
+        raise PermissionError(13, "Permission denied", str(self))
+
+    monkeypatch.setattr(Path, "read_bytes", refuse)
+    world = tmp_path / "world.json"
+    with pytest.raises(ValueError, match=r"^--world .*world\.json: not readable \(permission"):
+        call._read_world(world)
+
+
+def _options(parser: argparse.ArgumentParser) -> list[tuple[str, argparse.Action]]:
+    """Every option of ``parser`` and of its subcommands that may be left out, with the command it
+    belongs to (``plan``'s --scenario and --world: one of them is required, neither defaults)."""
+    required = {
+        id(a) for g in parser._mutually_exclusive_groups if g.required for a in g._group_actions
+    }
+    found = []
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                found += [(f"{name} {option}", a) for option, a in _options(sub)]
+        elif (
+            action.option_strings
+            and not isinstance(action, argparse._HelpAction)
+            and not action.required
+            and id(action) not in required
+        ):
+            found.append((action.option_strings[0], action))
+    return found
+
+
+def test_every_option_of_lit_call_names_its_default() -> None:
+    parser = argparse.ArgumentParser(prog="lit call")
+    call.add_arguments(parser)
+    options = _options(parser)
+    assert any(name == "--wait" for name, _ in options)
+    assert any(name == "decide --rho-global" for name, _ in options)
+    assert not any(name == "plan --scenario" for name, _ in options)
+    flags = (argparse._StoreTrueAction,)  # off unless given: nothing to name
+    missing = [
+        name
+        for name, action in options
+        if not isinstance(action, flags) and "default" not in (action.help or "")
+    ]
+    assert missing == []
+
+
+def test_lit_call_help_shows_the_wait_default(tmp_path: Path) -> None:
+    process = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "call", "--help"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert process.returncode == 0, process.stderr
+    text = " ".join(process.stdout.split())
+    assert f"--wait WAIT seconds to wait for the service to appear (default: {15:g})" in text
+    assert call.DEFAULT_WAIT == 15.0  # the README's "--wait (default 15 s)"
