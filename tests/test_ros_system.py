@@ -516,8 +516,9 @@ BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
         "aitstar takes no policy",
     ),
     (
+        # sent raw: lit call plan refuses the name itself before sending (exit 2)
         "plan: unknown scenario",
-        ["plan", "--scenario", "zz9"],
+        ["raw", PLAN, json.dumps(_envelope("PlanRequest", {"scenario": "zz9"}))],
         None,
         "invalid-request",
         "$.payload.scenario",

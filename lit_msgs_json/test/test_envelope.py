@@ -287,6 +287,7 @@ def test_message_versions_name_every_message_schema() -> None:
     assert {name: v for name, v in MESSAGE_VERSIONS.items() if v != 1} == {
         "DecideRequest": 2,
         "EpisodeEnd": 2,
+        "EpisodeSummary": 2,  # the world of a custom scenario
     }
     assert set(OLDER_VERSIONS) <= set(MESSAGE_VERSIONS)
     for name, older in OLDER_VERSIONS.items():
@@ -1075,7 +1076,11 @@ def test_publishers_send_the_current_version() -> None:
 
 @pytest.mark.parametrize(
     ("name", "field", "value"),
-    [("DecideRequest", "after_fallback", True), ("EpisodeEnd", "fallback_agents", ["B"])],
+    [
+        ("DecideRequest", "after_fallback", True),
+        ("EpisodeEnd", "fallback_agents", ["B"]),
+        ("EpisodeSummary", "world", WORLD | START_GOAL | {"resolution": 0.01}),
+    ],
 )
 def test_version_1_is_decoded_without_the_fields_version_2_added(
     name: str, field: str, value: object

@@ -127,7 +127,7 @@ def summary_payload(
     for decision in result.get("decisions", []):
         counts[decision["kind"]] = counts.get(decision["kind"], 0) + 1
     check = result.get("path_check")
-    return {
+    payload = {
         "episode_id": episode_id,
         "mode": mode,
         "scenario": scenario.key,
@@ -151,6 +151,28 @@ def summary_payload(
         "path_states": len(result["path"]),
         "path_valid": None if check is None else bool(check["ok"]),
         "counters": {k: int(v) for k, v in result["counters"].items()},
+    }
+    world = world_payload(scenario)
+    if world is not None:
+        payload["world"] = world
+    return payload
+
+
+def world_payload(scenario: Any) -> dict[str, Any] | None:
+    """The EpisodeSummary's ``world`` of a custom scenario (what a replay needs to re-check its
+    path: bounds, boxes, resolution, start, goal); None for a registry scenario, which its name
+    and instance identify."""
+    from lit_planner.scenarios import CUSTOM_FAMILY
+
+    if scenario.family != CUSTOM_FAMILY:
+        return None
+    return {
+        "lower": [float(x) for x in scenario.lower],
+        "upper": [float(x) for x in scenario.upper],
+        "boxes": [{"lower": box[0].tolist(), "upper": box[1].tolist()} for box in scenario.boxes],
+        "resolution": float(scenario.resolution),
+        "start": [float(x) for x in scenario.start],
+        "goal": [float(x) for x in scenario.goal],
     }
 
 

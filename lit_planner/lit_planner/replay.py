@@ -58,7 +58,8 @@ ENVELOPE_KEYS = ("schema", "version", "seq", "stamp_ns", "source", "run_id", "pa
 SCHEMA_PREFIX = "lit_msgs_json/"
 """Every envelope schema name starts with this."""
 SUPPORTED_VERSIONS = frozenset({1})
-"""Envelope versions this replay reads."""
+"""Envelope versions this replay reads of the schemas ``lit_msgs_json`` does not version as
+messages (``BenchConfig``, ``BenchRun``); a message's are :func:`supported_versions`."""
 MESSAGE_SCHEMAS = frozenset({"BenchConfig", "BenchRun"})
 """Envelope schemas besides those that ``lit_msgs_json`` ships (BenchConfig is read only here)."""
 EPISODE_SCHEMA = "lit_msgs_json/EpisodeSummary"
@@ -196,6 +197,21 @@ def known_schema(name: str) -> bool:
     if not name.startswith(SCHEMA_PREFIX):
         return False
     return name.removeprefix(SCHEMA_PREFIX) in _schema_names()
+
+
+@cache
+def supported_versions(schema: str) -> frozenset[int]:
+    """The versions of envelope schema ``schema`` this replay reads: for a message of
+    ``lit_msgs_json`` its current and older versions (``accepted_versions``), else
+    :data:`SUPPORTED_VERSIONS`."""
+    try:
+        from lit_msgs_json.envelope import MESSAGE_VERSIONS, accepted_versions
+    except Exception:  # noqa: BLE001 -- replay must work without the schemas package
+        return SUPPORTED_VERSIONS
+    short = schema.removeprefix(SCHEMA_PREFIX)
+    if short in MESSAGE_VERSIONS:
+        return frozenset(accepted_versions(short))
+    return SUPPORTED_VERSIONS
 
 
 @cache
@@ -437,7 +453,7 @@ def parse_envelope(text: str, topic: str, log_ns: int, skipped: Skipped) -> Enve
     if not isinstance(schema, str) or not known_schema(schema):
         skipped.add("unknown schema", where, str(schema))
         return None
-    if type(version) is not int or version not in SUPPORTED_VERSIONS:
+    if type(version) is not int or version not in supported_versions(schema):
         skipped.add("unsupported version", where, f"{schema} version {version!r}")
         return None
     integers = (seq, document["stamp_ns"])
@@ -650,7 +666,15 @@ def verify_bag(path: str | Path, report: VerifyReport) -> Skipped:
             report.unsolved += 1
             continue
         scenario, instance = _episode_scenario(payload)
-        _check(report, where, scenario, instance, path_item, payload.get("path_valid"))
+        _check(
+            report,
+            where,
+            scenario,
+            instance,
+            path_item,
+            payload.get("path_valid"),
+            world=payload.get("world"),
+        )
     return skipped
 
 
@@ -759,14 +783,36 @@ def _check(
     instance: Any,
     path: Any,
     recorded_valid: Any,
+    *,
+    world: Any = None,
 ) -> None:
+    """Re-check ``path`` in the registry's scenario ``scenario_name`` (instance ``instance``), or
+    in ``world`` (an EpisodeSummary's ``world``: a custom scenario's bounds, boxes, resolution,
+    start and goal) when given."""
     if not isinstance(scenario_name, str):
         report.unchecked.add("no scenario name", where)
         return
     try:
-        world = scenarios.get(scenario_name, instance if isinstance(instance, int) else None)
-        check = scenarios.check_path(world, path)
-    except (LitPlannerError, ValueError, TypeError) as error:
+        if world is not None:
+            problem = scenarios.custom(
+                world["lower"],
+                world["upper"],
+                [(box["lower"], box["upper"]) for box in world["boxes"]],
+                world["start"],
+                world["goal"],
+                resolution=world["resolution"],
+            )
+        elif scenario_name.startswith(scenarios.CUSTOM_FAMILY):
+            report.unchecked.add(
+                "custom world not recorded",
+                where,
+                f"{scenario_name}: recorded before EpisodeSummary version 2 carried the world",
+            )
+            return
+        else:
+            problem = scenarios.get(scenario_name, instance if isinstance(instance, int) else None)
+        check = scenarios.check_path(problem, path)
+    except (LitPlannerError, ValueError, TypeError, KeyError) as error:
         report.unchecked.add("cannot check", where, _describe(error))
         return
     report.checked += 1
@@ -781,7 +827,7 @@ def _check(
         else:
             reason = "does not start at the start" if not check.starts_at_start else ""
             reason = reason or "does not end at the goal"
-        report.invalid.append(f"{where}: {world.key}: {reason}")
+        report.invalid.append(f"{where}: {problem.key}: {reason}")
     if isinstance(recorded_valid, bool) and recorded_valid != check.ok:
         report.disagreements.append(
             f"{where}: recorded path_valid={recorded_valid}, re-check says {check.ok}"
