@@ -71,8 +71,15 @@ def default_tensors_dir() -> Path:
     return Path(__file__).resolve().parents[2] / "tensors"
 
 
-def query_for(scenario: Scenario) -> lit_core.Query:
-    """The core's query for ``scenario``: its bounds, boxes, start, goal and resolution."""
+def query_for(scenario: Scenario | str) -> lit_core.Query:
+    """The core's query for ``scenario`` (or the registry's scenario of that name): its bounds,
+    boxes, start, goal and resolution.
+
+    Raises:
+        ScenarioError: an unknown scenario name.
+    """
+    if isinstance(scenario, str):
+        scenario = scenarios.get(scenario)
     return lit_core.Query(
         list(scenario.lower),
         list(scenario.upper),
@@ -367,7 +374,8 @@ def plan(
         ScenarioError: unknown scenario or instance.
         PlannerError: unknown planner or policy, options that do not fit the planner, bad numbers.
         TensorFileError: see :func:`make_policy`.
-        ValueError: a planner parameter in ``params`` that the planner does not have.
+        PlannerError: a planner parameter in ``params`` that the planner does not have (the
+            message lists the ones it has), or a value it rejects.
     """
     problem = _scenario(scenario, instance)
     policy_name = policy.name if isinstance(policy, lit_core.ParameterPolicy) else policy
@@ -399,17 +407,23 @@ def plan(
     elif not (math.isfinite(time) and time > 0):
         raise PlannerError(f"time must be a positive number of seconds, got {time}")
 
-    result: dict[str, Any] = lit_core.solve(
-        query_for(problem),
-        core_planner,
-        time=time,
-        policy=policy_object,
-        seed=seed,
-        max_iterations=max_iterations,
-        max_batches=max_batches,
-        params={key: _param_text(value) for key, value in params.items()},
-        listener=listener,
-    )
+    try:
+        result: dict[str, Any] = lit_core.solve(
+            query_for(problem),
+            core_planner,
+            time=time,
+            policy=policy_object,
+            seed=seed,
+            max_iterations=max_iterations,
+            max_batches=max_batches,
+            params={key: _param_text(value) for key, value in params.items()},
+            listener=listener,
+        )
+    except ValueError as error:
+        if type(error) is not ValueError:  # a listener's own error, already typed
+            raise
+        # The core's checks of its arguments (an unknown parameter, a value it rejects, ...).
+        raise PlannerError(str(error)) from None
     result.setdefault("policy", None)
     result.setdefault("iteration_init", None)
     result.update(

@@ -292,9 +292,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``lit up``."""
     add_domain_option(parser, DEFAULT_DOMAIN_ID)
     parser.add_argument(
-        "--policy", default="training", choices=("training", "tensor", "fit", "fixed")
+        "--policy",
+        default="training",
+        choices=("training", "tensor", "fit", "fixed"),
+        help="the planner's episodes: training (every B / psi_K asked of the learner) or a "
+        "policy of its own (default: %(default)s)",
     )
-    parser.add_argument("--episodes", type=int, default=20, help="planner episodes (0: serve)")
+    parser.add_argument(
+        "--episodes",
+        type=int,
+        default=20,
+        help="planner episodes (default: %(default)s; 0: only serve requests)",
+    )
     parser.add_argument(
         "--scenario",
         default=None,
@@ -302,9 +311,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "training: the training scenarios, comma-separated family+dimension (default: the "
         "planner node's mix)",
     )
-    parser.add_argument("--time-budget", type=float, default=0.0, help="0: the scenario's")
-    parser.add_argument("--run-id", default=None)
-    parser.add_argument("--checkpoint", default=None, help="learner checkpoint (resumed if found)")
+    parser.add_argument(
+        "--time-budget",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="planner time of each episode (default: 0, the scenario's)",
+    )
+    parser.add_argument(
+        "--run-id",
+        default=None,
+        help="the run's name: bag bags/RUN, learner files runs/RUN/learner/ (default: "
+        "up-<date>-<time>)",
+    )
+    parser.add_argument(
+        "--checkpoint",
+        default=None,
+        help="learner checkpoint, resumed if found (default: runs/RUN/learner/checkpoint.pt)",
+    )
     parser.add_argument("--no-record", action="store_true", help="do not record a bag")
     parser.add_argument("--bag", type=Path, default=None, help="bag directory (default bags/RUN)")
     parser.add_argument(

@@ -592,3 +592,28 @@ def test_tensor_sidecar_problems_are_rejected(tmp_path: Path) -> None:
     (tmp_path / "k_tensor.json").unlink()
     with pytest.raises(TensorFileError, match="no sidecar"):
         make_policy("tensor", tmp_path)
+
+
+def test_an_unknown_planner_parameter_is_a_planner_error_naming_the_known_ones(
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    from lit_planner import planning
+
+    with pytest.raises(PlannerError, match=r"has no parameter 'nosuch'; its parameters: .*"):
+        planning.plan("np4", "litstar", "fixed", time=0.05, params={"nosuch": 1})
+    with pytest.raises(PlannerError, match=r"rejected the value 'many' of its parameter"):
+        planning.plan("np4", "litstar", "fixed", time=0.05, params={"batch_size": "many"})
+    with pytest.raises(PlannerError, match=r"aitstar has no parameter 'nosuch'"):
+        planning.plan("np4", "aitstar", time=0.05, params={"nosuch": 1})
+    # checked before OMPL's setParam, which would print an error line of its own
+    assert "was not found" not in capfd.readouterr().err
+
+
+def test_query_for_takes_a_scenario_or_its_name() -> None:
+    from lit_planner import planning
+    from lit_planner.errors import ScenarioError
+
+    by_name, by_object = planning.query_for("np4"), planning.query_for(scenarios.get("np4"))
+    assert by_name.dimension == by_object.dimension == 4
+    with pytest.raises(ScenarioError, match="unknown scenario 'np'"):
+        planning.query_for("np")

@@ -219,9 +219,22 @@ namespace
                 planner = makeOmplPlanner(plannerName, problem.si);
             }
             for (const auto &[key, value] : params)
-                if (!planner->params().setParam(key, value))
+            {
+                if (!planner->params().hasParam(key))
+                {
+                    // Checked here: OMPL's setParam would also log an error of its own.
+                    std::vector<std::string> names;
+                    planner->params().getParamNames(names);
+                    std::string known;
+                    for (const auto &name : names)
+                        known += (known.empty() ? "" : ", ") + name;
                     throw py::value_error("planner " + plannerName + " has no parameter '" + key +
-                                          "' or rejected the value '" + value + "'");
+                                          "'; its parameters: " + known);
+                }
+                if (!planner->params().setParam(key, value))
+                    throw py::value_error("planner " + plannerName + " rejected the value '" + value +
+                                          "' of its parameter '" + key + "'");
+            }
             planner->setProblemDefinition(problem.pdef);
 
             {
