@@ -276,12 +276,15 @@ def test_a_benchmark_reads_its_tensors_once(
     assert "Planner parameters set: litstar-tensor: decision_interval 10 (" in summary
 
 
-def test_the_bench_command_reads_its_tensors_once(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_bench_command_reads_its_tensors_once(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
     """``lit bench`` checks that the tensor planner can run (selecting the planners) and then
-    benchmarks with the very policy object that check made: the files are read once."""
+    benchmarks with the very policy object that check made: through the command's own ``run``,
+    the files are read once."""
     import argparse
 
-    from lit_planner.bench import cli, runner
+    from lit_planner.bench import cli
 
     from lit_planner import planning
 
@@ -298,13 +301,13 @@ def test_the_bench_command_reads_its_tensors_once(monkeypatch: pytest.MonkeyPatc
     cli.add_arguments(parser)
     args = parser.parse_args(
         ["--scenarios", "np4", "--planners", "litstar-tensor,litstar-fit", "--runs", "1",
-         "--tensors", str(shipped), "--no-bag"]
+         "--time-scale", "0.5", "--tensors", str(shipped), "--no-bag",
+         "--out", str(tmp_path / "out")]
     )  # fmt: skip
-    config, _, _, made = cli._config(args)
-    policies = runner.benchmark_policies(config.planners, config.tensors_dir, made)
+    assert cli.run(args) == 0
     assert sorted(loads) == ["B", "psi_K"]
-    assert policies["litstar-tensor"] is made["litstar-tensor"]
-    assert isinstance(policies["litstar-fit"], type(planning.make_policy("fit")))
+    records = (tmp_path / "out" / "runs.jsonl").read_text(encoding="utf-8").splitlines()
+    assert {json.loads(line)["policy"] for line in records} == {"tensor", "fit"}
 
 
 def test_bench_refuses_a_bag_dir_with_no_bag(tmp_path: Path) -> None:

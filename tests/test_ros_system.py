@@ -309,14 +309,15 @@ def test_two_planners_train_one_learner(ros: RosSystem) -> None:
 # ---------------------------------------------------------------------- 4. a learner crash
 
 
-def test_the_first_learner_call_waits_longer_than_the_others(ros: RosSystem) -> None:
+def test_calls_wait_longer_until_the_learner_has_answered(ros: RosSystem) -> None:
     """Fast DDS drops a server's first answers to a client it has not matched yet (the server
-    sends again about 100 ms later), so the planner's first call to the learner waits
-    ``first_decision_timeout``; every later call waits ``decision_timeout``. With no learner at
-    all every call times out, and each episode's warning names the deadline it waited."""
+    sends again about 100 ms later), so until the learner has answered once the planner's calls
+    wait ``first_decision_timeout``, not ``decision_timeout`` (the killed-learner test below
+    checks the short deadline after answers). With no learner at all every call times out, and
+    each episode's warning names the deadline it waited."""
     planner = ros.planner(
         policy="training",
-        episodes=4,
+        episodes=3,
         exit_when_done=True,
         time_budget=0.05,
         training_scenarios="np4",
@@ -328,8 +329,7 @@ def test_the_first_learner_call_waits_longer_than_the_others(ros: RosSystem) -> 
     )
     assert planner.wait(timeout=120.0) == 0, planner.tail()
     waited = re.findall(r"learner did not answer within (\d+) ms", planner.text())
-    assert waited[:1] == ["600"], planner.tail()
-    assert len(waited) >= 2 and set(waited[1:]) == {"50"}, waited
+    assert waited and set(waited) == {"600"}, planner.tail()
 
 
 def test_planner_survives_a_killed_learner_and_resumes(ros: RosSystem) -> None:
@@ -362,7 +362,12 @@ def test_planner_survives_a_killed_learner_and_resumes(ros: RosSystem) -> None:
     before_kill = len(recording.payloads(EPISODE))
     log_at_kill = len(planner.text())
     assert ros.stop(learner, signal.SIGKILL) == -signal.SIGKILL
-    planner.wait_for_log(r"use the fallback policy", timeout=60.0, start=log_at_kill)
+    # after answers the short deadline (decision_timeout) applies, not first_decision_timeout
+    planner.wait_for_log(
+        r"within 300 ms; this decision and those in the next 0.5 s use the fallback policy",
+        timeout=60.0,
+        start=log_at_kill,
+    )
     recording.wait_until(
         EPISODE,
         lambda found: any(summary["fallback_decisions"] > 0 for summary in found[before_kill:]),

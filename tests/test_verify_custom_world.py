@@ -55,7 +55,8 @@ def test_a_custom_world_query_is_verified_from_the_bag(tmp_path: Path) -> None:
             cwd=tmp_path, env=env, stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
         )  # fmt: skip
     try:
-        _wait_for(log, "[planner]", up, timeout=120.0)
+        # the recorder hears the planner's topics (volatile: a summary sent before is lost)
+        _wait_for(log, "subscribers: 1 on every topic", up, timeout=120.0)
         answer = _lit(
             "call", "--wait", "120", "--payload-only", "plan", "--world", "world.json",
             "--time", "0.3", env=env, cwd=tmp_path,

@@ -859,9 +859,6 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
     if args.resume is not None:
         if w_search is not None:
             raise TrainingError("--w-search is set when a run starts; --resume keeps the run's")
-        if limits:
-            given = ", ".join("--" + name.replace("_", "-") for name in limits)
-            raise TrainingError(f"{given}: set when a run starts; --resume keeps the run's")
         checkpoint = Path(args.resume)
         if not checkpoint.exists():
             raise TrainingError(f"--resume {checkpoint}: no such checkpoint")
@@ -871,6 +868,13 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 f"{checkpoint / CHECKPOINT_DIR / 'final.ckpt'}"
             )
         state = DriverState.load(state_path(checkpoint))
+        changed = [name for name, value in limits.items() if getattr(state, name) != value]
+        if changed:
+            given = ", ".join(
+                f"--{name.replace('_', '-')} (the run's: {getattr(state, name)})"
+                for name in changed
+            )
+            raise TrainingError(f"{given}: set when a run starts; --resume keeps the run's")
         if args.episodes is not None and args.episodes <= state.episode:
             raise TrainingError(
                 f"--episodes {args.episodes} with --resume is the new total, and the checkpoint "

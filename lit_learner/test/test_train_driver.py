@@ -484,6 +484,8 @@ def test_episode_limits_apply_to_every_episode_and_carry_over_a_resume(tmp_path:
     """``--max-iterations``, ``--limit-terminates``, ``--effort-clock`` and ``--budget-scale``
     reach every episode of the run (and of its resumption, which keeps them), and the provenance
     names them."""
+    from lit_planner import scenarios
+
     seen: list[train.EpisodeOutcome] = []
     hooks = train.TrainingHooks(learner_config=small_config(), on_episode=seen.append)
     limits = {
@@ -500,10 +502,11 @@ def test_episode_limits_apply_to_every_episode_and_carry_over_a_resume(tmp_path:
         hooks=hooks,
     )
     assert len(seen) == 3
-    for outcome in seen:  # each ended on the limit, as a termination, on the effort clock
+    np4_budget = scenarios.get("np4").time_budget
+    for outcome in seen:  # each ended on the limit, as a termination (not on the budget)
         assert outcome.result["counters"]["iterations"] == 300
         assert not outcome.truncated
-        assert outcome.result["time"] < 0.2 * 20  # far inside the scaled np4 budget
+        assert outcome.result["time_budget"] == pytest.approx(20.0 * np4_budget)
     record = json.loads((run / train.PROVENANCE_FILE).read_text())
     assert record["episode_limits"] == {
         "max_iterations": 300,
@@ -543,6 +546,8 @@ def test_a_resume_keeps_the_episode_limits(
     train.train(arguments(run, scenarios="np4", episodes=1, **limited))
     final = run / "checkpoints" / "final.ckpt"
     assert train.run(arguments(run, episodes=2, resume=final, max_iterations=300)) == 2
-    assert "--max-iterations: set when a run starts" in capsys.readouterr().err
+    assert "--max-iterations (the run's: 200): set when a run starts" in capsys.readouterr().err
     assert train.run(arguments(run, episodes=2, resume=final)) == 2  # would record a bag
     assert "resume it with --no-bag" in capsys.readouterr().err
+    # the run's own values, given again, are fine
+    assert train.run(arguments(run, episodes=2, resume=final, max_iterations=200, no_bag=True)) == 0

@@ -2,7 +2,7 @@
 
 On the wire a message is one JSON text of at most ``MAX_MESSAGE_BYTES`` UTF-8 bytes::
 
-    {"schema": "lit_msgs_json/DecideRequest", "version": 1, "seq": 7,
+    {"schema": "lit_msgs_json/DecideRequest", "version": 2, "seq": 7,
      "stamp_ns": 1715240100000000000, "source": "planner/host/4711",
      "run_id": "train-2026-05-09", "payload": {...}}
 

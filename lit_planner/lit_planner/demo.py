@@ -320,11 +320,13 @@ def _report(
     fell_back = sum(e["fallback_decisions"] for e in training)
     if fell_back:
         who = (
-            f"{fell_back} decisions fell back to the tensors: the learner was late or "
-            "unreachable, see the planner's warnings"
+            f"{fell_back} decisions fell back to the planner's own policy: the learner was late "
+            "or unreachable, see the planner's warnings"
         )
-    else:
+    elif training:
         who = "the learner decided every B and psi_K"
+    else:
+        who = "none asked for"
     print(f"Training over ROS ({len(training)} episodes; {who}):")
     print("| episode | scenario | solved | c_final | learner decisions | fallbacks |")
     print("|---|---|---|---|---|---|")

@@ -12,12 +12,12 @@
   each decision calls the learner's ``/lit/learner/decide`` with a deadline of
   ``decision_timeout`` s. A late or absent learner: that decision falls back to the tensor policy
   (``fixed`` without tensors), the episode is marked, a warning is logged, and for
-  ``learner_retry`` s no call is tried; then training resumes with the learner. The node's first
-  call waits up to ``first_decision_timeout`` s instead: Fast DDS drops a server's first answers
-  to a client it has not matched yet and the server sends again about 100 ms later
-  (``rosutil.send_response``), so a first call under load took 60-250 ms and fell back, and with
-  it every decision of the next ``learner_retry`` s (whole `lit demo` episodes). The planner's
-  clock is paused meanwhile, as for every call.
+  ``learner_retry`` s no call is tried; then training resumes with the learner. Until the
+  learner has answered once, calls wait up to ``first_decision_timeout`` s instead: Fast DDS
+  drops a server's first answers to a client it has not matched yet and the server sends again
+  about 100 ms later (``rosutil.send_response``), so a first call under load took 60-250 ms and
+  fell back, and with it every decision of the next ``learner_retry`` s (whole `lit demo`
+  episodes). The planner's clock is paused meanwhile, as for every call.
 - Other policies with ``episodes > 0``: that many inference queries on ``scenario`` (seeds
   ``seed``, ``seed + 1``, ...), then the node keeps serving.
 - ``episodes_from``: ``training`` draws the episodes from the training distribution
@@ -176,8 +176,8 @@ class PlannerNode:
             for name in ("observation", "decision", "solution", "episode", "decide", "reply")
         }
         self._publish_lock = threading.Lock()
-        self._called_learner = False
-        """Whether the learner was called yet (the first call: ``first_decision_timeout``)."""
+        self._learner_answered = False
+        """Whether the learner answered a call yet (until then: ``first_decision_timeout``)."""
         # The validators of every message the node reads or writes, built now rather than in
         # the first query (about 10 ms each, inside a learner call's deadline or a plan).
         prepare(MESSAGE_VERSIONS)
@@ -402,6 +402,16 @@ class PlannerNode:
         """Training or inference episodes from the parameters, queued like service requests."""
         p = self.params
         if p["episodes"] <= 0:
+            # Serving only: say when the recorder (wait_for_subscribers) hears every topic, so a
+            # caller that records can wait for it before its first request.
+            if p["wait_for_subscribers"] > 0:
+                if self._wait_for_subscribers(p["wait_for_subscribers"], p["learner_wait"]):
+                    self.log.info(f"subscribers: {p['wait_for_subscribers']} on every topic")
+                else:
+                    self.log.warning(
+                        f"fewer than {p['wait_for_subscribers']} subscribers on every topic after "
+                        f"{p['learner_wait']} s"
+                    )
             return
         from lit_planner import scenarios
 
@@ -558,12 +568,11 @@ class PlannerNode:
             started = time.perf_counter()
             episode.learner_calls += 1
             deadline = self.params[
-                "decision_timeout" if self._called_learner else "first_decision_timeout"
+                "decision_timeout" if self._learner_answered else "first_decision_timeout"
             ]
             answer = self.learner.call(
                 self.envelopes["decide"].encode("DecideRequest", payload), deadline
             )
-            self._called_learner = True
             if answer is not None:
                 success, text = answer
                 try:
@@ -572,6 +581,7 @@ class PlannerNode:
                     reason = f"unreadable learner answer ({exc})"
                 else:
                     if success and reply.name == "DecideResponse":
+                        self._learner_answered = True
                         # From encoding the request to the decoded, validated answer.
                         episode.add("learner", (time.perf_counter() - started) * 1e3)
                         job.fell_back.discard(kind)
@@ -654,13 +664,22 @@ class PlannerNode:
         ):
             self.publish("observation", "Observation", observation)
             self.publish("decision", "Decision", decision)
-        self.publish(
-            "episode",
-            "EpisodeSummary",
-            summary_payload(
-                job.episode_id, job.kind, job.scenario, job.seed, job.policy, result, episode
-            ),
+        summary = summary_payload(
+            job.episode_id, job.kind, job.scenario, job.seed, job.policy, result, episode
         )
+        try:
+            self.publish("episode", "EpisodeSummary", summary)
+        except MessageError as error:
+            if error.code != "oversize" or "world" not in summary:
+                raise
+            # A world of thousands of boxes fits a request but, with everything else, not a
+            # summary: publish it without (its path then cannot be re-checked from the bag).
+            del summary["world"]
+            self.publish("episode", "EpisodeSummary", summary)
+            self.log.warning(
+                f"episode {job.episode_id}: its world is too large for the EpisodeSummary "
+                f"({error}); published without it, so lit replay verify cannot re-check its path"
+            )
         trajectory = self._trajectory()
         trajectory.header.frame_id = job.episode_id
         trajectory.joint_names = [f"q{i}" for i in range(job.scenario.dim)]

@@ -21,6 +21,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import re
 import threading
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -69,6 +70,13 @@ def default_tensors_dir() -> Path:
     if override:
         return Path(override)
     return Path(__file__).resolve().parents[2] / "tensors"
+
+
+_CORE_ARGUMENT_ERROR = re.compile(
+    r"planner \S+ (has no parameter|rejected the value)|policies apply to|\S+ stops on time only"
+    r"|solve needs a positive time|unknown planner"
+)
+"""The messages of ``lit_core.solve``'s own argument checks (python/bindings.cpp)."""
 
 
 def query_for(scenario: Scenario | str) -> lit_core.Query:
@@ -420,10 +428,11 @@ def plan(
             listener=listener,
         )
     except ValueError as error:
-        if type(error) is not ValueError:  # a listener's own error, already typed
-            raise
-        # The core's checks of its arguments (an unknown parameter, a value it rejects, ...).
-        raise PlannerError(str(error)) from None
+        # The core's checks of its arguments (an unknown parameter, a value it rejects, ...)
+        # become PlannerErrors; any other ValueError (a listener's own) passes unchanged.
+        if type(error) is ValueError and _CORE_ARGUMENT_ERROR.match(str(error)):
+            raise PlannerError(str(error)) from None
+        raise
     result.setdefault("policy", None)
     result.setdefault("iteration_init", None)
     result.update(

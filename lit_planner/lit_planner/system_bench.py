@@ -144,7 +144,8 @@ def _throughput_tables(system: System, work: Path, args: argparse.Namespace) -> 
             f"checkpoint after every episode): median {p50:.3f} ms, p90 {p90:.2f} ms, "
             f"p99 {p99:.2f} ms, max {max(latencies):.2f} ms; "
             f"{rows['training']['fallbacks']} decisions fell back (no answer within "
-            f"the 50 ms decision timeout)"
+            f"the 50 ms decision timeout; until the learner's first answer the planner waits "
+            f"up to 1 s, first_decision_timeout, and that answer is among these)"
         )
     for line in rows["training"]["warnings"]:  # why decisions fell back, if they did
         print(line)

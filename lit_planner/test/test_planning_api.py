@@ -610,8 +610,9 @@ def test_an_unknown_planner_parameter_is_a_planner_error_naming_the_known_ones(
 
 
 def test_query_for_takes_a_scenario_or_its_name() -> None:
-    from lit_planner import planning
     from lit_planner.errors import ScenarioError
+
+    from lit_planner import planning
 
     by_name, by_object = planning.query_for("np4"), planning.query_for(scenarios.get("np4"))
     assert by_name.dimension == by_object.dimension == 4
