@@ -158,6 +158,27 @@ def summary_payload(
     return payload
 
 
+def encode_summary(publisher: Any, summary: dict[str, Any]) -> tuple[str, str | None]:
+    """``summary`` encoded by ``publisher`` (a ``lit_msgs_json`` Publisher), and None; or, when
+    its ``world`` makes it larger than a message may be (thousands of boxes fit a PlanRequest
+    but, with everything else, not a summary), the summary without the world and the reason,
+    for a warning: an answered plan must not fail on its summary, whose path then cannot be
+    re-checked from a bag.
+
+    Raises:
+        MessageError: the summary is invalid for another reason.
+    """
+    from lit_msgs_json.envelope import MessageError
+
+    try:
+        return publisher.encode("EpisodeSummary", summary), None
+    except MessageError as error:
+        if error.code != "oversize" or "world" not in summary:
+            raise
+        trimmed = {key: value for key, value in summary.items() if key != "world"}
+        return publisher.encode("EpisodeSummary", trimmed), str(error)
+
+
 def world_payload(scenario: Any) -> dict[str, Any] | None:
     """The EpisodeSummary's ``world`` of a custom scenario (what a replay needs to re-check its
     path: bounds, boxes, resolution, start, goal); None for a registry scenario, which its name

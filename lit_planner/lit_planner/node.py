@@ -53,6 +53,7 @@ from lit_planner.episode_messages import (
     DecisionSources,
     EventLog,
     decision_payloads,
+    encode_summary,
     finite,
     path_timing,
     summary_payload,
@@ -667,18 +668,14 @@ class PlannerNode:
         summary = summary_payload(
             job.episode_id, job.kind, job.scenario, job.seed, job.policy, result, episode
         )
-        try:
-            self.publish("episode", "EpisodeSummary", summary)
-        except MessageError as error:
-            if error.code != "oversize" or "world" not in summary:
-                raise
-            # A world of thousands of boxes fits a request but, with everything else, not a
-            # summary: publish it without (its path then cannot be re-checked from the bag).
-            del summary["world"]
-            self.publish("episode", "EpisodeSummary", summary)
+        message = self._string()
+        with self._publish_lock:
+            message.data, dropped = encode_summary(self.envelopes["episode"], summary)
+            self.publishers["episode"].publish(message)
+        if dropped is not None:
             self.log.warning(
                 f"episode {job.episode_id}: its world is too large for the EpisodeSummary "
-                f"({error}); published without it, so lit replay verify cannot re-check its path"
+                f"({dropped}); published without it, so lit replay verify cannot re-check its path"
             )
         trajectory = self._trajectory()
         trajectory.header.frame_id = job.episode_id
