@@ -582,9 +582,12 @@ class PlannerNode:
                     reason = f"unreadable learner answer ({exc})"
                 else:
                     if success and reply.name == "DecideResponse":
-                        self._learner_answered = True
                         # From encoding the request to the decoded, validated answer.
-                        episode.add("learner", (time.perf_counter() - started) * 1e3)
+                        latency = (time.perf_counter() - started) * 1e3
+                        if not self._learner_answered:
+                            self._learner_answered = True
+                            self.log.info(f"learner answered its first call in {latency:.1f} ms")
+                        episode.add("learner", latency)
                         job.fell_back.discard(kind)
                         return float(reply.payload["value"])
                     reason = f"learner error: {reply.payload.get('message', '?')}"

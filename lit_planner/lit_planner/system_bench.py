@@ -144,8 +144,8 @@ def _throughput_tables(system: System, work: Path, args: argparse.Namespace) -> 
             f"checkpoint after every episode): median {p50:.3f} ms, p90 {p90:.2f} ms, "
             f"p99 {p99:.2f} ms, max {max(latencies):.2f} ms; "
             f"{rows['training']['fallbacks']} decisions fell back (no answer within "
-            f"the 50 ms decision timeout; until the learner's first answer the planner waits "
-            f"up to 1 s, first_decision_timeout, and that answer is among these)"
+            f"the 50 ms decision timeout). The planner waits up to 1 s for the learner's first "
+            f"answer (first_decision_timeout), which is among these latencies"
         )
     for line in rows["training"]["warnings"]:  # why decisions fell back, if they did
         print(line)
@@ -284,6 +284,12 @@ def _dead_learner(system: System, work: Path, args: argparse.Namespace) -> list[
         },
     )
     system.wait_ready("planner")
+    # Until the learner has answered once the planner waits first_decision_timeout (1 s), not
+    # decision_timeout: kill only a learner that has answered, or the measure would be that.
+    if _wait_for_line(planner, 0, "learner answered its first call", timeout=120.0) is None:
+        print("the learner never answered the planner; no kills", file=sys.stderr)
+        _stop(system, "planner")
+        return []
     delays = []
     for _ in range(args.kills):
         time.sleep(3.0)  # training under way, the learner answering
@@ -298,6 +304,18 @@ def _dead_learner(system: System, work: Path, args: argparse.Namespace) -> list[
         _start_learner(system, work)  # resumes from its checkpoint
     _stop(system, "planner")
     return delays
+
+
+def _wait_for_line(child: Any, start: int, text: str, timeout: float) -> str | None:
+    """The first of ``child``'s log lines from ``start`` on that holds ``text``, waiting up to
+    ``timeout`` s; None if none came."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        for line in child.lines[start:]:
+            if text in line:
+                return line
+        time.sleep(0.05)
+    return None
 
 
 def _wait_for_warning(child: Any, start: int, timeout: float) -> float | None:
