@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -117,6 +118,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser, module = build_parser(selected if selected in COMMANDS else None)
     args = parser.parse_args(argv)
     run = getattr(module, COMMANDS[args.command].run)
+    # A non-interactive shell starts background commands with SIGINT ignored, and Python then
+    # installs no KeyboardInterrupt handler: `kill -INT` would do nothing, although every command
+    # documents how it stops on it (and children inherit the ignoring). Restore it.
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         return int(run(args) or 0)
     except KeyboardInterrupt:  # Ctrl-C: the command's own finally blocks have stopped its children
