@@ -302,15 +302,11 @@ class PlannerNode:
         from lit_planner import scenarios
 
         if "world" in payload:
-            world = payload["world"]
-            problem = scenarios.custom(
-                world["lower"],
-                world["upper"],
-                [(box["lower"], box["upper"]) for box in world["boxes"]],
+            problem = scenarios.from_world(
+                payload["world"],
                 payload["start"],
                 payload["goal"],
                 time_budget=float(payload.get("time", 1.0)),
-                resolution=world.get("resolution"),
             )
         else:
             problem = scenarios.get(payload["scenario"])

@@ -794,14 +794,7 @@ def _check(
         return
     try:
         if world is not None:
-            problem = scenarios.custom(
-                world["lower"],
-                world["upper"],
-                [(box["lower"], box["upper"]) for box in world["boxes"]],
-                world["start"],
-                world["goal"],
-                resolution=world["resolution"],
-            )
+            problem = scenarios.from_world(world, world["start"], world["goal"])
         elif scenario_name.startswith(scenarios.CUSTOM_FAMILY):
             report.unchecked.add(
                 "custom world not recorded",

@@ -28,10 +28,10 @@ from __future__ import annotations
 import math
 import re
 import zlib
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Literal, cast
+from typing import Any, Literal, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -327,6 +327,31 @@ CUSTOM_FAMILY = "custom"
 DEFAULT_CUSTOM_RESOLUTION = 0.001
 """Collision-checking resolution of a custom world that does not give one (fraction of the
 maximum extent)."""
+
+
+def from_world(
+    world: Mapping[str, Any],
+    start: Sequence[float],
+    goal: Sequence[float],
+    *,
+    time_budget: float = 1.0,
+) -> Scenario:
+    """:func:`custom` from a world as the messages write it (a PlanRequest's ``world``, an
+    EpisodeSummary's): ``lower``, ``upper``, ``boxes`` as ``{"lower", "upper"}`` objects and an
+    optional ``resolution``.
+
+    Raises:
+        ScenarioError: as :func:`custom`.
+    """
+    return custom(
+        world["lower"],
+        world["upper"],
+        [(box["lower"], box["upper"]) for box in world["boxes"]],
+        start,
+        goal,
+        time_budget=time_budget,
+        resolution=world.get("resolution"),
+    )
 
 
 def custom(

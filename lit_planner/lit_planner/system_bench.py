@@ -25,6 +25,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -286,7 +287,8 @@ def _dead_learner(system: System, work: Path, args: argparse.Namespace) -> list[
     system.wait_ready("planner")
     # Until the learner has answered once the planner waits first_decision_timeout (1 s), not
     # decision_timeout: kill only a learner that has answered, or the measure would be that.
-    if _wait_for_line(planner, 0, "learner answered its first call", timeout=120.0) is None:
+    first = "learner answered its first call"
+    if _wait_for_line(planner, 0, lambda line: first in line, timeout=120.0) is None:
         print("the learner never answered the planner; no kills", file=sys.stderr)
         _stop(system, "planner")
         return []
@@ -306,28 +308,29 @@ def _dead_learner(system: System, work: Path, args: argparse.Namespace) -> list[
     return delays
 
 
-def _wait_for_line(child: Any, start: int, text: str, timeout: float) -> str | None:
-    """The first of ``child``'s log lines from ``start`` on that holds ``text``, waiting up to
+def _wait_for_line(
+    child: Any, start: int, wanted: Callable[[str], bool], timeout: float
+) -> str | None:
+    """The first of ``child``'s log lines from ``start`` on that is ``wanted``, waiting up to
     ``timeout`` s; None if none came."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         for line in child.lines[start:]:
-            if text in line:
+            if wanted(line):
                 return line
         time.sleep(0.05)
     return None
 
 
 def _wait_for_warning(child: Any, start: int, timeout: float) -> float | None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        for line in child.lines[start:]:
-            if "[WARN]" in line and "learner" in line:  # the fallback warning
-                match = _LOG_STAMP.search(line)
-                if match:
-                    return float(match.group(1))
-        time.sleep(0.05)
-    return None
+    """The log time of the planner's fallback warning from line ``start`` on."""
+    line = _wait_for_line(
+        child,
+        start,
+        lambda text: "[WARN]" in text and "learner" in text and _LOG_STAMP.search(text) is not None,
+        timeout,
+    )
+    return None if line is None else float(_LOG_STAMP.search(line).group(1))  # type: ignore[union-attr]
 
 
 def _stop(system: System, name: str) -> None:
