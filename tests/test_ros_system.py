@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
 import signal
 import time
@@ -22,6 +23,7 @@ from ros_helpers import (
     LEARNER_NODE,
     PLANNER_NODE,
     Child,
+    Recording,
     RosSystem,
     children_of,
     finish_call,
@@ -332,11 +334,12 @@ def test_calls_wait_longer_until_the_learner_has_answered(ros: RosSystem) -> Non
     assert waited and set(waited) == {"600"}, planner.tail()
 
 
-def test_planner_survives_a_killed_learner_and_resumes(ros: RosSystem) -> None:
-    """SIGKILL the learner mid-training: fallback decisions, then training resumes on restart."""
+def _training_under_way(
+    ros: RosSystem, learner_params: dict[str, Any], learner_retry: float
+) -> tuple[Recording, Child, Child]:
+    """A recorder of the episodes, a learner and a planner training without end (deadline
+    300 ms), once an episode was trained by the learner."""
     recording = ros.recorder([EPISODE])
-    checkpoint = _checkpoint(ros)
-    learner_params = {"checkpoint_every": 1, "checkpoint_period": 1.0}
     learner = ros.learner(**learner_params)
     _ready(learner)
     planner = ros.planner(
@@ -345,10 +348,9 @@ def test_planner_survives_a_killed_learner_and_resumes(ros: RosSystem) -> None:
         time_budget=0.5,
         training_scenarios="np4,np8",
         decision_timeout=0.3,
-        learner_retry=0.5,
+        learner_retry=learner_retry,
     )
     _ready(planner)
-
     recording.wait_until(
         EPISODE,
         lambda found: any(_learned(summary) for summary in found),
@@ -356,6 +358,14 @@ def test_planner_survives_a_killed_learner_and_resumes(ros: RosSystem) -> None:
         what="an episode trained by the learner",
         watch=[planner, learner],
     )
+    return recording, learner, planner
+
+
+def test_planner_survives_a_killed_learner_and_resumes(ros: RosSystem) -> None:
+    """SIGKILL the learner mid-training: fallback decisions, then training resumes on restart."""
+    checkpoint = _checkpoint(ros)
+    learner_params = {"checkpoint_every": 1, "checkpoint_period": 1.0}
+    recording, learner, planner = _training_under_way(ros, learner_params, learner_retry=0.5)
     learner.wait_for_log(r"checkpoint \S+ \([1-9]\d* episodes\)", timeout=60.0)
     assert checkpoint.is_file()
 
@@ -364,7 +374,8 @@ def test_planner_survives_a_killed_learner_and_resumes(ros: RosSystem) -> None:
     assert ros.stop(learner, signal.SIGKILL) == -signal.SIGKILL
     # after answers the short deadline (decision_timeout) applies, not first_decision_timeout
     planner.wait_for_log(
-        r"within 300 ms; this decision and those in the next 0.5 s use the fallback policy",
+        r"within 300 ms; this decision and those until its late answer arrives \(at most 0.5 s\) "
+        r"use the fallback policy",
         timeout=60.0,
         start=log_at_kill,
     )
@@ -397,6 +408,47 @@ def test_planner_survives_a_killed_learner_and_resumes(ros: RosSystem) -> None:
     # (fallback_agents) are valid messages: the learner took every one of them.
     assert "rejected:" not in restarted.text(), restarted.tail(40)
     assert not re.search(r"episode \S+: learner: ", planner.text()), planner.tail(40)
+
+
+def test_a_late_answer_resumes_calls_before_learner_retry(ros: RosSystem) -> None:
+    """A learner that is alive but slow once (here: stopped with SIGSTOP for 1.5 s, as a busy
+    machine would hold it) misses a call's deadline; the planner falls back until the late
+    answer arrives, then calls the learner again. ``learner_retry`` is ten minutes, so an
+    episode trained by the learner after the pause shows the early resumption."""
+    recording, learner, planner = _training_under_way(ros, {}, learner_retry=600.0)
+    log_at_pause = len(planner.text())
+    os.kill(learner.pid, signal.SIGSTOP)
+    try:
+        missed = planner.wait_for_log(
+            r"episode (\S+): learner did not answer within 300 ms; this decision and those "
+            r"until its late answer "
+            r"arrives \(at most 600 s\) use the fallback policy",
+            timeout=60.0,
+            start=log_at_pause,
+        )
+        time.sleep(1.5)
+    finally:
+        os.kill(learner.pid, signal.SIGCONT)
+    planner.wait_for_log(
+        r"the learner answered the missed call late; calls resume",
+        timeout=60.0,
+        start=log_at_pause,
+    )
+    after_pause = len(recording.payloads(EPISODE))
+    recording.wait_until(
+        EPISODE,
+        lambda found: any(_learned(summary) for summary in found[after_pause:]),
+        timeout=120.0,
+        what="an episode trained by the learner after the late answer",
+        watch=[planner, learner],
+    )
+    paused = [s for s in recording.payloads(EPISODE) if s["episode_id"] == missed.group(1)]
+    assert len(paused) == 1 and paused[0]["fallback_decisions"] > 0, paused
+
+    assert ros.stop(planner, timeout=60.0) == 0, planner.tail()
+    assert ros.stop(learner, timeout=60.0) == 0, learner.tail()
+    _no_traceback(planner, learner)
+    assert "rejected:" not in learner.text(), learner.tail(40)
 
 
 # ---------------------------------------------------------------------- 5. bad input

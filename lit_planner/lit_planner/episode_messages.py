@@ -61,6 +61,8 @@ class DecisionSources:
     learner_calls: int = 0
     warned: bool = False
     """The query's one warning about an unreachable learner was logged."""
+    resumed: bool = False
+    """The query's one note that a late learner answered and calls resume was logged."""
 
     def add(self, source: str, latency_ms: float | None = None) -> None:
         self.sources.append(source)

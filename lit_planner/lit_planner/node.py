@@ -12,7 +12,9 @@
   each decision calls the learner's ``/lit/learner/decide`` with a deadline of
   ``decision_timeout`` s. A late or absent learner: that decision falls back to the tensor policy
   (``fixed`` without tensors), the episode is marked, a warning is logged, and for
-  ``learner_retry`` s no call is tried; then training resumes with the learner. Until the
+  ``learner_retry`` s no call is tried; then training resumes with the learner. Calls resume
+  sooner when the learner answers the missed call late (a busy machine delayed one answer: the
+  learner is alive), unless two calls in a row missed. Until the
   learner has answered once, calls wait up to ``first_decision_timeout`` s instead: Fast DDS
   drops a server's first answers to a client it has not matched yet and the server sends again
   about 100 ms later (``rosutil.send_response``), so a first call under load took 60-250 ms and
@@ -196,6 +198,10 @@ class PlannerNode:
         # waits, so answers do not queue behind the plan service on the shared executor.
         self.learner = ServiceCaller(node, p["learner_service"], private=True, suffix="learner")
         self._learner_down_until = 0.0
+        self._late_answers_seen = 0
+        """The learner's late answers already counted (``ServiceCaller.late_answers``)."""
+        self._missed_in_a_row = 0
+        """Decision calls that missed their deadline since one was answered in time."""
         self._jobs: queue.Queue[Job | None] = queue.Queue()
         self._queued = 0
         self._queue_lock = threading.Lock()
@@ -543,8 +549,9 @@ class PlannerNode:
 
     def _decide(self, job: Job, episode: DecisionSources, budget: float, context: Any) -> float:
         kind = context.kind
-        now = time.monotonic()
-        if now >= self._learner_down_until:
+        if time.monotonic() < self._learner_down_until and self._learner_caught_up(job, episode):
+            self._learner_down_until = 0.0
+        if time.monotonic() >= self._learner_down_until:
             payload = {
                 "agent": kind,
                 "episode_id": job.episode_id,
@@ -585,17 +592,26 @@ class PlannerNode:
                             self.log.info(f"learner answered its first call in {latency:.1f} ms")
                         episode.add("learner", latency)
                         job.fell_back.discard(kind)
+                        self._missed_in_a_row = 0
                         return float(reply.payload["value"])
                     reason = f"learner error: {reply.payload.get('message', '?')}"
             else:
                 reason = f"learner did not answer within {deadline * 1e3:.0f} ms"
                 self._learner_down_until = time.monotonic() + self.params["learner_retry"]
+                self._missed_in_a_row += 1
+                if self._missed_in_a_row == 1:
+                    reason += (
+                        "; this decision and those until its late answer arrives (at most "
+                        f"{self.params['learner_retry']:g} s) use the fallback policy"
+                    )
+                else:
+                    reason += (
+                        f" ({self._missed_in_a_row} calls in a row); this decision and those "
+                        f"in the next {self.params['learner_retry']:g} s use the fallback policy"
+                    )
             if not episode.warned:
                 episode.warned = True
-                self.log.warning(
-                    f"episode {job.episode_id}: {reason}; this decision and those in the next "
-                    f"{self.params['learner_retry']:g} s use the fallback policy"
-                )
+                self.log.warning(f"episode {job.episode_id}: {reason}")
         episode.fallbacks += 1
         job.fell_back.add(kind)
         tensor = self._fallback.get(kind)
@@ -605,6 +621,24 @@ class PlannerNode:
         episode.add("fallback-tensor")
         # The core rounds B half away from zero and clamps both, as for any external answer.
         return float(tensor.trilinear(context.rho_global, context.rho_local, context.measure))
+
+    def _learner_caught_up(self, job: Job, episode: DecisionSources) -> bool:
+        """Whether the learner answered, late, the one call that missed its deadline: it is
+        alive, it was slow once (an episode end's gradient steps on a busy machine), and
+        training goes back to it at once rather than after ``learner_retry`` s. After two
+        misses in a row the fallback window runs its course."""
+        if self._missed_in_a_row != 1:
+            return False
+        late = self.learner.collect_late_answers()
+        if late == self._late_answers_seen:
+            return False
+        self._late_answers_seen = late
+        if not episode.resumed:
+            episode.resumed = True
+            self.log.info(
+                f"episode {job.episode_id}: the learner answered the missed call late; calls resume"
+            )
+        return True
 
     def _end_episode(self, job: Job, episode: DecisionSources, result: dict[str, Any]) -> None:
         from lit_learner.train import BUDGET_TOLERANCE, final_features, minimum_cost
@@ -634,6 +668,7 @@ class PlannerNode:
         if answer is None:
             self.log.warning(f"episode {job.episode_id}: the learner did not take the episode end")
             self._learner_down_until = time.monotonic() + self.params["learner_retry"]
+            self._missed_in_a_row += 1
             return
         try:
             reply = decode(answer[1], accept=("EpisodeEndResponse", "Error"))

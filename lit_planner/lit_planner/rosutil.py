@@ -159,6 +159,11 @@ SETTLE_SECONDS = 0.1
 """Pause of :meth:`ServiceCaller.wait` after the service appeared (endpoint matching)."""
 
 
+OVERDUE_KEPT = 64
+"""Overdue requests a private :class:`ServiceCaller` remembers (the latest) to recognise their
+late answers."""
+
+
 class ServiceCaller:
     """Calls one service with a deadline (``diagnostic_msgs/srv/AddDiagnostics`` unless
     ``srv_type`` says otherwise).
@@ -173,7 +178,8 @@ class ServiceCaller:
       deadline. Neither another thread nor rclpy's executor machinery (which rebuilds its wait
       set and dispatches through generators on every spin) sits on the path; that machinery was
       most of the round trip (``lit system-bench`` measures it against a bare echo). Answers to
-      requests that already timed out are taken and dropped by sequence number. Calls must come
+      requests that already timed out are taken and dropped by sequence number, and counted
+      (:meth:`collect_late_answers`: the server is alive, it was slow once). Calls must come
       from one thread at a time (a lock enforces it).
     """
 
@@ -196,6 +202,10 @@ class ServiceCaller:
         self._owner: Any = None
         self._wait_set: Any = None
         self._lock = threading.Lock()
+        self._overdue: set[int] = set()
+        """Sequence numbers of requests whose deadline passed (private mode)."""
+        self.late_answers = 0
+        """Answers taken to requests whose deadline had passed (private mode)."""
         if private:
             self._owner = node = private_node(node, f"{node.get_name()}_{suffix}")
         self.client = node.create_client(srv_type, name, callback_group=callback_group)
@@ -238,15 +248,50 @@ class ServiceCaller:
                 while True:
                     remaining = deadline - time.monotonic()
                     if remaining <= 0.0:
+                        self._overdue.add(sequence)
+                        if len(self._overdue) > OVERDUE_KEPT:  # a server that never answers
+                            self._overdue.discard(min(self._overdue))
                         return None
-                    wait_set.clear_entities()
-                    wait_set.add_client(handle)
-                    wait_set.wait(int(remaining * 1e9))
-                    if handle.pointer not in wait_set.get_ready_entities("client"):
-                        continue
-                    header, response = handle.take_response(self.srv_type.Response)
-                    if header is not None and header.request_id.sequence_number == sequence:
+                    response = self._take(handle, wait_set, remaining, sequence)[1]
+                    if response is not None:
                         return response
+
+    def _take(
+        self, handle: Any, wait_set: Any, timeout: float, sequence: int | None
+    ) -> tuple[bool, Any]:
+        """Wait up to ``timeout`` s for one answer and take it: ``(whether one was taken, the
+        response if it answers sequence else None)``. An answer to an overdue request is counted
+        in :attr:`late_answers` and dropped. Caller holds the lock and the handles."""
+        wait_set.clear_entities()
+        wait_set.add_client(handle)
+        wait_set.wait(int(timeout * 1e9))
+        if handle.pointer not in wait_set.get_ready_entities("client"):
+            return False, None
+        header, response = handle.take_response(self.srv_type.Response)
+        if header is None:
+            return False, None
+        answered = header.request_id.sequence_number
+        if answered == sequence:
+            return True, response
+        if answered in self._overdue:
+            self._overdue.discard(answered)
+            self.late_answers += 1
+        return True, None
+
+    def collect_late_answers(self) -> int:
+        """Take the answers that have arrived, without waiting, and return
+        :attr:`late_answers` (private mode; a shared client's late answers are dropped by its
+        executor: 0). An overdue request that is answered shows a server that is alive but was
+        slow once."""
+        if self._owner is None:
+            return 0
+        with self._lock:
+            if self._wait_set is not None and self._overdue:
+                handle = self.client.handle
+                with self._owner.context.handle, handle:
+                    while self._overdue and self._take(handle, self._wait_set, 0.0, None)[0]:
+                        pass
+            return self.late_answers
 
     def call(self, text: str, timeout: float) -> tuple[bool, str] | None:
         """Send ``text`` as ``load_namespace``; ``(success, message)``, or None after ``timeout``."""
