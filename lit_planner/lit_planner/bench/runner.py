@@ -20,10 +20,13 @@ for the times and costs of a run without a solution (they count as infinite).
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import hashlib
 import multiprocessing
+import os
 import random
+import signal
 import sys
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -374,13 +377,38 @@ def check_record_paths(records: list[dict[str, Any]], jobs: int = 1) -> None:
     if jobs > 1 and len(tasks) > 1:
         # spawn: a fresh interpreter per worker, unaffected by the planner's threads and state.
         context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(min(jobs, len(tasks)), mp_context=context) as pool:
+        with ProcessPoolExecutor(
+            min(jobs, len(tasks)),
+            mp_context=context,
+            initializer=end_with_parent,
+            initargs=(os.getpid(),),
+        ) as pool:
             checks = list(pool.map(_check_path, tasks, chunksize=max(1, len(tasks) // (4 * jobs))))
     else:
         checks = [_check_path(task) for task in tasks]
     for record, check in zip(todo, checks, strict=True):
         record["path_check"] = planning.json_safe(check)
         record["path_valid"] = bool(check["ok"])
+
+
+PR_SET_PDEATHSIG = 1
+"""prctl(2) option: the signal the calling process gets when its parent thread ends."""
+
+
+def end_with_parent(parent: int) -> None:
+    """Worker initializer: end this process with SIGTERM when ``parent`` ends (Linux's
+    ``PR_SET_PDEATHSIG``). A ``lit bench`` that is SIGKILLed runs no clean-up, and its idle
+    path-check workers used to stay behind. Elsewhere, or if prctl fails, nothing changes."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0) != 0:
+            return
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:  # the parent ended before prctl took effect
+        os.kill(os.getpid(), signal.SIGTERM)
 
 
 def _check_path(task: tuple[str, int, list[list[float]]]) -> dict[str, Any]:

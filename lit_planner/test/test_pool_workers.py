@@ -1,0 +1,92 @@
+"""The benchmark's path-check workers end with the process that started them, even when it is
+SIGKILLed (it runs no clean-up then)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+SCRIPT = """
+import multiprocessing, os, signal, sys
+from concurrent.futures import ProcessPoolExecutor
+from lit_planner.bench.runner import end_with_parent
+
+if __name__ == "__main__":
+    pool = ProcessPoolExecutor(
+        2,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=end_with_parent if sys.argv[1] == "end" else None,
+        initargs=(os.getpid(),) if sys.argv[1] == "end" else (),
+    )
+    pids = {pool.submit(os.getpid).result() for _ in range(4)}
+    with open(sys.argv[2], "w") as out:
+        out.write(" ".join(map(str, sorted(pids))))
+    os.kill(os.getpid(), signal.SIGKILL)
+"""
+
+
+def _alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie waiting for a reaper does not)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (FileNotFoundError, IndexError):
+        return False
+    return state not in ("Z", "X")
+
+
+def _workers_after_sigkill(mode: str, tmp_path: Path) -> list[int]:
+    """Start the script, which SIGKILLs itself with its pool's workers idle; their PIDs."""
+    script, pid_file, log = tmp_path / "pool.py", tmp_path / "pids", tmp_path / "log"
+    script.write_text(SCRIPT)
+    with log.open("wb") as output:  # a file: orphaned workers would hold a pipe open
+        code = subprocess.run(
+            [sys.executable, str(script), mode, str(pid_file)],
+            check=False,
+            stdout=output,
+            stderr=subprocess.STDOUT,
+            timeout=120,
+        ).returncode
+    assert code == -signal.SIGKILL, log.read_text()
+    pids = [int(pid) for pid in pid_file.read_text().split()]
+    assert pids, log.read_text()
+    return pids
+
+
+def _wait_gone(pids: list[int], timeout: float) -> list[int]:
+    deadline = time.monotonic() + timeout
+    while True:
+        alive = [pid for pid in pids if _alive(pid)]
+        if not alive or time.monotonic() > deadline:
+            return alive
+        time.sleep(0.05)
+
+
+def _end(pids: list[int]) -> None:
+    for pid in pids:  # this test's own grandchildren, by PID
+        if _alive(pid):
+            os.kill(pid, signal.SIGKILL)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+def test_workers_end_with_a_sigkilled_parent(tmp_path: Path) -> None:
+    pids = _workers_after_sigkill("end", tmp_path)
+    try:
+        assert _wait_gone(pids, timeout=30.0) == []
+    finally:
+        _end(pids)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+def test_without_the_initializer_workers_stay_behind(tmp_path: Path) -> None:
+    """What the initializer is for: the same pool without it leaves its workers running."""
+    pids = _workers_after_sigkill("plain", tmp_path)
+    try:
+        assert _wait_gone(pids, timeout=2.0) == pids
+    finally:
+        _end(pids)
