@@ -45,6 +45,7 @@ BIN = Path(sys.executable).parent
 """The virtual environment's scripts (``lit``, ``lit_planner_node``, ``lit_learner_node``)."""
 PLANNER_NODE = str(BIN / "lit_planner_node")
 LEARNER_NODE = str(BIN / "lit_learner_node")
+RECORDER_NODE = str(BIN / "lit_recorder_node")
 LIT = str(BIN / "lit")
 
 DOMAIN_RANGE = (101, 232)

@@ -286,7 +286,7 @@ class _Client:
                 cost = f"cost {last['cost']:.3f}" if last["cost"] else "no solution"
                 print(
                     f"    episode {done}/{count}: {last['scenario']}, {cost}, "
-                    f"{last['learner_calls']} learner decisions",
+                    f"{learner_decisions(last)} learner decisions",
                     flush=True,
                 )
             return [e for e in self.episodes if e["mode"] == "training"]
@@ -305,6 +305,11 @@ class _Client:
         if not success:
             return None, reply.payload["message"]
         return reply.payload, ""
+
+
+def learner_decisions(summary: dict[str, Any]) -> int:
+    """A training episode's decisions the learner made (its calls include missed ones)."""
+    return sum(summary["decisions"].values()) - summary["fallback_decisions"]
 
 
 def _report(
@@ -333,7 +338,7 @@ def _report(
     for i, e in enumerate(training):
         cost = f"{e['cost']:.3f}" if e["cost"] else "-"
         print(
-            f"| {i} | {e['scenario']} | {e['solved']} | {cost} | {e['learner_calls']} | "
+            f"| {i} | {e['scenario']} | {e['solved']} | {cost} | {learner_decisions(e)} | "
             f"{e['fallback_decisions']} |"
         )
     optimum = scenario.optimal_cost

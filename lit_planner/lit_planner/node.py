@@ -418,13 +418,21 @@ class PlannerNode:
             return
         from lit_planner import scenarios
 
+        training = p["policy"] == "training"
+        if training:
+            if self.learner.wait(p["learner_wait"]):
+                self.log.info(f"learner service {p['learner_service']} found")
+            else:
+                self.log.warning(
+                    f"learner service {p['learner_service']} not found within "
+                    f"{p['learner_wait']} s; training starts with fallback decisions"
+                )
         if not self._wait_for_subscribers(p["wait_for_subscribers"], p["learner_wait"]):
             self.log.warning(
                 f"fewer than {p['wait_for_subscribers']} subscribers on every topic after "
                 f"{p['learner_wait']} s; starting the episodes anyway"
             )
 
-        training = p["policy"] == "training"
         drawn = p["episodes_from"] == "training" or (training and p["episodes_from"] != "scenario")
         if drawn:
             from lit_learner.train import TrainingDistribution, draw_generator
@@ -432,11 +440,6 @@ class PlannerNode:
             names = scenarios.split_names(p["training_scenarios"])
             # Not default_rng(seed): that would repeat a learner agent's numbers for equal seeds.
             distribution = TrainingDistribution(names, draw_generator(p["training_seed"]))
-        if training and not self.learner.wait(p["learner_wait"]):
-            self.log.warning(
-                f"learner service {p['learner_service']} not found within "
-                f"{p['learner_wait']} s; training starts with fallback decisions"
-            )
         mode = "training" if training else "inference"
         for index in range(p["episodes"]):
             if self._stopping.is_set():
