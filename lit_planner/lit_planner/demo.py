@@ -273,23 +273,25 @@ class _Client:
 
     def wait_episodes(self, count: int, timeout: float) -> list[dict[str, Any]]:
         deadline = time.monotonic() + timeout
+        printed = 0
         with self.changed:
-            while sum(e["mode"] == "training" for e in self.episodes) < count:
+            while True:
+                training = [e for e in self.episodes if e["mode"] == "training"]
+                for episode in training[printed:]:  # each one, also when several came at once
+                    printed += 1
+                    cost = f"cost {episode['cost']:.3f}" if episode["cost"] else "no solution"
+                    print(
+                        f"    episode {printed}/{count}: {episode['scenario']}, {cost}, "
+                        f"{learner_decisions(episode)} learner decisions",
+                        flush=True,
+                    )
+                if len(training) >= count:
+                    return training
                 if self.system.children["planner"].process.poll() is not None:
                     raise RuntimeError("the planner node exited during training")
-                if not self.changed.wait(min(1.0, max(0.0, deadline - time.monotonic()))):
-                    if time.monotonic() > deadline:
-                        raise TimeoutError(f"training did not finish {count} episodes in time")
-                    continue
-                done = sum(e["mode"] == "training" for e in self.episodes)
-                last = self.episodes[-1]
-                cost = f"cost {last['cost']:.3f}" if last["cost"] else "no solution"
-                print(
-                    f"    episode {done}/{count}: {last['scenario']}, {cost}, "
-                    f"{learner_decisions(last)} learner decisions",
-                    flush=True,
-                )
-            return [e for e in self.episodes if e["mode"] == "training"]
+                if time.monotonic() > deadline:
+                    raise TimeoutError(f"training did not finish {count} episodes in time")
+                self.changed.wait(min(1.0, max(0.0, deadline - time.monotonic())))
 
     def plan(self, payload: dict[str, Any]) -> tuple[dict[str, Any] | None, str]:
         from lit_msgs_json.envelope import Publisher, decode

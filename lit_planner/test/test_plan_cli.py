@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -136,6 +137,9 @@ def test_demo_solves_the_default_scenario(tmp_path: Path) -> None:
     assert process.returncode == 0, process.stderr
     # Two ROS processes trained over ROS, the plan service answered, the bag accounts for all.
     assert "4 episodes over ROS" in process.stdout
+    # Each training episode's progress line, also when summaries arrive together.
+    progress = re.findall(r"^    episode (\d)/4: ", process.stdout, re.MULTILINE)
+    assert progress == ["1", "2", "3", "4"], process.stdout
     assert "0 messages missing" in process.stdout
     (bag,) = tmp_path.glob("*-bag")
     assert (bag / "metadata.yaml").is_file()
