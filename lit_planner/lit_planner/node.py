@@ -198,10 +198,11 @@ class PlannerNode:
         # waits, so answers do not queue behind the plan service on the shared executor.
         self.learner = ServiceCaller(node, p["learner_service"], private=True, suffix="learner")
         self._learner_down_until = 0.0
-        self._late_answers_seen = 0
-        """The learner's late answers already counted (``ServiceCaller.late_answers``)."""
         self._missed_in_a_row = 0
-        """Decision calls that missed their deadline since one was answered in time."""
+        """Learner calls (decisions and episode ends) that missed their deadline since one was
+        answered in time."""
+        self._missed_call: int | None = None
+        """The request sequence of the latest call that missed (``ServiceCaller.last_overdue``)."""
         self._jobs: queue.Queue[Job | None] = queue.Queue()
         self._queued = 0
         self._queue_lock = threading.Lock()
@@ -600,11 +601,10 @@ class PlannerNode:
                     reason = f"learner error: {reply.payload.get('message', '?')}"
             else:
                 reason = f"learner did not answer within {deadline * 1e3:.0f} ms"
-                self._learner_down_until = time.monotonic() + self.params["learner_retry"]
-                self._missed_in_a_row += 1
+                self._missed(self.learner.last_overdue)
                 if self._missed_in_a_row == 1:
                     reason += (
-                        "; this decision and those until its late answer arrives (at most "
+                        "; this decision and those until the learner answers it late (at most "
                         f"{self.params['learner_retry']:g} s) use the fallback policy"
                     )
                 else:
@@ -627,21 +627,24 @@ class PlannerNode:
 
     def _learner_caught_up(self, job: Job, episode: DecisionSources) -> bool:
         """Whether the learner answered, late, the one call that missed its deadline: it is
-        alive, it was slow once (an episode end's gradient steps on a busy machine), and
+        alive, it was slow once (a machine busy with other work), and
         training goes back to it at once rather than after ``learner_retry`` s. After two
         misses in a row the fallback window runs its course."""
-        if self._missed_in_a_row != 1:
+        if self._missed_in_a_row != 1 or not self.learner.answered_late(self._missed_call):
             return False
-        late = self.learner.collect_late_answers()
-        if late == self._late_answers_seen:
-            return False
-        self._late_answers_seen = late
         if not episode.resumed:
             episode.resumed = True
             self.log.info(
                 f"episode {job.episode_id}: the learner answered the missed call late; calls resume"
             )
         return True
+
+    def _missed(self, sequence: int | None) -> None:
+        """A learner call (request ``sequence``) missed its deadline: no call for
+        ``learner_retry`` s, unless its late answer comes first (:meth:`_learner_caught_up`)."""
+        self._learner_down_until = time.monotonic() + self.params["learner_retry"]
+        self._missed_in_a_row += 1
+        self._missed_call = sequence
 
     def _end_episode(self, job: Job, episode: DecisionSources, result: dict[str, Any]) -> None:
         from lit_learner.train import BUDGET_TOLERANCE, final_features, minimum_cost
@@ -664,15 +667,28 @@ class PlannerNode:
         final = final_features(result)
         if final is not None:
             payload["final_features"] = {agent: list(values) for agent, values in final.items()}
-        answer = self.learner.call(
-            self.envelopes["decide"].encode("EpisodeEnd", payload),
-            max(1.0, 20 * self.params["decision_timeout"]),
-        )
+        # The learner stores the episode when the message arrives, whether or not the planner
+        # waits for the answer: after two calls in a row missed (a learner that is gone, not
+        # slow once) wait no longer than for a decision.
+        if self._missed_in_a_row >= 2:
+            deadline = self.params["decision_timeout"]
+        else:
+            deadline = max(1.0, 20 * self.params["decision_timeout"])
+        answer = self.learner.call(self.envelopes["decide"].encode("EpisodeEnd", payload), deadline)
         if answer is None:
-            self.log.warning(f"episode {job.episode_id}: the learner did not take the episode end")
-            self._learner_down_until = time.monotonic() + self.params["learner_retry"]
-            self._missed_in_a_row += 1
+            self.log.warning(
+                f"episode {job.episode_id}: the learner did not take the episode end within "
+                f"{deadline * 1e3:.0f} ms"
+            )
+            self._missed(self.learner.last_overdue)
             return
+        # Answered in time: the learner is back (a late decision answer may have come meanwhile).
+        self._missed_in_a_row = 0
+        if time.monotonic() < self._learner_down_until:
+            self._learner_down_until = 0.0
+            self.log.info(
+                f"episode {job.episode_id}: the learner took the episode end; calls resume"
+            )
         try:
             reply = decode(answer[1], accept=("EpisodeEndResponse", "Error"))
         except MessageError as exc:

@@ -160,8 +160,8 @@ SETTLE_SECONDS = 0.1
 
 
 OVERDUE_KEPT = 64
-"""Overdue requests a private :class:`ServiceCaller` remembers (the latest) to recognise their
-late answers."""
+"""Overdue requests, and answered ones, a private :class:`ServiceCaller` remembers (the
+latest)."""
 
 
 class ServiceCaller:
@@ -178,8 +178,8 @@ class ServiceCaller:
       deadline. Neither another thread nor rclpy's executor machinery (which rebuilds its wait
       set and dispatches through generators on every spin) sits on the path; that machinery was
       most of the round trip (``lit system-bench`` measures it against a bare echo). Answers to
-      requests that already timed out are taken and dropped by sequence number, and counted
-      (:meth:`collect_late_answers`: the server is alive, it was slow once). Calls must come
+      requests that already timed out are taken and dropped by sequence number, and noted
+      (:meth:`answered_late`: the server is alive, it was slow once). Calls must come
       from one thread at a time (a lock enforces it).
     """
 
@@ -203,9 +203,11 @@ class ServiceCaller:
         self._wait_set: Any = None
         self._lock = threading.Lock()
         self._overdue: set[int] = set()
-        """Sequence numbers of requests whose deadline passed (private mode)."""
-        self.late_answers = 0
-        """Answers taken to requests whose deadline had passed (private mode)."""
+        """Sequence numbers of requests whose deadline passed, not answered yet (private mode)."""
+        self._answered_late: set[int] = set()
+        """Overdue requests whose answer has been taken since (private mode)."""
+        self.last_overdue: int | None = None
+        """Sequence number of the latest request whose deadline passed (private mode)."""
         if private:
             self._owner = node = private_node(node, f"{node.get_name()}_{suffix}")
         self.client = node.create_client(srv_type, name, callback_group=callback_group)
@@ -248,6 +250,7 @@ class ServiceCaller:
                 while True:
                     remaining = deadline - time.monotonic()
                     if remaining <= 0.0:
+                        self.last_overdue = sequence
                         self._overdue.add(sequence)
                         if len(self._overdue) > OVERDUE_KEPT:  # a server that never answers
                             self._overdue.discard(min(self._overdue))
@@ -260,8 +263,8 @@ class ServiceCaller:
         self, handle: Any, wait_set: Any, timeout: float, sequence: int | None
     ) -> tuple[bool, Any]:
         """Wait up to ``timeout`` s for one answer and take it: ``(whether one was taken, the
-        response if it answers sequence else None)``. An answer to an overdue request is counted
-        in :attr:`late_answers` and dropped. Caller holds the lock and the handles."""
+        response if it answers sequence else None)``. An answer to an overdue request is noted
+        (:meth:`answered_late`) and dropped. Caller holds the lock and the handles."""
         wait_set.clear_entities()
         wait_set.add_client(handle)
         wait_set.wait(int(timeout * 1e9))
@@ -275,23 +278,28 @@ class ServiceCaller:
             return True, response
         if answered in self._overdue:
             self._overdue.discard(answered)
-            self.late_answers += 1
+            self._answered_late.add(answered)
+            if len(self._answered_late) > OVERDUE_KEPT:
+                self._answered_late.discard(min(self._answered_late))
         return True, None
 
-    def collect_late_answers(self) -> int:
-        """Take the answers that have arrived, without waiting, and return
-        :attr:`late_answers` (private mode; a shared client's late answers are dropped by its
-        executor: 0). An overdue request that is answered shows a server that is alive but was
-        slow once."""
-        if self._owner is None:
-            return 0
+    def answered_late(self, sequence: int | None) -> bool:
+        """Whether the overdue request ``sequence`` (:attr:`last_overdue` of its call) has been
+        answered since, taking the answers that have arrived without waiting (private mode; a
+        shared client's late answers are dropped by its executor: False). An overdue request
+        that is answered shows a server that is alive but was slow once."""
+        if self._owner is None or sequence is None:
+            return False
         with self._lock:
-            if self._wait_set is not None and self._overdue:
+            if sequence in self._overdue and self._wait_set is not None:
                 handle = self.client.handle
                 with self._owner.context.handle, handle:
-                    while self._overdue and self._take(handle, self._wait_set, 0.0, None)[0]:
+                    while (
+                        sequence in self._overdue
+                        and self._take(handle, self._wait_set, 0.0, None)[0]
+                    ):
                         pass
-            return self.late_answers
+            return sequence in self._answered_late
 
     def call(self, text: str, timeout: float) -> tuple[bool, str] | None:
         """Send ``text`` as ``load_namespace``; ``(success, message)``, or None after ``timeout``."""
