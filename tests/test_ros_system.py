@@ -14,6 +14,8 @@ import os
 import re
 import signal
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -313,26 +315,23 @@ def test_two_planners_train_one_learner(ros: RosSystem) -> None:
 # ---------------------------------------------------------------------- 4. a learner crash
 
 
-def test_calls_wait_longer_until_the_learner_has_answered(ros: RosSystem) -> None:
-    """Fast DDS drops a server's first answers to a client it has not matched yet (the server
-    sends again about 100 ms later), so until the learner has answered once the planner's calls
-    wait ``first_decision_timeout``, not ``decision_timeout`` (the killed-learner test below
-    checks the short deadline after answers). The learner is found, then stopped (SIGSTOP)
-    before the first call: that call waits the long deadline; once the learner runs again its
-    late answer resumes the calls."""
+@contextmanager
+def _learner_stopped_before_the_first_call(
+    ros: RosSystem, **planner_params: Any
+) -> Iterator[tuple[Child, Child]]:
+    """A learner and a training planner that has found it; the learner is stopped (SIGSTOP)
+    before the first episode starts (the episodes wait for a recorder started after the stop),
+    and runs again (SIGCONT) when the block ends."""
     learner = ros.learner()
     _ready(learner)
     planner = ros.planner(
         policy="training",
-        episodes=2,
         exit_when_done=True,
-        time_budget=0.05,
         training_scenarios="np4",
         learner_wait=120.0,
-        learner_retry=600.0,
         first_decision_timeout=0.6,
-        decision_timeout=10.0,
-        wait_for_subscribers=1,  # the episodes wait for the recorder started below
+        wait_for_subscribers=1,
+        **planner_params,
     )
     planner.wait_for_log(r"learner service \S+ found", timeout=NODE_START)
     os.kill(learner.pid, signal.SIGSTOP)
@@ -340,16 +339,48 @@ def test_calls_wait_longer_until_the_learner_has_answered(ros: RosSystem) -> Non
         ros.start(
             "recorder", [RECORDER_NODE, *ros_arguments({"bag": str(ros.workdir / "bag")}, None)]
         )
-        missed = planner.wait_for_log(r"learner did not answer within (\d+) ms", timeout=60.0)
-        assert missed.group(1) == "600", planner.tail()
+        yield learner, planner
     finally:
         os.kill(learner.pid, signal.SIGCONT)
+
+
+def test_the_first_call_waits_longer(ros: RosSystem) -> None:
+    """Fast DDS drops a server's first answers to a client it has not matched yet (the server
+    sends again about 100 ms later), so the planner's first call waits
+    ``first_decision_timeout``, not ``decision_timeout`` (the killed-learner test below checks
+    the short deadline after answers). The learner is stopped before the first call: that call
+    waits the long deadline; once the learner runs again its late answer resumes the calls."""
+    with _learner_stopped_before_the_first_call(
+        ros, episodes=2, time_budget=0.05, learner_retry=600.0, decision_timeout=10.0
+    ) as (learner, planner):
+        missed = planner.wait_for_log(r"learner did not answer within (\d+) ms", timeout=60.0)
+        assert missed.group(1) == "600", planner.tail()
     planner.wait_for_log(
         r"the learner (answered the missed call late|took the episode end); calls resume",
         timeout=60.0,
     )
     assert planner.wait(timeout=120.0) == 0, planner.tail()
     assert planner.text().count("did not answer within") == 1, planner.tail()
+    _no_traceback(planner, learner)
+
+
+def test_a_silent_learner_costs_the_long_first_deadline_once(ros: RosSystem) -> None:
+    """Only the first call waits ``first_decision_timeout``: a learner that is found and then
+    never answers (stopped for the whole run) costs each later call ``decision_timeout``, and
+    an episode end after two misses in a row waits no longer than a decision."""
+    with _learner_stopped_before_the_first_call(
+        ros, episodes=3, time_budget=0.3, learner_retry=0.1, decision_timeout=0.05
+    ) as (learner, planner):
+        assert planner.wait(timeout=120.0) == 0, planner.tail()
+    text = planner.text()
+    decisions = re.findall(r"learner did not answer within (\d+) ms", text)
+    # One warning per episode: the first names the long deadline, the later ones the short one.
+    assert len(decisions) >= 2 and decisions[0] == "600", planner.tail()
+    assert set(decisions[1:]) == {"50"}, planner.tail()
+    ends = re.findall(r"did not take the episode end within (\d+) ms", text)
+    assert len(ends) == 3 and ends[-1] == "50", planner.tail()
+    assert "learner answered its first call" not in text, planner.tail()
+    assert "calls resume" not in text, planner.tail()
     _no_traceback(planner, learner)
 
 

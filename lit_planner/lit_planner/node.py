@@ -14,8 +14,9 @@
   (``fixed`` without tensors), the episode is marked, a warning is logged, and for
   ``learner_retry`` s no call is tried; then training resumes with the learner. Calls resume
   sooner when the learner answers the missed call late (a busy machine delayed one answer: the
-  learner is alive), unless two calls in a row missed. Until the
-  learner has answered once, calls wait up to ``first_decision_timeout`` s instead: Fast DDS
+  learner is alive), unless two calls in a row missed. The first call
+  waits up to ``first_decision_timeout`` s instead (that call only: a learner that never
+  answers costs each later call ``decision_timeout``): Fast DDS
   drops a server's first answers to a client it has not matched yet and the server sends again
   about 100 ms later (``rosutil.send_response``), so a first call under load took 60-250 ms and
   fell back, and with it every decision of the next ``learner_retry`` s (whole `lit demo`
@@ -180,7 +181,8 @@ class PlannerNode:
         }
         self._publish_lock = threading.Lock()
         self._learner_answered = False
-        """Whether the learner answered a call yet (until then: ``first_decision_timeout``)."""
+        """Whether the learner answered a call yet, in time or late (until then the first call
+        waits ``first_decision_timeout``)."""
         # The validators of every message the node reads or writes, built now rather than in
         # the first query (about 10 ms each, inside a learner call's deadline or a plan).
         prepare(MESSAGE_VERSIONS)
@@ -575,9 +577,10 @@ class PlannerNode:
                 payload["after_fallback"] = True
             started = time.perf_counter()
             episode.learner_calls += 1
-            deadline = self.params[
-                "decision_timeout" if self._learner_answered else "first_decision_timeout"
-            ]
+            # The long first deadline is for a learner being matched, once: after a miss with
+            # no late answer it would cost every call that much while the learner stays silent.
+            first = not self._learner_answered and self._missed_in_a_row == 0
+            deadline = self.params["first_decision_timeout" if first else "decision_timeout"]
             answer = self.learner.call(
                 self.envelopes["decide"].encode("DecideRequest", payload), deadline
             )
@@ -632,6 +635,7 @@ class PlannerNode:
         misses in a row the fallback window runs its course."""
         if self._missed_in_a_row != 1 or not self.learner.answered_late(self._missed_call):
             return False
+        self._learner_answered = True  # matched: its answers reach the planner
         if not episode.resumed:
             episode.resumed = True
             self.log.info(
@@ -684,6 +688,7 @@ class PlannerNode:
             return
         # Answered in time: the learner is back (a late decision answer may have come meanwhile).
         self._missed_in_a_row = 0
+        self._learner_answered = True
         if time.monotonic() < self._learner_down_until:
             self._learner_down_until = 0.0
             self.log.info(
