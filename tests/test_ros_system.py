@@ -329,7 +329,6 @@ def _learner_stopped_before_the_first_call(
         exit_when_done=True,
         training_scenarios="np4",
         learner_wait=120.0,
-        first_decision_timeout=0.6,
         wait_for_subscribers=1,
         **planner_params,
     )
@@ -351,16 +350,22 @@ def test_the_first_call_waits_longer(ros: RosSystem) -> None:
     the short deadline after answers). The learner is stopped before the first call: that call
     waits the long deadline; once the learner runs again its late answer resumes the calls."""
     with _learner_stopped_before_the_first_call(
-        ros, episodes=2, time_budget=0.05, learner_retry=600.0, decision_timeout=10.0
+        ros,
+        episodes=2,
+        time_budget=0.05,
+        learner_retry=600.0,
+        first_decision_timeout=2.0,
+        decision_timeout=0.5,
     ) as (learner, planner):
         missed = planner.wait_for_log(r"learner did not answer within (\d+) ms", timeout=60.0)
-        assert missed.group(1) == "600", planner.tail()
+        assert missed.group(1) == "2000", planner.tail()
     planner.wait_for_log(
         r"the learner (answered the missed call late|took the episode end); calls resume",
         timeout=60.0,
     )
     assert planner.wait(timeout=120.0) == 0, planner.tail()
-    assert planner.text().count("did not answer within") == 1, planner.tail()
+    assert planner.text().count("did not answer within 2000 ms") == 1, planner.tail()
+    assert re.search(r"learner answered its first call (late|\(an episode end\))", planner.text())
     _no_traceback(planner, learner)
 
 
@@ -369,7 +374,12 @@ def test_a_silent_learner_costs_the_long_first_deadline_once(ros: RosSystem) -> 
     never answers (stopped for the whole run) costs each later call ``decision_timeout``, and
     an episode end after two misses in a row waits no longer than a decision."""
     with _learner_stopped_before_the_first_call(
-        ros, episodes=3, time_budget=0.3, learner_retry=0.1, decision_timeout=0.05
+        ros,
+        episodes=3,
+        time_budget=0.3,
+        learner_retry=0.1,
+        first_decision_timeout=0.6,
+        decision_timeout=0.05,
     ) as (learner, planner):
         assert planner.wait(timeout=120.0) == 0, planner.tail()
     text = planner.text()
@@ -378,7 +388,8 @@ def test_a_silent_learner_costs_the_long_first_deadline_once(ros: RosSystem) -> 
     assert len(decisions) >= 2 and decisions[0] == "600", planner.tail()
     assert set(decisions[1:]) == {"50"}, planner.tail()
     ends = re.findall(r"did not take the episode end within (\d+) ms", text)
-    assert len(ends) == 3 and ends[-1] == "50", planner.tail()
+    # Episode 0 ends after one miss or more; later episodes after two in a row at least.
+    assert len(ends) == 3 and set(ends[1:]) == {"50"}, planner.tail()
     assert "learner answered its first call" not in text, planner.tail()
     assert "calls resume" not in text, planner.tail()
     _no_traceback(planner, learner)
@@ -497,17 +508,20 @@ def test_a_late_answer_resumes_calls_before_learner_retry(ros: RosSystem) -> Non
         finally:
             os.kill(learner.pid, signal.SIGCONT)
         resumed = planner.wait_for_log(
-            r"the learner (answered the missed call late|took the episode end); calls resume",
+            r"episode (\S+): the learner (answered the missed call late|took the episode end); "
+            r"calls resume",
             timeout=60.0,
             start=start,
         )
-        if resumed.group(1).startswith("answered"):
+        # A missed episode end's late answer resumes the next episode before any fallback.
+        if missed.group(2).startswith("learner") and resumed.group(2).startswith("answered"):
             break
     else:
         raise AssertionError(
             f"in 3 pauses no late answer to a decision resumed the calls:\n{planner.tail()}"
         )
     episode = missed.group(1)
+    assert resumed.group(1) == episode, planner.tail()  # resumed where the decision missed
     found = recording.wait_until(
         EPISODE,
         lambda found: any(s["episode_id"] == episode for s in found),

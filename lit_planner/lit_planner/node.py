@@ -12,11 +12,14 @@
   each decision calls the learner's ``/lit/learner/decide`` with a deadline of
   ``decision_timeout`` s. A late or absent learner: that decision falls back to the tensor policy
   (``fixed`` without tensors), the episode is marked, a warning is logged, and for
-  ``learner_retry`` s no call is tried; then training resumes with the learner. Calls resume
-  sooner when the learner answers the missed call late (a busy machine delayed one answer: the
-  learner is alive), unless two calls in a row missed. The first call
-  waits up to ``first_decision_timeout`` s instead (that call only: a learner that never
-  answers costs each later call ``decision_timeout``): Fast DDS
+  ``learner_retry`` s no decision call is tried (episode ends are still sent); then training
+  resumes with the learner. Calls resume sooner when the learner answers the missed call late
+  (a busy machine delayed one answer: the learner is alive), unless two calls in a row missed
+  (a late answer does not reset that count: a learner whose every answer is late gets the
+  window). An episode end waits ``max(1 s, 20 * decision_timeout)``, and ``decision_timeout``
+  after two calls in a row missed. The first call waits up to ``first_decision_timeout`` s
+  instead (or ``decision_timeout`` if longer; that call only: a learner that never answers
+  costs each later call ``decision_timeout``): Fast DDS
   drops a server's first answers to a client it has not matched yet and the server sends again
   about 100 ms later (``rosutil.send_response``), so a first call under load took 60-250 ms and
   fell back, and with it every decision of the next ``learner_retry`` s (whole `lit demo`
@@ -181,8 +184,9 @@ class PlannerNode:
         }
         self._publish_lock = threading.Lock()
         self._learner_answered = False
-        """Whether the learner answered a call yet, in time or late (until then the first call
-        waits ``first_decision_timeout``)."""
+        """Whether a learner answer has reached the planner: one in time, or a missed call's
+        late answer seen by :meth:`_learner_caught_up` (until then, and while no call missed,
+        calls wait ``first_decision_timeout``)."""
         # The validators of every message the node reads or writes, built now rather than in
         # the first query (about 10 ms each, inside a learner call's deadline or a plan).
         prepare(MESSAGE_VERSIONS)
@@ -579,27 +583,28 @@ class PlannerNode:
             episode.learner_calls += 1
             # The long first deadline is for a learner being matched, once: after a miss with
             # no late answer it would cost every call that much while the learner stays silent.
-            first = not self._learner_answered and self._missed_in_a_row == 0
-            deadline = self.params["first_decision_timeout" if first else "decision_timeout"]
+            deadline = self.params["decision_timeout"]
+            if not self._learner_answered and self._missed_in_a_row == 0:
+                deadline = max(deadline, self.params["first_decision_timeout"])
             answer = self.learner.call(
                 self.envelopes["decide"].encode("DecideRequest", payload), deadline
             )
             if answer is not None:
+                # Answered in time (an error too): the learner is there and its answers arrive.
+                self._missed_in_a_row = 0
                 success, text = answer
                 try:
                     reply = decode(text, accept=("DecideResponse", "Error"))
                 except MessageError as exc:
+                    self._heard_from_learner("(an unreadable answer)")
                     reason = f"unreadable learner answer ({exc})"
                 else:
+                    # From encoding the request to the decoded, validated answer.
+                    latency = (time.perf_counter() - started) * 1e3
+                    self._heard_from_learner(f"in {latency:.1f} ms")
                     if success and reply.name == "DecideResponse":
-                        # From encoding the request to the decoded, validated answer.
-                        latency = (time.perf_counter() - started) * 1e3
-                        if not self._learner_answered:
-                            self._learner_answered = True
-                            self.log.info(f"learner answered its first call in {latency:.1f} ms")
                         episode.add("learner", latency)
                         job.fell_back.discard(kind)
-                        self._missed_in_a_row = 0
                         return float(reply.payload["value"])
                     reason = f"learner error: {reply.payload.get('message', '?')}"
             else:
@@ -635,13 +640,21 @@ class PlannerNode:
         misses in a row the fallback window runs its course."""
         if self._missed_in_a_row != 1 or not self.learner.answered_late(self._missed_call):
             return False
-        self._learner_answered = True  # matched: its answers reach the planner
+        self._heard_from_learner("late")
         if not episode.resumed:
             episode.resumed = True
             self.log.info(
                 f"episode {job.episode_id}: the learner answered the missed call late; calls resume"
             )
         return True
+
+    def _heard_from_learner(self, how: str) -> None:
+        """The learner answered a call (in time or late): its answers reach the planner, and
+        calls no longer wait ``first_decision_timeout``. Logged once (``lit system-bench`` waits
+        for the line)."""
+        if not self._learner_answered:
+            self._learner_answered = True
+            self.log.info(f"learner answered its first call {how}")
 
     def _missed(self, sequence: int | None) -> None:
         """A learner call (request ``sequence``) missed its deadline: no call for
@@ -688,7 +701,7 @@ class PlannerNode:
             return
         # Answered in time: the learner is back (a late decision answer may have come meanwhile).
         self._missed_in_a_row = 0
-        self._learner_answered = True
+        self._heard_from_learner("(an episode end)")
         if time.monotonic() < self._learner_down_until:
             self._learner_down_until = 0.0
             self.log.info(

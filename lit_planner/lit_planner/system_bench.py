@@ -285,8 +285,8 @@ def _dead_learner(system: System, work: Path, args: argparse.Namespace) -> list[
         },
     )
     system.wait_ready("planner")
-    # Until the learner has answered once the planner waits first_decision_timeout (1 s), not
-    # decision_timeout: kill only a learner that has answered, or the measure would be that.
+    # The planner's first call waits first_decision_timeout (1 s), not decision_timeout: kill
+    # only a learner that has answered (in time or late), or the measure would be that wait.
     first = "learner answered its first call"
     if _wait_for_line(planner, 0, lambda line: first in line, timeout=120.0) is None:
         print("the learner never answered the planner; no kills", file=sys.stderr)
