@@ -631,8 +631,8 @@ BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
         "soon",
     ),
     (
-        "plan: start out of bounds",
-        ["plan", "--scenario", "np4", "--start", "5,5,5,5"],
+        "plan: start out of bounds",  # a negative first coordinate: `--start -5,...` parses
+        ["plan", "--scenario", "np4", "--start", "-5,5,5,5"],
         None,
         "invalid-request",
         "$.payload.start",

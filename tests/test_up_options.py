@@ -26,13 +26,15 @@ import pytest
         (["--planner-param", "foo:=1"], "--planner-param: unknown parameter foo; known: scenario"),
         (["--learner-param", "checkpoint_evry:=5"], "unknown parameter checkpoint_evry"),
         (["--bag", "EXISTING"], "exists already"),
+        (["--bag", "NEW", "--no-record"], "--bag and --no-record contradict each other"),
         (["--domain-id", "233"], "233 is not a ROS domain id Fast DDS can use (0-232)"),
         (["--domain-id", "x"], "--domain-id: not a whole number: 'x'"),
     ],
 )
 def test_bad_options_start_nothing(tmp_path: Path, options: list[str], message: str) -> None:
     (tmp_path / "bag").mkdir()
-    options = [str(tmp_path / "bag") if o == "EXISTING" else o for o in options]
+    named = {"EXISTING": tmp_path / "bag", "NEW": tmp_path / "new-bag"}
+    options = [str(named[o]) if o in named else o for o in options]
     process = subprocess.run(
         [sys.executable, "-m", "lit_planner.cli", "up", "--domain-id", "1", *options],
         cwd=tmp_path,

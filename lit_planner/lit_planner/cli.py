@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import signal
 import sys
 from collections.abc import Sequence
@@ -111,9 +112,32 @@ def build_parser(selected: str | None) -> tuple[argparse.ArgumentParser, object 
     return parser, module
 
 
+NEGATIVE_LIST = re.compile(r"-\.?\d[^,\s]*(,[^,\s]+)+")
+"""A comma-separated list of numbers whose first is negative, e.g. ``-0.3,0``."""
+
+
+def _join_negative_lists(argv: list[str]) -> list[str]:
+    """``--start -0.3,0`` as ``--start=-0.3,0``: argparse takes a value that starts with '-'
+    and is not a plain negative number for an option, and refuses ``--start`` without its
+    value (every scenario's start has a negative first coordinate)."""
+    joined: list[str] = []
+    for arg in argv:
+        if (
+            joined
+            and NEGATIVE_LIST.fullmatch(arg)
+            and joined[-1].startswith("--")
+            and joined[-1] != "--"
+            and "=" not in joined[-1]
+        ):
+            joined[-1] = f"{joined[-1]}={arg}"
+        else:
+            joined.append(arg)
+    return joined
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` (default: ``sys.argv[1:]``) and run the chosen subcommand."""
-    argv = list(sys.argv[1:] if argv is None else argv)
+    argv = _join_negative_lists(list(sys.argv[1:] if argv is None else argv))
     selected = next((arg for arg in argv if not arg.startswith("-")), None)
     parser, module = build_parser(selected if selected in COMMANDS else None)
     args = parser.parse_args(argv)

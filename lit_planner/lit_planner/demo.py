@@ -195,13 +195,25 @@ def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
                 print(f"  inference: /lit/planner/plan {json.dumps(payload)}", flush=True)
                 plans.append((seed, *client.plan(payload)))
     except (RuntimeError, TimeoutError, KeyboardInterrupt) as error:
-        print(f"lit demo: {error or 'interrupted'}; stopping the nodes", file=sys.stderr)
-        return 1  # the nodes are stopped below
-    finally:
+        interrupted = isinstance(error, KeyboardInterrupt)
+        reason = "interrupted" if interrupted else str(error)
+        print(
+            f"lit demo: {reason}; stopping the nodes (the learner writes its checkpoint and "
+            "tensors first)",
+            file=sys.stderr,
+            flush=True,
+        )
         try:
             codes = system.stop()
         finally:
             claim.close()
+        _print_bag(bag)
+        _print_stopped(codes, time.monotonic() - started)
+        return 130 if interrupted else 1
+    try:
+        codes = system.stop()
+    finally:
+        claim.close()
     wall = time.monotonic() - started
     budget = args.time if args.time is not None else scenario.time_budget
     return _report(scenario, training, plans, codes, bag, wall, budget)
@@ -340,7 +352,7 @@ def _report(
     for i, e in enumerate(training):
         cost = f"{e['cost']:.3f}" if e["cost"] else "-"
         print(
-            f"| {i} | {e['scenario']} | {e['solved']} | {cost} | {learner_decisions(e)} | "
+            f"| {i + 1} | {e['scenario']} | {e['solved']} | {cost} | {learner_decisions(e)} | "
             f"{e['fallback_decisions']} |"
         )
     optimum = scenario.optimal_cost
@@ -379,12 +391,17 @@ def _report(
             pass
     print()
     _print_bag(bag)
-    clean = all(code == 0 for code in codes.values())
+    clean = _print_stopped(codes, wall)
+    return 0 if ok and clean else 1
+
+
+def _print_stopped(codes: dict[str, int | None], wall: float) -> bool:
+    """Print how the processes exited and the wall time; whether all exited with 0."""
     print(
         f"Processes stopped: {', '.join(f'{n} exit {c}' for n, c in codes.items())}; "
         f"wall time {wall:.1f} s"
     )
-    return 0 if ok and clean else 1
+    return all(code == 0 for code in codes.values())
 
 
 def _print_bag(bag: Path) -> None:

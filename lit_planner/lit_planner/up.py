@@ -379,6 +379,8 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
             return f"{option}: {error}"
         if unknown:
             return f"{option}: unknown parameter {', '.join(unknown)}; known: {', '.join(known)}"
+    if args.no_record and args.bag is not None:
+        return "--bag and --no-record contradict each other; give one of them"
     if args.episodes < 0:
         return f"--episodes must be 0 (serve only) or more, got {args.episodes}"
     if not (math.isfinite(args.time_budget) and args.time_budget >= 0):

@@ -121,3 +121,28 @@ def test_lit_call_help_shows_the_wait_default(tmp_path: Path) -> None:
     text = " ".join(process.stdout.split())
     assert f"--wait WAIT seconds to wait for the service to appear (default: {15:g})" in text
     assert call.DEFAULT_WAIT == 15.0  # the README's "--wait (default 15 s)"
+
+
+@pytest.mark.parametrize(
+    ("given", "parsed"),
+    [
+        (["--start", "-0.3,0", "--goal", "0.3,0"], ["--start=-0.3,0", "--goal", "0.3,0"]),
+        (["--goal", "-1e-3,-0.2"], ["--goal=-1e-3,-0.2"]),
+        (["--time", "-1"], ["--time", "-1"]),  # a plain negative number: argparse's own
+        (["--start=-0.3,0"], ["--start=-0.3,0"]),
+        (["--", "-0.3,0"], ["--", "-0.3,0"]),
+    ],
+)
+def test_a_negative_first_coordinate_is_the_option_value(
+    given: list[str], parsed: list[str]
+) -> None:
+    """argparse reads ``-0.3,0`` as an option and refused ``--start -0.3,0`` (every scenario's
+    start has a negative first coordinate)."""
+    from lit_planner import cli
+
+    assert cli._join_negative_lists(["call", "plan", *given]) == ["call", "plan", *parsed]
+    if given[0] == "--start":
+        args = cli.build_parser("call")[0].parse_args(
+            cli._join_negative_lists(["call", "plan", "--scenario", "np2", *given])
+        )
+        assert (args.start, args.goal) == ([-0.3, 0.0], [0.3, 0.0])

@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
+import signal
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -156,3 +160,40 @@ def test_demo_solves_the_default_scenario(tmp_path: Path) -> None:
     for words in ("t_init", "c_init", "ratio", "improvement", "batches", "collision checks",
                   "evaluated", "re-check passed"):  # fmt: skip
         assert words in process.stdout
+
+
+def test_ctrl_c_stops_the_demo_and_reports_what_it_kept(tmp_path: Path) -> None:
+    """Ctrl-C during training: the nodes are stopped in order, the bag is summarised and the
+    processes' exits printed, exit 130 (it used to print 'lit demo: ; stopping the nodes')."""
+    domain, claim = reserve_ros_domain(range(101, 233))
+    if claim is not None:
+        claim.close()
+    process = subprocess.Popen(
+        [sys.executable, "-m", "lit_planner.cli", "demo", "--out", str(tmp_path),
+         "--domain-id", str(domain), "--training-episodes", "100000"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True,  # its nodes too, to kill them all if the test fails
+    )  # fmt: skip
+    try:
+        assert process.stdout is not None
+        seen = []
+        for line in process.stdout:  # training under way: the first episode's progress line
+            seen.append(line)
+            if line.startswith("    episode 1/100000:"):
+                break
+        else:
+            raise AssertionError("".join(seen))
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=120)
+        out = "".join(seen) + out
+        assert process.returncode == 130, out + err
+        assert "lit demo: interrupted; stopping the nodes" in err and "Traceback" not in err
+        (stopped,) = re.findall(r"^Processes stopped: (.*);", out, re.MULTILINE)
+        assert sorted(stopped.split(", ")) == [
+            "learner exit 0", "planner exit 0", "recorder exit 0",
+        ], out  # fmt: skip
+        assert re.search(r"0 messages missing", out), out
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
