@@ -824,3 +824,31 @@ def test_episode_table_groups_the_instances_of_a_random_family() -> None:
     assert rows[1]["median_c_final"] is None  # one of two unsolved: the median is infinite
     assert rows[1]["fallback_decisions"] == 2
     assert "| training | rrd4 (2 instances) | litstar | training | 2 | 1 |" in table
+
+
+def test_episode_table_tells_custom_worlds_apart() -> None:
+    """Every custom world in R^2 is named custom2; the summaries' worlds tell them apart (they
+    were one instance, their medians taken over unrelated problems without a mark)."""
+
+    def summary(boxes: int, cost: float) -> dict[str, Any]:
+        world = {
+            "lower": [-1, -1],
+            "upper": [1, 1],
+            "start": [-0.5, 0],
+            "goal": [0.5, 0],
+            "resolution": 1e-3,
+            "boxes": [{"lower": [0, 0], "upper": [0.1, 0.1]}] * boxes,
+        }
+        return {
+            "mode": "service", "scenario": "custom2", "planner": "litstar", "policy": "tensor",
+            "solved": True, "t_init": 0.01, "c_init": cost, "cost": cost, "optimal_cost": None,
+            "fallback_decisions": 0, "path_valid": True, "world": world,
+        }  # fmt: skip
+
+    rows, _ = replay.episode_table([summary(1, 1.0), summary(1, 1.1)])
+    assert [(r["scenario"], r["instances"], r["queries"]) for r in rows] == [("custom2", 1, 2)]
+    rows, table = replay.episode_table([summary(1, 1.0), summary(2, 1.1), summary(3, 1.2)])
+    assert [(r["scenario"], r["instances"], r["queries"]) for r in rows] == [
+        ("custom2 (3 instances)", 3, 3)
+    ]
+    assert "| service | custom2 (3 instances) | litstar | tensor | 3 | 3 |" in table

@@ -1676,7 +1676,9 @@ def episode_table(summaries: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str
     decisions and independently re-checked paths. Returns the rows and a markdown table.
 
     Instances of a random family are one group (``rrd4 (458 instances)``): a training run draws a
-    new instance for nearly every query, and a row per instance says nothing."""
+    new instance for nearly every query, and a row per instance says nothing. Custom worlds
+    (``custom2``, every one named by its dimension) are told apart by the world the summary
+    carries: three worlds are ``custom2 (3 instances)``."""
     groups: dict[tuple[str, str, str, str], list[Mapping[str, Any]]] = {}
     for summary in summaries:
         family = str(summary["scenario"]).split("/", 1)[0]
@@ -1688,10 +1690,20 @@ def episode_table(summaries: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str
         value = float(np.median(finite)) if finite else math.inf
         return value if math.isfinite(value) else None
 
+    def instance(summary: Mapping[str, Any]) -> str:
+        world = summary.get("world")  # custom worlds share their name
+        if world is None:
+            return str(summary["scenario"])
+        return f"{summary['scenario']} {json.dumps(world, sort_keys=True)}"
+
     rows = []
     for (mode, family, planner, policy), group in sorted(groups.items()):
-        instances = sorted({str(s["scenario"]) for s in group})
-        scenario = instances[0] if len(instances) == 1 else f"{family} ({len(instances)} instances)"
+        instances = {instance(s) for s in group}
+        scenario = (
+            str(group[0]["scenario"])
+            if len(instances) == 1
+            else f"{family} ({len(instances)} instances)"
+        )
         ratios = [
             s["cost"] / s["optimal_cost"] if s["cost"] and s["optimal_cost"] else None
             for s in group
