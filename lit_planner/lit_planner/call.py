@@ -37,6 +37,7 @@ from lit_planner.rosutil import (
     ServiceCaller,
     freeze_startup_objects,
     localhost_environment,
+    native_output_to_stderr,
     spin_quietly,
 )
 
@@ -366,23 +367,6 @@ def _call_export(node: Any, args: argparse.Namespace) -> int:
         return 2
     print(response.message)
     return 0 if response.success else 1
-
-
-def native_output_to_stderr() -> None:
-    """Send what native code writes to file descriptor 1 to standard error, for the rest of the
-    process, and keep ``sys.stdout`` on the original standard output.
-
-    Fast DDS and rcl log to descriptor 1 (for example Fast DDS's "Failed init_port ...:
-    open_and_lock_file failed" when a shared-memory port's lock is stale, after which it carries
-    on), and ``lit call``'s standard output must hold the answer alone: scripts parse it as JSON.
-    Not undone at the end: a native logging thread may still flush after the answer.
-    """
-    sys.stdout.flush()
-    answers = os.fdopen(
-        os.dup(sys.stdout.fileno()), "w", encoding=sys.stdout.encoding or "utf-8", buffering=1
-    )
-    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
-    sys.stdout = answers
 
 
 def _print(message: str, payload_only: bool) -> None:

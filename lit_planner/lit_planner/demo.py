@@ -136,6 +136,7 @@ def print_summary(result: dict[str, Any], scenario: Scenario) -> None:
 def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
     """Steps 1-4 of the module docstring."""
     from lit_planner.bag import default_bag_root
+    from lit_planner.rosutil import native_output_to_stderr
     from lit_planner.up import DomainBusy, System, claim_domain, stop_on_sigterm
 
     run_id = time.strftime("demo-%Y%m%d-%H%M%S")
@@ -144,6 +145,9 @@ def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
     except DomainBusy as error:
         print(f"lit demo: {error}", file=sys.stderr)
         return 2
+    # Fast DDS writes its own errors (a stale shared-memory lock, after which it carries on) to
+    # descriptor 1, in the middle of the demo's report: they go to standard error.
+    native_output_to_stderr()
     runs = (args.out or Path("runs")) / run_id
     bag = (args.out or default_bag_root()) / (f"{run_id}-bag" if args.out else run_id)
     system = System(args.domain_id, Path.cwd(), echo=_quiet_echo)

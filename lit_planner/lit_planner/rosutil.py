@@ -669,3 +669,21 @@ def _spin(executor: Any, stop: threading.Event, stopping: threading.Event) -> No
         spin_quietly(executor, stopping.is_set)
     finally:
         stop.set()
+
+
+def native_output_to_stderr() -> None:
+    """Send what native code writes to file descriptor 1 to standard error, for the rest of the
+    process, and keep ``sys.stdout`` on the original standard output.
+
+    Fast DDS and rcl log to descriptor 1 (for example Fast DDS's "Failed init_port ...:
+    open_and_lock_file failed" when a shared-memory port's lock is stale, after which it carries
+    on), while a command's standard output is for its answer (``lit call``'s is parsed as JSON)
+    or its report (``lit demo``). Not undone at the end: a native logging thread may still flush
+    after the answer.
+    """
+    sys.stdout.flush()
+    answers = os.fdopen(
+        os.dup(sys.stdout.fileno()), "w", encoding=sys.stdout.encoding or "utf-8", buffering=1
+    )
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
+    sys.stdout = answers

@@ -7,7 +7,7 @@ import sys
 
 SCRIPT = """
 import os, sys
-from lit_planner.call import native_output_to_stderr
+from lit_planner.rosutil import native_output_to_stderr
 native_output_to_stderr()
 os.write(1, b"[RTPS_TRANSPORT_SHM Error] Failed init_port fastrtps_port7003\\n")  # as Fast DDS does
 print('{"code": "ok"}')
