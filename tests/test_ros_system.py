@@ -183,6 +183,7 @@ def test_the_planner_node_uses_its_tensors_as_trained_and_sees_them_change(
     assert result.returncode == 1, result
     error = result.json()
     assert "k_tensor.npy" in error["message"] and "not finite" in error["message"], error
+    assert error["code"] == "unavailable", error  # the file's fault: not "internal"
     np.save(folder / "k_tensor.npy", values)
     result = plan()
     assert result.returncode == 0 and result.json()["solved"] is True, result

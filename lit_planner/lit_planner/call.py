@@ -74,7 +74,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--time", type=float, help="time budget, s (default: the scenario's; a world's: 1)"
     )
     plan.add_argument(
-        "--planner", help="litstar or an OMPL baseline, e.g. aitstar (default: litstar)"
+        "--planner",
+        help="litstar, litstar-fit (LIT* with that policy) or an OMPL baseline, e.g. aitstar "
+        "(default: litstar)",
     )
     plan.add_argument(
         "--policy",
@@ -233,7 +235,7 @@ def run(args: argparse.Namespace) -> int:
 def _request(args: argparse.Namespace) -> tuple[str, str]:
     from lit_msgs_json.envelope import Publisher
 
-    from lit_planner import scenarios
+    from lit_planner import planning, scenarios
 
     publisher = Publisher(f"lit_call/{os.getpid()}", f"call-{uuid.uuid4().hex[:8]}")
     if args.service == "plan":
@@ -262,6 +264,8 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
             # `lit plan` gives instead of the schema's pattern error, and nothing is sent.
             scenarios.get(args.scenario)  # ScenarioError is a ValueError
             payload["scenario"] = args.scenario
+        if args.planner in planning.SHORTHANDS:  # as `lit plan` takes them: litstar-fit
+            args.planner, args.policy = planning.resolve_planner(args.planner, args.policy)
         for key in ("time", "planner", "policy", "seed", "start", "goal", "request_id"):
             value = getattr(args, key)
             if value is not None:

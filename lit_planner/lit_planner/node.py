@@ -65,6 +65,7 @@ from lit_planner.episode_messages import (
     summary_payload,
     unit,
 )
+from lit_planner.errors import TensorFileError
 from lit_planner.rosutil import (
     DECIDE_SERVICE,
     PLAN_SEND_ATTEMPTS,
@@ -303,7 +304,19 @@ class PlannerNode:
         job.done.wait()
         if job.error is not None:
             response.success = False
-            response.message = reply.error(job.error)
+            if isinstance(job.error, TensorFileError):  # the tensors' fault, not the node's
+                response.message = reply.error(
+                    job.error,
+                    code="unavailable",
+                    message=(
+                        f"the tensor policy is unavailable: {str(job.error)[:3000]} (the files "
+                        "are read again at the next query)"
+                    ),
+                    request_schema="PlanRequest",
+                    request_seq=message.seq,
+                )
+            else:
+                response.message = reply.error(job.error)
             return response
         assert job.result is not None
         response.success = True

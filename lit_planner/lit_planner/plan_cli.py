@@ -66,10 +66,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seed", type=int, default=1, help="seed (default: %(default)s)")
     parser.add_argument(
-        "--iterations", type=int, default=0, metavar="N", help="LIT*: stop after N iterations"
+        "--iterations",
+        type=int,
+        default=0,
+        metavar="N",
+        help="LIT*: stop after N iterations (default: 0, no limit)",
     )
     parser.add_argument(
-        "--batches", type=int, default=0, metavar="N", help="LIT*: stop after N batches"
+        "--batches",
+        type=int,
+        default=0,
+        metavar="N",
+        help="LIT*: stop after N batches (default: 0, no limit)",
     )
     parser.add_argument(
         "--tensors",

@@ -403,7 +403,7 @@ def plan(
     params = {**policy_params(policy_object), **(params or {})}
     for label, value in (("max_iterations", max_iterations), ("max_batches", max_batches)):
         if not 0 <= value <= MAX_SEED:
-            raise PlannerError(f"{label} must be between 0 and {MAX_SEED}, got {value}")
+            raise PlannerError(f"{label} must be between 0 (no limit) and {MAX_SEED}, got {value}")
     check_seed(seed)
     stops_on_count = bool(max_iterations or max_batches)
     if core_planner != LITSTAR and stops_on_count:

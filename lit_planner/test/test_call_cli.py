@@ -146,3 +146,24 @@ def test_a_negative_first_coordinate_is_the_option_value(
             cli._join_negative_lists(["call", "plan", "--scenario", "np2", *given])
         )
         assert (args.start, args.goal) == ([-0.3, 0.0], [0.3, 0.0])
+
+
+def test_plan_takes_the_litstar_shorthands_as_lit_plan_does(tmp_path: Path) -> None:
+    """``--planner litstar-fit`` is LIT* with the fit policy (the planner node's schema knows
+    only ``litstar``); a shorthand that contradicts ``--policy`` is refused before sending."""
+    import json
+
+    from lit_planner import cli
+
+    args = cli.build_parser("call")[0].parse_args(
+        ["call", "plan", "--scenario", "np4", "--planner", "litstar-fit"]
+    )
+    name, text = call._request(args)
+    payload = json.loads(text)["payload"]
+    assert name == "/lit/planner/plan"
+    assert (payload["planner"], payload["policy"]) == ("litstar", "fit")
+    line = refusal(
+        lit_call("plan", "--scenario", "np4", "--planner", "litstar-fit", "--policy", "tensor",
+                 cwd=tmp_path)
+    )  # fmt: skip
+    assert "means policy 'fit', but policy 'tensor' was given" in line

@@ -203,7 +203,9 @@ def run(args: argparse.Namespace) -> int:
         return 1
     invalid = sum(1 for r in records if r["solved"] and r["path_valid"] is False)
     print(
-        f"lit bench: {len(records)} runs in {duration / 60:.1f} min; {invalid} returned paths "
+        f"lit bench: {len(records)} runs in "
+        + (f"{duration:.1f} s" if duration < 60 else f"{duration / 60:.1f} min")
+        + f"; {invalid} returned paths "
         f"failed the independent re-check; outputs in {out}",
         file=sys.stderr,
     )
