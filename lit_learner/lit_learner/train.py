@@ -28,6 +28,7 @@ import argparse
 import dataclasses
 import json
 import math
+import os
 import shlex
 import shutil
 import subprocess
@@ -705,6 +706,35 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-bag", action="store_true", help="do not record a bag")
 
 
+STOP_REQUESTED = threading.Event()
+"""Set by ``lit train``'s SIGINT / SIGTERM handler: :func:`train` stops after the running
+episode."""
+
+
+def _request_stop(signum: int, frame: Any) -> None:
+    """First Ctrl-C (or SIGTERM): note it; the episode, its end and any checkpoint finish, then
+    the run stops cleanly. A KeyboardInterrupt raised wherever Python happened to be (inside a
+    decision the core calls back, a listener, a gradient step) aborted the query or left the
+    learner's episode open: the final checkpoint then could not be resumed, or was not written.
+    A second one stops at once."""
+    del frame
+    if STOP_REQUESTED.is_set():
+        print(
+            "\nlit train: stopped at once; the run keeps its last periodic checkpoint (a bag is "
+            "left unfinished: `lit replay salvage` recovers it)",
+            file=sys.stderr,
+            flush=True,
+        )
+        os._exit(128 + signum)
+    STOP_REQUESTED.set()
+    print(
+        "\nlit train: stopping after this episode (then the final checkpoint, curves and "
+        "provenance); Ctrl-C again stops at once without them",
+        file=sys.stderr,
+        flush=True,
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     """Train, checkpoint, plot and (with ``--export``) export; returns the exit code."""
     import signal
@@ -713,14 +743,14 @@ def run(args: argparse.Namespace) -> int:
 
     from lit_learner.errors import LearnerError
 
-    # `kill PID` stops like Ctrl-C (the running query finishes, then the final checkpoint, curves
-    # and provenance); SIGINT too when a non-interactive shell started us in the background with
-    # SIGINT ignored.
+    # Ctrl-C and `kill PID` stop after the running episode (:func:`_request_stop`); SIGINT too
+    # when a non-interactive shell started us in the background with SIGINT ignored.
+    STOP_REQUESTED.clear()
     previous: dict[int, Any] = {}
     if threading.current_thread() is threading.main_thread():  # signals: main thread only
         previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
         for sig in previous:
-            signal.signal(sig, signal.default_int_handler)
+            signal.signal(sig, _request_stop)
     try:
         result = train(args, hooks=None)
     except (TrainingError, LearnerError, LitPlannerError) as error:
@@ -966,7 +996,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         print(f"lit train: removed {later} (after the checkpoint resumed from)", file=sys.stderr)
     interrupted = False
     try:
-        while not (_finished(state) or interrupted):
+        while not (_finished(state) or interrupted or STOP_REQUESTED.is_set()):
             phase = _phase_for(state)
             if phase == PHASE_K and state.phase != PHASE_K:
                 progress.write(
@@ -997,7 +1027,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             if hooks.on_episode is not None:
                 hooks.on_episode(outcome)
             _advance(progress, state, outcome)
-            interrupted = outcome.interrupted
+            interrupted = outcome.interrupted or STOP_REQUESTED.is_set()
             if state.checkpoint_every > 0 and state.episode % state.checkpoint_every == 0:
                 periodic.append(
                     _checkpoint(core, state, rng, run_dir, f"episode-{state.episode:07d}")
@@ -1007,12 +1037,14 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                     old.unlink(missing_ok=True)
                     state_path(old).unlink(missing_ok=True)
     except KeyboardInterrupt:
-        # Between queries: the learner is consistent unless Ctrl-C hit a gradient step.
+        # Between queries: the learner is consistent unless Ctrl-C hit a gradient step (lit
+        # train's own handler raises none: it sets STOP_REQUESTED).
         interrupted = True
     finally:
         progress.close()
         if recording is not None:
             recording.close()
+    interrupted = interrupted or STOP_REQUESTED.is_set()
     final = _checkpoint(core, state, rng, run_dir, "final")
     curves = plot_training_curves(run_dir / METRICS_FILE, run_dir / CURVES_FILE, HISTOGRAM_BINS)
     record = provenance(state, run_dir)
