@@ -125,7 +125,11 @@ def bag_decision_interval(path: Path) -> int | None:
     """
     import shlex
 
-    from lit_learner.train import DECISION_INTERVAL_KEY, add_arguments
+    from lit_learner.train import (
+        DECISION_INTERVAL_KEY,
+        DEFAULT_DECISION_INTERVAL,
+        add_arguments,
+    )
 
     custom = _bag_custom_data(path)
     if DECISION_INTERVAL_KEY in custom:
@@ -147,7 +151,11 @@ def bag_decision_interval(path: Path) -> int | None:
         known, _ = parser.parse_known_args(words[words.index("train") + 1 :])
     except (argparse.ArgumentError, SystemExit):
         return None
-    if known.resume is not None or not 1 <= known.decision_interval <= MAX_INTERVAL:
+    if known.resume is not None:
+        return None
+    if known.decision_interval is None:  # not given: lit train's default
+        known.decision_interval = DEFAULT_DECISION_INTERVAL
+    if not 1 <= known.decision_interval <= MAX_INTERVAL:
         return None
     return int(known.decision_interval)
 

@@ -531,6 +531,10 @@ class DriverState:
     """``--limit-terminates``: an end on the iteration limit is a termination."""
     budget_scale: float = 1.0
     """``--budget-scale``: each query's time budget is the scenario's times this."""
+    record_bag: bool = True
+    """Whether episodes are recorded (``--no-bag``: False); a resume keeps it unless told."""
+    bag_dir: str | None = None
+    """``--bag-dir`` (absolute), or None for the checkout's ``bags/``."""
 
     def save(self, path: Path) -> None:
         path.write_text(json.dumps(dataclasses.asdict(self), indent=2) + "\n")
@@ -626,24 +630,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="wall-clock minutes to train (stops at whichever of "
         "--episodes and --minutes comes first; with --resume: the new total)",
     )
+    # The next four are a run's own: None when not given, so --resume can refuse a change.
     parser.add_argument(
         "--scenarios",
-        default=",".join(DEFAULT_SCENARIOS),
-        help="comma-separated training scenarios (family+dimension; instances are drawn)",
+        help="comma-separated training scenarios (family+dimension; instances are drawn; "
+        f"default {','.join(DEFAULT_SCENARIOS)}; a new run only)",
     )
     parser.add_argument(
         "--schedule",
         choices=SCHEDULES,
-        default=SCHEDULES[0],
-        help="b-then-k: B with psi_K = e, then psi_K with B from the B tensor; joint: both",
+        help="b-then-k: B with psi_K = e, then psi_K with B from the B tensor; joint: both "
+        f"(default {SCHEDULES[0]}; a new run only)",
     )
     parser.add_argument(
         "--decision-interval",
         type=int,
-        default=DEFAULT_DECISION_INTERVAL,
-        help="decide psi_K every N expansions (planner parameter decision_interval)",
+        help="decide psi_K every N expansions (planner parameter decision_interval; default "
+        f"{DEFAULT_DECISION_INTERVAL}; a new run only)",
     )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the learner and the draws")
+    parser.add_argument(
+        "--seed", type=int, help="seed of the learner and the draws (default 0; a new run only)"
+    )
     parser.add_argument(
         "--max-iterations",
         type=int,
@@ -838,6 +845,11 @@ def _time_budget(spec: EpisodeSpec, scale: float) -> float | None:
     return scenarios.get(spec.scenario, spec.instance).time_budget * scale
 
 
+def _shown(value: Any) -> str:
+    """A setting as the command line gives it (a list of scenarios comma-separated)."""
+    return ",".join(value) if isinstance(value, list) else str(value)
+
+
 def _check_folders(args: argparse.Namespace) -> None:
     """Refuse, before any training, folders that cannot be written (a file in the way)."""
     for label, value in (
@@ -873,8 +885,16 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
     hooks = hooks or TrainingHooks()
     lit_core.set_log_level("warn")
     command = ["lit", "train", *(sys.argv[2:] if sys.argv[1:2] == ["train"] else sys.argv[1:])]
-    if args.decision_interval < 1:
+    if args.decision_interval is not None and args.decision_interval < 1:
         raise TrainingError(f"--decision-interval must be at least 1, got {args.decision_interval}")
+    if args.no_bag and args.bag_dir is not None:
+        raise TrainingError(f"--bag-dir {args.bag_dir} and --no-bag contradict each other")
+    started = {  # a run's own settings, as given (None: not given)
+        "scenarios": None if args.scenarios is None else split_names(args.scenarios),
+        "schedule": args.schedule,
+        "decision_interval": args.decision_interval,
+        "seed": args.seed,
+    }
     if args.checkpoint_every is not None and args.checkpoint_every < 0:
         raise TrainingError(f"--checkpoint-every must be 0 or more, got {args.checkpoint_every}")
     for label, value in (("--episodes", args.episodes), ("--minutes", args.minutes)):
@@ -898,10 +918,19 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 f"{checkpoint / CHECKPOINT_DIR / 'final.ckpt'}"
             )
         state = DriverState.load(state_path(checkpoint))
-        changed = [name for name, value in limits.items() if getattr(state, name) != value]
+        run_dir = checkpoint.resolve().parent.parent
+        if args.out is not None and Path(args.out).resolve() != run_dir:
+            raise TrainingError(
+                f"--out {args.out} with --resume: the run folder is the checkpoint's ({run_dir}); "
+                "copy that folder to continue the run elsewhere"
+            )
+        given = {name: value for name, value in started.items() if value is not None}
+        changed = [
+            name for name, value in {**limits, **given}.items() if getattr(state, name) != value
+        ]
         if changed:
             given = ", ".join(
-                f"--{name.replace('_', '-')} (the run's: {getattr(state, name)})"
+                f"--{name.replace('_', '-')} (the run's: {_shown(getattr(state, name))})"
                 for name in changed
             )
             raise TrainingError(f"{given}: set when a run starts; --resume keeps the run's")
@@ -915,12 +944,16 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 f"--minutes {args.minutes:g} with --resume is the new total, and the checkpoint "
                 f"has trained {state.elapsed / 60.0:.1f} minutes already"
             )
-        if (state.max_iterations or state.effort_clock) and not args.no_bag:
+        # Its bag settings, unless this command gives others.
+        if args.no_bag:
+            state.record_bag, state.bag_dir = False, None
+        elif args.bag_dir is not None:
+            state.record_bag, state.bag_dir = True, str(Path(args.bag_dir).resolve())
+        if (state.max_iterations or state.effort_clock) and state.record_bag:
             raise TrainingError(
                 "this run limits its episodes (--max-iterations or --effort-clock), which a bag "
                 "cannot carry; resume it with --no-bag"
             )
-        run_dir = Path(args.out) if args.out else checkpoint.resolve().parent.parent
         core = LearnerCore.load_checkpoint(checkpoint)
         if args.episodes is not None:
             state.episodes = args.episodes
@@ -938,15 +971,18 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             raise TrainingError(
                 f"{run_dir} already holds a training run; choose another --out or --resume"
             )
+        seed = 0 if args.seed is None else args.seed
         episodes = args.episodes
         if episodes is None and args.minutes is None:
             episodes = DEFAULT_EPISODES
         state = DriverState(
-            run_id=f"train-{stamp}-s{args.seed}",
-            scenarios=split_names(args.scenarios),
-            schedule=args.schedule,
-            decision_interval=args.decision_interval,
-            seed=args.seed,
+            run_id=f"train-{stamp}-s{seed}",
+            scenarios=started["scenarios"] or list(DEFAULT_SCENARIOS),
+            schedule=args.schedule or SCHEDULES[0],
+            decision_interval=args.decision_interval or DEFAULT_DECISION_INTERVAL,
+            seed=seed,
+            record_bag=not args.no_bag,
+            bag_dir=None if args.bag_dir is None else str(Path(args.bag_dir).resolve()),
             episodes=episodes,
             minutes=args.minutes,
             command=command,
@@ -956,13 +992,13 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             ),
             **limits,
         )
-        config = hooks.learner_config or LearnerConfig(seed=args.seed)
+        config = hooks.learner_config or LearnerConfig(seed=seed)
         if w_search is not None:
             config = dataclasses.replace(
                 config, reward=dataclasses.replace(config.reward, w_search=w_search)
             )
         core = LearnerCore(config)
-        rng = draw_generator(args.seed)
+        rng = draw_generator(seed)
     distribution = TrainingDistribution(state.scenarios, rng)  # checks the names first
     run_dir.mkdir(parents=True, exist_ok=True)
     lock = _lock_run_folder(run_dir)  # held until this process ends
@@ -986,7 +1022,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             f"the checkpoint (episode {state.episode}); they run again",
             file=sys.stderr,
         )
-    recording = None if args.no_bag else _open_bag(args, state, run_dir)
+    recording = _open_bag(state, run_dir) if state.record_bag else None
     progress = _progress(state, disable=args.no_progress)
     session_start = time.perf_counter() - state.elapsed
     periodic = _earlier_checkpoints(run_dir, state.episode)  # a resumed run prunes them too
@@ -1119,11 +1155,11 @@ def export(core: Any, directory: Path, record: dict[str, Any], curves: Path | No
     return written
 
 
-def _open_bag(args: argparse.Namespace, state: DriverState, run_dir: Path) -> Any:
+def _open_bag(state: DriverState, run_dir: Path) -> Any:
     """The run's bag (a resumed run records a new one beside the first: ``<name>-2``, ...)."""
     from lit_planner.bag import EpisodeRecording, default_bag_root, unique_directory
 
-    parent = args.bag_dir if args.bag_dir is not None else default_bag_root()
+    parent = Path(state.bag_dir) if state.bag_dir is not None else default_bag_root()
     parent.mkdir(parents=True, exist_ok=True)
     return EpisodeRecording(
         unique_directory(parent, run_dir.resolve().name),

@@ -40,6 +40,8 @@ def arguments(out: Path, **overrides: object) -> argparse.Namespace:
     args = parser.parse_args(["--out", str(out), "--no-progress", "--bag-dir", str(out.parent)])
     for name, value in overrides.items():
         setattr(args, name, value)
+    if args.no_bag:
+        args.bag_dir = None  # refused together
     return args
 
 
@@ -551,3 +553,65 @@ def test_a_resume_keeps_the_episode_limits(
     assert "resume it with --no-bag" in capsys.readouterr().err
     # the run's own values, given again, are fine
     assert train.run(arguments(run, episodes=2, resume=final, max_iterations=200, no_bag=True)) == 0
+
+
+def _bags(folder: Path) -> set[Path]:
+    return {path.parent for path in folder.glob("*/metadata.yaml")}
+
+
+def test_a_resume_keeps_the_runs_own_settings(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Scenarios, schedule, decision interval and seed are the run's: a resume that gives
+    others is refused (they used to be ignored while the provenance recorded the command), as
+    is another run folder (whose metrics and provenance the resume mixed with its own). The
+    bag settings carry over unless the resume gives others."""
+    from lit_planner.bag import default_bag_root
+
+    run = tmp_path / "run"
+    assert train.run(arguments(run, scenarios="np4", episodes=1, seed=3)) == 0
+    final = run / "checkpoints" / "final.ckpt"
+    recorded = _bags(tmp_path)
+    assert len(recorded) == 1
+    capsys.readouterr()
+    for options, message in (
+        ({"scenarios": "np8"}, "--scenarios (the run's: np4): set when a run starts"),
+        ({"seed": 4}, "--seed (the run's: 3): set when a run starts"),
+        ({"schedule": "joint"}, "--schedule (the run's: b-then-k)"),
+        ({"decision_interval": 7}, "--decision-interval (the run's: 1)"),
+    ):
+        args = arguments(run, episodes=2, resume=final, **options)
+        assert train.run(args) == 2, options
+        assert message in capsys.readouterr().err, options
+    assert train.run(arguments(tmp_path / "other", episodes=2, resume=final)) == 2
+    assert "copy that folder to continue the run elsewhere" in capsys.readouterr().err
+    assert not (tmp_path / "other").exists()
+    # The run's own values given again are fine; its bag folder is kept without --bag-dir.
+    parser = argparse.ArgumentParser()
+    train.add_arguments(parser)
+    again = parser.parse_args(
+        ["--resume", str(final), "--episodes", "2", "--no-progress", "--scenarios", "np4"]
+    )
+    assert train.run(again) == 0
+    assert len(_bags(tmp_path)) == 2  # a second bag beside the first
+
+    unrecorded = tmp_path / "unrecorded"
+    assert train.run(arguments(unrecorded, scenarios="np4", episodes=1, no_bag=True)) == 0
+    before = set(default_bag_root().glob("*"))
+    again = parser.parse_args(
+        ["--resume", str(unrecorded / "checkpoints" / "final.ckpt"), "--episodes", "2",
+         "--no-progress"]
+    )  # fmt: skip
+    assert train.run(again) == 0
+    assert set(default_bag_root().glob("*")) == before  # --no-bag kept: no bag in bags/
+    assert len(_bags(tmp_path)) == 2
+
+
+def test_no_bag_and_bag_dir_contradict_each_other(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = arguments(tmp_path / "run", scenarios="np4", episodes=1)
+    args.no_bag = True  # the helper's --bag-dir stays
+    assert train.run(args) == 2
+    assert "and --no-bag contradict each other" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
