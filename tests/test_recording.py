@@ -134,6 +134,12 @@ def test_training_run_bag_gives_deterministic_offline_tensors(tmp_path: Path) ->
     assert "3 episodes" in first
     version = int(first.split("policy version ")[1].split(";")[0])
     assert version > 0  # gradient steps ran on the recorded transitions
+    from lit_planner import tensor_files
+
+    for agent, name in (("B", "b_tensor.npy"), ("psi_K", "k_tensor.npy")):
+        updates = tensor_files.read_tensor(tmp_path / "a" / name)[1].training["updates"]
+        (line,) = [x for x in first.splitlines() if x.startswith(f"  {agent}: ")]
+        assert ("UNTRAINED" in line) == (updates == 0), (line, updates)  # an agent without steps
     offline(tmp_path / "b", 3)
     offline(tmp_path / "c", 4)
     for name in ("b_tensor.npy", "k_tensor.npy"):

@@ -98,7 +98,17 @@ def run(args: argparse.Namespace) -> int:
     )
     print(f"  psi_K decision interval {interval.value} ({interval.source})")
     for name, path in paths.items():
-        print(f"  {name}: {path}")
+        agent = core.agents.get(name)
+        untrained = agent is not None and agent.updates == 0
+        print(
+            f"  {name}: {path}"
+            + (
+                f" (UNTRAINED: {agent.transitions} transitions, no gradient update; the "
+                "actor's initial weights)"
+                if untrained
+                else ""
+            )
+        )
     return 0
 
 

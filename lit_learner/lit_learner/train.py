@@ -1179,7 +1179,9 @@ def _switch_to_k(core: Any, state: DriverState, run_dir: Path) -> Any:
 
     folder = run_dir / B_PHASE_TENSORS
     record = provenance(state, run_dir) | {"note": "B tensor at the end of the B phase"}
-    written = core.export_tensors(folder, record)
+    # B only: the psi_K agent has not trained yet, and an export of its initial actor was
+    # shown by `lit tensors info` like a trained tensor.
+    written = core.export_tensors(folder, record, agents=("B",))
     state.b_tensor_dir = B_PHASE_TENSORS
     return planning.load_tensor(Path(written["B"]), "B")
 

@@ -109,6 +109,7 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path
     sources = {d["source"] for e in episodes for d in e.decisions}
     assert sources == {"learner", "tensor"}  # psi_K phase: B from the B-phase tensor
     assert (run_dir / train.B_PHASE_TENSORS / "b_tensor.npy").exists()
+    assert not (run_dir / train.B_PHASE_TENSORS / "k_tensor.npy").exists()  # not trained yet
 
     with (run_dir / METRICS_FILE).open(newline="") as handle:
         rows = list(csv.DictReader(handle))

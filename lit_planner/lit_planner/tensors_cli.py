@@ -166,6 +166,7 @@ def describe(folder: Path) -> dict[str, object]:
             "data_sha256": sidecar.data_sha256,
             "checkpoint_sha256": sidecar.checkpoint_sha256,
             "provenance": dict(sidecar.provenance),
+            "training": dict(sidecar.training),
         }
         if output == "psi_K":
             entry["decision_interval"] = interval or None
@@ -214,6 +215,14 @@ def _info_lines(name: str, entry: dict[str, object]) -> list[str]:
             f"    interval    psi_K decided every {interval} expansions (as trained)"
             if interval
             else "    interval    not named: the planner's default (every expansion) applies"
+        )
+    training = entry.get("training") or {}
+    assert isinstance(training, dict)
+    if "updates" in training:  # a learner's export (constant tensors have none)
+        lines.append(
+            f"    training    {training['updates']} gradient updates from "
+            f"{training.get('transitions', '?')} transitions"
+            + ("; UNTRAINED: the actor's initial weights" if not training["updates"] else "")
         )
     provenance = entry["provenance"]
     assert isinstance(provenance, dict)

@@ -90,6 +90,22 @@ def test_info_shows_the_shipped_tensors() -> None:
     readable = lit("tensors", "info", shipped)
     assert readable.returncode == 0 and "checked" in readable.stdout
     assert f"psi_K decided every {k['decision_interval']} expansions" in readable.stdout
+    for entry in (b, k):  # the shipped tensors were trained
+        assert entry["training"]["updates"] > 0
+        assert f"{entry['training']['updates']} gradient updates from" in readable.stdout
+    assert "UNTRAINED" not in readable.stdout
+
+
+def test_info_marks_an_untrained_export(tmp_path: Path) -> None:
+    """An export of an actor no gradient step has changed (a psi_K agent whose phase has not
+    begun, a bag without its decisions) is marked, not shown like a trained tensor."""
+    from lit_learner.config import LearnerConfig
+    from lit_learner.core import LearnerCore
+
+    LearnerCore(LearnerConfig(seed=0)).export_tensors(tmp_path, {"note": "untrained"})
+    readable = lit("tensors", "info", str(tmp_path))
+    assert readable.returncode == 0, readable.stderr
+    assert readable.stdout.count("0 gradient updates from 0 transitions; UNTRAINED") == 2
 
 
 def test_info_names_a_defective_tensor_and_still_shows_the_other(tmp_path: Path) -> None:
