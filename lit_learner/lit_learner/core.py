@@ -367,7 +367,10 @@ class LearnerCore:
             # Not weights_only: the replay buffer and RNG states are numpy objects and tuples.
             state = _arrays_from_tensors(torch.load(path, map_location="cpu", weights_only=False))
         except Exception as exc:  # torch raises many types for a damaged file
-            raise CheckpointError(f"{path}: cannot read checkpoint: {exc}") from exc
+            raise CheckpointError(
+                f"{path}: cannot read checkpoint (damaged or not a checkpoint: "
+                f"{type(exc).__name__}: {exc})"
+            ) from exc
         if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
             found = state.get("format") if isinstance(state, dict) else type(state).__name__
             raise CheckpointError(

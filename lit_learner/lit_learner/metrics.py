@@ -180,6 +180,10 @@ def plot_training_curves(metrics_path: Path, output: Path, bins: int) -> Path:
         )
         image = axis.imshow(share, aspect="auto", origin="lower", extent=extent, vmin=0, vmax=1)
         figure.colorbar(image, ax=axis, fraction=0.04)
+    from matplotlib.ticker import MaxNLocator
+
+    for axis in axes.flat:  # episodes are whole numbers (a short run got ticks at 0.25, 0.5)
+        axis.xaxis.set_major_locator(MaxNLocator(integer=True))
     figure.suptitle(f"LIT* Fuzzy-DDPG training ({metrics_path.parent.name})")
     output.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(output, dpi=110)

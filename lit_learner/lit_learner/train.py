@@ -346,7 +346,8 @@ def run_episode(
     if policy.failures:
         raise TrainingError(
             f"episode {spec.index} ({problem.name}, seed {spec.seed}): {policy.failures} "
-            "decisions fell back to the fixed values (NaN answers)"
+            f"decision{'s' if policy.failures != 1 else ''} fell back to the fixed values "
+            "(NaN answers)"
         )
     truncated = result["time"] >= budget * (1.0 - BUDGET_TOLERANCE) or (
         max_iterations > 0
