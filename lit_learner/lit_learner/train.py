@@ -719,28 +719,39 @@ STOP_REQUESTED = threading.Event()
 episode."""
 
 
+FINISHING = threading.Event()
+"""Set by :func:`train` once its episodes are over (final checkpoint, curves, provenance and
+export follow): a signal then no longer stops at once, which could leave an export half
+written."""
+
+
+def _say(text: str) -> None:
+    """One line on standard error from a signal handler (``print`` to ``sys.stderr`` may be
+    mid-write there: a reentrant call)."""
+    os.write(2, f"\n{text}\n".encode())
+
+
 def _request_stop(signum: int, frame: Any) -> None:
     """First Ctrl-C (or SIGTERM): note it; the episode, its end and any checkpoint finish, then
     the run stops cleanly. A KeyboardInterrupt raised wherever Python happened to be (inside a
     decision the core calls back, a listener, a gradient step) aborted the query or left the
     learner's episode open: the final checkpoint then could not be resumed, or was not written.
-    A second one stops at once."""
+    A second one stops at once, unless the final outputs are being written."""
     del frame
-    if STOP_REQUESTED.is_set():
-        print(
-            "\nlit train: stopped at once; the run keeps its last periodic checkpoint (a bag is "
-            "left unfinished: `lit replay salvage` recovers it)",
-            file=sys.stderr,
-            flush=True,
+    if FINISHING.is_set():
+        _say("lit train: writing the final checkpoint and outputs; a few seconds")
+    elif STOP_REQUESTED.is_set():
+        _say(
+            "lit train: stopped at once; the run keeps its last periodic checkpoint (a bag is "
+            "left unfinished: `lit replay salvage` recovers it)"
         )
         os._exit(128 + signum)
-    STOP_REQUESTED.set()
-    print(
-        "\nlit train: stopping after this episode (then the final checkpoint, curves and "
-        "provenance); Ctrl-C again stops at once without them",
-        file=sys.stderr,
-        flush=True,
-    )
+    else:
+        STOP_REQUESTED.set()
+        _say(
+            "lit train: stopping after this episode (then the final checkpoint, curves and "
+            "provenance); Ctrl-C again stops at once without them"
+        )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -754,6 +765,7 @@ def run(args: argparse.Namespace) -> int:
     # Ctrl-C and `kill PID` stop after the running episode (:func:`_request_stop`); SIGINT too
     # when a non-interactive shell started us in the background with SIGINT ignored.
     STOP_REQUESTED.clear()
+    FINISHING.clear()
     previous: dict[int, Any] = {}
     if threading.current_thread() is threading.main_thread():  # signals: main thread only
         previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
@@ -768,6 +780,8 @@ def run(args: argparse.Namespace) -> int:
         for sig, handler in previous.items():
             if handler is not None:  # None: installed outside Python, cannot be restored
                 signal.signal(sig, handler)
+        STOP_REQUESTED.clear()  # a later train() in this process starts afresh
+        FINISHING.clear()
     print(result.summary)
     return 130 if result.interrupted else 0
 
@@ -978,7 +992,9 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             episodes = DEFAULT_EPISODES
         state = DriverState(
             run_id=f"train-{stamp}-s{seed}",
-            scenarios=started["scenarios"] or list(DEFAULT_SCENARIOS),
+            scenarios=(
+                list(DEFAULT_SCENARIOS) if started["scenarios"] is None else started["scenarios"]
+            ),
             schedule=args.schedule or SCHEDULES[0],
             decision_interval=args.decision_interval or DEFAULT_DECISION_INTERVAL,
             seed=seed,
@@ -1082,6 +1098,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         if recording is not None:
             recording.close()
     interrupted = interrupted or STOP_REQUESTED.is_set()
+    FINISHING.set()
     final = _checkpoint(core, state, rng, run_dir, "final")
     curves = plot_training_curves(run_dir / METRICS_FILE, run_dir / CURVES_FILE, HISTOGRAM_BINS)
     record = provenance(state, run_dir)
@@ -1161,7 +1178,10 @@ def _open_bag(state: DriverState, run_dir: Path) -> Any:
     from lit_planner.bag import EpisodeRecording, default_bag_root, unique_directory
 
     parent = Path(state.bag_dir) if state.bag_dir is not None else default_bag_root()
-    parent.mkdir(parents=True, exist_ok=True)
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:  # a resumed run's --bag-dir replaced by a file, say
+        raise TrainingError(f"bag folder {parent}: {error}") from None
     return EpisodeRecording(
         unique_directory(parent, run_dir.resolve().name),
         state.run_id,

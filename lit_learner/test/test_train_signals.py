@@ -85,8 +85,8 @@ def test_a_signal_stops_after_the_episode_with_a_checkpoint_that_resumes(
 
 def test_a_second_signal_stops_at_once(tmp_path: Path) -> None:
     run = tmp_path / "run"
-    # Episodes of 2.4 s (budget 0.12 s x 20): the second signal comes while one runs.
-    with _train("--scenarios", "np4", "--episodes", "100000", "--budget-scale", "20",
+    # Episodes of 12 s (budget 0.12 s x 100): the second signal comes while one runs.
+    with _train("--scenarios", "np4", "--episodes", "100000", "--budget-scale", "100",
                 "--no-bag", "--out", str(run)) as process:  # fmt: skip
         _wait_for_episodes(process, run, 1)
         process.send_signal(signal.SIGINT)

@@ -121,7 +121,9 @@ def _join_negative_lists(argv: list[str]) -> list[str]:
     and is not a plain negative number for an option, and refuses ``--start`` without its
     value (every scenario's start has a negative first coordinate)."""
     joined: list[str] = []
-    for arg in argv:
+    for index, arg in enumerate(argv):
+        if arg == "--":  # what follows is passed on as it is (lit test's pytest arguments)
+            return joined + argv[index:]
         if (
             joined
             and NEGATIVE_LIST.fullmatch(arg)

@@ -157,6 +157,19 @@ def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
     plans: list[tuple[int, dict[str, Any] | None, str]] = []
     started = time.monotonic()
     stop_on_sigterm()
+    stopped: dict[str, int | None] = {}
+    attempted = []
+
+    def stop_once() -> dict[str, int | None]:
+        """Stop the nodes in order and release the domain, once; their exit codes."""
+        if not attempted:
+            attempted.append(True)
+            try:
+                stopped.update(system.stop())
+            finally:
+                claim.close()
+        return stopped
+
     try:
         system.start("recorder", "lit_recorder_node", {"bag": str(bag), "run_id": run_id})
         system.wait_ready("recorder")
@@ -207,17 +220,13 @@ def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
             file=sys.stderr,
             flush=True,
         )
-        try:
-            codes = system.stop()
-        finally:
-            claim.close()
+        codes = stop_once()
         _print_bag(bag)
         _print_stopped(codes, time.monotonic() - started)
         return 130 if interrupted else 1
-    try:
-        codes = system.stop()
     finally:
-        claim.close()
+        stop_once()  # any other error too: the nodes stop in order
+    codes = stop_once()
     wall = time.monotonic() - started
     budget = args.time if args.time is not None else scenario.time_budget
     return _report(scenario, training, plans, codes, bag, wall, budget)

@@ -131,6 +131,7 @@ def test_lit_call_help_shows_the_wait_default(tmp_path: Path) -> None:
         (["--time", "-1"], ["--time", "-1"]),  # a plain negative number: argparse's own
         (["--start=-0.3,0"], ["--start=-0.3,0"]),
         (["--", "-0.3,0"], ["--", "-0.3,0"]),
+        (["--", "--x", "-1,2"], ["--", "--x", "-1,2"]),  # passed on untouched
     ],
 )
 def test_a_negative_first_coordinate_is_the_option_value(
