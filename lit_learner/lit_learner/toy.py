@@ -217,10 +217,12 @@ def train_toy(
     every: int,
     scratch: Path,
     on_episode: Callable[[int, Evaluation | None], None] | None = None,
+    updates: list[int] | None = None,
 ) -> list[Evaluation]:
     """Train a fresh B agent for ``episodes`` episodes of the task (with exploration noise) and
     return its greedy evaluations: before training, every ``every`` episodes, and at the end.
-    ``on_episode(episode, evaluation or None)`` is called after each training episode."""
+    ``on_episode(episode, evaluation or None)`` is called after each training episode; the B
+    agent's gradient updates at the end are appended to ``updates``."""
     from lit_learner.core import LearnerCore
 
     if episodes < 0 or every < 1:
@@ -237,6 +239,8 @@ def train_toy(
             curve.append(evaluation)
         if on_episode is not None:
             on_episode(done, evaluation)
+    if updates is not None:
+        updates.append(core.agents["B"].updates)
     return curve
 
 
@@ -363,6 +367,7 @@ def toy(args: argparse.Namespace) -> str:
     # A machine too slow for the horizon is refused here, before the long part.
     constants = [(value, constant(task, value)) for value in args.constants]
     curves: dict[int, list[Evaluation]] = {}
+    updates: list[int] = []
     progress = _progress(len(args.learner_seeds) * args.episodes, args.no_progress)
     # The greedy evaluations' checkpoint copies, outside --out: a failed or killed run leaves
     # nothing there.
@@ -378,7 +383,7 @@ def toy(args: argparse.Namespace) -> str:
                     )
 
             curves[seed] = train_toy(
-                task, seed, args.episodes, args.every, Path(scratch.name), on_episode=step
+                task, seed, args.episodes, args.every, Path(scratch.name), step, updates
             )
     finally:
         progress.close()
@@ -393,6 +398,13 @@ def toy(args: argparse.Namespace) -> str:
     _write_csv(out / CONSTANTS_FILE, [{"b": value, **asdict(e)} for value, e in constants])
     _plot(out / PLOT_FILE, task, curves, constants)
     summary = _summary(task, args, curves, constants, seconds, out)
+    untrained = [seed for seed, count in zip(curves, updates, strict=True) if count == 0]
+    if untrained:  # the curves then show the untrained actor throughout
+        summary += (
+            f"\n\nNo gradient step for learner seed(s) {', '.join(map(str, untrained))}: all "
+            f"{args.episodes} episodes were within the B agent's warm-up "
+            f"({toy_config(0).b.warmup} stored transitions); train more episodes."
+        )
     (out / SUMMARY_FILE).write_text(summary + "\n")
     return summary
 

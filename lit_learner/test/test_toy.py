@@ -95,6 +95,11 @@ def test_lit_toy_writes_curves_constants_plot_and_summary(tmp_path: Path, capsys
     printed = capsys.readouterr().out
     assert printed.strip() == (out / toy.SUMMARY_FILE).read_text().strip()
     assert "| learner seed | N = 0 | N = 3 | N = 4 | last B |" in printed
+    # Four episodes hold a few B decisions each: no run got past the warm-up, and it says so.
+    assert (
+        "No gradient step for learner seed(s) 1, 3, 4: all 4 episodes were within the B "
+        "agent's warm-up (96 stored transitions)" in printed
+    )
     with (out / toy.CURVES_FILE).open() as handle:
         rows = list(csv.DictReader(handle))
     assert [(row["learner_seed"], row["episode"]) for row in rows] == [
