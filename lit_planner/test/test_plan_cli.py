@@ -172,6 +172,7 @@ def test_ctrl_c_stops_the_demo_and_reports_what_it_kept(tmp_path: Path) -> None:
         [sys.executable, "-m", "lit_planner.cli", "demo", "--out", str(tmp_path),
          "--domain-id", str(domain), "--training-episodes", "100000"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
         start_new_session=True,  # its nodes too, to kill them all if the test fails
     )  # fmt: skip
     try:
