@@ -102,3 +102,34 @@ def test_a_second_signal_stops_at_once(tmp_path: Path) -> None:
     assert process.returncode == 130, out + err
     assert "stopped at once" in err and "Traceback" not in err, err
     assert not (run / train.CHECKPOINT_DIR / "final.ckpt").exists()
+
+
+def test_a_second_signal_while_the_outputs_are_written_is_ignored(tmp_path: Path) -> None:
+    """Once the episodes are over, the final checkpoint, curves, provenance and export take
+    seconds (the two 101^3 tensors); a second Ctrl-C then must not leave them half written."""
+    from lit_planner.tensor_files import read_tensor
+
+    run, export = tmp_path / "run", tmp_path / "tensors"
+    with _train("--scenarios", "np4", "--episodes", "100000", "--no-bag",
+                "--checkpoint-every", "0", "--out", str(run), "--export", str(export)) as process:  # fmt: skip
+        _wait_for_episodes(process, run, 1)
+        process.send_signal(signal.SIGINT)
+        # The driver state is written right after the final checkpoint, before the export.
+        driver = train.state_path(run / train.CHECKPOINT_DIR / "final.ckpt")
+        deadline = time.monotonic() + 300.0
+        while not driver.exists():
+            assert process.poll() is None, process.communicate()
+            assert time.monotonic() < deadline, "no final checkpoint in 300 s"
+            time.sleep(0.01)
+        process.send_signal(signal.SIGINT)
+        process.send_signal(signal.SIGTERM)
+        out, err = process.communicate(timeout=300)
+    assert process.returncode == 130, out + err
+    assert "writing the final checkpoint and outputs" in err, err
+    assert "stopped at once" not in err and "Traceback" not in err, err
+    for name in ("b_tensor.npy", "k_tensor.npy"):
+        values, sidecar = read_tensor(export / name)  # checks the data against its SHA-256
+        assert values.shape == (101, 101, 101), name
+    # Stopped in the B phase (of 100 000 episodes): the psi_K export says it is untrained.
+    assert sidecar.training["updates"] == 0
+    assert (export / "provenance.json").exists() and (export / "training_curves.png").exists()

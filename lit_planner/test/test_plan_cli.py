@@ -198,3 +198,57 @@ def test_ctrl_c_stops_the_demo_and_reports_what_it_kept(tmp_path: Path) -> None:
         if process.poll() is None:
             os.killpg(process.pid, signal.SIGKILL)
             process.wait()
+
+
+# A demo whose client fails with an error the demo does not expect, once training is under way.
+_FAILING_DEMO = """
+import sys
+from lit_planner import cli, demo
+
+original = demo._Client.wait_episodes
+
+def wait_then_fail(self, count, timeout):
+    original(self, 1, timeout)
+    raise ValueError("injected by the test")
+
+demo._Client.wait_episodes = wait_then_fail
+sys.exit(cli.main(sys.argv[1:]))
+"""
+
+
+def test_an_unexpected_error_in_the_demo_still_stops_the_nodes_in_order(tmp_path: Path) -> None:
+    """Not one of the errors the demo reports (a bug, say): it surfaces as a traceback, and the
+    nodes are still stopped in order: the learner saves its checkpoint, the recorder closes the
+    bag, and no process is left behind."""
+    domain, claim = reserve_ros_domain(range(101, 233))
+    if claim is not None:
+        claim.close()
+    process = subprocess.Popen(
+        [sys.executable, "-c", _FAILING_DEMO, "demo", "--out", str(tmp_path),
+         "--domain-id", str(domain), "--training-episodes", "100000"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+        start_new_session=True,  # its nodes too: none may outlive it
+    )  # fmt: skip
+    try:
+        out, err = process.communicate(timeout=300)
+        assert process.returncode == 1, out + err
+        assert "ValueError: injected by the test" in err, err
+        assert "    episode 1/1:" in out, out  # the patched wait's count
+        with pytest.raises(ProcessLookupError):  # the whole session ended: no node left
+            os.killpg(process.pid, 0)
+        checkpoints = list(tmp_path.glob("**/learner/checkpoint.pt"))
+        assert checkpoints, sorted(str(p) for p in tmp_path.rglob("*"))
+        (bag,) = tmp_path.glob("*-bag")
+        info = lit("replay", "info", str(bag))  # closed: its metadata written
+        assert info.returncode == 0 and (bag / "metadata.yaml").is_file(), info.stderr
+        assert re.search(r"/lit/episode from /lit_planner .*no gaps", info.stdout), info.stdout
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+        else:
+            try:
+                os.killpg(process.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
