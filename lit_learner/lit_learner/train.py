@@ -932,8 +932,19 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 f"--resume {checkpoint}: a folder; give a checkpoint file, such as "
                 f"{checkpoint / CHECKPOINT_DIR / 'final.ckpt'}"
             )
-        state = DriverState.load(state_path(checkpoint))
         run_dir = checkpoint.resolve().parent.parent
+        if (
+            checkpoint.resolve().parent.name != CHECKPOINT_DIR
+            or not (run_dir / METRICS_FILE).is_file()
+        ):
+            # Its metrics, B-phase tensor and bag settings live in the run folder; resuming a
+            # stray copy wrote a new run's files into whatever folder held it.
+            raise TrainingError(
+                f"--resume {checkpoint}: not in a run folder (lit train keeps checkpoints in "
+                f"RUN/{CHECKPOINT_DIR}/ beside RUN/{METRICS_FILE}); resume it there, or copy the "
+                "whole run folder"
+            )
+        state = DriverState.load(state_path(checkpoint))
         if args.out is not None and Path(args.out).resolve() != run_dir:
             raise TrainingError(
                 f"--out {args.out} with --resume: the run folder is the checkpoint's ({run_dir}); "

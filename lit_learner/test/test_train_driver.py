@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -158,8 +159,10 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path
 
 
 def test_resume_needs_the_driver_state(tmp_path: Path) -> None:
-    checkpoint = tmp_path / "lonely.ckpt"
+    checkpoint = tmp_path / "run" / "checkpoints" / "lonely.ckpt"
+    checkpoint.parent.mkdir(parents=True)
     checkpoint.write_bytes(b"")
+    (tmp_path / "run" / train.METRICS_FILE).write_text("episode\n")
     with pytest.raises(train.TrainingError, match="driver state of this checkpoint is missing"):
         train.train(arguments(tmp_path / "run", resume=checkpoint))
 
@@ -587,6 +590,19 @@ def test_a_resume_keeps_the_runs_own_settings(
     assert train.run(arguments(tmp_path / "other", episodes=2, resume=final)) == 2
     assert "copy that folder to continue the run elsewhere" in capsys.readouterr().err
     assert not (tmp_path / "other").exists()
+    # A copy of the checkpoint outside its run folder: its metrics and B-phase tensor are not
+    # there, and the resume wrote a new run's files into the folder above the copy.
+    stray = tmp_path / "copies" / "final"
+    stray.mkdir(parents=True)
+    for path in (final, train.state_path(final)):
+        shutil.copy(path, stray)
+    args = arguments(run, episodes=2, resume=stray / "final.ckpt")
+    args.out = None
+    assert train.run(args) == 2
+    assert "not in a run folder" in capsys.readouterr().err
+    assert sorted(p.name for p in (tmp_path / "copies").rglob("*")) == sorted(
+        ["final", "final.ckpt", train.state_path(final).name]
+    )
     # The run's own values given again are fine; its bag folder is kept without --bag-dir.
     parser = argparse.ArgumentParser()
     train.add_arguments(parser)
