@@ -742,8 +742,8 @@ def _request_stop(signum: int, frame: Any) -> None:
         _say("lit train: writing the final checkpoint and outputs; a few seconds")
     elif STOP_REQUESTED.is_set():
         _say(
-            "lit train: stopped at once; the run keeps its last periodic checkpoint (a bag is "
-            "left unfinished: `lit replay salvage` recovers it)"
+            "lit train: stopped at once; the run keeps its last periodic checkpoint, if one was "
+            "written (a bag is left unfinished: `lit replay salvage` recovers it)"
         )
         os._exit(128 + signum)
     else:
