@@ -1,7 +1,9 @@
 #include "Worlds.h"
 
 #include "lit/LITstar.h"
+#include "lit/litstar/RandomGeometricGraph.h"
 
+#include <ompl/base/OptimizationObjective.h>
 #include <ompl/base/PlannerTerminationCondition.h>
 #include <ompl/base/ProblemDefinition.h>
 #include <ompl/util/Exception.h>
@@ -248,4 +250,83 @@ TEST(LITstar, PoliciesDecideBatchSizeAndNeighbourFactor)
             EXPECT_DOUBLE_EQ(d.value, 5.0);
             EXPECT_GE(d.neighbours, 1u);
         }
+}
+
+TEST(LITstar, ANewProblemDefinitionIsSolvedNotTheOldOne)
+{
+    // OMPL's Planner::setProblemDefinition keeps a planner's state; ours went on with the old start and goal and
+    // filed the old path as the new problem's exact solution.
+    BoxProblem first = test::narrowPassage(2, 1e-3);
+    auto planner = std::make_shared<LITstar>(first.si);
+    planner->setMaxBatches(5u);
+    planner->setProblemDefinition(first.pdef);
+    ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+
+    BoxProblem second = makeBoxProblem(first.world, {-0.3, 0.3}, {-0.3, -0.3}, 1e-3);
+    planner->setProblemDefinition(second.pdef);
+    ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    const auto path = planner->bestPath();
+    ASSERT_GE(path.size(), 2u);
+    EXPECT_DOUBLE_EQ(path.front()[0], -0.3);
+    EXPECT_DOUBLE_EQ(path.front()[1], 0.3);
+    EXPECT_DOUBLE_EQ(path.back()[0], -0.3);
+    EXPECT_DOUBLE_EQ(path.back()[1], -0.3);
+    EXPECT_LT(planner->bestCost(), 0.7);  // about the straight 0.6, not the old problem's
+    EXPECT_TRUE(test::pathIsValid(second, path));
+    EXPECT_TRUE(second.pdef->hasExactSolution());
+}
+
+TEST(LITstar, ABatchInANearlyBlockedSpaceStopsWithTheTerminationCondition)
+{
+    // R^4 with a wall over all but 0.1 % of x0 at each end: start and goal valid, no path, and a batch of 100 valid
+    // samples takes about 50 000 draws. The termination condition is asked while a batch is drawn.
+    BoxWorld world;
+    world.lower.assign(4, -0.5);
+    world.upper.assign(4, 0.5);
+    Box wall{std::vector<double>(4, -0.5), std::vector<double>(4, 0.5)};
+    wall.lower[0] = -0.499;
+    wall.upper[0] = 0.499;
+    world.boxes = {wall};
+    BoxProblem problem = makeBoxProblem(world, {-0.4995, 0.0, 0.0, 0.0}, {0.4995, 0.0, 0.0, 0.0}, 1e-3);
+    auto planner = std::make_shared<LITstar>(problem.si);
+    planner->setProblemDefinition(problem.pdef);
+    planner->setup();
+    const std::uint64_t limit = 2000u;
+    const auto checker = problem.checker;
+    EXPECT_EQ(planner->solve(ompl::base::PlannerTerminationCondition([checker, limit] {
+                  return checker->calls() >= limit;
+              })),
+              ompl::base::PlannerStatus::TIMEOUT);
+    EXPECT_LT(checker->calls(), limit + 2u * litstar::RandomGeometricGraph::STOP_CHECK_INTERVAL);
+    EXPECT_EQ(planner->counters().batches, 1u);
+}
+
+TEST(LITstar, StopsOnceNoBetterSolutionExists)
+{
+    // Start = goal: the first solution costs 0, the lower bound; the planner used to go on sampling the
+    // (degenerate) informed set until the batch limit. A cost threshold that is met stops it too.
+    BoxWorld world = test::narrowPassage(2).world;
+    {
+        BoxProblem problem = makeBoxProblem(world, {-0.2, 0.0}, {-0.2, 0.0}, 1e-3);
+        auto planner = std::make_shared<LITstar>(problem.si);
+        planner->setMaxBatches(20u);
+        planner->setProblemDefinition(problem.pdef);
+        ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()),
+                  ompl::base::PlannerStatus::EXACT_SOLUTION);
+        EXPECT_EQ(planner->bestCost(), 0.0);
+        EXPECT_LE(planner->counters().batches, 1u);
+    }
+    {
+        BoxProblem problem = test::narrowPassage(2, 1e-3);
+        problem.pdef->getOptimizationObjective()->setCostThreshold(ompl::base::Cost(10.0));
+        auto planner = std::make_shared<LITstar>(problem.si);
+        auto recorder = std::make_shared<Recorder>();
+        planner->addListener(recorder);
+        planner->setMaxBatches(20u);
+        planner->setProblemDefinition(problem.pdef);
+        ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()),
+                  ompl::base::PlannerStatus::EXACT_SOLUTION);
+        EXPECT_EQ(recorder->solutions.size(), 1u);  // the first solution met the threshold
+        EXPECT_LT(planner->counters().batches, 20u);
+    }
 }

@@ -51,6 +51,9 @@ namespace lit
 
         void setup() override;
         void clear() override;
+        /** \brief A new problem also clears the graph, trees and solution of the previous one (OMPL's base class
+         *  keeps them, and solve() then went on with the old start and goal). */
+        void setProblemDefinition(const ompl::base::ProblemDefinitionPtr &pdef) override;
         ompl::base::PlannerStatus solve(const ompl::base::PlannerTerminationCondition &ptc) override;
         void getPlannerData(ompl::base::PlannerData &data) const override;
 
@@ -121,6 +124,12 @@ namespace lit
         /** \brief Sets up the problem on the first call of solve; returns a status other than UNKNOWN on failure. */
         ompl::base::PlannerStatus initializeProblem();
         void iterate();
+        /** \brief The termination condition of the running solve() or the time budget says stop (also checked
+         *  while a batch is drawn: in a nearly blocked space one batch can take many draws). */
+        bool shouldStop() const;
+        /** \brief No better solution exists: the best cost reached the straight-line lower bound, or the
+         *  objective's cost threshold is met. */
+        bool solutionCannotImprove() const;
         bool continueReverseSearch() const;
         bool continueForwardSearch() const;
         void reverseStep();
@@ -212,6 +221,8 @@ namespace lit
         unsigned int sparseDepth_{1u};
         bool problemInitialized_{false};
         bool batchLimitReached_{false};
+        /** \brief The termination condition of the running solve() (null outside it). */
+        const ompl::base::PlannerTerminationCondition *ptc_{nullptr};
         std::string statusMessage_;
         unsigned int dimension_{0u};
         double longestValidSegment_{1.0};

@@ -104,12 +104,16 @@ namespace lit::litstar
         ++version_;
     }
 
-    std::size_t RandomGeometricGraph::addBatch(std::size_t batchSize, double maxCost)
+    std::size_t RandomGeometricGraph::addBatch(std::size_t batchSize, double maxCost,
+                                               const std::function<bool()> &stop)
     {
         std::size_t added = 0u;
         std::size_t failures = 0u;
+        std::size_t draws = 0u;
         while (added < batchSize && failures < 10u)
         {
+            if (stop && ++draws % STOP_CHECK_INTERVAL == 0u && stop())
+                break;
             ompl::base::State *raw = si_->allocState();
             if (!sampler_.sample(maxCost, raw))
             {

@@ -75,8 +75,10 @@ namespace lit::litstar
         void setTerminals(const ompl::base::State *start, const std::vector<const ompl::base::State *> &goals);
 
         /** \brief Draws samples from the informed set of \e maxCost until \e batchSize valid ones were added;
-         *  invalid draws are kept in X_invalid. Returns the number of valid samples added. */
-        std::size_t addBatch(std::size_t batchSize, double maxCost);
+         *  invalid draws are kept in X_invalid. \e stop (if given) is asked every STOP_CHECK_INTERVAL draws and
+         *  ends the batch early when true. Returns the number of valid samples added. */
+        std::size_t addBatch(std::size_t batchSize, double maxCost, const std::function<bool()> &stop = {});
+        static constexpr std::size_t STOP_CHECK_INTERVAL = 64u;
 
         /** \brief Adds a valid sample at \e x (no validity check; for tests and hand-built graphs). */
         State *addValidSample(const std::vector<double> &x);
@@ -96,7 +98,8 @@ namespace lit::litstar
         NeighbourRange neighbours(State *state, std::size_t k);
 
         /** \brief The samples that have \e state among their k nearest as last asked for (the reverse direction of
-         *  neighbours()); together they make the k-nearest graph undirected. */
+         *  neighbours()); together they make the lists computed so far symmetric (samples whose own list was never
+         *  asked for add no edges: not the full undirected k-nearest graph). */
         const std::vector<State *> &incomingNeighbours(State *state);
 
         /** \brief Euclidean distance between two samples. */

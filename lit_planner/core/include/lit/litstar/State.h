@@ -82,9 +82,11 @@ namespace lit::litstar
         bool pruned_{false};
         /** \brief Never pruned (LIT* pins its best path's samples). */
         bool pinned_{false};
-        /** \brief Samples whose k-nearest list (as last asked for) contains this sample: with them the neighbour
-         *  relation is symmetric, so the reverse and the forward search see the same (undirected) graph. Entries
-         *  whose list has dropped this sample since are removed when read. */
+        /** \brief Samples whose k-nearest list (as last asked for) contains this sample: with them an edge found
+         *  from either end is seen from both. The searched graph is therefore the k-nearest lists computed so far,
+         *  made symmetric; a sample whose own list has not been computed contributes no edges of its own (not the
+         *  full undirected k-nearest graph). Entries whose list has dropped this sample since are removed when
+         *  read. */
         std::vector<State *> incomingNeighbours_;
 
         /** \brief Forward-queue edges leaving / entering this state (for re-keying). */
