@@ -592,6 +592,13 @@ def _nan_text(name: str, payload: dict[str, Any], key: str) -> str:
     return text
 
 
+FREE_SQUARE = {
+    "world": {"lower": [-0.5, -0.5], "upper": [0.5, 0.5], "boxes": []},
+    "start": [-0.3, 0.0],
+    "goal": [0.3, 0.0],
+    "time": 0.2,
+}
+TOO_FINE = {**FREE_SQUARE["world"], "resolution": 1e-10}
 PLAN = "/lit/planner/plan"
 DECIDE = "/lit/learner/decide"
 OVERSIZE = ('{"text": "' + "x" * (MAX_MESSAGE_BYTES + 16) + '"}').encode()
@@ -701,6 +708,14 @@ BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
         "invalid-request",
         "$.payload.world",
         "the world is too large",
+    ),
+    (
+        "plan: a resolution too fine",  # 1e-10 ran the planner node out of memory on one edge
+        ["raw", PLAN, _bad_payload("PlanRequest", FREE_SQUARE, world=TOO_FINE)],
+        None,
+        "payload",
+        "$.payload.world.resolution",
+        "less than the minimum",
     ),
     ("decide: malformed JSON", ["raw", DECIDE, "[1, 2"], None, "json", "$", "not valid JSON"),
     (

@@ -846,7 +846,14 @@ PAYLOAD_FAILURES: list[tuple[str, str, object, str, str]] = [
         "PlanRequest",
         {"world": {**WORLD, "resolution": 0}, **START_GOAL},
         "$.payload.world.resolution",
-        "exclusiveMinimum",
+        "minimum",
+    ),
+    (
+        "plan-resolution-too-fine",  # 1e-10 ran the planner node out of memory on one edge
+        "PlanRequest",
+        {"world": {**WORLD, "resolution": 1e-10}, **START_GOAL},
+        "$.payload.world.resolution",
+        "minimum",
     ),
     ("plan-seed", "PlanRequest", {"scenario": "np8", "seed": 2**32}, "$.payload.seed", "maximum"),
     (

@@ -416,6 +416,12 @@ def custom(
     )
 
 
+MIN_RESOLUTION = 1e-6
+"""The finest collision-checking resolution a custom world may ask for (PDT's default is 5e-6): an
+edge's full check holds one interval per check, and a world with 1e-10 ran the planner node out of
+memory on a single edge."""
+
+
 def _check_extent(lower: np.ndarray, upper: np.ndarray, resolution: float) -> None:
     """The space's sizes must keep the planner's arithmetic finite: its diagonal, its measure
     (the informed-set ratios divide by it) and the collision-check spacing (resolution x the
@@ -429,8 +435,11 @@ def _check_extent(lower: np.ndarray, upper: np.ndarray, resolution: float) -> No
             f"the world is too large: its size ({float(np.max(extent)):.3g} along its longest "
             "axis) makes the diagonal or the volume overflow double precision"
         )
-    if not (math.isfinite(resolution) and 0 < resolution <= 1):
-        raise ScenarioError(f"resolution must be in (0, 1], got {resolution}")
+    if not (math.isfinite(resolution) and MIN_RESOLUTION <= resolution <= 1):
+        raise ScenarioError(
+            f"resolution must be in [{MIN_RESOLUTION:g}, 1], got {resolution} (a finer one makes "
+            "one edge check take seconds and gigabytes)"
+        )
     if measure <= 0 or not resolution * float(np.max(extent)) > 0:
         raise ScenarioError(
             f"the world is too small: its volume or its collision-check spacing underflows "
