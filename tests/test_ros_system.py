@@ -849,6 +849,35 @@ def test_domains_are_isolated(ros: RosSystem) -> None:
 # ---------------------------------------------------------------------- 7. shutdown
 
 
+def test_sigterm_cuts_a_long_query_short_and_answers_the_waiting_ones(ros: RosSystem) -> None:
+    """A node asked to plan for 600 s used to finish that query before stopping, so lit up's grace
+    ran out and it was killed. Now the running query ends at once and it and the queued one are
+    answered ``unavailable``; the node exits 0."""
+    recording = ros.recorder(["/lit/solution"])
+    planner = ros.planner()
+    _ready(planner)
+    running = ros.call_start("--payload-only", "plan", "--scenario", "np8",
+                             "--time", "600", "--request-id", "long")  # fmt: skip
+    recording.wait_until(  # it runs: its first solution came
+        "/lit/solution", lambda found: len(found) >= 1, timeout=120.0, what="a first solution",
+        watch=[planner],
+    )  # fmt: skip
+    queued = ros.call_start("--payload-only", "plan", "--scenario", "np4",
+                            "--time", "600", "--request-id", "queued")  # fmt: skip
+    time.sleep(2.0)  # for the second request to reach the queue (either answer is checked)
+    assert ros.stop(planner, signal.SIGTERM, timeout=60.0) == 0, planner.tail()
+    answers = {}
+    for name, call in (("running", running), ("queued", queued)):
+        result = finish_call(call, timeout=60.0)
+        assert result.returncode == 1, f"{name}: {result}"
+        answers[name] = result.json()
+        assert answers[name]["code"] == "unavailable", answers
+    assert "cut short after" in answers["running"]["message"], answers
+    # The queued request was refused unstarted, or (if it had not reached the node yet) not sent.
+    assert "stopping" in answers["queued"]["message"], answers
+    _no_traceback(planner)
+
+
 def test_sigterm_shuts_both_nodes_down_cleanly(ros: RosSystem) -> None:
     """SIGTERM mid-training: exit code 0, no processes left behind, a checkpoint written."""
     recording = ros.recorder([EPISODE])

@@ -214,6 +214,11 @@ class PlannerNode:
         self._queued = 0
         self._queue_lock = threading.Lock()
         self._stopping = threading.Event()
+        import lit_core
+
+        # Set by shutdown(): the running query ends within an iteration (a 600 s request held the
+        # node past lit up's grace, which then killed it), and queued ones are not started.
+        self._cancel = lit_core.CancelFlag()
         self._worker = threading.Thread(target=self._work, name="planner", daemon=True)
         self._worker.start()
         from diagnostic_msgs.srv import AddDiagnostics
@@ -504,7 +509,15 @@ class PlannerNode:
             if job is None:
                 return
             try:
-                self._run(job)
+                if self._stopping.is_set():
+                    job.error = MessageError(
+                        "unavailable",
+                        "the planner node is stopping; the query was not started",
+                        request_schema="PlanRequest" if job.kind == "service" else None,
+                        request_seq=job.request_seq,
+                    )
+                else:
+                    self._run(job)
             except Exception as exc:  # noqa: BLE001 - reported; the node keeps serving
                 job.error = exc
                 self.log.error(f"{job.kind} query {job.episode_id} failed: {exc!r}")
@@ -550,7 +563,17 @@ class PlannerNode:
             tensors_dir=self.params["tensors_dir"] or None,
             params=params,
             listener=listener,
+            cancel=self._cancel,
         )
+        if self._cancel.is_set() and job.kind == "service":
+            job.error = MessageError(
+                "unavailable",
+                f"the planner node is stopping; the query was cut short after "
+                f"{result['time']:.3g} s of planning",
+                request_schema="PlanRequest",
+                request_seq=job.request_seq,
+            )
+            return
         if result["status"] in INVALID_TERMINAL:
             # The core's own start/goal check (bounds, obstacles): the request's fault.
             label = INVALID_TERMINAL[result["status"]]
@@ -774,8 +797,10 @@ class PlannerNode:
             self.path_publisher.publish(trajectory)
 
     def shutdown(self) -> None:
-        """Stop queuing episodes and let the worker finish its current query."""
+        """Stop queuing episodes, end the running query early and answer the queued ones with
+        ``unavailable``."""
         self._stopping.set()
+        self._cancel.set()
         self._jobs.put(None)
         self._worker.join(timeout=30.0)
         if not self._worker.is_alive():

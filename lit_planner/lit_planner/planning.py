@@ -342,6 +342,7 @@ def plan(
     instance: int | None = None,
     interpolation: str = "trilinear",
     check_path: bool = True,
+    cancel: lit_core.CancelFlag | None = None,
 ) -> dict[str, Any]:
     """Plan ``scenario`` with ``planner`` and return the core's result plus scenario facts.
 
@@ -366,6 +367,8 @@ def plan(
         instance: instance of a random scenario family when ``scenario`` is a name.
         check_path: run the independent re-check of the returned path now. ``lit bench`` passes
             False and checks all paths afterwards, in parallel, while no planner is timing.
+        cancel: a ``lit_core.CancelFlag``; setting it from another thread ends the query early
+            (the result is what the planner had by then: a node that is stopping uses it).
 
     Returns:
         The dict of ``lit_core.solve`` (``status``, ``solved``, ``message``, ``cost``, ``t_init``,
@@ -426,6 +429,7 @@ def plan(
             max_batches=max_batches,
             params={key: _param_text(value) for key, value in params.items()},
             listener=listener,
+            cancel=cancel,
         )
     except ValueError as error:
         # The core's checks of its arguments (an unknown parameter, a value it rejects, ...)

@@ -39,6 +39,12 @@ using namespace lit;
 namespace
 {
     /** \brief A query as data; every solve builds its own space, checker and problem definition. */
+    /** \brief Set from another thread to end a running solve early (a node that is shutting down). */
+    struct CancelFlag
+    {
+        std::shared_ptr<std::atomic<bool>> flag{std::make_shared<std::atomic<bool>>(false)};
+    };
+
     struct Query
     {
         BoxWorld world;
@@ -171,8 +177,14 @@ namespace
 
     py::dict solveQuery(const Query &query, const std::string &plannerName, double time, ParameterPolicyPtr policy,
                         unsigned int seed, unsigned int maxIterations, unsigned int maxBatches,
-                        const std::map<std::string, std::string> &params, py::object listenerObject)
+                        const std::map<std::string, std::string> &params, py::object listenerObject,
+                        const CancelFlag *cancel)
     {
+        // Asked by LIT* every iteration and while it draws a batch, by OMPL's planners as they do.
+        const std::shared_ptr<std::atomic<bool>> cancelled = cancel != nullptr ? cancel->flag : nullptr;
+        const ompl::base::PlannerTerminationCondition cancelCondition =
+            cancelled ? ompl::base::PlannerTerminationCondition([cancelled] { return cancelled->load(); }) :
+                        ompl::base::plannerNonTerminatingCondition();
         BoxProblem problem = makeBoxProblem(query.world, query.start, query.goal, query.resolution);
         if (!(time > 0.0) && maxIterations == 0u && maxBatches == 0u)
             throw py::value_error("solve needs a positive time, max_iterations or max_batches");
@@ -255,7 +267,7 @@ namespace
             {
                 py::gil_scoped_release release;
                 if (litstar)
-                    plannerStatus = planner->solve(ompl::base::plannerNonTerminatingCondition());
+                    plannerStatus = planner->solve(cancelCondition);
                 else
                 {
                     // Not every OMPL 1.5.2 planner calls the intermediate-solution callback (AIT* does not), so a
@@ -286,7 +298,8 @@ namespace
                             std::this_thread::sleep_for(std::chrono::microseconds(50));
                         }
                     });
-                    plannerStatus = planner->solve(ompl::base::timedPlannerTerminationCondition(time));
+                    plannerStatus = planner->solve(ompl::base::plannerOrTerminationCondition(
+                        ompl::base::timedPlannerTerminationCondition(time), cancelCondition));
                     done.store(true);
                     watcher.join();
                     std::lock_guard<std::mutex> lock(mutex);
@@ -553,10 +566,16 @@ PYBIND11_MODULE(lit_core, m)
              "callback(context: DecisionContext) -> float is asked for B and psi_K; the planner's clock is paused meanwhile.")
         .def_property_readonly("failures", &ExternalPolicy::failures);
 
+    py::class_<CancelFlag>(m, "CancelFlag",
+                           "Passed to solve(cancel=...); set() from another thread ends that solve early.")
+        .def(py::init<>())
+        .def("set", [](CancelFlag &self) { self.flag->store(true); })
+        .def("is_set", [](const CancelFlag &self) { return self.flag->load(); });
+
     m.def("solve", &solveQuery, py::arg("query"), py::arg("planner"), py::arg("time") = 0.0,
           py::arg("policy") = nullptr, py::arg("seed") = 1u, py::arg("max_iterations") = 0u,
           py::arg("max_batches") = 0u, py::arg("params") = std::map<std::string, std::string>{},
-          py::arg("listener") = py::none(),
+          py::arg("listener") = py::none(), py::arg("cancel") = nullptr,
           "Plans \e query with \e planner. LIT* stops on its own clock (time), iterations or batches; OMPL planners on "
           "wall time. Returns a dict: status, solved, message, cost, t_init, c_init, "
           "checks_init (validity checks up to the first solution, None without one), improvements, path, time, "
