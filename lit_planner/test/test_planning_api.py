@@ -196,6 +196,15 @@ def test_tensor_policy_with_k_tensor_alone(tmp_path: Path) -> None:
     assert by_kind["B"] == {100.0} and by_kind["psi_K"]
 
 
+def test_a_half_deleted_tensor_pair_is_reported_not_left_out(tmp_path: Path) -> None:
+    """k_tensor.json without k_tensor.npy: planning went on with B alone, saying nothing, while
+    `lit tensors info` called the folder defective."""
+    write_tensor_pair(tmp_path)
+    (tmp_path / "k_tensor.npy").unlink()
+    with pytest.raises(TensorFileError, match="k_tensor.npy"):
+        make_policy("tensor", tmp_path)
+
+
 def test_tensor_policy_nearest_interpolation(tmp_path: Path) -> None:
     write_tensor_pair(tmp_path, b=False)
     k_values = tf.affine_test_tensor(*K_TENSOR_COEFFICIENTS)
@@ -532,11 +541,12 @@ def test_the_tensor_policy_cache_reads_again_only_changed_files(
     fourth = cache.get(folder)
     assert fourth is not third and cache.get(folder) is fourth
     k_reads = reads.count("psi_K")
-    (folder / "k_tensor.npy").unlink()  # a removed tensor counts as a change too
+    for name in ("k_tensor.npy", "k_tensor.json"):  # a removed tensor counts as a change too
+        (folder / name).unlink()
     fifth = cache.get(folder)
     assert fifth is not fourth and cache.get(folder) is fifth
     assert reads.count("psi_K") == k_reads  # only B was read again
-    for name in ("b_tensor.npy", "b_tensor.json", "k_tensor.json"):
+    for name in ("b_tensor.npy", "b_tensor.json"):
         (folder / name).unlink()
     with pytest.raises(MissingTensorsError):
         cache.get(folder)
