@@ -136,6 +136,13 @@ def test_bench_rejects_bad_input(tmp_path: Path) -> None:
     assert result.returncode == 2, result.stderr
     assert f"found no lookup tensors in {tmp_path / 'empty'} (given)" in result.stderr
     assert not (tmp_path / "y").exists() and not (tmp_path / "z").exists()
+    # Checked before any run: --instance -1 failed only when the summary was written.
+    result = _lit("bench", "--scenarios", "np4", "--instance", "-1", "--out", str(tmp_path / "i"))
+    assert result.returncode == 2 and "--instance must be 0 or more" in result.stderr
+    (tmp_path / "file").write_text("")
+    result = _lit("bench", "--scenarios", "np4", "--out", str(tmp_path / "file" / "sub"))
+    assert result.returncode == 2 and "Not a directory" in result.stderr, result.stderr
+    assert "Traceback" not in result.stderr
 
 
 def test_bench_times_lit_star_first_solutions_repeatedly(tmp_path: Path) -> None:

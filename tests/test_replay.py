@@ -736,6 +736,11 @@ def test_tensors_and_measure_reject_bad_arguments(tmp_path: Path) -> None:
     (tmp_path / "full" / "b_tensor.npy").write_text("old")
     _assert_clean_error(_replay("tensors", SAMPLE, "--out", tmp_path / "full"), "not empty")
     assert (tmp_path / "full" / "b_tensor.npy").read_text() == "old"
+    for option, value in (("--seed", "-1"), ("--batch-size", "0"), ("--warmup", "-1"),
+                          ("--decision-interval", "0")):  # fmt: skip
+        out = tmp_path / f"bad{option}"
+        _assert_clean_error(_replay("tensors", SAMPLE, "--out", out, option, value), option)
+        assert not out.exists()
     _assert_clean_error(_replay("measure", "--messages", "0"), "--messages")
     _assert_clean_error(_replay("measure", "--kills", "-1"), "--kills")
     _assert_clean_error(_replay("measure", "--chunk-bytes", "0"), "--chunk-bytes")

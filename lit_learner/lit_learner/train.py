@@ -910,6 +910,8 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         "decision_interval": args.decision_interval,
         "seed": args.seed,
     }
+    if args.seed is not None and not 0 <= args.seed <= planning.MAX_SEED:
+        raise TrainingError(f"--seed must be between 0 and {planning.MAX_SEED}, got {args.seed}")
     if args.checkpoint_every is not None and args.checkpoint_every < 0:
         raise TrainingError(f"--checkpoint-every must be 0 or more, got {args.checkpoint_every}")
     for label, value in (("--episodes", args.episodes), ("--minutes", args.minutes)):
@@ -997,6 +999,8 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             raise TrainingError(
                 f"{run_dir} already holds a training run; choose another --out or --resume"
             )
+        if run_dir.is_dir() and any(run_dir.iterdir()):  # a run's files mixed with others
+            raise TrainingError(f"--out {run_dir}: not empty; choose a new or empty folder")
         seed = 0 if args.seed is None else args.seed
         episodes = args.episodes
         if episodes is None and args.minutes is None:

@@ -623,6 +623,22 @@ def test_a_resume_keeps_the_runs_own_settings(
     assert len(_bags(tmp_path)) == 2
 
 
+def test_a_bad_seed_or_a_folder_of_other_files_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--seed -1 ended in a numpy traceback; --out naming a folder of other files (a benchmark's,
+    say) mixed the run's files into it."""
+    for seed in (-1, 2**32):
+        assert train.run(arguments(tmp_path / "run", episodes=1, seed=seed)) == 2
+        assert "--seed must be between 0 and 4294967295" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+    (tmp_path / "bench").mkdir()
+    (tmp_path / "bench" / "summary.md").write_text("mine")
+    assert train.run(arguments(tmp_path / "bench", episodes=1)) == 2
+    assert "not empty; choose a new or empty folder" in capsys.readouterr().err
+    assert sorted(p.name for p in (tmp_path / "bench").iterdir()) == ["summary.md"]
+
+
 def test_no_bag_and_bag_dir_contradict_each_other(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -1560,6 +1560,18 @@ def _offline() -> Any:
 
 
 def _tensors(args: argparse.Namespace) -> int:
+    from lit_planner.planning import MAX_SEED
+
+    # Checked before the bags are read (seconds for a large one).
+    if not 0 <= args.seed <= MAX_SEED:
+        raise ReplayError(f"--seed must be between 0 and {MAX_SEED}, got {args.seed}")
+    for label, value, least in (
+        ("--warmup", args.warmup, 0),
+        ("--batch-size", args.batch_size, 1),
+        ("--decision-interval", args.decision_interval, 1),
+    ):
+        if value is not None and value < least:
+            raise ReplayError(f"{label} must be {least} or more, got {value}")
     check_distinct_bags(args.bags)
     _check_new_folder(args.out, f"--out {args.out}")
     return int(_offline().run(args))

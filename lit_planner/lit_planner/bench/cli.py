@@ -383,6 +383,8 @@ def _config(
         raise ValueError(f"--time-scale must be a positive number, got {args.time_scale}")
     if args.check_jobs < 1:
         raise ValueError(f"--check-jobs must be at least 1, got {args.check_jobs}")
+    if args.instance < 0:  # the fixed scenarios ignore it: checked here, not after the runs
+        raise ValueError(f"--instance must be 0 or more, got {args.instance}")
     planning.check_seed(args.seed)
     planning.check_seed(args.seed + runs - 1)
     if not scenario_names or not planners:
@@ -423,7 +425,10 @@ def _out_dir(requested: Path | None) -> Path:
     problem = bag.output_folder_problem(out)
     if problem is not None:
         raise ValueError(f"--out {requested}: {problem}; choose a new or empty folder")
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:  # a path under a file, a folder we may not write, ...
+        raise ValueError(f"--out {requested}: {error.strerror or error}") from None
     return out
 
 
