@@ -564,6 +564,24 @@ def test_killed_bench_bag_is_recoverable(tmp_path: Path) -> None:
     assert replayed.returncode == 0, replayed.stderr
 
 
+def test_bench_replay_of_a_damaged_record_says_the_tables_are_incomplete(tmp_path: Path) -> None:
+    """A byte-damaged run record is skipped; replay bench used to exit 0 with a summary.md that
+    still read as the whole benchmark."""
+    copy = _sample_copy(tmp_path, "damaged")
+    mcap_file = next(copy.glob("*.mcap"))
+    data = bytearray(mcap_file.read_bytes())
+    last = data.rfind(b'{"schema": "lit_msgs_json/BenchRun"')  # the second record's JSON text
+    assert last > 0
+    data[last] = ord("X")  # no longer JSON; uncompressed chunks carry no checksum here
+    mcap_file.write_bytes(bytes(data))
+    result = _replay("bench", copy, "--out", tmp_path / "out")
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "1 of the 2 planned run records are missing or unreadable" in result.stderr
+    assert "Traceback" not in result.stderr
+    summary = (tmp_path / "out" / "summary.md").read_text()
+    assert summary.startswith("> **Incomplete:** 1 of the 2 planned run records"), summary[:300]
+
+
 def test_compact_keeps_every_message_and_compresses(mixed_bag: Path, tmp_path: Path) -> None:
     from mcap.reader import make_reader
     from rosbags.rosbag2 import Reader

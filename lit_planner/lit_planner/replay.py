@@ -1527,7 +1527,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run a ``lit replay`` subcommand: 0 success, 1 invalid paths (verify), 2 bad input."""
+    """Run a ``lit replay`` subcommand: 0 success, 1 invalid paths (verify) or fewer run records
+    than planned (bench), 2 bad input."""
     commands = {
         "info": _info,
         "verify": _verify,
@@ -1801,4 +1802,18 @@ def _bench(args: argparse.Namespace) -> int:
         f"{PROG} bench: {len(recorded.runs)} run records -> {out}/summary.json, summary.md, "
         f"plots ({', '.join(summary['outputs']['plots']) or 'none'})"
     )
+    settings = summary["config"]
+    planned = settings["runs"] * len(settings["scenarios"]) * len(settings["planners"])
+    if len(recorded.runs) < planned:
+        # A damaged message, a gap or an interrupted benchmark: say so where the tables are read.
+        note = (
+            f"{planned - len(recorded.runs)} of the {planned} planned run records are missing or "
+            f"unreadable ({recorded.skipped.line()}); the statistics cover the "
+            f"{len(recorded.runs)} read. `lit replay verify` and `lit replay info` show the bag's "
+            "damage and gaps"
+        )
+        summary_md = Path(out) / "summary.md"
+        summary_md.write_text(f"> **Incomplete:** {note}.\n\n" + summary_md.read_text())
+        print(f"{PROG} bench: warning: {note}", file=sys.stderr)
+        return 1
     return 0
