@@ -176,6 +176,7 @@ def run(args: argparse.Namespace) -> int:
     native_output_to_stderr()
     localhost_environment()
     import rclpy
+    from rclpy.exceptions import InvalidServiceNameException
     from rclpy.executors import SingleThreadedExecutor
 
     rclpy.init()
@@ -189,7 +190,12 @@ def run(args: argparse.Namespace) -> int:
     try:
         if args.service == "export":
             return _call_export(node, args)
-        caller = ServiceCaller(node, name, private=True)
+        try:
+            caller = ServiceCaller(node, name, private=True)
+        except InvalidServiceNameException as exc:  # --namespace "bad ns!", a raw NAME
+            reason = str(exc).splitlines()[0].rstrip(":")  # rclpy adds the name and a caret
+            print(f"lit call: error: service name {name!r}: {reason}", file=sys.stderr)
+            return 2
         if not caller.wait(args.wait):
             print(
                 f"lit call: error: service {name} not found within {args.wait:g} s "
@@ -214,6 +220,13 @@ def run(args: argparse.Namespace) -> int:
             f"({'success' if success else 'error'})",
             file=sys.stderr,
         )
+        if success and _path_failed_recheck(message):
+            print(
+                "lit call: warning: the returned path failed the node's independent re-check "
+                "(path_valid false): it leaves the free space between the planner's collision "
+                "checks; do not execute it as it is",
+                file=sys.stderr,
+            )
         return 0 if success else 1
     except Exception:  # filtered below
         if rclpy.ok():
@@ -293,6 +306,12 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
     if args.service == "export":
         return EXPORT_SERVICE, ""
     text = sys.stdin.read() if args.text == "-" else args.text
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:  # bytes read as surrogates: rclpy failed with a traceback
+        raise ValueError(
+            "the request is not valid UTF-8 (a ROS string carries UTF-8 text)"
+        ) from None
     return args.name, text
 
 
@@ -371,6 +390,15 @@ def _call_export(node: Any, args: argparse.Namespace) -> int:
         return 2
     print(response.message)
     return 0 if response.success else 1
+
+
+def _path_failed_recheck(message: str) -> bool:
+    """Whether a plan answer says its path failed the independent re-check."""
+    try:
+        payload = json.loads(message).get("payload")
+    except (ValueError, AttributeError):
+        return False
+    return isinstance(payload, dict) and payload.get("path_valid") is False
 
 
 def _print(message: str, payload_only: bool) -> None:

@@ -4,6 +4,7 @@ help names every option's default."""
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -168,3 +169,30 @@ def test_plan_takes_the_litstar_shorthands_as_lit_plan_does(tmp_path: Path) -> N
                  cwd=tmp_path)
     )  # fmt: skip
     assert "means policy 'fit', but policy 'tensor' was given" in line
+
+
+def test_a_bad_namespace_or_non_utf8_raw_text_is_one_line(tmp_path: Path) -> None:
+    """Both ended in a Python traceback (rclpy's InvalidServiceNameException, UnicodeEncodeError)."""
+    line = refusal(lit_call("plan", "--scenario", "np8", "--namespace", "bad ns!", cwd=tmp_path))
+    assert "service name" in line and "bad ns!" in line
+    process = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "call", "raw", "/lit/planner/plan", "-"],
+        input=b'{"schema": "\xff\xfe"}', cwd=tmp_path, capture_output=True, timeout=120,
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"), check=False,
+    )  # fmt: skip
+    assert process.returncode == 2, process.stderr
+    assert process.stderr.decode().strip() == (
+        "lit call: error: the request is not valid UTF-8 (a ROS string carries UTF-8 text)"
+    )
+
+
+def test_a_plan_answer_whose_path_failed_the_recheck_is_flagged() -> None:
+    def answer(valid: object) -> str:
+        return json.dumps(
+            {"schema": "lit_msgs_json/PlanResponse", "payload": {"path_valid": valid}}
+        )
+
+    assert call._path_failed_recheck(answer(False))
+    assert not call._path_failed_recheck(answer(True))
+    assert not call._path_failed_recheck(answer(None))  # not checked (no path)
+    assert not call._path_failed_recheck("not JSON")
