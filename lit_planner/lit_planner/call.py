@@ -264,6 +264,14 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
             if "world" in document:
                 payload.update(document)
             else:
+                known = ("lower", "upper", "boxes", "resolution", "start", "goal")
+                unknown = sorted(set(document) - set(known))
+                if unknown:  # a misspelt "resolution" was dropped and the default used
+                    raise ValueError(
+                        f"--world {args.world}: unknown key{'s' if len(unknown) > 1 else ''} "
+                        f"{', '.join(map(repr, unknown))}; a world file has "
+                        f'{", ".join(known)} (or a whole PlanRequest payload with "world")'
+                    )
                 payload["world"] = {
                     k: document[k]
                     for k in ("lower", "upper", "boxes", "resolution")

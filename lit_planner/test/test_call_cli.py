@@ -59,7 +59,14 @@ def test_plan_refuses_a_missing_world_file_or_a_folder(tmp_path: Path) -> None:
     (tmp_path / "bad.json").write_bytes(b"\xff\xfe")
     line = refusal(lit_call("plan", "--world", "bad.json", cwd=tmp_path))
     assert line.startswith("lit call: error: --world bad.json: not valid JSON: ")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json"]
+    # A misspelt key was dropped without a word (the default resolution used instead).
+    (tmp_path / "typo.json").write_text(
+        '{"lower": [0, 0], "upper": [1, 1], "boxes": [], "start": [0.1, 0.1], '
+        '"goal": [0.9, 0.9], "resolutoin": 0.5}'
+    )
+    line = refusal(lit_call("plan", "--world", "typo.json", cwd=tmp_path))
+    assert "--world typo.json: unknown key 'resolutoin'; a world file has lower, upper" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json", "typo.json"]
 
 
 def test_an_unreadable_world_file_is_one_message(
