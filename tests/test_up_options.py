@@ -25,6 +25,12 @@ import pytest
         (["--planner-param", "bogus"], "expected NAME:=VALUE, got 'bogus'"),
         (["--planner-param", "foo:=1"], "--planner-param: unknown parameter foo; known: scenario"),
         (["--learner-param", "checkpoint_evry:=5"], "unknown parameter checkpoint_evry"),
+        # Each type as the node declares it (a wrong one was a node's traceback after the start).
+        (["--planner-param", "queue_limit:=abc"], "queue_limit:=abc: queue_limit takes a whole"),
+        (["--planner-param", "decision_timeout:=soon"], "decision_timeout takes a finite number"),
+        (["--learner-param", "fresh:=maybe"], "fresh:=maybe: fresh takes true or false"),
+        (["--planner-param", "tensors_dir:=42"], "ROS reads '42' as a number: quote it"),
+        (["--checkpoint", "EXISTING"], "a folder; give the checkpoint file"),
         (["--bag", "EXISTING"], "exists already"),
         (["--bag", "NEW", "--no-record"], "--bag and --no-record contradict each other"),
         (["--domain-id", "233"], "233 is not a ROS domain id Fast DDS can use (0-232)"),
@@ -125,3 +131,17 @@ def test_sigterm_stops_lit_call_without_a_traceback() -> None:
             process.wait()
         if lock is not None:
             lock.close()
+
+
+def test_parameters_are_passed_with_the_types_the_nodes_declare() -> None:
+    """ROS refuses an integer for a float parameter (time_budget:=1 stopped the planner node)."""
+    from lit_learner import node as learner_node
+    from lit_planner import node as planner_node
+    from lit_planner import up
+
+    given = ["decision_timeout:=1", "queue_limit:=8", "tensors_dir:=/tmp/t", "use_sim_time:=true"]
+    assert up._typed_params(given, planner_node.PARAMETERS) == {
+        "decision_timeout": "1.0", "queue_limit": "8", "tensors_dir": "/tmp/t",
+        "use_sim_time": "true",
+    }  # fmt: skip
+    assert up._typed_params(["fresh:=True"], learner_node.PARAMETERS) == {"fresh": "True"}

@@ -25,7 +25,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Self
+from typing import IO, Any, Self
 
 from lit_planner.rosutil import (
     DEFAULT_DOMAIN_ID,
@@ -375,10 +375,13 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
     ):
         try:
             unknown = sorted(set(_params(given)) - set(known) - {"use_sim_time"})  # ROS's own
+            _typed_params(given, known)
         except ValueError as error:
             return f"{option}: {error}"
         if unknown:
             return f"{option}: unknown parameter {', '.join(unknown)}; known: {', '.join(known)}"
+    if args.checkpoint is not None and Path(args.checkpoint).is_dir():
+        return f"--checkpoint {args.checkpoint}: a folder; give the checkpoint file (checkpoint.pt)"
     if args.no_record and args.bag is not None:
         return "--bag and --no-record contradict each other; give one of them"
     if args.episodes < 0:
@@ -401,6 +404,8 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
 
 def run(args: argparse.Namespace) -> int:
     """Start everything, stream logs, stop on Ctrl-C; 0 when every process exited cleanly."""
+    from lit_learner import node as learner_node
+    from lit_planner import node as planner_node
     from lit_planner.bag import default_bag_root
 
     run_id = args.run_id or time.strftime("up-%Y%m%d-%H%M%S")
@@ -438,7 +443,7 @@ def run(args: argparse.Namespace) -> int:
             "checkpoint": args.checkpoint or str(runs / "learner" / "checkpoint.pt"),
             "export_dir": str(runs / "learner" / "tensors"),
             "run_id": run_id,
-            **_params(args.learner_param),
+            **_typed_params(args.learner_param, learner_node.PARAMETERS),
         }
         system.start("learner", "lit_learner_node", learner)
         planner = {
@@ -454,7 +459,7 @@ def run(args: argparse.Namespace) -> int:
             "run_id": run_id,
             # Hold the episodes until the recorder is subscribed to every topic.
             "wait_for_subscribers": 0 if args.no_record else 1,
-            **_params(args.planner_param),
+            **_typed_params(args.planner_param, planner_node.PARAMETERS),
         }
         system.start("planner", "lit_planner_node", planner)
         while not stop.wait(0.2):
@@ -497,6 +502,45 @@ def _params(items: Sequence[str]) -> dict[str, str]:
             raise ValueError(f"expected NAME:=VALUE, got {item!r}")
         name, value = item.split(":=", 1)
         result[name] = value
+    return result
+
+
+def _typed_params(items: Sequence[str], known: dict[str, Any]) -> dict[str, str]:
+    """``NAME:=VALUE`` items checked against the type of each parameter's default, as the node
+    declares it: a wrong type ended the node in a traceback after lit up had started. A whole
+    number for a float parameter is passed as a float (ROS refuses ``time_budget:=1``)."""
+    import yaml
+
+    result = {}
+    for name, text in _params(items).items():
+        if name not in known:  # reported by the caller (or ROS's own, use_sim_time)
+            result[name] = text
+            continue
+        default, word = known[name], text.strip()
+        if isinstance(default, bool):
+            ok, kind = word.lower() in ("true", "false"), "true or false"
+        elif isinstance(default, int):
+            ok, kind = re.fullmatch(r"[+-]?\d+", word) is not None, "a whole number"
+        elif isinstance(default, float):
+            try:
+                number = float(word)
+            except ValueError:
+                number = math.nan
+            ok, kind = math.isfinite(number), "a finite number"
+            if ok:
+                text = repr(number)
+        else:
+            try:
+                parsed = yaml.safe_load(text) if word else ""
+            except yaml.YAMLError:
+                parsed = text
+            ok = isinstance(parsed, str)
+            what = {bool: "true or false", int: "a number", float: "a number", type(None): "null"}
+            read_as = what.get(type(parsed), f"a {type(parsed).__name__}")
+            kind = f"text (ROS reads {text!r} as {read_as}: quote it, {name}:=\"'{text}'\")"
+        if not ok:
+            raise ValueError(f"{name}:={text}: {name} takes {kind} (default {default!r})")
+        result[name] = text
     return result
 
 
