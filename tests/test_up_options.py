@@ -22,6 +22,7 @@ import pytest
         (["--run-id", "../escape"], "--run-id '../escape': a folder name"),
         (["--run-id", "42"], "starts with a letter"),  # ROS would read -p run_id:=42 as a number
         (["--run-id", "yes"], "not a YAML word"),
+        (["--run-id", ""], "--run-id '': a folder name"),  # was replaced by the default id
         (["--planner-param", "bogus"], "expected NAME:=VALUE, got 'bogus'"),
         (["--planner-param", "foo:=1"], "--planner-param: unknown parameter foo; known: scenario"),
         (["--learner-param", "checkpoint_evry:=5"], "unknown parameter checkpoint_evry"),

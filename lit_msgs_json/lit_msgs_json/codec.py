@@ -75,7 +75,18 @@ def validate(name: str, obj: object, *, plain: bool | None = None) -> None:
             raise SchemaError(short, json_path, "finite", f"{value!r} is not a finite number")
     error = best_match(validator.iter_errors(obj))
     if error is not None:
-        raise SchemaError(short, error.json_path, str(error.validator), error.message)
+        message = error.message
+        if error.validator == "const":  # jsonschema names the expected value only
+            message += f", got {_shown(error.instance)}"
+        raise SchemaError(short, error.json_path, str(error.validator), message)
+
+
+def _shown(value: object) -> str:
+    """``value`` as JSON, cut short when long (the message may otherwise quote a whole file)."""
+    text = (
+        json.dumps(value) if not isinstance(value, float) or math.isfinite(value) else repr(value)
+    )
+    return text if len(text) <= 80 else text[:77] + "..."
 
 
 def valid_envelope(name: str, obj: object) -> bool:

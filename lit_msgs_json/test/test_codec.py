@@ -130,6 +130,14 @@ def test_bad_sidecars_name_field_and_rule(
     assert f"(rule: {rule})" in str(error)
 
 
+def test_a_const_error_names_the_value_found() -> None:
+    """'$.version: 1 was expected' did not say which version the file has."""
+    doc = good_sidecar()
+    doc["version"] = 99
+    with pytest.raises(SchemaError, match=r"\$\.version: 1 was expected, got 99 \(rule: const\)"):
+        validate("TensorSidecar", doc)
+
+
 def test_required_error_names_the_missing_field() -> None:
     doc = good_sidecar()
     del doc["data_sha256"]

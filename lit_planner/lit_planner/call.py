@@ -59,8 +59,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--timeout",
         type=float,
         default=None,
-        help=f"seconds to wait for the answer (default: {DEFAULT_TIMEOUT:g}, plus the plan's --time "
-        "for plan)",
+        help=f"seconds to wait for the answer, all told (default: {DEFAULT_TIMEOUT:g}, plus the "
+        "plan's --time for plan; the query goes on in the node when the wait ends)",
     )
     parser.add_argument(
         "--payload-only", action="store_true", help="print only the response's payload"
@@ -298,7 +298,9 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
     if args.service == "decide":
         payload = {
             "agent": args.agent,
-            "episode_id": args.episode_id or f"call-{uuid.uuid4().hex[:8]}",
+            "episode_id": (
+                f"call-{uuid.uuid4().hex[:8]}" if args.episode_id is None else args.episode_id
+            ),
             "rho_global": args.rho_global,
             "rho_local": args.rho_local,
             "measure": args.measure,

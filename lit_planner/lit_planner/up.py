@@ -408,7 +408,8 @@ def run(args: argparse.Namespace) -> int:
     from lit_planner import node as planner_node
     from lit_planner.bag import default_bag_root
 
-    run_id = args.run_id or time.strftime("up-%Y%m%d-%H%M%S")
+    # "" is refused by _check, not replaced by the default id
+    run_id = args.run_id if args.run_id is not None else time.strftime("up-%Y%m%d-%H%M%S")
     bag = None if args.no_record else (args.bag or default_bag_root() / run_id).absolute()
     problem = _check(args, run_id, bag)
     if problem is None:
