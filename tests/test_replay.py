@@ -394,6 +394,14 @@ def test_bad_input_is_one_line_exit_2(command: str, bad_inputs: dict[str, Path])
             raise AssertionError(f"{command} {case}: {error}") from None
 
 
+def test_an_empty_metadata_file_is_named(tmp_path: Path) -> None:
+    """rosbags' own words were "'NoneType' object is not subscriptable"."""
+    copy = _sample_copy(tmp_path, "blank")
+    (copy / "metadata.yaml").write_text("")
+    for command in ("info", "verify", "bench"):
+        _assert_clean_error(_replay(command, copy), "its metadata.yaml is empty")
+
+
 def test_killed_bag_without_mcap_or_metadata(tmp_path: Path) -> None:
     (tmp_path / "x").mkdir()
     (tmp_path / "x" / "readme").write_text("hi")

@@ -242,7 +242,7 @@ class BagReader:
             self._reader = Reader(self.path)
             self._reader.open()
         except Exception as error:  # noqa: BLE001 -- damaged files raise anything
-            reason = _mcap_damage(self.path) or _describe(error)
+            reason = _mcap_damage(self.path) or _metadata_damage(self.path) or _describe(error)
             raise ReplayError(
                 f"cannot read bag {self.path}: {reason}; if its writer was killed or the "
                 f"file is damaged, recover it with `lit replay salvage {self.path}`"
@@ -389,6 +389,21 @@ def _mcap_damage(path: Path) -> str | None:
             return f"{where}holds only the {size}-byte MCAP magic and no record: truncated"
         if size < 2 * len(_MCAP_MAGIC) or tail != _MCAP_MAGIC:
             return f"{where}does not end with the MCAP magic: truncated (or damaged at its end)"
+    return None
+
+
+def _metadata_damage(path: Path) -> str | None:
+    """What is wrong with a bag folder's ``metadata.yaml`` in words (rosbags says "'NoneType'
+    object is not subscriptable" of an empty one); None when it reads as rosbag2 metadata."""
+    metadata_file = path / "metadata.yaml"
+    if not (path.is_dir() and metadata_file.is_file()):
+        return None
+    try:
+        if not metadata_file.read_text(encoding="utf-8", errors="replace").strip():
+            return "its metadata.yaml is empty"
+        load_metadata(metadata_file)
+    except (OSError, ReplayError) as error:
+        return str(error)
     return None
 
 
