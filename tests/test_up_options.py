@@ -30,7 +30,8 @@ import pytest
         (["--planner-param", "queue_limit:=abc"], "queue_limit:=abc: queue_limit takes a whole"),
         (["--planner-param", "decision_timeout:=soon"], "decision_timeout takes a finite number"),
         (["--learner-param", "fresh:=maybe"], "fresh:=maybe: fresh takes true or false"),
-        (["--planner-param", "tensors_dir:=42"], "ROS reads '42' as a number: quote it"),
+        (["--planner-param", "queue_limit:=010"], "takes a whole number (no leading zeros)"),
+        (["--planner-param", "scenario:="], "scenario takes text that is not empty"),
         (["--checkpoint", "EXISTING"], "a folder; give the checkpoint file"),
         (["--bag", "EXISTING"], "exists already"),
         (["--bag", "NEW", "--no-record"], "--bag and --no-record contradict each other"),
@@ -140,9 +141,12 @@ def test_parameters_are_passed_with_the_types_the_nodes_declare() -> None:
     from lit_planner import node as planner_node
     from lit_planner import up
 
-    given = ["decision_timeout:=1", "queue_limit:=8", "tensors_dir:=/tmp/t", "use_sim_time:=true"]
+    given = ["decision_timeout:=1e3", "queue_limit:=+8", "tensors_dir:=1e3", "scenario:='np4'",
+             "run_id:=it's", "use_sim_time:=true", "explore:=Yes"]  # fmt: skip
     assert up._typed_params(given, planner_node.PARAMETERS) == {
-        "decision_timeout": "1.0", "queue_limit": "8", "tensors_dir": "/tmp/t",
-        "use_sim_time": "true",
+        "decision_timeout": "1000.0", "queue_limit": "8",
+        "tensors_dir": "'1e3'",  # rcl would read 1e3 as a number: quoted, it is text
+        "scenario": "'np4'", "run_id": "'it''s'", "use_sim_time": "true", "explore": "true",
     }  # fmt: skip
-    assert up._typed_params(["fresh:=True"], learner_node.PARAMETERS) == {"fresh": "True"}
+    assert up._typed_params(["fresh:=True"], learner_node.PARAMETERS) == {"fresh": "true"}
+    assert up._typed_params(["tensors_dir:="], planner_node.PARAMETERS) == {}  # its default

@@ -258,10 +258,9 @@ class PlannerNode:
         tensors: dict[str, Any] = {}
         for output, file_name in planning.TENSOR_FILES.items():
             path = os.path.join(folder, file_name)
-            try:
-                tensors[output] = (
-                    planning.load_tensor(path, output) if os.path.exists(path) else None
-                )
+            present = os.path.exists(path) or os.path.exists(path.removesuffix(".npy") + ".json")
+            try:  # a sidecar without its data is a defect, named below (as the tensor policy does)
+                tensors[output] = planning.load_tensor(path, output) if present else None
             except Exception as exc:  # noqa: BLE001 - defective tensor: fixed values instead
                 self.log.error(f"fallback tensor {path} unusable ({exc}); using fixed values")
                 tensors[output] = None
@@ -291,6 +290,17 @@ class PlannerNode:
             self.log.warning(f"plan request rejected: {exc}")
             return response
         with self._queue_lock:
+            if self._stopping.is_set():  # after shutdown() began: nothing would take the job
+                response.success = False
+                response.message = reply.error(
+                    MessageError(
+                        "unavailable",
+                        "the planner node is stopping; the query was not started",
+                        request_schema="PlanRequest",
+                        request_seq=message.seq,
+                    )
+                )
+                return response
             # One query runs, up to queue_limit wait: refuse only when the waiting places are full.
             if self._queued > self.params["queue_limit"]:
                 response.success = False
@@ -304,8 +314,10 @@ class PlannerNode:
                     )
                 )
                 return response
+            if self._queued:
+                self.log.info(f"plan request {job.episode_id} waits behind {self._queued}")
             self._queued += 1
-        self._jobs.put(job)
+            self._jobs.put(job)  # under the lock: shutdown() cannot slip between check and put
         job.done.wait()
         if job.error is not None:
             response.success = False
@@ -478,8 +490,10 @@ class PlannerNode:
             job.time = p["time_budget"] or None
             job.episode_id = f"{self.run_id}/{index}"
             with self._queue_lock:
+                if self._stopping.is_set():  # shutdown() began: its None is queued already
+                    return
                 self._queued += 1
-            self._jobs.put(job)
+                self._jobs.put(job)
             job.done.wait()
             if job.error is not None:
                 self.log.error(f"episode {job.episode_id} failed: {job.error}")
@@ -565,7 +579,8 @@ class PlannerNode:
             listener=listener,
             cancel=self._cancel,
         )
-        if self._cancel.is_set() and job.kind == "service":
+        cut_short = self._cancel.is_set()
+        if cut_short and job.kind == "service":
             job.error = MessageError(
                 "unavailable",
                 f"the planner node is stopping; the query was cut short after "
@@ -588,7 +603,12 @@ class PlannerNode:
             return
         job.result = result
         if job.policy == "training":
-            self._end_episode(job, episode, result)
+            self._end_episode(job, episode, result, cut_short=cut_short)
+        if cut_short:
+            # Its summary would read as a finished episode (lit replay tensors would learn a
+            # terminal state from it): none is published.
+            self.log.info(f"{job.kind} episode {job.episode_id} cut short by the shutdown")
+            return
         self._publish_episode(job, episode, listener, result)
 
     # ------------------------------------------------------------------ learner calls
@@ -699,7 +719,9 @@ class PlannerNode:
         self._missed_in_a_row += 1
         self._missed_call = sequence
 
-    def _end_episode(self, job: Job, episode: DecisionSources, result: dict[str, Any]) -> None:
+    def _end_episode(
+        self, job: Job, episode: DecisionSources, result: dict[str, Any], *, cut_short: bool = False
+    ) -> None:
         from lit_learner.train import BUDGET_TOLERANCE, final_features, minimum_cost
 
         problem = job.scenario
@@ -712,7 +734,8 @@ class PlannerNode:
             "minimum_cost": minimum_cost(problem),
             "improvements": len(result["improvements"]),
             "path_states": len(result["path"]),
-            "truncated": bool(result["time"] >= budget * (1.0 - BUDGET_TOLERANCE)),
+            # Cut short by the shutdown: truncated (bootstrapped), not a terminal state.
+            "truncated": cut_short or bool(result["time"] >= budget * (1.0 - BUDGET_TOLERANCE)),
             "fallback_decisions": episode.fallbacks,
         }
         if job.fell_back:
@@ -799,9 +822,10 @@ class PlannerNode:
     def shutdown(self) -> None:
         """Stop queuing episodes, end the running query early and answer the queued ones with
         ``unavailable``."""
-        self._stopping.set()
-        self._cancel.set()
-        self._jobs.put(None)
+        with self._queue_lock:  # no request is queued after this (see _serve_plan)
+            self._stopping.set()
+            self._cancel.set()
+            self._jobs.put(None)
         self._worker.join(timeout=30.0)
         if not self._worker.is_alive():
             self.learner.destroy()

@@ -508,10 +508,11 @@ def _params(items: Sequence[str]) -> dict[str, str]:
 
 def _typed_params(items: Sequence[str], known: dict[str, Any]) -> dict[str, str]:
     """``NAME:=VALUE`` items checked against the type of each parameter's default, as the node
-    declares it: a wrong type ended the node in a traceback after lit up had started. A whole
-    number for a float parameter is passed as a float (ROS refuses ``time_budget:=1``)."""
-    import yaml
-
+    declares it, and written so that rcl reads them as that type: a wrong type ended the node in
+    a traceback after lit up had started. rcl reads ``-p`` values as YAML-like scalars (``1e3``
+    and ``y`` are not text to it, ``010`` is octal), so text is passed quoted, whole numbers for
+    float parameters as floats (it refuses ``time_budget:=1``), integers and booleans in one
+    spelling. An empty value keeps an empty default (rcl refuses an empty value)."""
     result = {}
     for name, text in _params(items).items():
         if name not in known:  # reported by the caller (or ROS's own, use_sim_time)
@@ -519,30 +520,37 @@ def _typed_params(items: Sequence[str], known: dict[str, Any]) -> dict[str, str]
             continue
         default, word = known[name], text.strip()
         if isinstance(default, bool):
-            ok, kind = word.lower() in ("true", "false"), "true or false"
+            ok, kind = word.lower() in _BOOLEAN_WORDS, "true or false"
+            text = str(_BOOLEAN_WORDS[word.lower()]).lower() if ok else text
         elif isinstance(default, int):
-            ok, kind = re.fullmatch(r"[+-]?\d+", word) is not None, "a whole number"
+            ok = re.fullmatch(r"[+-]?(0|[1-9]\d*)", word) is not None and (
+                -(2**63) <= int(word) < 2**63
+            )
+            kind = "a whole number (no leading zeros)"
+            text = str(int(word)) if ok else text
         elif isinstance(default, float):
             try:
                 number = float(word)
             except ValueError:
                 number = math.nan
             ok, kind = math.isfinite(number), "a finite number"
-            if ok:
-                text = repr(number)
+            text = repr(number) if ok else text
+        elif not word:
+            if default == "":
+                continue  # the default already: rcl would refuse the empty value
+            ok, kind = False, "text that is not empty"
         else:
-            try:
-                parsed = yaml.safe_load(text) if word else ""
-            except yaml.YAMLError:
-                parsed = text
-            ok = isinstance(parsed, str)
-            what = {bool: "true or false", int: "a number", float: "a number", type(None): "null"}
-            read_as = what.get(type(parsed), f"a {type(parsed).__name__}")
-            kind = f"text (ROS reads {text!r} as {read_as}: quote it, {name}:=\"'{text}'\")"
+            ok, kind = True, "text"
+            quoted = len(word) >= 2 and word[0] == word[-1] and word[0] in "'\""
+            text = word if quoted else "'" + text.replace("'", "''") + "'"
         if not ok:
             raise ValueError(f"{name}:={text}: {name} takes {kind} (default {default!r})")
         result[name] = text
     return result
+
+
+_BOOLEAN_WORDS = {"true": True, "false": False, "yes": True, "no": False, "on": True, "off": False}
+"""The boolean words ``lit up`` takes (rcl takes these in lower case, among others)."""
 
 
 def _ros_value(value: object) -> str:

@@ -1,5 +1,7 @@
 #include "lit/LITstar.h"
 
+#include <functional>
+
 #include "lit/InformedMeasure.h"
 
 #include <ompl/base/PlannerData.h>
@@ -176,20 +178,26 @@ namespace lit
         Planner::setup();
         if (si_->getStateSpace()->getType() != ompl::base::STATE_SPACE_REAL_VECTOR)
             throw ompl::Exception("LITstar: needs a RealVectorStateSpace (its informed sampler and features are R^n)");
-        if (pdef_)
-        {
-            if (!pdef_->hasOptimizationObjective())
-                pdef_->setOptimizationObjective(std::make_shared<ompl::base::PathLengthOptimizationObjective>(si_));
-            else if (!std::dynamic_pointer_cast<ompl::base::PathLengthOptimizationObjective>(
-                         pdef_->getOptimizationObjective()))
-                throw ompl::Exception("LITstar: supports the path-length objective only");
-        }
+        checkObjective();
+    }
+
+    void LITstar::checkObjective()
+    {
+        if (!pdef_)
+            return;
+        if (!pdef_->hasOptimizationObjective())
+            pdef_->setOptimizationObjective(std::make_shared<ompl::base::PathLengthOptimizationObjective>(si_));
+        else if (!std::dynamic_pointer_cast<ompl::base::PathLengthOptimizationObjective>(
+                     pdef_->getOptimizationObjective()))
+            throw ompl::Exception("LITstar: supports the path-length objective only");
     }
 
     void LITstar::setProblemDefinition(const ompl::base::ProblemDefinitionPtr &pdef)
     {
+        const bool same = pdef == pdef_;  // the same problem again: keep solving it, as OMPL's planners do
         Planner::setProblemDefinition(pdef);
-        clear();
+        if (!same)
+            clear();
     }
 
     void LITstar::clear()
@@ -216,6 +224,7 @@ namespace lit
     ompl::base::PlannerStatus LITstar::initializeProblem()
     {
         statusMessage_.clear();
+        checkObjective();  // a problem set after setup() may have none (setup() is not called again)
         const ompl::base::GoalPtr &goal = pdef_->getGoal();
         if (!goal || !goal->hasType(ompl::base::GOAL_SAMPLEABLE_REGION))
         {
@@ -228,9 +237,14 @@ namespace lit
             statusMessage_ = "the start state is missing, out of bounds or in collision";
             return ompl::base::PlannerStatus::INVALID_START;
         }
+        // nextGoal() returns the same scratch state each time: each goal is copied as it is read.
+        std::vector<std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>>> owned;
         std::vector<const ompl::base::State *> goals;
         while (const ompl::base::State *g = pis_.nextGoal())
-            goals.push_back(g);
+        {
+            owned.emplace_back(si_->cloneState(g), [this](ompl::base::State *state) { si_->freeState(state); });
+            goals.push_back(owned.back().get());
+        }
         if (goals.empty())
         {
             statusMessage_ = "the goal state is missing, out of bounds or in collision";
@@ -274,16 +288,31 @@ namespace lit
             }
         }
         batchLimitReached_ = false;
-        ptc_ = &ptc;
-        resumeClock();
-        while (!shouldStop() && !batchLimitReached_ && !solutionCannotImprove() &&
-               (maxIterations_ == 0u || counters_.iterations < maxIterations_))
+        struct Running  // the termination condition and the clock belong to this call, also if it throws
         {
-            ++counters_.iterations;
-            iterate();
+            LITstar &planner;
+            Running(LITstar &p, const ompl::base::PlannerTerminationCondition &ptc) : planner(p)
+            {
+                planner.ptc_ = &ptc;
+                planner.resumeClock();
+            }
+            ~Running()
+            {
+                planner.pauseClock();
+                planner.ptc_ = nullptr;
+            }
+            Running(const Running &) = delete;
+            Running &operator=(const Running &) = delete;
+        };
+        {
+            const Running running(*this, ptc);
+            while (!shouldStop() && !batchLimitReached_ && !solutionCannotImprove() &&
+                   (maxIterations_ == 0u || counters_.iterations < maxIterations_))
+            {
+                ++counters_.iterations;
+                iterate();
+            }
         }
-        pauseClock();
-        ptc_ = nullptr;
         return std::isfinite(bestCost_) ? ompl::base::PlannerStatus::EXACT_SOLUTION :
                                           ompl::base::PlannerStatus::TIMEOUT;
     }
@@ -300,7 +329,8 @@ namespace lit
         // Within rounding of the straight line (Eigen's norm and OMPL's distance may differ in the last bits).
         if (bestCost_ <= graph_->sampler().minimumCost() * (1.0 + 1e-12))
             return true;
-        return pdef_->getOptimizationObjective()->isSatisfied(ompl::base::Cost(bestCost_));
+        const auto &objective = pdef_->getOptimizationObjective();
+        return objective && objective->isSatisfied(ompl::base::Cost(bestCost_));
     }
 
     void LITstar::iterate()

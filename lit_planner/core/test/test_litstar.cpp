@@ -4,6 +4,8 @@
 #include "lit/litstar/RandomGeometricGraph.h"
 
 #include <ompl/base/OptimizationObjective.h>
+#include <ompl/base/ScopedState.h>
+#include <ompl/base/goals/GoalStates.h>
 #include <ompl/base/PlannerTerminationCondition.h>
 #include <ompl/base/ProblemDefinition.h>
 #include <ompl/util/Exception.h>
@@ -263,6 +265,7 @@ TEST(LITstar, ANewProblemDefinitionIsSolvedNotTheOldOne)
     ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
 
     BoxProblem second = makeBoxProblem(first.world, {-0.3, 0.3}, {-0.3, -0.3}, 1e-3);
+    second.pdef->setOptimizationObjective(nullptr);  // OMPL's default: none (setup() already ran)
     planner->setProblemDefinition(second.pdef);
     ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
     const auto path = planner->bestPath();
@@ -329,4 +332,28 @@ TEST(LITstar, StopsOnceNoBetterSolutionExists)
         EXPECT_EQ(recorder->solutions.size(), 1u);  // the first solution met the threshold
         EXPECT_LT(planner->counters().batches, 20u);
     }
+}
+
+TEST(LITstar, EveryGoalOfAGoalSetIsKept)
+{
+    // OMPL's nextGoal() hands out one scratch state: every goal read became the last one. The near goal is
+    // listed first, so the planner used to plan to the far one behind the wall.
+    BoxProblem problem = test::narrowPassage(2, 1e-3);
+    auto goals = std::make_shared<ompl::base::GoalStates>(problem.si);
+    ompl::base::ScopedState<> near(problem.si), far(problem.si);
+    near[0] = -0.3;
+    near[1] = 0.3;
+    far[0] = 0.2;
+    far[1] = 0.0;
+    goals->addState(near);
+    goals->addState(far);
+    problem.pdef->setGoal(goals);
+    auto planner = std::make_shared<LITstar>(problem.si);
+    planner->setMaxBatches(5u);
+    planner->setProblemDefinition(problem.pdef);
+    ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    const auto path = planner->bestPath();
+    EXPECT_DOUBLE_EQ(path.back()[0], -0.3);
+    EXPECT_DOUBLE_EQ(path.back()[1], 0.3);
+    EXPECT_LT(planner->bestCost(), 0.35);  // about 0.316, the straight line to the near goal
 }

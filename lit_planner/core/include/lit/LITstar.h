@@ -124,6 +124,8 @@ namespace lit
         /** \brief Sets up the problem on the first call of solve; returns a status other than UNKNOWN on failure. */
         ompl::base::PlannerStatus initializeProblem();
         void iterate();
+        /** \brief Gives the problem the path-length objective if it has none; refuses any other objective. */
+        void checkObjective();
         /** \brief The termination condition of the running solve() or the time budget says stop (also checked
          *  while a batch is drawn: in a nearly blocked space one batch can take many draws). */
         bool shouldStop() const;
