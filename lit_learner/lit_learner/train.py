@@ -999,7 +999,8 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             raise TrainingError(
                 f"{run_dir} already holds a training run; choose another --out or --resume"
             )
-        if run_dir.is_dir() and any(run_dir.iterdir()):  # a run's files mixed with others
+        others = [p for p in run_dir.iterdir() if p.name != LOCK_FILE] if run_dir.is_dir() else []
+        if others:  # a run's files mixed with others (a crashed start leaves only the lock)
             raise TrainingError(f"--out {run_dir}: not empty; choose a new or empty folder")
         seed = 0 if args.seed is None else args.seed
         episodes = args.episodes

@@ -1821,11 +1821,15 @@ def _bench(args: argparse.Namespace) -> int:
     planned = settings["runs"] * len(settings["scenarios"]) * len(settings["planners"])
     if len(recorded.runs) < planned:
         # A damaged message, a gap or an interrupted benchmark: say so where the tables are read.
+        seen = [
+            f"{recorded.missing} seq gaps" if recorded.missing else "",
+            recorded.skipped.line() if recorded.skipped.total else "",
+        ]
+        why = "; ".join(filter(None, seen)) or "none damaged: an interrupted benchmark?"
         note = (
             f"{planned - len(recorded.runs)} of the {planned} planned run records are missing or "
-            f"unreadable ({recorded.skipped.line()}); the statistics cover the "
-            f"{len(recorded.runs)} read. `lit replay verify` and `lit replay info` show the bag's "
-            "damage and gaps"
+            f"unreadable ({why}); the statistics cover the {len(recorded.runs)} read. "
+            "`lit replay info` shows the bag's gaps and skipped messages"
         )
         summary_md = Path(out) / "summary.md"
         summary_md.write_text(f"> **Incomplete:** {note}.\n\n" + summary_md.read_text())
