@@ -420,7 +420,13 @@ namespace lit
     unsigned int LITstar::segmentCount(const State *a, const State *b) const
     {
         // As OMPL's StateSpace::validSegmentCount: the same resolution for every planner in a comparison.
-        return static_cast<unsigned int>(std::ceil(graph_->distance(a, b) / longestValidSegment_));
+        const double count = std::ceil(graph_->distance(a, b) / longestValidSegment_);
+        if (!(count < 2147483648.0))  // also NaN: it would wrap around (a full check keeps one interval per check)
+            throw ompl::Exception("LITstar: an edge of length " + std::to_string(graph_->distance(a, b)) + " needs " +
+                                  std::to_string(count) +
+                                  " collision checks at this state validity checking resolution, more than 2^31: "
+                                  "use a coarser resolution");
+        return static_cast<unsigned int>(count);
     }
 
     bool LITstar::checkEdge(State *a, State *b, unsigned int depth)

@@ -357,3 +357,14 @@ TEST(LITstar, EveryGoalOfAGoalSetIsKept)
     EXPECT_DOUBLE_EQ(path.back()[1], 0.3);
     EXPECT_LT(planner->bestCost(), 0.35);  // about 0.316, the straight line to the near goal
 }
+
+TEST(LITstar, AResolutionTooFineForTheEdgeChecksIsAnError)
+{
+    // 1e-12 of the extent: any edge longer than 0.003 needs more checks than the counts hold (and a full
+    // check's bisection would need gigabytes). The Python layer refuses such worlds; a C++ user gets this error.
+    BoxProblem problem = makeBoxProblem(test::narrowPassage(2).world, {-0.3, 0.3}, {-0.3, -0.3}, 1e-12);
+    auto planner = std::make_shared<LITstar>(problem.si);
+    planner->setMaxBatches(1u);
+    planner->setProblemDefinition(problem.pdef);
+    EXPECT_THROW(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::Exception);
+}
