@@ -394,6 +394,14 @@ def test_bad_input_is_one_line_exit_2(command: str, bad_inputs: dict[str, Path])
             raise AssertionError(f"{command} {case}: {error}") from None
 
 
+def test_an_extra_argument_is_named_with_the_subcommands_usage(tmp_path: Path) -> None:
+    """`lit replay salvage BAG OUT` (OUT needs -o) printed lit's top-level usage."""
+    result = _replay("salvage", tmp_path / "bag", tmp_path / "out")
+    assert result.returncode == 2
+    assert result.stderr.startswith("usage: lit replay salvage [-h] [-o OUT] BAG"), result.stderr
+    assert f"lit replay salvage: error: unrecognized arguments: {tmp_path / 'out'}" in result.stderr
+
+
 def test_an_empty_metadata_file_is_named(tmp_path: Path) -> None:
     """rosbags' own words were "'NoneType' object is not subscriptable"."""
     copy = _sample_copy(tmp_path, "blank")

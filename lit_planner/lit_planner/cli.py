@@ -137,12 +137,32 @@ def _join_negative_lists(argv: list[str]) -> list[str]:
     return joined
 
 
+def _innermost_parser(
+    parser: argparse.ArgumentParser, args: argparse.Namespace
+) -> argparse.ArgumentParser:
+    """The parser of the innermost subcommand chosen in ``args`` (``lit replay salvage``'s)."""
+    while True:
+        chosen = next(
+            (
+                action.choices.get(getattr(args, action.dest, None))
+                for action in parser._actions  # argparse keeps no public list of them
+                if isinstance(action, argparse._SubParsersAction)
+            ),
+            None,
+        )
+        if chosen is None:
+            return parser
+        parser = chosen
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` (default: ``sys.argv[1:]``) and run the chosen subcommand."""
     argv = _join_negative_lists(list(sys.argv[1:] if argv is None else argv))
     selected = next((arg for arg in argv if not arg.startswith("-")), None)
     parser, module = build_parser(selected if selected in COMMANDS else None)
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # named by the (sub)command they were given to, with its usage, not lit's
+        _innermost_parser(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")
     run = getattr(module, COMMANDS[args.command].run)
     # A non-interactive shell starts background commands with SIGINT ignored, and Python then
     # installs no KeyboardInterrupt handler: `kill -INT` would do nothing, although every command
