@@ -83,9 +83,7 @@ def validate(name: str, obj: object, *, plain: bool | None = None) -> None:
 
 def _shown(value: object) -> str:
     """``value`` as JSON, cut short when long (the message may otherwise quote a whole file)."""
-    text = (
-        json.dumps(value) if not isinstance(value, float) or math.isfinite(value) else repr(value)
-    )
+    text = json.dumps(value, default=repr)  # NaN as NaN (allow_nan)
     return text if len(text) <= 80 else text[:77] + "..."
 
 

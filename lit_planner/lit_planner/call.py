@@ -264,7 +264,8 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
             if "world" in document:
                 payload.update(document)
             else:
-                known = ("lower", "upper", "boxes", "resolution", "start", "goal")
+                world_keys = ("lower", "upper", "boxes", "resolution")
+                known = (*world_keys, "start", "goal")
                 unknown = sorted(set(document) - set(known))
                 if unknown:  # a misspelt "resolution" was dropped and the default used
                     raise ValueError(
@@ -272,11 +273,7 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
                         f"{', '.join(map(repr, unknown))}; a world file has "
                         f'{", ".join(known)} (or a whole PlanRequest payload with "world")'
                     )
-                payload["world"] = {
-                    k: document[k]
-                    for k in ("lower", "upper", "boxes", "resolution")
-                    if k in document
-                }
+                payload["world"] = {k: document[k] for k in world_keys if k in document}
                 for key in ("start", "goal"):
                     if key in document:
                         payload[key] = document[key]

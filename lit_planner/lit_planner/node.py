@@ -252,13 +252,13 @@ class PlannerNode:
 
     def _fallback_values(self) -> dict[str, Any]:
         """Tensors answering decisions the learner could not (None entries: fixed values)."""
-        from lit_planner import planning
+        from lit_planner import planning, tensor_files
 
         folder = self.params["tensors_dir"] or str(planning.default_tensors_dir())
         tensors: dict[str, Any] = {}
         for output, file_name in planning.TENSOR_FILES.items():
             path = os.path.join(folder, file_name)
-            present = os.path.exists(path) or os.path.exists(path.removesuffix(".npy") + ".json")
+            present = os.path.exists(path) or tensor_files.sidecar_path(path).exists()
             try:  # a sidecar without its data is a defect, named below (as the tensor policy does)
                 tensors[output] = planning.load_tensor(path, output) if present else None
             except Exception as exc:  # noqa: BLE001 - defective tensor: fixed values instead
@@ -292,14 +292,7 @@ class PlannerNode:
         with self._queue_lock:
             if self._stopping.is_set():  # after shutdown() began: nothing would take the job
                 response.success = False
-                response.message = reply.error(
-                    MessageError(
-                        "unavailable",
-                        "the planner node is stopping; the query was not started",
-                        request_schema="PlanRequest",
-                        request_seq=message.seq,
-                    )
-                )
+                response.message = reply.error(_stopping_error(message.seq))
                 return response
             # One query runs, up to queue_limit wait: refuse only when the waiting places are full.
             if self._queued > self.params["queue_limit"]:
@@ -524,12 +517,7 @@ class PlannerNode:
                 return
             try:
                 if self._stopping.is_set():
-                    job.error = MessageError(
-                        "unavailable",
-                        "the planner node is stopping; the query was not started",
-                        request_schema="PlanRequest" if job.kind == "service" else None,
-                        request_seq=job.request_seq,
-                    )
+                    job.error = _stopping_error(job.request_seq, service=job.kind == "service")
                 else:
                     self._run(job)
             except Exception as exc:  # noqa: BLE001 - reported; the node keeps serving
@@ -581,12 +569,8 @@ class PlannerNode:
         )
         cut_short = self._cancel.is_set()
         if cut_short and job.kind == "service":
-            job.error = MessageError(
-                "unavailable",
-                f"the planner node is stopping; the query was cut short after "
-                f"{result['time']:.3g} s of planning",
-                request_schema="PlanRequest",
-                request_seq=job.request_seq,
+            job.error = _stopping_error(
+                job.request_seq, f"the query was cut short after {result['time']:.3g} s of planning"
             )
             return
         if result["status"] in INVALID_TERMINAL:
@@ -831,6 +815,18 @@ class PlannerNode:
             self.learner.destroy()
         if not flush_publishers([*self.publishers.values(), self.path_publisher]):
             self.log.warning("some subscribers did not acknowledge the last messages")
+
+
+def _stopping_error(
+    seq: int | None, what: str = "the query was not started", *, service: bool = True
+) -> MessageError:
+    """The ``unavailable`` answer of a node that is shutting down."""
+    return MessageError(
+        "unavailable",
+        f"the planner node is stopping; {what}",
+        request_schema="PlanRequest" if service else None,
+        request_seq=seq,
+    )
 
 
 def main(args: Sequence[str] | None = None) -> int:

@@ -183,12 +183,14 @@ def make_policy(
         raise TensorFileError(
             f"{folder}: a file; the tensor policy needs the folder of the tensors"
         )
+    from lit_planner import tensor_files
+
     # A tensor counts as present when its data or its sidecar is: one without the other (a
     # half-deleted pair) is a defect to report, not a tensor to leave out silently.
     tensors = {
         output: load_tensor(folder / file_name, output)
         for output, file_name in TENSOR_FILES.items()
-        if (folder / file_name).exists() or (folder / file_name).with_suffix(".json").exists()
+        if (folder / file_name).exists() or tensor_files.sidecar_path(folder / file_name).exists()
     }
     if not tensors:
         if tensors_dir is not None:
