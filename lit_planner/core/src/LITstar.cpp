@@ -360,7 +360,7 @@ namespace lit
             // EIT* goes on with the reverse search here (its expansions may still hand edges to the forward search).
             // Measured on the development queries (lit bench, seeds 3000-3019, instance 7, half budgets, all three
             // policies): the same first solutions on all six scenarios, but on rrd8 a few hundred more sparse checks
-            // before them and 3 of 60 runs unsolved within the budget. With no forward edge left, a new batch first.
+            // before them and 4 of 60 runs unsolved within the budget. With no forward edge left, a new batch first.
             return false;
         }
         // The front edge's target has its final cost-to-go once the reverse search's key reaches the edge's
