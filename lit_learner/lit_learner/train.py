@@ -879,6 +879,13 @@ def _check_folders(args: argparse.Namespace) -> None:
                 if not folder.is_dir():
                     raise TrainingError(f"{label} {value}: {folder} is a file, not a folder")
                 break
+    if args.export is not None and Path(args.export).is_dir() and any(Path(args.export).iterdir()):
+        # Found now, not after an hour of training; an export never replaces another one (the
+        # shipped tensors in tensors/ included) nor mixes with files that describe something else.
+        raise TrainingError(
+            f"--export {args.export}: exists and is not empty; choose a new or empty folder "
+            "(lit train does not overwrite an earlier export)"
+        )
 
 
 def agent_range(agent_config: Any, fallback: tuple[float, float]) -> tuple[float, float]:
@@ -1130,15 +1137,15 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
     if recording is not None:
         lines.append(f"  bag {recording.recorder.path} (lit replay info / tensors)")
     if args.export is not None:
-        replaced = [
+        replaced = [  # written there by something else while this run trained
             name for name in planning.TENSOR_FILES.values() if (Path(args.export) / name).exists()
         ]
         written = export(core, Path(args.export), record, curves)
         lines.append(f"  tensors {', '.join(str(path) for path in written.values())}")
         if replaced:
             lines.append(
-                f"  (replaced the tensors that were in {args.export}; other files there, such as a "
-                "README or an evaluation, still describe the previous ones)"
+                f"  (replaced the tensors written to {args.export} during this run; other files "
+                "there still describe those)"
             )
     lock.close()
     return TrainingResult("\n".join(lines), interrupted)

@@ -459,6 +459,29 @@ def test_a_file_in_the_way_is_refused_before_training(tmp_path: Path, option: st
     assert sorted(path.name for path in tmp_path.iterdir()) == ["afile"]  # nothing trained
 
 
+def test_an_earlier_export_is_refused_before_training_and_a_run_exports_without_training(
+    tmp_path: Path,
+) -> None:
+    earlier = tmp_path / "shipped"
+    earlier.mkdir()
+    (earlier / "b_tensor.npy").write_bytes(b"earlier export")
+    with pytest.raises(train.TrainingError, match="exists and is not empty"):
+        train.train(arguments(tmp_path / "run", episodes=2, scenarios="np4", export=earlier))
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["shipped"]  # nothing trained
+    assert (earlier / "b_tensor.npy").read_bytes() == b"earlier export"
+
+    run_dir = tmp_path / "run"
+    hooks = train.TrainingHooks(learner_config=small_config())
+    train.train(arguments(run_dir, episodes=2, scenarios="np4", no_bag=True), hooks)
+    final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
+    rows = (run_dir / METRICS_FILE).read_text()
+    export_dir = tmp_path / "export"
+    train.train(arguments(run_dir, resume=final, export=export_dir, no_bag=True))
+    assert (run_dir / METRICS_FILE).read_text() == rows  # no episode trained
+    assert json.loads((export_dir / train.PROVENANCE_FILE).read_text())["episodes"] == 2
+    assert planning.make_policy("tensor", export_dir) is not None
+
+
 def test_unknown_scenario_leaves_no_run_folder(tmp_path: Path) -> None:
     with pytest.raises(train.TrainingError):
         train.train(arguments(tmp_path / "run", episodes=2, scenarios="foo4"))
