@@ -150,3 +150,45 @@ def test_parameters_are_passed_with_the_types_the_nodes_declare() -> None:
     }  # fmt: skip
     assert up._typed_params(["fresh:=True"], learner_node.PARAMETERS) == {"fresh": "true"}
     assert up._typed_params(["tensors_dir:="], planner_node.PARAMETERS) == {}  # its default
+
+
+def test_lit_call_names_a_service_of_another_type() -> None:
+    """A service that exists with a type lit call does not speak was reported as not found."""
+    import time
+
+    from ros_helpers import reserve_domain
+
+    domain, lock = reserve_domain()
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain))
+    server_code = (
+        "import rclpy, sys\n"
+        "from std_srvs.srv import Trigger\n"
+        "rclpy.init()\n"
+        "node = rclpy.create_node('trigger_server')\n"
+        "node.create_service(Trigger, '/other/trigger', lambda request, response: response)\n"
+        "print('ready', flush=True)\n"
+        "rclpy.spin(node)\n"
+    )
+    server = subprocess.Popen(
+        [sys.executable, "-c", server_code], env=env, stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert server.stdout is not None and server.stdout.readline().strip() == "ready"
+        time.sleep(1.0)  # discovery
+        process = subprocess.run(
+            [sys.executable, "-m", "lit_planner.cli", "call", "--wait", "5", "raw",
+             "other/trigger", "{}"],
+            env=env, capture_output=True, text=True, timeout=120, check=False,
+        )  # fmt: skip
+        assert process.returncode == 2, process.stderr
+        assert "service other/trigger has type std_srvs/srv/Trigger" in process.stderr
+        assert "not found" not in process.stderr and "Traceback" not in process.stderr
+    finally:
+        server.terminate()
+        try:
+            server.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            server.wait()
+        if lock is not None:
+            lock.close()

@@ -9,8 +9,8 @@ Examples::
     lit call raw /lit/planner/plan '{"not": "an envelope"}'
 
 Prints the response as JSON on stdout (the envelope's payload with ``--payload-only``). Exit code
-0 for a successful response, 1 for an Error response, 2 when the service is not found or does not
-answer in time, or the arguments are wrong.
+0 for a successful response, 1 for an Error response, 2 when the service is not found (or has
+another type than ``AddDiagnostics``) or does not answer in time, or the arguments are wrong.
 
 A world file is JSON: ``{"lower": [...], "upper": [...], "boxes": [{"lower": [...], "upper":
 [...]}, ...], "resolution": 0.001, "start": [...], "goal": [...]}`` (``resolution`` optional), or
@@ -197,6 +197,15 @@ def run(args: argparse.Namespace) -> int:
             print(f"lit call: error: service name {name!r}: {reason}", file=sys.stderr)
             return 2
         if not caller.wait(args.wait):
+            others = _other_types(node, name)
+            if others:  # found, but not one of ours: say so instead of "not found"
+                print(
+                    f"lit call: error: service {name} has type {', '.join(others)}; lit call "
+                    "speaks diagnostic_msgs/srv/AddDiagnostics (JSON envelopes), as the lit "
+                    "nodes serve",
+                    file=sys.stderr,
+                )
+                return 2
             print(
                 f"lit call: error: service {name} not found within {args.wait:g} s "
                 f"(ROS_DOMAIN_ID={_domain()})",
@@ -243,6 +252,15 @@ def run(args: argparse.Namespace) -> int:
             rclpy.shutdown()
         spinner.join(timeout=2.0)
         node.destroy_node()
+
+
+def _other_types(node: Any, name: str) -> list[str]:
+    """The types the graph shows for service ``name`` other than ours (empty: none seen)."""
+    ours = "diagnostic_msgs/srv/AddDiagnostics"
+    for found, types in node.get_service_names_and_types():
+        if found == (name if name.startswith("/") else "/" + name):
+            return [kind for kind in types if kind != ours]
+    return []
 
 
 def _request(args: argparse.Namespace) -> tuple[str, str]:
