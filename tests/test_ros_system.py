@@ -877,6 +877,31 @@ def test_sigterm_cuts_a_long_query_short_and_answers_the_waiting_ones(ros: RosSy
     _no_traceback(planner)
 
 
+def test_a_training_episode_cut_short_goes_to_the_learner_and_is_not_published(
+    ros: RosSystem,
+) -> None:
+    """SIGTERM during a long training episode: the planner stops at once, the learner still gets
+    the episode's end (as truncated: the state is not terminal), and no EpisodeSummary says it
+    finished (``lit replay tensors`` would learn a terminal state from one)."""
+    recording = ros.recorder([EPISODE, STATS])
+    learner = ros.learner(checkpoint_every=1_000_000, checkpoint_period=1e6)
+    _ready(learner)
+    planner = ros.planner(episodes=1, **TRAINING | {"time_budget": 600.0})
+    planner.wait_for_log(r"learner answered its first call", timeout=120.0)
+    assert ros.stop(planner, signal.SIGTERM, timeout=60.0) == 0, planner.tail()
+    assert re.search(
+        r"training episode \S+ cut short by the shutdown; its end went to the learner as "
+        r"truncated",
+        planner.text(),
+    ), planner.tail()
+    assert ros.stop(learner, signal.SIGTERM, timeout=60.0) == 0, learner.tail()
+    final = recording.payloads(STATS)[-1]  # published and flushed at the learner's shutdown
+    assert final["episodes"] == 1, final
+    assert final["transitions"]["B"] + final["transitions"]["psi_K"] >= 1, final
+    assert recording.payloads(EPISODE) == []
+    _no_traceback(planner, learner)
+
+
 def test_sigterm_shuts_both_nodes_down_cleanly(ros: RosSystem) -> None:
     """SIGTERM mid-training: exit code 0, no processes left behind, a checkpoint written."""
     recording = ros.recorder([EPISODE])

@@ -591,7 +591,10 @@ class PlannerNode:
         if cut_short:
             # Its summary would read as a finished episode (lit replay tensors would learn a
             # terminal state from it): none is published.
-            self.log.info(f"{job.kind} episode {job.episode_id} cut short by the shutdown")
+            self.log.info(
+                f"{job.kind} episode {job.episode_id} cut short by the shutdown"
+                + ("; its end went to the learner as truncated" if job.policy == "training" else "")
+            )
             return
         self._publish_episode(job, episode, listener, result)
 
