@@ -421,7 +421,7 @@ namespace lit
     {
         // As OMPL's StateSpace::validSegmentCount: the same resolution for every planner in a comparison.
         const double count = std::ceil(graph_->distance(a, b) / longestValidSegment_);
-        if (!(count < 2147483648.0))  // also NaN: it would wrap around (a full check keeps one interval per check)
+        if (!(count < 2147483648.0))  // also NaN: the point indices are unsigned int
             throw ompl::Exception("LITstar: an edge of length " + std::to_string(graph_->distance(a, b)) + " needs " +
                                   std::to_string(count) +
                                   " collision checks at this state validity checking resolution, more than 2^31: "
@@ -432,46 +432,48 @@ namespace lit
     bool LITstar::checkEdge(State *a, State *b, unsigned int depth)
     {
         // Points are i/n along the canonical direction (smaller id first), visited level by level in bisection
-        // order, so a sparse check of depth D is exactly the first 2^D - 1 points of the full check.
+        // order, so a sparse check of depth D is exactly the first 2^D - 1 points of the full check. Level l holds
+        // the midpoints of the intervals that l - 1 halvings of [0, n] leave (integer halving, left to right; an
+        // interval shorter than 2 has no midpoint). Each level is walked depth-first from the whole edge instead of
+        // keeping the previous level's intervals: the memory is the recursion's (at most 32 levels), not one interval
+        // per check, and the walk adds fewer steps than the level's own checks.
         State *from = a->id_ < b->id_ ? a : b;
         State *to = a->id_ < b->id_ ? b : a;
         unsigned int &done = checkedDepth(from, to);
+        if (done == fullCheck)
+            return true;
         const unsigned int segments = segmentCount(from, to);
-        auto &intervals = intervals_;
-        auto &next = nextIntervals_;
-        intervals.assign(1u, {0u, segments});
-        unsigned int level = 0u;
-        while (!intervals.empty() && level < depth)
+        // Levels 1 .. done were checked and each held a point (a level without one ends the check: whitelisted).
+        for (unsigned int level = done + 1u; level <= depth; ++level)
         {
-            ++level;
-            next.clear();
-            for (const auto &[lo, hi] : intervals)
+            std::size_t points = 0u;
+            if (!checkLevel(from, to, segments, 0u, segments, level, points))
+                return false;
+            if (points == 0u)
             {
-                if (hi - lo < 2u)
-                    continue;
-                const unsigned int mid = lo + (hi - lo) / 2u;
-                if (level > done)
-                {
-                    si_->getStateSpace()->interpolate(from->raw_, to->raw_,
-                                                      static_cast<double>(mid) / static_cast<double>(segments),
-                                                      interpolated_);
-                    ++counters_.collisionChecks;
-                    if (!si_->isValid(interpolated_))
-                        return false;
-                }
-                next.emplace_back(lo, mid);
-                next.emplace_back(mid, hi);
+                done = fullCheck;
+                whitelist(from, to);
+                return true;
             }
-            intervals.swap(next);
+            done = level;
         }
-        if (intervals.empty())
-        {
-            done = fullCheck;
-            whitelist(from, to);
-        }
-        else
-            done = std::max(done, level);
         return true;
+    }
+
+    bool LITstar::checkLevel(const State *from, const State *to, unsigned int segments, unsigned int lo,
+                             unsigned int hi, unsigned int level, std::size_t &points)
+    {
+        if (hi - lo < 2u)
+            return true;
+        const unsigned int mid = lo + (hi - lo) / 2u;
+        if (level > 1u)
+            return checkLevel(from, to, segments, lo, mid, level - 1u, points) &&
+                   checkLevel(from, to, segments, mid, hi, level - 1u, points);
+        ++points;
+        si_->getStateSpace()->interpolate(from->raw_, to->raw_,
+                                          static_cast<double>(mid) / static_cast<double>(segments), interpolated_);
+        ++counters_.collisionChecks;
+        return si_->isValid(interpolated_);
     }
 
     // ----------------------------------------------------------------------------------------------- searches

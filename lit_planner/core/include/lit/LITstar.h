@@ -145,6 +145,10 @@ namespace lit
         bool checkEdge(litstar::State *a, litstar::State *b, unsigned int depth);
         unsigned int &checkedDepth(litstar::State *a, litstar::State *b);
         unsigned int segmentCount(const litstar::State *a, const litstar::State *b) const;
+        /** \brief Checks the points of bisection level \p level inside [lo, hi] (counted in \p points), left to
+         * right; false at the first invalid one. */
+        bool checkLevel(const litstar::State *from, const litstar::State *to, unsigned int segments, unsigned int lo,
+                        unsigned int hi, unsigned int level, std::size_t &points);
         double remainingChecks(const litstar::State *a, const litstar::State *b) const;
         bool isWhitelisted(const litstar::State *a, const litstar::State *b) const;
         bool isBlacklisted(const litstar::State *a, const litstar::State *b) const;
@@ -239,9 +243,6 @@ namespace lit
         LITstarCounters counters_;
         ompl::base::State *interpolated_{nullptr};
         std::vector<litstar::State *> scratch_;
-        /** \brief checkEdge's bisection intervals (members, so an edge check does not allocate). */
-        std::vector<std::pair<unsigned int, unsigned int>> intervals_;
-        std::vector<std::pair<unsigned int, unsigned int>> nextIntervals_;
 
         // Planner clock: wall time in solve minus external-policy time.
         using Clock = std::chrono::steady_clock;
