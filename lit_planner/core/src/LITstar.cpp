@@ -217,8 +217,7 @@ namespace lit
         accumulatedTime_ = 0.0;
         clockRunning_ = false;
         statusMessage_.clear();
-        if (policy_)
-            policy_->reset();
+        firstSolutionMeasure_ = 0.0;
     }
 
     ompl::base::PlannerStatus LITstar::initializeProblem()
@@ -261,7 +260,7 @@ namespace lit
         forwardQueue_ = std::make_unique<litstar::ForwardQueue>([this](litstar::Edge &edge) { computeKeys(edge); });
         graph_->setTerminals(start, goals);
         graph_->start()->costToCome_ = 0.0;
-        policy_->reset();
+        firstSolutionMeasure_ = 0.0;
         batchSize_ = static_cast<unsigned int>(std::max(1, policy_->initialBatchSize()));
         neighbourFactor_ = M_E;
         problemInitialized_ = true;
@@ -729,6 +728,8 @@ namespace lit
         const bool first = !std::isfinite(bestCost_);
         bestCost_ = goal->costToCome_;
         ++improvements_;
+        if (first)
+            firstSolutionMeasure_ = getMeasure();
         // The best path's samples are pinned: a prune never removes them. (Their straight-line bounds cannot exceed
         // the path's cost in exact arithmetic, but in floating point a sample on a straight stretch could by an
         // ulp, and bestPath() and the features read these states.) Pinned states are never pruned, so the old
@@ -853,6 +854,7 @@ namespace lit
         context.planningTime = planningTime();
         context.informedMeasure = getMeasure();
         context.spaceMeasure = spaceMeasure_;
+        context.firstSolutionMeasure = firstSolutionMeasure_;
         context.minimumCost = graph_->sampler().minimumCost();
         context.expansions = counters_.expansions;
         context.batches = counters_.batches;

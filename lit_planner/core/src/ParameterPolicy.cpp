@@ -48,9 +48,8 @@ namespace lit
             return M_E;
         if (!context.hasSolution)
             return maxBatch_;
-        if (!(referenceMeasure_ > 0.0))
-            referenceMeasure_ = context.informedMeasure;  // first solution of this problem
-        const double xi = referenceMeasure_ > 0.0 ? context.informedMeasure / referenceMeasure_ : 1.0;
+        const double reference = context.firstSolutionMeasure;
+        const double xi = reference > 0.0 ? context.informedMeasure / reference : 1.0;
         return std::round(batchSize(xi, context.dimension, minBatch_, maxBatch_));
     }
 

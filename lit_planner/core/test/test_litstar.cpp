@@ -14,6 +14,7 @@
 
 #include <cmath>
 #include <memory>
+#include <thread>
 #include <vector>
 
 using namespace lit;
@@ -252,6 +253,29 @@ TEST(LITstar, PoliciesDecideBatchSizeAndNeighbourFactor)
             EXPECT_DOUBLE_EQ(d.value, 5.0);
             EXPECT_GE(d.neighbours, 1u);
         }
+}
+
+TEST(LITstar, OnePolicyServesPlannersSolvingAtTheSameTime)
+{
+    // FIT*'s reference measure (the informed set's at the first solution) comes with each decision from the planner
+    // that asks; it was the policy's own, so a second planner's problem reset or took over the first one's.
+    auto decisions = [](const PlanRun &run) {
+        std::vector<double> values;
+        for (const auto &d : run.recorder->decisions)
+            values.push_back(d.value);
+        return values;
+    };
+    const PlanRun aloneA = plan(test::narrowPassage(4), 5u, 20000u, 1.001, std::make_shared<FitPolicy>());
+    const PlanRun aloneB = plan(test::narrowPassage(8), 6u, 20000u, 1.001, std::make_shared<FitPolicy>());
+    ASSERT_GE(aloneA.recorder->decisions.size(), 2u);
+    ASSERT_GE(aloneB.recorder->decisions.size(), 2u);
+    auto shared = std::make_shared<FitPolicy>();
+    PlanRun a, b;
+    std::thread other([&] { b = plan(test::narrowPassage(8), 6u, 20000u, 1.001, shared); });
+    a = plan(test::narrowPassage(4), 5u, 20000u, 1.001, shared);
+    other.join();
+    EXPECT_EQ(decisions(a), decisions(aloneA));
+    EXPECT_EQ(decisions(b), decisions(aloneB));
 }
 
 TEST(LITstar, ANewProblemDefinitionIsSolvedNotTheOldOne)

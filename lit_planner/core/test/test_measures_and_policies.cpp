@@ -50,12 +50,15 @@ TEST(FitPolicy, SigmoidLogRuleValues)
     context.dimension = 8;
     EXPECT_DOUBLE_EQ(policy.decide(context), 199.0);  // before the first solution
     context.hasSolution = true;
-    context.informedMeasure = 0.2;  // reference: the first solution's measure
+    context.informedMeasure = 0.2;
+    context.firstSolutionMeasure = 0.2;  // reference: the first solution's measure, from the planner
     EXPECT_DOUBLE_EQ(policy.decide(context), std::round(FitPolicy::batchSize(1.0, 8)));
     context.informedMeasure = 0.1;
     EXPECT_DOUBLE_EQ(policy.decide(context), std::round(FitPolicy::batchSize(0.5, 8)));
-    policy.reset();  // a new problem takes a new reference
-    EXPECT_DOUBLE_EQ(policy.decide(context), std::round(FitPolicy::batchSize(1.0, 8)));
+    DecisionContext other = context;  // another problem (another planner) asking the same policy meanwhile
+    other.firstSolutionMeasure = 0.1;
+    EXPECT_DOUBLE_EQ(policy.decide(other), std::round(FitPolicy::batchSize(1.0, 8)));
+    EXPECT_DOUBLE_EQ(policy.decide(context), std::round(FitPolicy::batchSize(0.5, 8)));
     context.kind = DecisionKind::NeighbourFactor;
     EXPECT_DOUBLE_EQ(policy.decide(context), M_E);
 }

@@ -240,6 +240,8 @@ namespace lit
         double neighbourFactor_{M_E};
         std::size_t currentK_{1u};
         std::size_t improvements_{0u};
+        /** \brief Informed-set measure at this problem's first solution (0 before it; FIT*'s reference). */
+        double firstSolutionMeasure_{0.0};
         LITstarCounters counters_;
         ompl::base::State *interpolated_{nullptr};
         std::vector<litstar::State *> scratch_;

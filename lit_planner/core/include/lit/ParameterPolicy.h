@@ -5,6 +5,7 @@
 
 #include "lit/LookupTensor.h"
 
+#include <atomic>
 #include <cmath>
 #include <cstddef>
 #include <functional>
@@ -55,6 +56,8 @@ namespace lit
         /** \brief Absolute measure of the informed set and of the space. */
         double informedMeasure{0.0};
         double spaceMeasure{0.0};
+        /** \brief The informed set's measure when this problem's first solution was found (0 before it). */
+        double firstSolutionMeasure{0.0};
         /** \brief Straight-line start-goal distance. */
         double minimumCost{0.0};
         /** \brief Number of expansions so far (K decisions) / batches so far (B decisions). */
@@ -79,7 +82,11 @@ namespace lit
     /** \brief Clamps to [3, 15]; NaN gives std::nullopt. */
     std::optional<double> clampNeighbourFactor(double value);
 
-    /** \brief Source of B and psi_K. */
+    /** \brief Source of B and psi_K.
+     *
+     *  The planner passes everything about its problem in the DecisionContext, so the built-in policies keep no
+     *  per-problem state: one policy may serve several planners, also solving at the same time (an external
+     *  policy's callable must then be thread-safe itself). */
     class ParameterPolicy
     {
     public:
@@ -115,10 +122,6 @@ namespace lit
             return false;
         }
 
-        /** \brief Forget per-problem state (called when the planner starts a new problem). */
-        virtual void reset()
-        {
-        }
     };
 
     using ParameterPolicyPtr = std::shared_ptr<ParameterPolicy>;
@@ -155,7 +158,8 @@ namespace lit
     };
 
     /** \brief FIT*'s sigmoid-log batch rule (Zhang et al., IROS 2024) on the true n-D informed measure;
-     *  psi_K = e. B = m_max before the first solution; the reference measure resets per problem. */
+     *  psi_K = e. B = m_max before the first solution; the reference measure is the problem's at its first
+     *  solution (DecisionContext::firstSolutionMeasure). */
     class FitPolicy : public ParameterPolicy
     {
     public:
@@ -176,10 +180,6 @@ namespace lit
             return false;
         }
         double decide(const DecisionContext &context) override;
-        void reset() override
-        {
-            referenceMeasure_ = 0.0;
-        }
 
         /** \brief The rule itself: B for measure ratio xi = lambda(now) / lambda(first solution) in R^n. */
         static double batchSize(double xi, unsigned int n, double minBatch = 1.0, double maxBatch = 199.0);
@@ -187,7 +187,6 @@ namespace lit
     private:
         double minBatch_{1.0};
         double maxBatch_{199.0};
-        double referenceMeasure_{0.0};
     };
 
     /** \brief O(1) lookups in the trained B and psi_K tensors (axes rho_global, rho_local, m). A missing
@@ -268,6 +267,6 @@ namespace lit
     private:
         Callback callback_;
         bool decidesNeighbourFactor_;
-        std::size_t failures_{0u};
+        std::atomic<std::size_t> failures_{0u};
     };
 }  // namespace lit
