@@ -78,3 +78,74 @@ def test_ddpg_solves_a_one_step_bandit(seed: int) -> None:
     assert set(metrics) == {"critic", "actor", "mean_q", "td_abs", "beta"}
     for features in [(0.0, 0.0, 0.0), (0.5, 0.2, 0.9), (1.0, 1.0, 1.0), (0.3, 0.7, 0.1)]:
         assert agent.normalise(agent.policy(features)) == pytest.approx(target, abs=0.08)
+
+
+def test_one_update_step_is_the_specified_one() -> None:
+    """One gradient step recomputed by hand from a copy of the agent: the TD target
+    r + gamma (1 - terminated) Q'(s', mu'(s')) on the *target* networks, the critic loss weighted
+    by the importance weights, the priorities written back as (|y - Q| + eps)^alpha, the actor
+    loss on the updated critic, and the Polyak step of both targets. The targets and priorities
+    are made to differ from the online networks and from each other first, so that the online
+    networks in the target, a missing mask or missing weights each change the numbers."""
+    import copy
+
+    from lit_learner.replay import beta_at
+
+    torch.manual_seed(0)
+    config = AgentConfig.neighbour_agent(batch_size=16, buffer_size=64, warmup=16, gamma=0.9)
+    agent = DDPGAgent(config, seed=0)
+    rng = np.random.default_rng(1)
+    for i in range(40):
+        state, next_state = tuple(rng.uniform(0, 1, 3)), tuple(rng.uniform(0, 1, 3))
+        agent.remember(state, float(rng.uniform()), float(rng.normal()), next_state, i % 3 == 0)
+    with torch.no_grad():
+        for target in (agent.actor_target, agent.critic_target):
+            for parameter in target.parameters():
+                parameter.add_(0.05 * torch.randn_like(parameter))
+    stored = np.arange(len(agent.replay))
+    agent.replay.update_priorities(stored, rng.uniform(0.0, 2.0, stored.size))
+    before = copy.deepcopy(agent)
+
+    result = agent.update()
+
+    batch = before.replay.sample(config.batch_size, before.beta, before.rng)
+    assert 0 < batch.terminated.sum() < len(batch.terminated)  # both kinds in the batch
+    assert batch.weight.min() < 0.99  # the weights matter
+    state = before.state(torch.from_numpy(batch.state))
+    next_state = before.state(torch.from_numpy(batch.next_state))
+    with torch.no_grad():
+        next_q = before.critic_target(next_state, before.actor_target.normalised(next_state))
+        y = (
+            torch.from_numpy(batch.reward)
+            + 0.9 * (1.0 - torch.from_numpy(batch.terminated)) * next_q
+        )
+        q = before.critic(state, torch.from_numpy(batch.action))
+        loss = (torch.from_numpy(batch.weight) * (q - y) ** 2).mean()
+    assert result["critic"] == pytest.approx(float(loss), rel=1e-5)
+    assert result["beta"] == before.beta
+
+    expected = (np.abs((y - q).double().numpy()) + config.priority_eps) ** config.alpha
+    last = {int(i): k for k, i in enumerate(batch.index)}  # a repeated index keeps its last value
+    index = np.array(sorted(last))
+    assert np.allclose(agent.replay.tree.get(index), expected[[last[i] for i in index]], rtol=1e-6)
+
+    with torch.no_grad():  # the actor's loss on the critic after its step, at the old actor
+        logits = before.actor.logits(state)
+        actor_q = agent.critic(state, before.actor.normalised_from_logits(logits))
+        actor_loss = -actor_q.mean() + config.logit_penalty * (logits * logits).mean()
+    assert result["actor"] == pytest.approx(float(actor_loss), rel=1e-4)
+
+    for target, old, online in (
+        (agent.critic_target, before.critic_target, agent.critic),
+        (agent.actor_target, before.actor_target, agent.actor),
+    ):
+        for new, previous, source in zip(
+            target.parameters(), old.parameters(), online.parameters(), strict=True
+        ):
+            expected_target = (1 - config.tau) * previous + config.tau * source
+            assert torch.allclose(new, expected_target, atol=1e-7)
+    assert agent.updates == 1
+    for _ in range(4):
+        agent.update()
+    assert agent.beta == beta_at(5, config.beta_start, config.beta_end, config.beta_steps)
+    assert agent.beta > before.beta
