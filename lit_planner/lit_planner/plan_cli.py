@@ -90,7 +90,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--interpolation",
         choices=tuple(planning.INTERPOLATIONS),
         default=None,
-        help="tensor policy lookup (default: trilinear)",
+        help="tensor policy lookup (default: the one the sidecars name; trilinear for lit train exports)",
     )
     parser.add_argument(
         "--json", action="store_true", help="print one JSON object (null for infinite values)"
@@ -120,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
             max_iterations=args.iterations,
             max_batches=args.batches,
             tensors_dir=args.tensors,
-            interpolation=args.interpolation or "trilinear",
+            interpolation=args.interpolation,
         )
     except LitPlannerError as error:
         print(f"lit plan: {error}", file=sys.stderr)

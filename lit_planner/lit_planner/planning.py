@@ -134,7 +134,7 @@ def resolve_planner(planner: str, policy: str | None = None) -> tuple[str, str |
 def make_policy(
     name: str,
     tensors_dir: Path | str | None = None,
-    interpolation: str = "trilinear",
+    interpolation: str | None = None,
     callback: DecisionCallback | None = None,
 ) -> lit_core.ParameterPolicy:
     """The core's parameter policy called ``name``.
@@ -147,7 +147,8 @@ def make_policy(
             parameter fall back to its fixed value. The policy's ``decision_interval`` is the
             psi_K tensor's training interval (:func:`trained_decision_interval`), which
             :func:`plan` applies.
-        interpolation: ``trilinear`` or ``nearest`` lookup (``tensor`` only).
+        interpolation: ``trilinear`` or ``nearest`` lookup (``tensor`` only); None: the mode
+            the tensors' sidecars name (``lit train`` exports name ``trilinear``).
         callback: ``callback(context: lit_core.DecisionContext) -> float`` answering B or psi_K
             (``external`` only). The planner's clock is paused while it runs; an answer that is
             NaN or raises falls back to the fixed value and is counted in the policy's
@@ -174,7 +175,7 @@ def make_policy(
         if not callable(callback):
             raise PlannerError(f"the external policy's callback {callback!r} is not callable")
         return lit_core.ExternalPolicy(callback)
-    if interpolation not in INTERPOLATIONS:
+    if interpolation is not None and interpolation not in INTERPOLATIONS:
         raise PlannerError(
             f"unknown interpolation {interpolation!r}; expected one of {', '.join(INTERPOLATIONS)}"
         )
@@ -207,6 +208,18 @@ def make_policy(
     interval = 0
     if "psi_K" in tensors:
         interval = trained_decision_interval(folder / TENSOR_FILES["psi_K"])
+    if interpolation is None:
+        named = {
+            output: tensor_files.read_sidecar(folder / TENSOR_FILES[output]).interpolation
+            for output in tensors
+        }
+        if len(set(named.values())) > 1:
+            raise TensorFileError(
+                f"{folder}: the sidecars name different lookup modes "
+                f"({', '.join(f'{output}: {mode}' for output, mode in named.items())}); "
+                "choose one (interpolation=, --interpolation)"
+            )
+        interpolation = next(iter(named.values()))
     return lit_core.TensorPolicy(
         tensors.get("B"), tensors.get("psi_K"), INTERPOLATIONS[interpolation], interval
     )
@@ -257,10 +270,10 @@ class TensorPolicyCache:
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._policies: dict[tuple[str, str], tuple[tuple[object, ...], Any]] = {}
+        self._policies: dict[tuple[str, str | None], tuple[tuple[object, ...], Any]] = {}
 
     def get(
-        self, tensors_dir: Path | str | None = None, interpolation: str = "trilinear"
+        self, tensors_dir: Path | str | None = None, interpolation: str | None = None
     ) -> lit_core.ParameterPolicy:
         """:func:`make_policy` ``("tensor", tensors_dir, interpolation)``, from the cache while
         the folder's tensor files and sidecars are unchanged.
@@ -323,6 +336,15 @@ def load_tensor(path: Path, output: str) -> lit_core.LookupTensor:
     if len(sidecar.shape) != 3:
         raise TensorFileError(f"{path}: the sidecar's shape {sidecar.shape} is not 3-D")
     low, high = sidecar.value_range
+    spec = tensor_files.OUTPUTS[output]
+    limits = (spec.consequents[0], spec.consequents[-1])
+    if low < limits[0] or high > limits[1]:
+        # LIT* clamps every value to its limits: such a tensor would not be applied as trained.
+        raise TensorFileError(
+            f"{path}: its sidecar's value range [{low:g}, {high:g}] goes beyond LIT*'s {output} "
+            f"range [{limits[0]:g}, {limits[1]:g}], to which the planner clamps every value; "
+            "train with consequents inside it"
+        )
     try:
         tensor = lit_core.LookupTensor.load(str(path), list(sidecar.shape), low, high)
     except lit_core.TensorError as error:
@@ -344,7 +366,7 @@ def plan(
     listener: object | None = None,
     *,
     instance: int | None = None,
-    interpolation: str = "trilinear",
+    interpolation: str | None = None,
     check_path: bool = True,
     cancel: lit_core.CancelFlag | None = None,
 ) -> dict[str, Any]:

@@ -215,6 +215,35 @@ def test_tensor_policy_nearest_interpolation(tmp_path: Path) -> None:
         assert decision["value"] == pytest.approx(float(tf.lookup(k_values, x, "nearest")))
 
 
+def test_the_tensor_policy_uses_the_lookup_mode_its_sidecars_name(tmp_path: Path) -> None:
+    """The sidecar's ``interpolation`` is the tensor's default lookup mode (the schema says so);
+    the planner used trilinear whatever it said."""
+    nearest, trilinear = lit_core.Interpolation.nearest, lit_core.Interpolation.trilinear
+    values = tf.affine_test_tensor(*K_TENSOR_COEFFICIENTS)
+    tf.write_tensor(tmp_path / "k_tensor.npy", values, "psi_K", interpolation="nearest")
+    assert make_policy("tensor", tmp_path).interpolation == nearest
+    assert make_policy("tensor", tmp_path, interpolation="trilinear").interpolation == trilinear
+    assert plan("np4", policy="tensor", tensors_dir=tmp_path, max_iterations=ITERATIONS)[
+        "decisions"
+    ]
+    b_values = tf.affine_test_tensor(*tf.AFFINE_TEST_COEFFICIENTS)
+    tf.write_tensor(tmp_path / "b_tensor.npy", b_values, "B")  # trilinear: they disagree
+    with pytest.raises(TensorFileError, match="different lookup modes.*B: trilinear"):
+        make_policy("tensor", tmp_path)
+    assert make_policy("tensor", tmp_path, interpolation="nearest").interpolation == nearest
+
+
+def test_a_tensor_beyond_the_planners_range_is_refused(tmp_path: Path) -> None:
+    """LIT* clamps B to 20..200: a tensor trained with wider consequents would not be applied as
+    trained, silently."""
+    values = np.full(tf.TENSOR_SHAPE, 250.0, dtype=np.float32)
+    tf.write_tensor(tmp_path / "b_tensor.npy", values, "B", consequents=(10.0, 150.0, 300.0))
+    with pytest.raises(
+        TensorFileError, match=r"\[10, 300\] goes beyond LIT\*'s B range \[20, 200\]"
+    ):
+        make_policy("tensor", tmp_path)
+
+
 def test_missing_tensors_name_the_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     with pytest.raises(MissingTensorsError, match=f"{tmp_path}.*lit train"):
         make_policy("tensor", tmp_path)

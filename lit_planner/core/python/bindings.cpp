@@ -542,7 +542,8 @@ PYBIND11_MODULE(lit_core, m)
              py::arg("batch_tensor"), py::arg("neighbour_tensor"), py::arg("interpolation") = Interpolation::Trilinear,
              py::arg("decision_interval") = 0u,
              "decision_interval: the expansions per psi_K decision the psi_K tensor was trained with (0: not known)")
-        .def_property_readonly("decision_interval", &TensorPolicy::decisionInterval);
+        .def_property_readonly("decision_interval", &TensorPolicy::decisionInterval)
+        .def_property_readonly("interpolation", &TensorPolicy::interpolation);
     py::class_<ExternalPolicy, ParameterPolicy, std::shared_ptr<ExternalPolicy>>(m, "ExternalPolicy")
         .def(py::init([](py::function callback, bool decidesNeighbourFactor) {
                  auto holder = std::make_shared<py::function>(std::move(callback));

@@ -442,11 +442,13 @@ namespace lit
         if (done == fullCheck)
             return true;
         const unsigned int segments = segmentCount(from, to);
-        // Levels 1 .. done were checked and each held a point (a level without one ends the check: whitelisted).
-        for (unsigned int level = done + 1u; level <= depth; ++level)
+        // Levels 1 .. done were checked and each held a point (a level without one ends the check: whitelisted). An
+        // invalid point leaves the depth as it was (the edge is blacklisted).
+        unsigned int level = done;
+        while (level < depth)
         {
             std::size_t points = 0u;
-            if (!checkLevel(from, to, segments, 0u, segments, level, points))
+            if (!checkLevel(from, to, segments, 0u, segments, level + 1u, points))
                 return false;
             if (points == 0u)
             {
@@ -454,8 +456,9 @@ namespace lit
                 whitelist(from, to);
                 return true;
             }
-            done = level;
+            ++level;
         }
+        done = level;
         return true;
     }
 

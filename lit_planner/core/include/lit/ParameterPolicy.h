@@ -220,6 +220,11 @@ namespace lit
         {
             return decisionInterval_;
         }
+        /** \brief How lookups blend the grid's nodes. */
+        Interpolation interpolation() const
+        {
+            return interpolation_;
+        }
 
     private:
         std::shared_ptr<const LookupTensor> batchTensor_;
