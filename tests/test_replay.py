@@ -891,3 +891,20 @@ def test_episode_table_tells_custom_worlds_apart() -> None:
         ("custom2 (3 instances)", 3, 3)
     ]
     assert "| service | custom2 (3 instances) | litstar | tensor | 3 | 3 |" in table
+
+
+def test_a_killed_writer_loses_no_more_than_its_open_chunk(tmp_path: Path) -> None:
+    """``lit replay measure``'s crash trial: the writer is killed while it writes on; its
+    confirmed count is every write it reported (read from its pipe after the kill), so the loss
+    is never negative (it was, when the count stopped at the kill point) and at most one chunk."""
+    from lit_planner.bag import DEFAULT_CHUNK_BYTES
+
+    from lit_planner import bag_measure
+
+    per_chunk = DEFAULT_CHUNK_BYTES // bag_measure._text_bytes() + 1
+    for trial, target in enumerate((300, 1100)):
+        confirmed, recovered = bag_measure.crash_trial(
+            tmp_path / f"kill{trial}", target, DEFAULT_CHUNK_BYTES
+        )
+        assert confirmed >= target
+        assert 0 <= confirmed - recovered <= per_chunk, (confirmed, recovered)
