@@ -69,6 +69,14 @@ def test_bad_options_start_nothing(tmp_path: Path, options: list[str], message: 
         (["call", "--wait", "nan", "decide"], "--wait must be a positive number"),
         (["call", "decide", "--repeat", "0"], "--repeat must be 1 or more"),
         (["call", "plan", "--world", "/dev/null"], "/dev/null: not valid JSON"),
+        # These hung until a timeout, or failed with a traceback after the first part's 20 s.
+        (["system-bench", "--budget", "-1"], "--budget must be a positive number"),
+        (["system-bench", "--budget", "0"], "--budget must be a positive number"),
+        (["system-bench", "--seed", "-1"], "--seed must be between 0"),
+        (
+            ["system-bench", "--scenarios", "foo", "--calls", "0", "--kills", "0"],
+            "--scenarios foo:",
+        ),
     ],
 )
 def test_demo_and_call_refuse_bad_options_before_starting(
@@ -192,3 +200,36 @@ def test_lit_call_names_a_service_of_another_type() -> None:
             server.wait()
         if lock is not None:
             lock.close()
+
+
+def test_sigterm_stops_system_bench_in_order(tmp_path: Path) -> None:
+    """SIGTERM killed lit system-bench at once (exit 143), leaving its folder and, for a moment,
+    its nodes; now it stops them as Ctrl-C does."""
+    import signal
+    import time
+
+    from ros_helpers import launcher_domain
+
+    domain = launcher_domain()  # claimed by lit system-bench itself
+    process = subprocess.Popen(
+        [sys.executable, "-m", "lit_planner.cli", "system-bench", "--domain-id", str(domain),
+         "--calls", "1000000", "--episodes", "0", "--kills", "0"],
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", TMPDIR=str(tmp_path)),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert process.stdout is not None
+        deadline = time.monotonic() + 120
+        for line in process.stdout:  # the round trips have begun: the nodes are up
+            if line.startswith("## Decide round trip") or time.monotonic() > deadline:
+                break
+        time.sleep(2.0)
+        process.send_signal(signal.SIGTERM)
+        _, err = process.communicate(timeout=120)
+        assert process.returncode == 130, err
+        assert "lit system-bench: interrupted" in err and "Traceback" not in err
+        assert not [p for p in tmp_path.iterdir() if p.name.startswith("lit-system-bench-")]
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()

@@ -30,10 +30,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``lit replay measure``."""
     from lit_planner.bag import DEFAULT_CHUNK_BYTES
 
-    parser.add_argument("--messages", type=int, default=100_000, help="write-rate messages")
-    parser.add_argument("--kills", type=int, default=5, help="crash trials (SIGKILL)")
-    parser.add_argument("--chunk-bytes", type=int, default=DEFAULT_CHUNK_BYTES)
-    parser.add_argument("--seed", type=int, default=1, help="seed of the kill points")
+    parser.add_argument(
+        "--messages", type=int, default=100_000, help="write-rate messages (default: %(default)s)"
+    )
+    parser.add_argument(
+        "--kills", type=int, default=5, help="crash trials (SIGKILL; default: %(default)s)"
+    )
+    parser.add_argument(
+        "--chunk-bytes",
+        type=int,
+        default=DEFAULT_CHUNK_BYTES,
+        help="bag chunk size (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--seed", type=int, default=1, help="seed of the kill points (default: %(default)s)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
 import signal
 import subprocess
@@ -33,7 +34,7 @@ import numpy as np
 
 from lit_planner.echo_node import ECHO_SERVICE
 from lit_planner.rosutil import add_domain_option, resolve_domain_id
-from lit_planner.up import DomainBusy, System, claim_domain
+from lit_planner.up import DomainBusy, System, claim_domain, stop_on_sigterm
 
 DEFAULT_DOMAIN_ID = 94
 _LOG_STAMP = re.compile(r"\[(?:WARN|INFO|ERROR)\] \[(\d+\.\d+)\]")
@@ -42,15 +43,35 @@ _LOG_STAMP = re.compile(r"\[(?:WARN|INFO|ERROR)\] \[(\d+\.\d+)\]")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``lit system-bench``."""
     parser.add_argument(
-        "--episodes", type=_count, default=12, help="episodes per policy (0: skip part 2)"
+        "--episodes",
+        type=_count,
+        default=12,
+        help="episodes per policy (0: skip part 2; default: %(default)s)",
     )
-    parser.add_argument("--budget", type=float, default=0.3, help="planner seconds per episode")
-    parser.add_argument("--scenarios", default="np4,np8,rrd4,rrd8", help="training mix")
-    parser.add_argument("--seed", type=int, default=7, help="seed of the episode draws")
     parser.add_argument(
-        "--calls", type=_count, default=2000, help="decide round trips per agent (0: skip part 1)"
+        "--budget",
+        type=float,
+        default=0.3,
+        help="planner seconds per episode (default: %(default)s)",
     )
-    parser.add_argument("--kills", type=_count, default=3, help="learner SIGKILLs (0: skip part 3)")
+    parser.add_argument(
+        "--scenarios", default="np4,np8,rrd4,rrd8", help="training mix (default: %(default)s)"
+    )
+    parser.add_argument(
+        "--seed", type=int, default=7, help="seed of the episode draws (default: %(default)s)"
+    )
+    parser.add_argument(
+        "--calls",
+        type=_count,
+        default=2000,
+        help="decide round trips per agent (0: skip part 1; default: %(default)s)",
+    )
+    parser.add_argument(
+        "--kills",
+        type=_count,
+        default=3,
+        help="learner SIGKILLs (0: skip part 3; default: %(default)s)",
+    )
     add_domain_option(parser, DEFAULT_DOMAIN_ID)
 
 
@@ -68,11 +89,16 @@ def run(args: argparse.Namespace) -> int:
         print("lit system-bench: --calls, --episodes and --kills are all 0: nothing to measure",
               file=sys.stderr)  # fmt: skip
         return 2
-    try:
-        args.domain_id = resolve_domain_id(args.domain_id, DEFAULT_DOMAIN_ID)
-    except ValueError as error:
-        print(f"lit system-bench: {error}", file=sys.stderr)
+    problem = _check(args)
+    if problem is None:
+        try:
+            args.domain_id = resolve_domain_id(args.domain_id, DEFAULT_DOMAIN_ID)
+        except ValueError as error:
+            problem = str(error)
+    if problem is not None:
+        print(f"lit system-bench: {problem}", file=sys.stderr)
         return 2
+    stop_on_sigterm()  # the finally below stops the nodes in order and removes the folder
     try:
         claim = claim_domain(args.domain_id, "lit system-bench")
     except DomainBusy as error:
@@ -92,6 +118,28 @@ def run(args: argparse.Namespace) -> int:
         finally:
             system.stop()
     return 0
+
+
+def _check(args: argparse.Namespace) -> str | None:
+    """What is wrong with the options, found before any process starts (a bad value used to
+    hang the run until a timeout, or to fail with a traceback after the first part); None when
+    fine."""
+    from lit_learner.train import TrainingDistribution, TrainingError
+
+    from lit_planner import scenarios
+    from lit_planner.errors import LitPlannerError
+    from lit_planner.planning import MAX_SEED
+
+    if args.episodes or args.kills:  # the parts that plan
+        if not (math.isfinite(args.budget) and args.budget > 0):
+            return f"--budget must be a positive number of seconds, got {args.budget}"
+        if not 0 <= args.seed < MAX_SEED:  # the tensor part draws with --seed + 1
+            return f"--seed must be between 0 and {MAX_SEED - 1}, got {args.seed}"
+        try:
+            TrainingDistribution(scenarios.split_names(args.scenarios), None)
+        except (LitPlannerError, TrainingError) as error:
+            return f"--scenarios {args.scenarios}: {error}"
+    return None
 
 
 def _decide_round_trips(system: System, args: argparse.Namespace) -> None:
