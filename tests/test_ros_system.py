@@ -856,13 +856,15 @@ def test_sigterm_cuts_a_long_query_short_and_answers_the_waiting_ones(ros: RosSy
     recording = ros.recorder(["/lit/solution"])
     planner = ros.planner()
     _ready(planner)
-    running = ros.call_start("--payload-only", "plan", "--scenario", "np8",
+    # --wait 60: the default 15 s to find the service was not always enough on a loaded
+    # machine, and the test then waited in vain for the solution.
+    running = ros.call_start("--wait", "60", "--payload-only", "plan", "--scenario", "np8",
                              "--time", "600", "--request-id", "long")  # fmt: skip
     recording.wait_until(  # it runs: its first solution came
         "/lit/solution", lambda found: len(found) >= 1, timeout=120.0, what="a first solution",
-        watch=[planner],
+        watch=[planner, running],
     )  # fmt: skip
-    queued = ros.call_start("--payload-only", "plan", "--scenario", "np4",
+    queued = ros.call_start("--wait", "60", "--payload-only", "plan", "--scenario", "np4",
                             "--time", "600", "--request-id", "queued")  # fmt: skip
     planner.wait_for_log(r"plan request queued waits behind 1", timeout=120.0)
     assert ros.stop(planner, signal.SIGTERM, timeout=60.0) == 0, planner.tail()

@@ -32,6 +32,12 @@ import pytest
         (["--learner-param", "fresh:=maybe"], "fresh:=maybe: fresh takes true or false"),
         (["--planner-param", "queue_limit:=010"], "takes a whole number (no leading zeros)"),
         (["--planner-param", "scenario:="], "scenario takes text that is not empty"),
+        # Values as the node checks them (these started every process, then the node exited).
+        (["--planner-param", "policy:=foo"], "--planner-param: policy must be one of"),
+        (["--planner-param", "decision_timeout:=0"], "decision_timeout must be a positive"),
+        (["--planner-param", "training_scenarios:=zz4"], "training_scenarios 'zz4': "),
+        (["--learner-param", "train:=everything"], "--learner-param: train must be both"),
+        (["--learner-param", "stats_period:=-1"], "stats_period must be a positive"),
         (["--checkpoint", "EXISTING"], "a folder; give the checkpoint file"),
         (["--bag", "EXISTING"], "exists already"),
         (["--bag", "NEW", "--no-record"], "--bag and --no-record contradict each other"),
@@ -95,7 +101,12 @@ def test_demo_and_call_refuse_bad_options_before_starting(
 
 @pytest.mark.parametrize(
     "command",
-    [["demo"], ["up", "--no-record"], ["system-bench", "--calls", "1", "--episodes", "0"]],
+    [
+        ["demo"],
+        ["up", "--no-record"],
+        ["system-bench", "--calls", "1", "--episodes", "0"],
+        ["call", "--wait", "1", "export"],  # an rclpy traceback, or Fast DDS's errors, exit 1
+    ],
 )
 def test_a_bad_ros_domain_id_in_the_environment_is_named(
     tmp_path: Path, command: list[str]

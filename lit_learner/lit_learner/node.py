@@ -26,11 +26,12 @@ from __future__ import annotations
 import collections
 import contextlib
 import json
+import math
 import os
 import sys
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -87,6 +88,23 @@ MESSAGE_SCHEMAS = (
 """The messages the learner node reads and writes (their validators are built at start-up)."""
 
 
+def parameter_problem(p: Mapping[str, Any]) -> str | None:
+    """What is wrong with the node's parameter values (``p`` holds every parameter), None when
+    they are usable. The node exits with it at start; ``lit up`` asks before it starts anything."""
+    if p["train"] not in ("both", "B", "psi_K"):
+        return f"train must be both, B or psi_K, not {p['train']!r}"
+    for name in ("checkpoint_every", "max_episodes", "seed"):
+        if p[name] < 0:
+            return f"{name} must be 0 or more, got {p[name]}"
+    if not p["checkpoint_period"] >= 0:  # also NaN
+        return f"checkpoint_period must be 0 or more seconds, got {p['checkpoint_period']}"
+    if not (math.isfinite(p["stats_period"]) and p["stats_period"] > 0):
+        return f"stats_period must be a positive number of seconds, got {p['stats_period']}"
+    if not p["checkpoint"]:
+        return "checkpoint must name a file"
+    return None
+
+
 class LearnerNode:
     """Owns the ROS node and the :class:`~lit_learner.core.LearnerCore`."""
 
@@ -104,6 +122,9 @@ class LearnerNode:
         for name, default in PARAMETERS.items():
             node.declare_parameter(name, default)
             p[name] = node.get_parameter(name).value
+        problem = parameter_problem(p)
+        if problem is not None:
+            raise SystemExit(f"lit_learner_node: {problem}")
         self.params = p
         self.run_id = p["run_id"] or time.strftime("learner-%Y%m%d-%H%M%S")
         self.source = node.get_fully_qualified_name()
@@ -224,8 +245,6 @@ class LearnerNode:
                 self.log.info(f"{len(abandoned)} episodes open in the checkpoint abandoned")
             return core
         train = p["train"]
-        if train not in ("both", "B", "psi_K"):
-            raise SystemExit(f"lit_learner_node: train must be both, B or psi_K, not {train!r}")
         config = LearnerConfig(
             seed=int(p["seed"]), train_b=train in ("both", "B"), train_k=train in ("both", "psi_K")
         )

@@ -35,6 +35,7 @@ from lit_planner.rosutil import (
     EXPORT_SERVICE,
     PLAN_SERVICE,
     ServiceCaller,
+    domain_id,
     freeze_startup_objects,
     localhost_environment,
     native_output_to_stderr,
@@ -166,6 +167,12 @@ def run(args: argparse.Namespace) -> int:
                 raise ValueError(f"{label} must be a positive number of seconds, got {value}")
         if getattr(args, "repeat", 1) < 1:
             raise ValueError(f"--repeat must be 1 or more, got {args.repeat}")
+        text = os.environ.get("ROS_DOMAIN_ID", "").strip()
+        if text:  # rclpy's traceback, or Fast DDS's port errors and exit 1, otherwise
+            try:
+                domain_id(text)
+            except argparse.ArgumentTypeError as error:
+                raise ValueError(f"$ROS_DOMAIN_ID: {error}") from None
         name, text = _request(args)
         if args.timeout is None:  # a long plan must not time out on the client's side for sure
             plan_time = json.loads(text)["payload"].get("time") if args.service == "plan" else None

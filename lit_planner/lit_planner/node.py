@@ -49,7 +49,7 @@ import sys
 import threading
 import time
 import uuid
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -112,6 +112,50 @@ INVALID_TERMINAL = {"invalid_start": "start", "invalid_goal": "goal"}
 """Core statuses that mean the request gave an unusable start or goal."""
 
 
+def parameter_problem(p: Mapping[str, Any]) -> str | None:
+    """What is wrong with the node's parameter values (``p`` holds every parameter), None when
+    they are usable. The node exits with it at start; ``lit up`` asks before it starts anything."""
+    from lit_learner.train import TrainingDistribution, TrainingError
+
+    from lit_planner import scenarios
+    from lit_planner.errors import LitPlannerError
+    from lit_planner.planning import MAX_SEED
+
+    if p["policy"] not in MODES:
+        return f"policy must be one of {MODES}, got {p['policy']!r}"
+    if p["decision_interval"] < 0:
+        return (
+            "decision_interval must be 0 (training: 1; the tensor policy: the psi_K tensor's "
+            f"training interval) or more, got {p['decision_interval']}"
+        )
+    if p["episodes_from"] not in ("", "training", "scenario"):
+        return f"episodes_from must be training, scenario or empty, got {p['episodes_from']!r}"
+    for name in ("time_budget", "episodes", "queue_limit", "wait_for_subscribers"):
+        if not p[name] >= 0:  # also NaN
+            return f"{name} must be 0 or more, got {p[name]}"
+    for name in ("learner_retry", "learner_wait"):
+        if not (math.isfinite(p[name]) and p[name] >= 0):
+            return f"{name} must be 0 or more seconds, got {p[name]}"
+    for name in ("decision_timeout", "first_decision_timeout"):
+        if not (math.isfinite(p[name]) and p[name] > 0):
+            return f"{name} must be a positive number of seconds, got {p[name]}"
+    for name in ("seed", "training_seed"):
+        if not 0 <= p[name] <= MAX_SEED:
+            return f"{name} must be between 0 and {MAX_SEED}, got {p[name]}"
+    if p["episodes"] > 0:  # the only use of scenario and training_scenarios
+        training = p["policy"] == "training"
+        drawn = p["episodes_from"] == "training" or (training and p["episodes_from"] != "scenario")
+        name = "training_scenarios" if drawn else "scenario"
+        try:
+            if drawn:
+                TrainingDistribution(scenarios.split_names(p[name]), None)
+            else:
+                scenarios.get(p[name])
+        except (LitPlannerError, TrainingError) as error:
+            return f"{name} {p[name]!r}: {error}"
+    return None
+
+
 @dataclass
 class Job:
     """One query for the worker: a plan request (service) or an episode (training/inference)."""
@@ -154,20 +198,9 @@ class PlannerNode:
         self.log = node.get_logger()
         p = self._declare(**PARAMETERS)
         self.params = p
-        if p["policy"] not in MODES:
-            raise SystemExit(
-                f"lit_planner_node: policy must be one of {MODES}, got {p['policy']!r}"
-            )
-        if p["decision_interval"] < 0:
-            raise SystemExit(
-                "lit_planner_node: decision_interval must be 0 (training: 1; the tensor policy: "
-                f"the psi_K tensor's training interval) or more, got {p['decision_interval']}"
-            )
-        if p["episodes_from"] not in ("", "training", "scenario"):
-            raise SystemExit(
-                "lit_planner_node: episodes_from must be training, scenario or empty, got "
-                f"{p['episodes_from']!r}"
-            )
+        problem = parameter_problem(p)
+        if problem is not None:
+            raise SystemExit(f"lit_planner_node: {problem}")
         self.run_id = p["run_id"] or f"{time.strftime('%Y%m%d-%H%M%S')}-{uuid.uuid4().hex[:6]}"
         self.source = node.get_fully_qualified_name()
         self.finished = False

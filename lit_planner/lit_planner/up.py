@@ -399,7 +399,47 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
         return f"--scenario {args.scenario}: {error}"
     if bag is not None and bag.exists():
         return f"bag {bag} exists already; choose another --bag or --run-id"
+    # The values each node will see (its defaults, what lit up sets, what was given), checked as
+    # the node checks them: a bad one ended the node after everything had started.
+    planner = {
+        **planner_node.PARAMETERS,
+        "policy": args.policy,
+        "episodes": args.episodes,
+        "time_budget": args.time_budget,
+        **_given_values(args.planner_param, planner_node.PARAMETERS),
+    }
+    learner = {
+        **learner_node.PARAMETERS,
+        **_given_values(args.learner_param, learner_node.PARAMETERS),
+    }
+    for option, problem in (
+        ("--planner-param", planner_node.parameter_problem(planner)),
+        ("--learner-param", learner_node.parameter_problem(learner)),
+    ):
+        if problem is not None:
+            return f"{option}: {problem}"
     return None
+
+
+def _given_values(items: Sequence[str], known: dict[str, Any]) -> dict[str, Any]:
+    """The values that the ``NAME:=VALUE`` items of known parameters give, with the type of each
+    default (the items passed :func:`_typed_params`)."""
+    values: dict[str, Any] = {}
+    for name, text in _params(items).items():
+        if name not in known:
+            continue
+        default, word = known[name], text.strip()
+        if isinstance(default, bool):
+            values[name] = _BOOLEAN_WORDS[word.lower()]
+        elif isinstance(default, int):
+            values[name] = int(word)
+        elif isinstance(default, float):
+            values[name] = float(word)
+        elif len(word) >= 2 and word[0] == word[-1] and word[0] in "'\"":
+            values[name] = word[1:-1]
+        elif word or default != "":
+            values[name] = text
+    return values
 
 
 def run(args: argparse.Namespace) -> int:
