@@ -866,7 +866,10 @@ def _shown(value: Any) -> str:
 
 
 def _check_folders(args: argparse.Namespace) -> None:
-    """Refuse, before any training, folders that cannot be written (a file in the way)."""
+    """Refuse, before any training, folders that cannot be written (a file in the way, no write
+    permission): found after the training, they cost the run's export."""
+    from lit_planner.bag import write_problem
+
     for label, value in (
         ("--out", args.out),
         ("--export", args.export),
@@ -874,11 +877,9 @@ def _check_folders(args: argparse.Namespace) -> None:
     ):
         if value is None:
             continue
-        for folder in (Path(value), *Path(value).parents):
-            if folder.exists():
-                if not folder.is_dir():
-                    raise TrainingError(f"{label} {value}: {folder} is a file, not a folder")
-                break
+        problem = write_problem(value)
+        if problem is not None:
+            raise TrainingError(f"{label} {value}: {problem}")
     if args.export is not None and Path(args.export).is_dir() and any(Path(args.export).iterdir()):
         # Found now, not after an hour of training; an export never replaces another one (the
         # shipped tensors in tensors/ included) nor mixes with files that describe something else.

@@ -426,6 +426,26 @@ def output_folder_problem(path: Path) -> str | None:
     return None
 
 
+def write_problem(path: str | Path) -> str | None:
+    """Why a folder (or a file) cannot be created at ``path``: the nearest existing folder on its
+    way is a file, or cannot be written (tried: a probe folder is made and removed there, which
+    also catches what permission bits do not show, such as ``/proc`` for root). None when it
+    can. For a command to ask before its work rather than fail at its end."""
+    import os
+    import tempfile
+
+    ancestor = Path(path).absolute()
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        return f"{ancestor} is a file, not a folder"
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".lit-write-probe-", dir=ancestor))
+    except OSError as error:
+        return f"cannot write in {ancestor} ({error.strerror or error})"
+    return None
+
+
 def default_bag_root() -> Path:
     """The repository's ``bags/`` folder (beside the ``lit_planner`` package folder)."""
     return _ROOT / "bags"

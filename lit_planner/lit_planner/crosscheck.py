@@ -110,6 +110,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """``lit crosscheck``: 0 all valid and agreeing, 1 otherwise, 2 bad input or worker failure."""
+    from lit_planner.bag import write_problem
+
+    if args.json:
+        json_path = Path(args.json)
+        problem = "a folder" if json_path.is_dir() else write_problem(json_path.parent)
+        if problem is not None:  # asked now, not after the runs
+            print(f"lit crosscheck: --json {args.json}: {problem}", file=sys.stderr)
+            return 2
     try:
         names = scenarios.split_names(args.scenarios)
         planners = scenarios.split_names(args.planners)

@@ -37,6 +37,8 @@ DEMO_DOMAIN_ID = 91
 """Default ROS domain of the demo (its own, so it does not meet a running ``lit up``)."""
 MAX_TRAINING_BUDGET = 3600.0
 """Largest ``--training-budget`` (the messages' limit on a time budget)."""
+DISTRIBUTED_DEFAULTS = {"training_episodes": 4, "training_budget": 0.3, "plans": 3}
+"""Defaults of the options of the ROS demo alone (``--local`` refuses them)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -59,18 +61,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--training-episodes",
         type=int,
-        default=4,
         metavar="N",
-        help="training episodes over ROS before the plans (default: %(default)s; 0: none)",
+        help="training episodes over ROS before the plans (default: 4; 0: none)",
     )
     parser.add_argument(
         "--training-budget",
         type=float,
-        default=0.3,
         metavar="SECONDS",
-        help="planner time of each training episode (default: %(default)s)",
+        help="planner time of each training episode (default: 0.3)",
     )
-    parser.add_argument("--plans", type=int, default=3, help="inference plans (default 3)")
+    parser.add_argument("--plans", type=int, help="inference plans (default: 3)")
     add_domain_option(parser, DEMO_DOMAIN_ID)
     parser.add_argument(
         "--out",
@@ -84,6 +84,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the demo; 0 when every inference plan is solved and its path passes the re-check."""
     try:
+        given = [
+            "--" + name.replace("_", "-")
+            for name in (*DISTRIBUTED_DEFAULTS, "out", "domain_id")
+            if getattr(args, name) is not None
+        ]
+        if args.local and given:  # they were ignored
+            raise LitPlannerError(
+                f"--local plans once in this process, without ROS: {', '.join(given)} "
+                "apply to the ROS demo only"
+            )
+        for name, default in DISTRIBUTED_DEFAULTS.items():
+            if getattr(args, name) is None:
+                setattr(args, name, default)
         scenario = scenarios.get(args.scenario)
         planning.check_seed(args.seed)
         if args.time is not None and not (math.isfinite(args.time) and args.time > 0):
@@ -104,6 +117,11 @@ def run(args: argparse.Namespace) -> int:
                 args.domain_id = resolve_domain_id(args.domain_id, DEMO_DOMAIN_ID)
             except ValueError as error:
                 raise LitPlannerError(str(error)) from None
+            from lit_planner.bag import write_problem
+
+            problem = None if args.out is None else write_problem(args.out)
+            if problem is not None:  # the recorder found it after the start, in a traceback
+                raise LitPlannerError(f"--out {args.out}: {problem}")
     except LitPlannerError as error:
         print(f"lit demo: {error}", file=sys.stderr)
         return plan_cli.EXIT_BAD_INPUT
