@@ -644,6 +644,13 @@ def test_an_unknown_planner_parameter_is_a_planner_error_naming_the_known_ones(
         planning.plan("np4", "litstar", "fixed", time=0.05, params={"batch_size": "many"})
     with pytest.raises(PlannerError, match=r"aitstar has no parameter 'nosuch'"):
         planning.plan("np4", "aitstar", time=0.05, params={"nosuch": 1})
+    # A real-valued parameter: OMPL's conversion threw, a RuntimeError naming nothing.
+    for planner in ("litstar", "bitstar"):
+        with pytest.raises(PlannerError, match=rf"{planner} rejected the value 'x' of its "):
+            planning.plan("np4", planner, time=0.05, params={"rewire_factor": "x"})
+    # An unsigned one took -3 as 4294967293.
+    with pytest.raises(PlannerError, match=r"'batch_size': it was stored as 4294967293"):
+        planning.plan("np4", "litstar", "fixed", time=0.05, params={"batch_size": "-3"})
     # checked before OMPL's setParam, which would print an error line of its own
     assert "was not found" not in capfd.readouterr().err
 

@@ -26,6 +26,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <map>
 #include <algorithm>
 #include <atomic>
@@ -243,9 +244,28 @@ namespace
                     throw py::value_error("planner " + plannerName + " has no parameter '" + key +
                                           "'; its parameters: " + known);
                 }
-                if (!planner->params().setParam(key, value))
-                    throw py::value_error("planner " + plannerName + " rejected the value '" + value +
-                                          "' of its parameter '" + key + "'");
+                const std::string rejected =
+                    "planner " + plannerName + " rejected the value '" + value + "' of its parameter '" + key + "'";
+                bool accepted = false;
+                try
+                {
+                    accepted = planner->params().setParam(key, value);
+                }
+                catch (const std::exception &error)  // OMPL converts with boost::lexical_cast, which throws
+                {
+                    throw py::value_error(rejected + ": " + error.what());
+                }
+                if (!accepted)
+                    throw py::value_error(rejected);
+                // An unsigned parameter takes "-3" as 4294967293: a number must read back as the number given.
+                const std::string stored = planner->params()[key].getValue();
+                char *valueEnd = nullptr, *storedEnd = nullptr;
+                const double given = std::strtod(value.c_str(), &valueEnd);
+                const double kept = std::strtod(stored.c_str(), &storedEnd);
+                if (valueEnd != value.c_str() && *valueEnd == '\0' && storedEnd != stored.c_str() && *storedEnd == '\0' &&
+                    std::isfinite(given) && !(std::abs(kept - given) <= 1e-9 * std::max(1.0, std::abs(given))))
+                    throw py::value_error(rejected + ": it was stored as " + stored +
+                                          " (outside the range of the parameter's type)");
             }
             planner->setProblemDefinition(problem.pdef);
 
