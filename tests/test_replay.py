@@ -598,6 +598,22 @@ def test_bench_replay_of_a_damaged_record_says_the_tables_are_incomplete(tmp_pat
     assert summary.startswith("> **Incomplete:** 1 of the 2 planned run records"), summary[:300]
 
 
+def test_bench_replay_of_a_bag_without_records_warns_and_writes_nothing(tmp_path: Path) -> None:
+    """A bench interrupted before its first scenario finished leaves its configuration and no
+    record: that was exit 2 (bad input) with 'nor any EpisodeSummary of a ROS run'."""
+    copy = _sample_copy(tmp_path, "no-records")
+    mcap_file = next(copy.glob("*.mcap"))
+    data = mcap_file.read_bytes().replace(
+        b'{"schema": "lit_msgs_json/BenchRun"', b'X"schema": "lit_msgs_json/BenchRun"'
+    )
+    mcap_file.write_bytes(data)
+    result = _replay("bench", copy, "--out", tmp_path / "out")
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "the benchmark's configuration is there, none of its records" in result.stderr
+    assert "nothing to tabulate" in result.stderr and "Traceback" not in result.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_compact_keeps_every_message_and_compresses(mixed_bag: Path, tmp_path: Path) -> None:
     from mcap.reader import make_reader
     from rosbags.rosbag2 import Reader

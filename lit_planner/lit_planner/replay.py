@@ -79,7 +79,12 @@ class ReplayError(LitPlannerError, ValueError):
 
 
 class NotBenchBagError(ReplayError):
-    """A readable bag without the config or the run records of a ``lit bench`` run."""
+    """A readable bag without the config of a ``lit bench`` run."""
+
+
+class EmptyBenchBagError(ReplayError):
+    """A ``lit bench`` bag with its config but no run record (interrupted before its first
+    scenario finished): nothing to tabulate, but not bad input."""
 
 
 # --- Reading bags ----------------------------------------------------------------------------
@@ -1351,7 +1356,8 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
     Raises:
         ReplayError: a bag given twice, configs that differ between bags, or two different
             records under the same run id and seq.
-        NotBenchBagError: a bag without BenchConfig, or no run record at all.
+        NotBenchBagError: a bag without BenchConfig.
+        EmptyBenchBagError: BenchConfig but no usable run record.
     """
     from lit_msgs_json import codec
 
@@ -1405,8 +1411,11 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
             duplicates.append(f"{where} in {path}")
     assert config is not None
     if not runs:
-        raise NotBenchBagError(
-            f"no usable {bag.BENCH_RUN_TOPIC} record in {', '.join(map(str, paths))}"
+        raise EmptyBenchBagError(
+            f"no usable {bag.BENCH_RUN_TOPIC} record in {', '.join(map(str, paths))}: the "
+            "benchmark's configuration is there, none of its records (a run stopped before its "
+            f"first scenario finished, or damage; {skipped.total} messages skipped); nothing to "
+            "tabulate"
         )
     publishers: dict[tuple[int, str, str, str], list[int]] = {}
     for started, topic, source, run_id, seq in first_seen:
@@ -1784,6 +1793,9 @@ def _bench(args: argparse.Namespace) -> int:
         _check_new_folder(out, f"--out {out}")
     try:
         summary, recorded = replay_bench(args.bags, Path(out))
+    except EmptyBenchBagError as error:
+        print(f"{PROG} bench: warning: {error}", file=sys.stderr)
+        return 1
     except NotBenchBagError as error:
         # Not a lit bench bag: summarise the planning queries of a ROS run (lit up, lit demo).
         summaries = read_episode_summaries(args.bags)
