@@ -924,3 +924,20 @@ def test_a_killed_writer_loses_no_more_than_its_open_chunk(tmp_path: Path) -> No
         )
         assert confirmed >= target
         assert 0 <= confirmed - recovered <= per_chunk, (confirmed, recovered)
+
+
+def test_a_reader_that_left_is_not_an_error(tmp_path: Path) -> None:
+    """`lit replay info BAG | head -1`: the reader gone printed 'lit replay: error:
+    BrokenPipeError' with exit 2 (bad input); now exit 141, as a shell reports SIGPIPE."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # the first write fails at once
+    try:
+        result = subprocess.run(
+            [sys.executable, "-m", "lit_planner.cli", "replay", "info", str(SAMPLE)],
+            cwd=ROOT, env=ENV, stdout=write_end, stderr=subprocess.PIPE, text=True,
+            timeout=120, check=False,
+        )  # fmt: skip
+    finally:
+        os.close(write_end)
+    assert result.returncode == 141, result.stderr
+    assert "error" not in result.stderr and "Traceback" not in result.stderr

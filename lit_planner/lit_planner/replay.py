@@ -1567,6 +1567,8 @@ def run(args: argparse.Namespace) -> int:
     except ReplayError as error:
         print(f"{PROG}: error: {error}", file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        raise  # `lit replay info BAG | head -1`: the reader left; lit's main handles it
     except Exception as error:  # bad input must never end in a traceback
         if os.environ.get("LIT_REPLAY_DEBUG"):
             raise
