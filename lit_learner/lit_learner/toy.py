@@ -489,7 +489,8 @@ def _summary(
                 f"{len(curves)}."
             ),
         ]
-    lines += ["", f"Files: {out / CURVES_FILE}, {out / CONSTANTS_FILE}, {out / PLOT_FILE}."]
+    files = (CURVES_FILE, CONSTANTS_FILE, PLOT_FILE, SUMMARY_FILE)
+    lines += ["", f"Files: {', '.join(str(out / name) for name in files)} (this summary)."]
     return "\n".join(lines)
 
 

@@ -95,7 +95,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--planners",
         default=",".join(OMPL2_PLANNERS),
-        help="OMPL 2.0.1 planners, comma-separated (default: %(default)s)",
+        help="OMPL 2.0.1 planners, comma-separated, of bitstar and irrtstar (default: %(default)s)",
     )
     parser.add_argument(
         "--tolerance",
