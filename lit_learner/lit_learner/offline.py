@@ -356,5 +356,12 @@ def _replay_episode(core: Any, episode: RecordedEpisode) -> None:
             improvements=int(summary["improvements"]),
             path_states=int(summary["path_states"]),
             truncated=time >= budget * (1.0 - BUDGET_TOLERANCE),
+            # Version 3 summaries carry them (as the live EpisodeEnd did); older ones close each
+            # agent's last step with its last request's features.
+            final_features={
+                agent: tuple(values) for agent, values in summary["final_features"].items()
+            }
+            if summary.get("final_features")
+            else None,
         )
     )

@@ -107,6 +107,24 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path
 
     assert recorded_decision_interval([bag]).value == 10  # the bag names its interval
     assert all(e.summary is not None and e.summary["mode"] == "training" for e in episodes)
+    # Each summary carries the final features the live EpisodeEnd had, and the offline replay
+    # closes the episode with them (it used the last request's features: s' = s).
+    from lit_learner import offline
+
+    ends: list[Any] = []
+
+    class Capture:
+        def record(self, *_: object) -> None:
+            pass
+
+        def end_episode(self, end: object) -> None:
+            ends.append(end)
+
+    for episode in episodes:
+        final = episode.summary["final_features"]
+        assert set(final) == {"B", "psi_K"} and all(0 <= v <= 1 for f in final.values() for v in f)
+        offline._replay_episode(Capture(), episode)
+        assert ends[-1].final_features == {k: tuple(v) for k, v in final.items()}
     sources = {d["source"] for e in episodes for d in e.decisions}
     assert sources == {"learner", "tensor"}  # psi_K phase: B from the B-phase tensor
     assert (run_dir / train.B_PHASE_TENSORS / "b_tensor.npy").exists()

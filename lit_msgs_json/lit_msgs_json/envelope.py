@@ -54,7 +54,7 @@ MESSAGE_VERSIONS: dict[str, int] = {
     "Observation": 1,
     "Decision": 1,
     "SolutionUpdate": 1,
-    "EpisodeSummary": 2,
+    "EpisodeSummary": 3,
     "LearnerStats": 1,
     "Error": 1,
 }
@@ -68,8 +68,9 @@ OLDER_VERSIONS: dict[str, dict[int, tuple[str, ...]]] = {
     # version 2 (2026-11-30): the planner's fallback marks, for the learner's pairing
     "DecideRequest": {1: ("after_fallback",)},
     "EpisodeEnd": {1: ("fallback_agents",)},
-    # version 2 (2026-12-02): the world of a custom scenario, for lit replay verify
-    "EpisodeSummary": {1: ("world",)},
+    # version 2 (2026-12-02): the world of a custom scenario, for lit replay verify; version 3
+    # (2026-12-03): a training query's final features, for lit replay tensors
+    "EpisodeSummary": {1: ("world", "final_features"), 2: ("final_features",)},
 }
 """Older versions a receiver still decodes, by short name: for each, the payload fields that
 version did not have. Such a message is checked against the current schema and must not carry

@@ -287,7 +287,7 @@ def test_message_versions_name_every_message_schema() -> None:
     assert {name: v for name, v in MESSAGE_VERSIONS.items() if v != 1} == {
         "DecideRequest": 2,
         "EpisodeEnd": 2,
-        "EpisodeSummary": 2,  # the world of a custom scenario
+        "EpisodeSummary": 3,  # the world of a custom scenario; a training query's final features
     }
     assert set(OLDER_VERSIONS) <= set(MESSAGE_VERSIONS)
     for name, older in OLDER_VERSIONS.items():
@@ -1079,6 +1079,32 @@ def test_publishers_send_the_current_version() -> None:
     assert accepted_versions("DecideRequest") == (1, 2)
     assert accepted_versions("EpisodeEnd") == (1, 2)
     assert accepted_versions("PlanRequest") == (1,)
+
+
+def test_episode_summary_version_3_adds_the_final_features() -> None:
+    final = {"B": [0.1, 0.2, 0.3], "psi_K": [0.1, 0.25, 0.3]}
+    payload = {key: v for key, v in EXAMPLES["EpisodeSummary"].items() if key != "final_features"}
+    assert accepted_versions("EpisodeSummary") == (1, 2, 3)
+    for version in (1, 2):  # still read, without them
+        assert decode(envelope_text(payload, "EpisodeSummary", version=version)).version == version
+        with pytest.raises(
+            MessageError, match=f"final_features is not a field of version {version}"
+        ):
+            decode(
+                envelope_text(
+                    {**payload, "final_features": final}, "EpisodeSummary", version=version
+                )
+            )
+    message = decode(
+        envelope_text({**payload, "final_features": final}, "EpisodeSummary", version=3)
+    )
+    assert message.payload["final_features"] == final
+    with pytest.raises(MessageError):  # features are in [0, 1]
+        decode(
+            envelope_text(
+                {**payload, "final_features": {"B": [0, 0, 2]}}, "EpisodeSummary", version=3
+            )
+        )
 
 
 @pytest.mark.parametrize(

@@ -157,6 +157,11 @@ def summary_payload(
     world = world_payload(scenario)
     if world is not None:
         payload["world"] = world
+    final = result.get("final_features")
+    if mode == "training" and final:  # the s' of each agent's last step, for lit replay tensors
+        payload["final_features"] = {
+            agent: [unit(value) for value in values] for agent, values in final.items()
+        }
     return payload
 
 
