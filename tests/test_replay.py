@@ -923,7 +923,9 @@ def test_a_killed_writer_loses_no_more_than_its_open_chunk(tmp_path: Path) -> No
             tmp_path / f"kill{trial}", target, DEFAULT_CHUNK_BYTES
         )
         assert confirmed >= target
-        assert 0 <= confirmed - recovered <= per_chunk, (confirmed, recovered)
+        # -1: a write can return, and close a chunk, just before the kill lands and before the
+        # writer reports it (rare).
+        assert -1 <= confirmed - recovered <= per_chunk, (confirmed, recovered)
 
 
 def test_a_reader_that_left_is_not_an_error(tmp_path: Path) -> None:

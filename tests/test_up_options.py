@@ -221,7 +221,9 @@ def test_sigterm_stops_system_bench_in_order(tmp_path: Path) -> None:
     """SIGTERM killed lit system-bench at once (exit 143), leaving its folder and, for a moment,
     its nodes; now it stops them as Ctrl-C does."""
     import signal
+    import threading
     import time
+    from typing import Any
 
     from ros_helpers import launcher_domain
 
@@ -234,13 +236,20 @@ def test_sigterm_stops_system_bench_in_order(tmp_path: Path) -> None:
     )  # fmt: skip
     try:
         assert process.stdout is not None
-        deadline = time.monotonic() + 120
-        for line in process.stdout:  # the round trips have begun: the nodes are up
-            if line.startswith("## Decide round trip") or time.monotonic() > deadline:
-                break
+        begun = threading.Event()
+
+        def watch(stream: Any) -> None:  # a thread: a silent stall must not block the test
+            for line in stream:
+                if line.startswith("## Decide round trip"):  # the nodes are up
+                    begun.set()
+
+        threading.Thread(target=watch, args=(process.stdout,), daemon=True).start()
+        assert begun.wait(120), "the round trips did not begin"
         time.sleep(2.0)
         process.send_signal(signal.SIGTERM)
-        _, err = process.communicate(timeout=120)
+        process.wait(timeout=120)
+        assert process.stderr is not None
+        err = process.stderr.read()
         assert process.returncode == 130, err
         assert "lit system-bench: interrupted" in err and "Traceback" not in err
         assert not [p for p in tmp_path.iterdir() if p.name.startswith("lit-system-bench-")]

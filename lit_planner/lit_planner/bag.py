@@ -436,6 +436,8 @@ def write_problem(path: str | Path) -> str | None:
 
     ancestor = Path(path).absolute()
     while not ancestor.exists() and ancestor != ancestor.parent:
+        if ancestor.is_symlink():  # exists() follows links: this one points nowhere
+            return f"{ancestor} is a symbolic link to nothing ({os.readlink(ancestor)})"
         ancestor = ancestor.parent
     if not ancestor.is_dir():
         return f"{ancestor} is a file, not a folder"

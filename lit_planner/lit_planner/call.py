@@ -9,8 +9,9 @@ Examples::
     lit call raw /lit/planner/plan '{"not": "an envelope"}'
 
 Prints the response as JSON on stdout (the envelope's payload with ``--payload-only``). Exit code
-0 for a successful response, 1 for an Error response, 2 when the service is not found (or has
-another type than ``AddDiagnostics``) or does not answer in time, or the arguments are wrong.
+0 for a successful response, 1 for an Error response, 2 when the service is not found (for plan,
+decide and raw also: has another type than ``AddDiagnostics``) or does not answer in time, or the
+arguments are wrong.
 
 A world file is JSON: ``{"lower": [...], "upper": [...], "boxes": [{"lower": [...], "upper":
 [...]}, ...], "resolution": 0.001, "start": [...], "goal": [...]}`` (``resolution`` optional), or
@@ -414,7 +415,11 @@ def _call_export(node: Any, args: argparse.Namespace) -> int:
 
     caller = ServiceCaller(node, EXPORT_SERVICE, srv_type=Trigger)
     if not caller.wait(args.wait):
-        print(f"lit call: error: service {EXPORT_SERVICE} not found", file=sys.stderr)
+        print(
+            f"lit call: error: service {EXPORT_SERVICE} not found within {args.wait:g} s "
+            f"(ROS_DOMAIN_ID={_domain()})",
+            file=sys.stderr,
+        )
         return 2
     response = caller.request(Trigger.Request(), args.timeout)
     if response is None:

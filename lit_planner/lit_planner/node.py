@@ -115,8 +115,6 @@ INVALID_TERMINAL = {"invalid_start": "start", "invalid_goal": "goal"}
 def parameter_problem(p: Mapping[str, Any]) -> str | None:
     """What is wrong with the node's parameter values (``p`` holds every parameter), None when
     they are usable. The node exits with it at start; ``lit up`` asks before it starts anything."""
-    from lit_learner.train import TrainingDistribution, TrainingError
-
     from lit_planner import scenarios
     from lit_planner.errors import LitPlannerError
     from lit_planner.planning import MAX_SEED
@@ -143,6 +141,8 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
         if not 0 <= p[name] <= MAX_SEED:
             return f"{name} must be between 0 and {MAX_SEED}, got {p[name]}"
     if p["episodes"] > 0:  # the only use of scenario and training_scenarios
+        from lit_learner.train import TrainingDistribution, TrainingError
+
         training = p["policy"] == "training"
         drawn = p["episodes_from"] == "training" or (training and p["episodes_from"] != "scenario")
         name = "training_scenarios" if drawn else "scenario"
@@ -153,6 +153,11 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
                 scenarios.get(p[name])
         except (LitPlannerError, TrainingError) as error:
             return f"{name} {p[name]!r}: {error}"
+        if not drawn and p["seed"] + p["episodes"] - 1 > MAX_SEED:  # episode i plans seed + i
+            return (
+                f"seed {p['seed']} with {p['episodes']} episodes: their seeds seed + i pass "
+                f"{MAX_SEED}"
+            )
     return None
 
 
@@ -284,20 +289,26 @@ class PlannerNode:
         return values
 
     def _fallback_values(self) -> dict[str, Any]:
-        """Tensors answering decisions the learner could not (None entries: fixed values)."""
+        """Lookups answering decisions the learner could not, each in the mode its sidecar
+        names, as the tensor policy looks up (None entries: fixed values)."""
         from lit_planner import planning, tensor_files
 
         folder = self.params["tensors_dir"] or str(planning.default_tensors_dir())
-        tensors: dict[str, Any] = {}
+        lookups: dict[str, Any] = {}
         for output, file_name in planning.TENSOR_FILES.items():
             path = os.path.join(folder, file_name)
             present = os.path.exists(path) or tensor_files.sidecar_path(path).exists()
+            lookups[output] = None
+            if not present:
+                continue
             try:  # a sidecar without its data is a defect, named below (as the tensor policy does)
-                tensors[output] = planning.load_tensor(path, output) if present else None
+                tensor = planning.load_tensor(path, output)
+                mode = tensor_files.read_sidecar(path).interpolation
             except Exception as exc:  # noqa: BLE001 - defective tensor: fixed values instead
                 self.log.error(f"fallback tensor {path} unusable ({exc}); using fixed values")
-                tensors[output] = None
-        return tensors
+                continue
+            lookups[output] = tensor.nearest if mode == "nearest" else tensor.trilinear
+        return lookups
 
     # ------------------------------------------------------------------ service
 
@@ -619,15 +630,19 @@ class PlannerNode:
             )
             return
         job.result = result
-        if job.policy == "training":
-            self._end_episode(job, episode, result, cut_short=cut_short)
+        taken = job.policy == "training" and self._end_episode(
+            job, episode, result, cut_short=cut_short
+        )
         if cut_short:
             # Its summary would read as a finished episode (lit replay tensors would learn a
             # terminal state from it): none is published.
-            self.log.info(
-                f"{job.kind} episode {job.episode_id} cut short by the shutdown"
-                + ("; its end went to the learner as truncated" if job.policy == "training" else "")
-            )
+            if job.policy != "training":
+                told = ""
+            elif taken:
+                told = "; the learner took its end as truncated"
+            else:
+                told = "; its end was sent to the learner as truncated, without an answer"
+            self.log.info(f"{job.kind} episode {job.episode_id} cut short by the shutdown{told}")
             return
         self._publish_episode(job, episode, listener, result)
 
@@ -701,13 +716,13 @@ class PlannerNode:
                 self.log.warning(f"episode {job.episode_id}: {reason}")
         episode.fallbacks += 1
         job.fell_back.add(kind)
-        tensor = self._fallback.get(kind)
-        if tensor is None:
+        lookup = self._fallback.get(kind)
+        if lookup is None:
             episode.add("fallback-fixed")
             return FIXED_BATCH if kind == "B" else FIXED_FACTOR
         episode.add("fallback-tensor")
         # The core rounds B half away from zero and clamps both, as for any external answer.
-        return float(tensor.trilinear(context.rho_global, context.rho_local, context.measure))
+        return float(lookup(context.rho_global, context.rho_local, context.measure))
 
     def _learner_caught_up(self, job: Job, episode: DecisionSources) -> bool:
         """Whether the learner answered, late, the one call that missed its deadline: it is
@@ -741,7 +756,9 @@ class PlannerNode:
 
     def _end_episode(
         self, job: Job, episode: DecisionSources, result: dict[str, Any], *, cut_short: bool = False
-    ) -> None:
+    ) -> bool:
+        """Send the episode's end to the learner; whether it answered that it took it (without
+        an answer it may still have: it stores the end when the message arrives)."""
         from lit_learner.train import BUDGET_TOLERANCE, final_features, minimum_cost
 
         problem = job.scenario
@@ -777,7 +794,7 @@ class PlannerNode:
                 f"{deadline * 1e3:.0f} ms"
             )
             self._missed(self.learner.last_overdue)
-            return
+            return False
         # Answered in time: the learner is back (a late decision answer may have come meanwhile).
         self._missed_in_a_row = 0
         self._heard_from_learner("(an episode end)")
@@ -790,9 +807,11 @@ class PlannerNode:
             reply = decode(answer[1], accept=("EpisodeEndResponse", "Error"))
         except MessageError as exc:
             self.log.warning(f"episode {job.episode_id}: unreadable episode-end answer: {exc}")
-            return
+            return False
         if reply.name == "Error":
             self.log.warning(f"episode {job.episode_id}: learner: {reply.payload['message']}")
+            return False
+        return True
 
     # ------------------------------------------------------------------ publishing
 

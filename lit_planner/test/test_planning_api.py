@@ -649,8 +649,10 @@ def test_an_unknown_planner_parameter_is_a_planner_error_naming_the_known_ones(
         with pytest.raises(PlannerError, match=rf"{planner} rejected the value 'x' of its "):
             planning.plan("np4", planner, time=0.05, params={"rewire_factor": "x"})
     # An unsigned one took -3 as 4294967293.
-    with pytest.raises(PlannerError, match=r"'batch_size': it was stored as 4294967293"):
+    with pytest.raises(PlannerError, match=r"'batch_size': it was stored as 4294967293, not the"):
         planning.plan("np4", "litstar", "fixed", time=0.05, params={"batch_size": "-3"})
+    with pytest.raises(PlannerError, match=r"'decision_interval': it was stored as 1, not the"):
+        planning.plan("np4", "litstar", "fixed", time=0.05, params={"decision_interval": "0"})
     # checked before OMPL's setParam, which would print an error line of its own
     assert "was not found" not in capfd.readouterr().err
 

@@ -257,7 +257,8 @@ namespace
                 }
                 if (!accepted)
                     throw py::value_error(rejected);
-                // An unsigned parameter takes "-3" as 4294967293: a number must read back as the number given.
+                // An unsigned parameter takes "-3" as 4294967293, "1.5" as 1; a setter may clamp: a number must read
+                // back as the number given, or the planner would not run with it.
                 const std::string stored = planner->params()[key].getValue();
                 char *valueEnd = nullptr, *storedEnd = nullptr;
                 const double given = std::strtod(value.c_str(), &valueEnd);
@@ -265,7 +266,8 @@ namespace
                 if (valueEnd != value.c_str() && *valueEnd == '\0' && storedEnd != stored.c_str() && *storedEnd == '\0' &&
                     std::isfinite(given) && !(std::abs(kept - given) <= 1e-9 * std::max(1.0, std::abs(given))))
                     throw py::value_error(rejected + ": it was stored as " + stored +
-                                          " (outside the range of the parameter's type)");
+                                          ", not the value given (rounded, clamped to the parameter's range, or "
+                                          "outside its type's)");
             }
             planner->setProblemDefinition(problem.pdef);
 

@@ -276,6 +276,30 @@ TEST(LITstar, OnePolicyServesPlannersSolvingAtTheSameTime)
     other.join();
     EXPECT_EQ(decisions(a), decisions(aloneA));
     EXPECT_EQ(decisions(b), decisions(aloneB));
+
+    // The same without depending on the threads' timing: A stops just after its first solution, B solves its own
+    // problem with the same policy, then A goes on.
+    auto again = std::make_shared<FitPolicy>();
+    BoxProblem problemA = test::narrowPassage(4);
+    auto plannerA = std::make_shared<LITstar>(problemA.si);
+    auto recorderA = std::make_shared<Recorder>();
+    plannerA->setSeed(5u);
+    plannerA->setRewireFactor(1.001);
+    plannerA->setPolicy(again);
+    plannerA->addListener(recorderA);
+    plannerA->setProblemDefinition(problemA.pdef);
+    plannerA->setup();
+    plannerA->setMaxIterations(aloneA.recorder->solutions.front().iteration + 1u);
+    plannerA->solve(ompl::base::plannerNonTerminatingCondition());
+    ASSERT_EQ(recorderA->solutions.size(), 1u);
+    const PlanRun between = plan(test::narrowPassage(8), 6u, 20000u, 1.001, again);
+    EXPECT_EQ(decisions(between), decisions(aloneB));
+    plannerA->setMaxIterations(20000u);
+    plannerA->solve(ompl::base::plannerNonTerminatingCondition());
+    std::vector<double> resumed;
+    for (const auto &d : recorderA->decisions)
+        resumed.push_back(d.value);
+    EXPECT_EQ(resumed, decisions(aloneA));
 }
 
 TEST(LITstar, ANewProblemDefinitionIsSolvedNotTheOldOne)
