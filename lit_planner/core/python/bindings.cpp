@@ -75,6 +75,13 @@ namespace
         throw py::value_error("unknown planner '" + name + "' (known: litstar, aitstar, bitstar, abitstar, irrtstar, rrtconnect)");
     }
 
+    void checkFeatures(double x, double y, double z)
+    {
+        if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
+            throw py::value_error("lookup point (" + std::to_string(x) + ", " + std::to_string(y) + ", " +
+                                  std::to_string(z) + ") is not finite");
+    }
+
     std::string statusName(ompl::base::PlannerStatus status)
     {
         switch (status.operator ompl::base::PlannerStatus::StatusType())
@@ -541,8 +548,16 @@ PYBIND11_MODULE(lit_core, m)
                 return std::make_shared<LookupTensor>(LookupTensor::load(path, TensorSpec{shape, minValue, maxValue}));
             }, py::arg("path"), py::arg("shape"), py::arg("min_value"), py::arg("max_value"),
             "Loads an NPY v1.0 '<f4' tensor and checks it against the sidecar's shape and range; raises TensorError.")
-        .def("nearest", &LookupTensor::nearest)
-        .def("trilinear", &LookupTensor::trilinear)
+        // From Python a non-finite feature is an error, as in lit_planner.tensor_files.lookup (the planner's own
+        // features are always finite; the C++ lookup maps a non-finite one to 0).
+        .def("nearest", [](const LookupTensor &tensor, double x, double y, double z) {
+                 checkFeatures(x, y, z);
+                 return tensor.nearest(x, y, z);
+             }, py::arg("x"), py::arg("y"), py::arg("z"))
+        .def("trilinear", [](const LookupTensor &tensor, double x, double y, double z) {
+                 checkFeatures(x, y, z);
+                 return tensor.trilinear(x, y, z);
+             }, py::arg("x"), py::arg("y"), py::arg("z"))
         .def("at", &LookupTensor::at)
         .def_property_readonly("shape", &LookupTensor::shape);
 
