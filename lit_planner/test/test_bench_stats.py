@@ -267,7 +267,7 @@ def test_summary_reports_the_checks_up_to_the_first_solution(tmp_path: Any) -> N
     assert row["improvement_percent"]["checks_init"] == pytest.approx(100 * 100 / 235)
     text = (tmp_path / "summary.md").read_text()
     assert "| np4 | 235 | 135 | +42.55 |" in text
-    assert "| LIT* (fixed) | 100% | 0.0100 [0.0100, 0.0100] " in text
+    assert "| LIT* (fixed) | 8/8 | 10.000 [10.000, 10.000] " in text  # ms
     assert "| 135 [100, 170] | 0 |" in text
     assert (report.fmt(103.5, None), report.fmt(104.0, None), report.fmt("inf", None)) == (
         "103.5",
@@ -305,7 +305,7 @@ def test_summary_validates_and_a_broken_one_is_rejected_naming_the_field(tmp_pat
     assert failed["success_rate"] == 0 and failed["c_final"]["median"] == "inf"
     assert set(summary["scenarios"]["np4"]["curves"]["rrtconnect"]["median"]) == {"inf"}
     assert (tmp_path / "plots" / "np4.png").is_file() and (tmp_path / "plots" / "np4.pdf").is_file()
-    assert "| RRT-Connect | 0% | ∞ [∞, ∞]" in (tmp_path / "summary.md").read_text()
+    assert "| RRT-Connect | 0/8 | ∞ [∞, ∞]" in (tmp_path / "summary.md").read_text()
 
     broken = copy.deepcopy(summary)
     broken["scenarios"]["np4"]["planners"]["aitstar"]["success_rate"] = 1.5
@@ -433,3 +433,18 @@ def test_pairing_takes_the_common_queries_and_refuses_ambiguity(tmp_path: Any) -
     summary = _write_summary(tmp_path, parts)
     assert "paired" not in summary["comparisons"]["fit"]["rows"]["np4"]
     assert report._ratio(0.0, 0.0) == 1.0 and report._ratio(1.0, 0.0) == math.inf
+
+
+def test_c_final_is_the_cost_at_the_time_budget() -> None:
+    """As the cost curves have it: the record's cost counted improvements that an OMPL planner
+    reported after the budget (its wall clock runs on while it stops; 3 of 78 runs of one
+    --quick benchmark, by up to 12 %)."""
+    record = {
+        "solved": True, "t_init": 0.05, "c_init": 2.0, "c_final": 1.5, "time_budget": 0.12,
+        "improvements": [[0.05, 2.0], [0.11, 1.8], [0.13, 1.5]],
+    }  # fmt: skip
+    assert report.record_value(record, "c_final") == 1.8
+    assert report.record_value(record, "c_init") == 2.0
+    late = record | {"t_init": 0.125, "improvements": [[0.125, 2.0]]}
+    assert report.record_value(late, "c_final") == math.inf  # no cost at the budget
+    assert report.record_value(record | {"solved": False}, "c_final") == math.inf

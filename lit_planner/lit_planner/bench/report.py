@@ -39,7 +39,8 @@ CI_RULE = (
     "then the one of highest coverage, then (mirror-image ties) the upper one; this reproduces "
     "PDT's table (n = 100: ranks 38 and 64). For n < 8 no pair reaches 99%: the interval is null "
     "and the tables show the full range (min–max) instead, marked †. Unsolved runs count as "
-    "infinite time and cost."
+    "infinite time and cost. c_final is the cost at the time budget, as the cost curves show "
+    "it (an improvement reported after the budget does not count)."
 )
 """The interval rule in words, written into both outputs."""
 BEST_OMPL_RULE = (
@@ -61,8 +62,16 @@ def ext(value: float | None) -> float | str | None:
 
 
 def record_value(record: Record, metric: str) -> float:
-    """``t_init``, ``c_init`` or ``c_final`` of a record; inf for a run without a solution."""
+    """``t_init``, ``c_init`` or ``c_final`` of a record; inf for a run without a solution.
+
+    ``c_final`` is the cost at the time budget, as the cost curves have it: an improvement that
+    an OMPL planner (on the wall clock, which runs past the budget while it stops) or LIT* (whose
+    budget is checked between iterations) reported after the budget does not count, and a run
+    whose first solution came after it has no cost at the budget (inf)."""
     value = record[metric] if record["solved"] else None
+    budget = record.get("time_budget")
+    if metric == "c_final" and value is not None and record.get("improvements") and budget:
+        return float(stats.costs_at(record["improvements"], [float(budget)])[0])
     return math.inf if value is None else float(value)
 
 
@@ -362,17 +371,24 @@ def label(planner: str) -> str:
     return PLANNER_LABELS.get(planner, planner)
 
 
-def fmt(value: float | str | None, digits: int | None = 4) -> str:
+def fmt(value: float | str | None, digits: int | None = 4, scale: float = 1.0) -> str:
     """A number for a table: ``∞`` for inf, ``—`` for None; ``digits`` None: a count (a median
-    of an even number of counts may end in .5, shown as such)."""
+    of an even number of counts may end in .5, shown as such); ``scale`` multiplies it first."""
     if value is None:
         return "—"
     number = float(value)
     if math.isinf(number):
         return "∞"
+    number *= scale
     if digits is None:
         return f"{number:.0f}" if number.is_integer() else f"{number:.1f}"
     return f"{number:.{digits}f}"
+
+
+def fmt_ms(value: float | str | None) -> str:
+    """A time in seconds shown in milliseconds with 3 decimals (4 decimals of a second left a
+    millisecond t_init two significant digits)."""
+    return fmt(value, 3, 1e3)
 
 
 def _duration(seconds: float) -> str:
@@ -383,14 +399,16 @@ def fmt_percent(value: float | None) -> str:
     return "—" if value is None else f"{value:+.2f}"
 
 
-def fmt_median(entry: dict[str, Any], digits: int | None = 4) -> str:
+def fmt_median(entry: dict[str, Any], digits: int | None = 4, scale: float = 1.0) -> str:
     """``median [lower, upper]``, or ``median (min–max)†`` when no interval exists."""
-    median = fmt(entry["median"], digits)
+
+    def show(value: Any) -> str:
+        return fmt(value, digits, scale)
+
+    median = show(entry["median"])
     if entry["ci"] is not None:
-        return (
-            f"{median} [{fmt(entry['ci']['lower'], digits)}, {fmt(entry['ci']['upper'], digits)}]"
-        )
-    return f"{median} ({fmt(entry['min'], digits)}–{fmt(entry['max'], digits)})†"
+        return f"{median} [{show(entry['ci']['lower'])}, {show(entry['ci']['upper'])}]"
+    return f"{median} ({show(entry['min'])}–{show(entry['max'])})†"
 
 
 def markdown(summary: dict[str, Any]) -> str:
@@ -474,7 +492,7 @@ def markdown(summary: dict[str, Any]) -> str:
             ),
             "",
             (
-                "| planner | success | median t_init (s) | median c_init | median c_final "
+                "| planner | solved | median t_init (ms) | median c_init | median c_final "
                 "| median checks to t_init | invalid paths |"
             ),
             "| --- | ---: | ---: | ---: | ---: | ---: | ---: |",
@@ -482,7 +500,8 @@ def markdown(summary: dict[str, Any]) -> str:
         for planner, entry in scenario["planners"].items():
             effort = entry.get(EFFORT)
             lines.append(
-                f"| {label(planner)} | {entry['success_rate']:.0%} | {fmt_median(entry['t_init'])} "
+                f"| {label(planner)} | {entry['solved']}/{entry['runs']} "
+                f"| {fmt_median(entry['t_init'], 3, 1e3)} "
                 f"| {fmt_median(entry['c_init'])} | {fmt_median(entry['c_final'])} "
                 f"| {'—' if effort is None else fmt_median(effort, None)} | {entry['invalid_paths']} |"
             )
@@ -617,7 +636,7 @@ def _comparison_table(rows: dict[str, Any], *, with_planner: bool) -> list[str]:
     ours = "its" if with_planner else "FIT*"
     named = "| best OMPL planner " if with_planner else ""
     header = (
-        f"| scenario {named}| {ours} t_init (s) | {ours} c_init | {ours} c_final | LIT* t_init (s) "
+        f"| scenario {named}| {ours} t_init (ms) | {ours} c_init | {ours} c_final | LIT* t_init (ms) "
         "| LIT* c_init | LIT* c_final | t_init ⇑ (%) | c_init ⇑ (%) | c_final ⇑ (%) |"
     )
     rule = "| --- " + ("| --- " if with_planner else "") + "| ---: " * 9 + "|"
@@ -626,8 +645,9 @@ def _comparison_table(rows: dict[str, Any], *, with_planner: bool) -> list[str]:
         ref, lit, imp = row["reference_medians"], row["litstar_medians"], row["improvement_percent"]
         planner = f"| {label(row['reference'])} " if with_planner else ""
         lines.append(
-            f"| {name} {planner}| {fmt(ref['t_init'])} | {fmt(ref['c_init'])} | {fmt(ref['c_final'])} "
-            f"| {fmt(lit['t_init'])} | {fmt(lit['c_init'])} | {fmt(lit['c_final'])} "
+            f"| {name} {planner}| {fmt_ms(ref['t_init'])} | {fmt(ref['c_init'])} "
+            f"| {fmt(ref['c_final'])} | {fmt_ms(lit['t_init'])} | {fmt(lit['c_init'])} "
+            f"| {fmt(lit['c_final'])} "
             f"| {fmt_percent(imp['t_init'])} | {fmt_percent(imp['c_init'])} "
             f"| {fmt_percent(imp['c_final'])} |"
         )
