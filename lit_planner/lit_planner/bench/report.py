@@ -529,7 +529,8 @@ def markdown(summary: dict[str, Any]) -> str:
         ),
         (
             f"- Independent path check (numpy, 4× finer than the planners' resolution): {invalid} of "
-            f"{solved} returned paths invalid."
+            f"{solved} returned paths invalid (such a run still counts as solved, with its times "
+            "and costs, in the tables; the invalid paths column counts it)."
         ),
         (
             "- Times: every planner's clock starts after its setup(), at solve(). LIT*'s is its own "
