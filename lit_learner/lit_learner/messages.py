@@ -58,10 +58,10 @@ class DecisionRequest:
                 f"expected one of {AGENT_NAMES}"
             )
         for name, value in zip(("rho_global", "rho_local", "measure"), self.features):
-            if not math.isfinite(value):
+            if not (math.isfinite(value) and 0.0 <= value <= 1.0):  # as DecideRequest's schema
                 raise MessageError(
                     f"episode {self.episode_id!r}, agent {self.agent}: {name} = {value} "
-                    "is not finite"
+                    "is not a number in [0, 1]"
                 )
         _validate_progress(
             self.episode_id,

@@ -248,7 +248,7 @@ def run_episode(
             ``max_iterations``.
     """
     import lit_core
-    from lit_planner.episode_messages import DecisionSources, EventLog
+    from lit_planner.episode_messages import DecisionSources, EventLog, unit
 
     from lit_learner.messages import DecisionRequest, EpisodeEnd
     from lit_planner import planning, scenarios
@@ -291,12 +291,12 @@ def run_episode(
             sources.add("learner")
             sources.learner_calls += 1
             value = core.decide(
-                DecisionRequest(
+                DecisionRequest(  # features clamped as the planner node sends them
                     agent=context.kind,
                     episode_id=episode_id,
-                    rho_global=context.rho_global,
-                    rho_local=context.rho_local,
-                    measure=context.measure,
+                    rho_global=unit(context.rho_global),
+                    rho_local=unit(context.rho_local),
+                    measure=unit(context.measure),
                     planning_time=(
                         context.checks * effort_clock if effort_clock else context.planning_time
                     ),

@@ -127,8 +127,10 @@ def test_bad_messages_are_rejected_with_their_field() -> None:
     good = DecisionRequest("B", "e", 0.1, 0.2, 0.3, 0.0, 1.0, None, 1.0, 0, 0)
     with pytest.raises(MessageError, match="unknown agent 'K'"):
         core.decide(replace(good, agent="K"))
-    with pytest.raises(MessageError, match="rho_local = nan is not finite"):
+    with pytest.raises(MessageError, match=r"rho_local = nan is not a number in \[0, 1\]"):
         core.decide(replace(good, rho_local=float("nan")))
+    with pytest.raises(MessageError, match=r"measure = 1.5 is not a number in \[0, 1\]"):
+        core.decide(replace(good, measure=1.5))  # as DecideRequest's schema refuses it
     with pytest.raises(MessageError, match="time_budget 0.0 must be finite and > 0"):
         core.end_episode(EpisodeEnd("e", 1.0, 0.0, None, 1.0, 0, 0))
 
