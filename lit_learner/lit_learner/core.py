@@ -148,6 +148,12 @@ class LearnerCore:
         and records this one as pending (only for trained agents)."""
         self._step(request, a_norm)
 
+    def progress(self, request: DecisionRequest) -> None:
+        """A decision another policy took, of which no agent learns: only the episode's time
+        and improvements are noted (:meth:`Pairing.progress`), so that step times stay exact."""
+        request.validate()
+        self.pairing.progress(request)
+
     def record(self, request: DecisionRequest, executed: float) -> None:
         """A decision that was already taken (``executed`` is the value the planner applied):
         pairs and stores it exactly as :meth:`decide` would have, without choosing an action.

@@ -131,6 +131,14 @@ class Pairing:
             )
         return closed
 
+    def progress(self, request: DecisionRequest) -> None:
+        """Note an episode's progress (time, improvements) from a decision that no step is
+        made of: ``lit train``'s psi_K phase takes B from a tensor, and without its decisions,
+        which come at every improvement, an improvement's time was the time of the next psi_K
+        request (up to 47 % of the budget later on development queries)."""
+        episode = self.episodes.setdefault(request.episode_id, EpisodeProgress())
+        episode.observe(request.episode_id, request.planning_time, request.improvements)
+
     def end(self, end: EpisodeEnd) -> tuple[list[Transition], dict[str, float]]:
         """Close every pending step of the episode and forget it.
 
@@ -189,9 +197,15 @@ class Pairing:
                 self.reward,
             )
         else:
-            # A step that began without a solution searched from its decision to its end (the
-            # first solution, if it came in this step, ends the step too).
-            searching = (pending.time, info.planning_time) if pending.improvements == 0 else None
+            # A step that began without a solution searched from its decision to its end, or to
+            # the first solution if that came in the step (the time the pairing saw it: a B
+            # decision comes at it): the search costs of an episode add up to ln(t_init / ...).
+            searching = None
+            if pending.improvements == 0:
+                end = info.planning_time
+                if improved and 1 in episode.improvement_times:
+                    end = min(end, episode.improvement_times[1])
+                searching = (pending.time, end)
             reward = neighbour_reward(
                 improved,
                 step_time,

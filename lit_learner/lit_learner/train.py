@@ -281,33 +281,33 @@ def run_episode(
     sources = DecisionSources()
 
     def answer(context: lit_core.DecisionContext) -> float:
+        request = DecisionRequest(  # features clamped as the planner node sends them
+            agent=context.kind,
+            episode_id=episode_id,
+            rho_global=unit(context.rho_global),
+            rho_local=unit(context.rho_local),
+            measure=unit(context.measure),
+            planning_time=(
+                context.checks * effort_clock if effort_clock else context.planning_time
+            ),
+            time_budget=budget,
+            cost=context.cost if context.has_solution else None,
+            minimum_cost=context.minimum_cost,
+            improvements=context.improvements,
+            path_states=context.path_states,
+            explore=explore,
+        )
         if context.kind == "B" and phase == PHASE_K:
             sources.add("tensor")
             value = round_batch_size(
                 b_tensor.trilinear(context.rho_global, context.rho_local, context.measure),
                 *b_range,
             )
+            core.progress(request)  # B is decided at each improvement: its time, exactly
         else:
             sources.add("learner")
             sources.learner_calls += 1
-            value = core.decide(
-                DecisionRequest(  # features clamped as the planner node sends them
-                    agent=context.kind,
-                    episode_id=episode_id,
-                    rho_global=unit(context.rho_global),
-                    rho_local=unit(context.rho_local),
-                    measure=unit(context.measure),
-                    planning_time=(
-                        context.checks * effort_clock if effort_clock else context.planning_time
-                    ),
-                    time_budget=budget,
-                    cost=context.cost if context.has_solution else None,
-                    minimum_cost=context.minimum_cost,
-                    improvements=context.improvements,
-                    path_states=context.path_states,
-                    explore=explore,
-                )
-            )
+            value = core.decide(request)
         actions[context.kind].append(float(value))
         return float(value)
 

@@ -81,6 +81,24 @@ def test_step_time_runs_from_the_previous_improvement() -> None:
     assert t3.reward.total == pytest.approx(-0.1)
 
 
+def test_progress_from_another_policys_decision_keeps_improvement_times_exact() -> None:
+    """lit train's psi_K phase takes B from a tensor (no step of it): the B decision at each
+    improvement still tells the pairing when it came, instead of the next psi_K request."""
+    exact, late = Pairing(REWARD), Pairing(REWARD)
+    for pairing in (exact, late):
+        pairing.step(request("psi_K", "e", 0.0, 0.1), 0.5)
+    exact.progress(request("B", "e", 2.0, 0.1, improvements=1, cost=8.0))  # at the improvement
+    t_exact = exact.step(request("psi_K", "e", 4.5, 0.1, improvements=1, cost=8.0), 0.5)
+    t_late = late.step(request("psi_K", "e", 4.5, 0.1, improvements=1, cost=8.0), 0.5)
+    assert t_exact is not None and t_late is not None
+    assert t_exact.reward.time == pytest.approx(REWARD.w_t / 0.2)  # t = 2.0 of T = 10
+    assert t_late.reward.time == pytest.approx(REWARD.w_t / 0.45)  # t = 4.5: the request's time
+    assert "B" not in exact.episodes["e"].pending  # no step of B
+    # The step's search ended at the first solution (2.0), not at the request (4.5).
+    assert t_exact.reward.search == pytest.approx(-search_cost(0.0, 2.0, 10.0, REWARD))
+    assert t_late.reward.search == pytest.approx(-search_cost(0.0, 4.5, 10.0, REWARD))
+
+
 @pytest.mark.parametrize("truncated", [True, False])
 def test_episode_end_closes_every_pending_step(truncated: bool) -> None:
     pairing = Pairing(REWARD)
