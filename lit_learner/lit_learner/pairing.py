@@ -203,8 +203,9 @@ class Pairing:
             searching = None
             if pending.improvements == 0:
                 end = info.planning_time
-                if improved and 1 in episode.improvement_times:
-                    end = min(end, episode.improvement_times[1])
+                firsts = [t for n, t in episode.improvement_times.items() if n >= 1]
+                if improved and firsts:  # the first count seen may be above 1 (calls missed)
+                    end = min(end, min(firsts))
                 searching = (pending.time, end)
             reward = neighbour_reward(
                 improved,

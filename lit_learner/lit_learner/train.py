@@ -281,6 +281,9 @@ def run_episode(
     sources = DecisionSources()
 
     def answer(context: lit_core.DecisionContext) -> float:
+        features = (context.rho_global, context.rho_local, context.measure)
+        if not all(math.isfinite(value) for value in features):  # unit() would make them 0
+            raise TrainingError(f"episode {episode_id}: the planner's features {features}")
         request = DecisionRequest(  # features clamped as the planner node sends them
             agent=context.kind,
             episode_id=episode_id,

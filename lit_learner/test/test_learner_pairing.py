@@ -97,6 +97,13 @@ def test_progress_from_another_policys_decision_keeps_improvement_times_exact() 
     # The step's search ended at the first solution (2.0), not at the request (4.5).
     assert t_exact.reward.search == pytest.approx(-search_cost(0.0, 2.0, 10.0, REWARD))
     assert t_late.reward.search == pytest.approx(-search_cost(0.0, 4.5, 10.0, REWARD))
+    # Also when the first count seen is above 1 (the planner missed calls meanwhile).
+    skipped = Pairing(REWARD)
+    skipped.step(request("psi_K", "e", 0.5, 0.1), 0.5)
+    skipped.progress(request("B", "e", 2.0, 0.1, improvements=2, cost=8.0))
+    t_skip = skipped.step(request("psi_K", "e", 4.5, 0.1, improvements=2, cost=8.0), 0.5)
+    assert t_skip is not None
+    assert t_skip.reward.search == pytest.approx(-search_cost(0.5, 2.0, 10.0, REWARD))
 
 
 @pytest.mark.parametrize("truncated", [True, False])
