@@ -624,6 +624,16 @@ def resolve_domain_id(value: int | None, default: int) -> int:
         raise ValueError(f"$ROS_DOMAIN_ID: {error}; set it right or give --domain-id") from None
 
 
+def set_domain_id(args: argparse.Namespace, default: int) -> str | None:
+    """Resolve a launcher's ``args.domain_id`` (:func:`resolve_domain_id`) in place; the problem
+    with ``$ROS_DOMAIN_ID`` if it cannot be used, else None."""
+    try:
+        args.domain_id = resolve_domain_id(args.domain_id, default)
+    except ValueError as error:
+        return str(error)
+    return None
+
+
 def spin_quietly(executor: Any, stopping: Callable[[], bool]) -> None:
     """Spin until the executor is shut down.
 

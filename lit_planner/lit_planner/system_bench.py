@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from lit_planner.echo_node import ECHO_SERVICE
-from lit_planner.rosutil import add_domain_option, resolve_domain_id
+from lit_planner.rosutil import add_domain_option, set_domain_id
 from lit_planner.up import DomainBusy, System, claim_domain, stop_on_sigterm
 
 DEFAULT_DOMAIN_ID = 94
@@ -89,12 +89,7 @@ def run(args: argparse.Namespace) -> int:
         print("lit system-bench: --calls, --episodes and --kills are all 0: nothing to measure",
               file=sys.stderr)  # fmt: skip
         return 2
-    problem = _check(args)
-    if problem is None:
-        try:
-            args.domain_id = resolve_domain_id(args.domain_id, DEFAULT_DOMAIN_ID)
-        except ValueError as error:
-            problem = str(error)
+    problem = _check(args) or set_domain_id(args, DEFAULT_DOMAIN_ID)
     if problem is not None:
         print(f"lit system-bench: {problem}", file=sys.stderr)
         return 2

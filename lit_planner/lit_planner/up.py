@@ -31,7 +31,7 @@ from lit_planner.rosutil import (
     DEFAULT_DOMAIN_ID,
     LOCALHOST_ENV,
     add_domain_option,
-    resolve_domain_id,
+    set_domain_id,
 )
 
 STOP_ORDER = ("planner", "learner", "recorder")
@@ -451,12 +451,7 @@ def run(args: argparse.Namespace) -> int:
     # "" is refused by _check, not replaced by the default id
     run_id = args.run_id if args.run_id is not None else time.strftime("up-%Y%m%d-%H%M%S")
     bag = None if args.no_record else (args.bag or default_bag_root() / run_id).absolute()
-    problem = _check(args, run_id, bag)
-    if problem is None:
-        try:
-            args.domain_id = resolve_domain_id(args.domain_id, DEFAULT_DOMAIN_ID)
-        except ValueError as error:
-            problem = str(error)
+    problem = _check(args, run_id, bag) or set_domain_id(args, DEFAULT_DOMAIN_ID)
     if problem is not None:
         print(f"lit up: {problem}", file=sys.stderr)
         return 2
