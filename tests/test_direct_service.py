@@ -1,12 +1,14 @@
 """The decide path's transport (``lit_planner.rosutil``) across two real processes: a
 :class:`DirectService` server and the private, wait-set :class:`ServiceCaller` client, in a ROS
 domain of their own. The server's callback fails on one request; the server must answer it with
-the empty response and keep serving, stale answers must not be mistaken for fresh ones, work the
+the empty response and keep serving, stale answers must not be mistaken for fresh ones, a request
+sent again after a lost answer must be answered once more without being served twice, work the
 callback defers must run after its answer is sent and before the next request, and both ends must
 shut down cleanly."""
 
 from __future__ import annotations
 
+import re
 import sys
 import textwrap
 
@@ -55,11 +57,29 @@ SERVER = textwrap.dedent(
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     node = rclpy.create_node("direct_test_server")
-    service = DirectService(node, "direct_test_service", AddDiagnostics, "/direct/echo", serve)
+    service = DirectService(
+        node,
+        "direct_test_service",
+        AddDiagnostics,
+        "/direct/echo",
+        serve,
+        repeat_key=lambda request: request.load_namespace,
+    )
     holder.append(service)
+    # Fast DDS losing an answer, silently: the first answer to each "lost:" request is not sent.
+    send, lost = service._service.send_response, set()
+
+    def lossy(response, header):
+        if response.message.startswith("echo:lost:") and response.message not in lost:
+            lost.add(response.message)
+            return
+        send(response, header)
+
+    service._service.send_response = lossy
     print("ready", flush=True)
     stop.wait()
     service.shutdown()
+    print("repeats", service.repeats, flush=True)
     print("thread alive after shutdown:", service._thread.is_alive(), flush=True)
     node.destroy_node()
     rclpy.shutdown()
@@ -83,6 +103,9 @@ CLIENT = textwrap.dedent(
     print("late", caller.call("slow-1", 0.05))
     print("fresh", caller.call("next", 10.0))
     print("many", all(caller.call(str(i), 10.0) == (True, "echo:" + str(i)) for i in range(200)))
+    print("lost once", caller.call("lost:a", 0.5), caller.resent)
+    print("sent again", caller.call("lost:b", 20.0, 0.05), caller.resent > 0)
+    print("after loss", caller.call("next-2", 10.0, 0.05))
     flag = sys.argv[1]
     print("defer-wait", caller.call("defer-wait:" + flag, 20.0))
     open(flag, "w").close()
@@ -90,6 +113,7 @@ CLIENT = textwrap.dedent(
     print("defer-1", caller.call("defer-1", 20.0))
     order = caller.call("order", 20.0)[1].split(",")
     print("order", order[order.index("call:defer-wait:" + flag):])
+    print("lost:b served", order.count("call:lost:b"))
     caller.destroy()
     try:
         caller.call("x", 0.1)
@@ -114,6 +138,12 @@ def test_direct_service_and_wait_set_client_across_processes(ros: RosSystem, tmp
     assert "late None" in out  # the deadline passed
     assert "fresh (True, 'echo:next')" in out  # the late answer to slow-1 was not taken for it
     assert "many True" in out
+    # A lost answer: without sending again the call times out; sent again (after 50 ms, 100 ms,
+    # ...) the server answers the copy from its cache, without running the callback again.
+    assert "lost once None 0" in out
+    assert "sent again (True, 'echo:lost:b') True" in out
+    assert "after loss (True, 'echo:next-2')" in out
+    assert "lost:b served 1" in out
     # Deferred work: after the answer (the client got it while the work was still waiting for
     # the client), before the next request; failing work is logged and serving goes on.
     assert f"defer-wait (True, 'echo:defer-wait:{flag}')" in out
@@ -132,6 +162,7 @@ def test_direct_service_and_wait_set_client_across_processes(ros: RosSystem, tmp
     assert "destroyed: the client of /direct/echo was destroyed" in out
     assert "callback failed" in server.text()
     assert ros.stop(server) == 0, server.tail()
+    assert re.search(r"^repeats [1-9]", server.text(), re.MULTILINE), server.tail()
     assert "thread alive after shutdown: False" in server.text()
     assert "clean exit" in server.text()
 

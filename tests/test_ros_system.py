@@ -307,9 +307,10 @@ def test_two_planners_train_one_learner(ros: RosSystem) -> None:
     for topic in topics:
         summaries = recording.payloads(topic)
         assert len(summaries) == 2, (topic, summaries)
-        assert all(_learned(summary) for summary in summaries), [
-            (s["episode_id"], s["learner_calls"], s["fallback_decisions"]) for s in summaries
-        ]
+        assert all(_learned(summary) for summary in summaries), (
+            [(s["episode_id"], s["learner_calls"], s["fallback_decisions"]) for s in summaries],
+            *(child.tail(15) for child in (*planners, learner)),
+        )
     _no_traceback(learner, *planners)
 
 

@@ -192,9 +192,17 @@ class LearnerNode:
         # Decisions are served from a thread and node of their own, outside the executor: the
         # round trip is on the planner's critical path (see DirectService). The service is made
         # last, so that a planner that sees it finds everything else in place.
+        # A planner sends a request again when its answer is slow to come (a request or an
+        # answer Fast DDS lost): the same envelope text, answered again from the cache.
         self._decide = DirectService(
-            node, f"{NODE_NAME}_decide", AddDiagnostics, p["service"], self._serve
+            node,
+            f"{NODE_NAME}_decide",
+            AddDiagnostics,
+            p["service"],
+            self._serve,
+            repeat_key=lambda request: request.load_namespace,
         )
+        self._repeats_logged = 0
         self.log.info(
             f"ready: {p['service']}, {self.core.episodes} episodes and policy version "
             f"{self.core.policy_version} so far, checkpoint {p['checkpoint']}"
@@ -519,6 +527,13 @@ class LearnerNode:
             yield
 
     def _publish_stats(self) -> None:
+        repeats = self._decide.repeats
+        if repeats > self._repeats_logged:
+            self.log.info(
+                f"{repeats - self._repeats_logged} repeated requests answered again "
+                f"({repeats} so far; a planner sent them again when an answer was slow or lost)"
+            )
+            self._repeats_logged = repeats
         with self._lock:
             payload = {
                 "episodes": int(self.core.episodes),

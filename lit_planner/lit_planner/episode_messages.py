@@ -63,6 +63,8 @@ class DecisionSources:
     """The query's one warning about an unreachable learner was logged."""
     resumed: bool = False
     """The query's one note that a late learner answered and calls resume was logged."""
+    resent_before: int = 0
+    """The learner client's count of requests sent again when the query started."""
 
     def add(self, source: str, latency_ms: float | None = None) -> None:
         self.sources.append(source)

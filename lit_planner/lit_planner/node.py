@@ -10,7 +10,11 @@
   loop), ``lit/episode`` (EpisodeSummary) and ``lit/path`` (``trajectory_msgs/JointTrajectory``).
 - ``policy: training``: a loop of ``episodes`` training queries over the training distribution;
   each decision calls the learner's ``/lit/learner/decide`` with a deadline of
-  ``decision_timeout`` s. A late or absent learner: that decision falls back to the tensor policy
+  ``decision_timeout`` s; a call without an answer after ``learner_resend`` s (then twice as
+  long, and so on) sends its request again, since Fast DDS now and then loses a request or an
+  answer in a client's first seconds under load, silently (the learner answers a repeated
+  request again without taking it twice; 0: never). A late or absent learner: that decision
+  falls back to the tensor policy
   (``fixed`` without tensors), the episode is marked, a warning is logged, and for
   ``learner_retry`` s no decision call is tried (episode ends are still sent); then training
   resumes with the learner. Calls resume sooner when the learner answers the missed call late
@@ -95,6 +99,7 @@ PARAMETERS: dict[str, Any] = {
     "first_decision_timeout": 1.0,
     "decision_interval": 0,
     "learner_retry": 1.0,
+    "learner_resend": 0.01,
     "learner_wait": 10.0,
     "tensors_dir": "",
     "training_scenarios": "np4,np8,wg4,wg8,rrd4,rrd8",
@@ -131,7 +136,7 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
     for name in ("time_budget", "episodes", "queue_limit", "wait_for_subscribers"):
         if not p[name] >= 0:  # also NaN
             return f"{name} must be 0 or more, got {p[name]}"
-    for name in ("learner_retry", "learner_wait"):
+    for name in ("learner_retry", "learner_wait", "learner_resend"):
         if not (math.isfinite(p[name]) and p[name] >= 0):
             return f"{name} must be 0 or more seconds, got {p[name]}"
     for name in ("decision_timeout", "first_decision_timeout"):
@@ -580,7 +585,7 @@ class PlannerNode:
         listener = EventLog(
             job.episode_id, lambda payload: self.publish("solution", "SolutionUpdate", payload)
         )
-        episode = DecisionSources()
+        episode = DecisionSources(resent_before=self.learner.resent)
         params: dict[str, object] = {}
         if job.planner == "litstar" and self.params["decision_interval"] > 0:
             # 0: the planner's default (1; the learner decides psi_K at every expansion) or, with
@@ -678,7 +683,9 @@ class PlannerNode:
             if not self._learner_answered and self._missed_in_a_row == 0:
                 deadline = max(deadline, self.params["first_decision_timeout"])
             answer = self.learner.call(
-                self.envelopes["decide"].encode("DecideRequest", payload), deadline
+                self.envelopes["decide"].encode("DecideRequest", payload),
+                deadline,
+                self.params["learner_resend"],
             )
             if answer is not None:
                 # Answered in time (an error too): the learner is there and its answers arrive.
@@ -787,7 +794,17 @@ class PlannerNode:
             deadline = self.params["decision_timeout"]
         else:
             deadline = max(1.0, 20 * self.params["decision_timeout"])
-        answer = self.learner.call(self.envelopes["decide"].encode("EpisodeEnd", payload), deadline)
+        answer = self.learner.call(
+            self.envelopes["decide"].encode("EpisodeEnd", payload),
+            deadline,
+            self.params["learner_resend"],
+        )
+        resent = self.learner.resent - episode.resent_before
+        if resent:
+            self.log.info(
+                f"episode {job.episode_id}: {resent} learner requests sent again (no answer "
+                f"within {self.params['learner_resend'] * 1e3:g} ms, then twice as long, ...)"
+            )
         if answer is None:
             self.log.warning(
                 f"episode {job.episode_id}: the learner did not take the episode end within "

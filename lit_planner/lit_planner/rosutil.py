@@ -8,6 +8,7 @@ loop), and shutdown tolerates the race between SIGTERM and a spinning executor.
 from __future__ import annotations
 
 import argparse
+import collections
 import gc
 import os
 import signal
@@ -180,7 +181,11 @@ class ServiceCaller:
       most of the round trip (``lit system-bench`` measures it against a bare echo). Answers to
       requests that already timed out are taken and dropped by sequence number, and noted
       (:meth:`answered_late`: the server is alive, it was slow once). Calls must come
-      from one thread at a time (a lock enforces it).
+      from one thread at a time (a lock enforces it). A call may send its request again while
+      it waits (``resend_after``): Fast DDS loses a request or an answer now and then in the
+      first seconds of a client, under load, with no error on either side (the server took the
+      request, sent its answer, and the answer never came, not even late); the server must then
+      take a repeated request as the same one (:class:`DirectService` with ``repeat_key``).
     """
 
     def __init__(
@@ -202,12 +207,16 @@ class ServiceCaller:
         self._owner: Any = None
         self._wait_set: Any = None
         self._lock = threading.Lock()
-        self._overdue: set[int] = set()
-        """Sequence numbers of requests whose deadline passed, not answered yet (private mode)."""
+        self._overdue: dict[int, int] = {}
+        """Sequence numbers of requests whose deadline passed, not answered yet, each mapped to
+        its call (the sequence number of the call's first request; private mode)."""
         self._answered_late: set[int] = set()
-        """Overdue requests whose answer has been taken since (private mode)."""
+        """Overdue calls whose answer has been taken since (private mode)."""
         self.last_overdue: int | None = None
-        """Sequence number of the latest request whose deadline passed (private mode)."""
+        """The latest call whose deadline passed: its first request's sequence number (private
+        mode)."""
+        self.resent = 0
+        """Requests sent again so far (``resend_after``, private mode)."""
         if private:
             self._owner = node = private_node(node, f"{node.get_name()}_{suffix}")
         self.client = node.create_client(srv_type, name, callback_group=callback_group)
@@ -226,10 +235,13 @@ class ServiceCaller:
         time.sleep(SETTLE_SECONDS)
         return True
 
-    def request(self, request: Any, timeout: float) -> Any:
-        """Send ``request``; the response, or None after ``timeout``."""
+    def request(self, request: Any, timeout: float, resend_after: float | None = None) -> Any:
+        """Send ``request``; the response, or None after ``timeout``. ``resend_after`` (private
+        mode only; ignored otherwise): without an answer after that many seconds send the same
+        request again, then after twice as long, and so on until the deadline, and take the
+        first answer to any of them (the others are dropped when they come)."""
         if self._owner is not None:
-            return self._request_waiting(request, timeout)
+            return self._request_waiting(request, timeout, resend_after)
         done = threading.Event()
         future = self.client.call_async(request)
         future.add_done_callback(lambda _: done.set())
@@ -238,33 +250,43 @@ class ServiceCaller:
             return None
         return future.result()
 
-    def _request_waiting(self, request: Any, timeout: float) -> Any:
+    def _request_waiting(self, request: Any, timeout: float, resend_after: float | None) -> Any:
         with self._lock:
             if self._wait_set is None:
                 raise RuntimeError(f"the client of {self.name} was destroyed")
             deadline = time.monotonic() + timeout
+            interval = resend_after if resend_after is not None and resend_after > 0 else None
             handle = self.client.handle
             wait_set = self._wait_set
             with self._owner.context.handle, handle:
-                sequence = handle.send_request(request)
+                sent = [handle.send_request(request)]
+                resend = deadline if interval is None else time.monotonic() + interval
                 while True:
-                    remaining = deadline - time.monotonic()
-                    if remaining <= 0.0:
-                        self.last_overdue = sequence
-                        self._overdue.add(sequence)
-                        if len(self._overdue) > OVERDUE_KEPT:  # a server that never answers
-                            self._overdue.discard(min(self._overdue))
+                    now = time.monotonic()
+                    if now >= deadline:
+                        call = sent[0]
+                        self.last_overdue = call
+                        self._overdue.update(dict.fromkeys(sent, call))
+                        while len(self._overdue) > OVERDUE_KEPT:  # a server that never answers
+                            del self._overdue[min(self._overdue)]
                         return None
-                    response = self._take(handle, wait_set, remaining, sequence)[1]
+                    if interval is not None and now >= resend:
+                        sent.append(handle.send_request(request))
+                        self.resent += 1
+                        interval *= 2.0
+                        resend = now + interval
+                        continue
+                    response = self._take(handle, wait_set, min(deadline, resend) - now, sent)[1]
                     if response is not None:
                         return response
 
     def _take(
-        self, handle: Any, wait_set: Any, timeout: float, sequence: int | None
+        self, handle: Any, wait_set: Any, timeout: float, sequences: Sequence[int]
     ) -> tuple[bool, Any]:
         """Wait up to ``timeout`` s for one answer and take it: ``(whether one was taken, the
-        response if it answers sequence else None)``. An answer to an overdue request is noted
-        (:meth:`answered_late`) and dropped. Caller holds the lock and the handles."""
+        response if it answers one of ``sequences`` else None)``. An answer to an overdue
+        request is noted (:meth:`answered_late`) and dropped, as are answers to requests of a
+        call already answered. Caller holds the lock and the handles."""
         wait_set.clear_entities()
         wait_set.add_client(handle)
         wait_set.wait(int(timeout * 1e9))
@@ -274,11 +296,13 @@ class ServiceCaller:
         if header is None:
             return False, None
         answered = header.request_id.sequence_number
-        if answered == sequence:
+        if answered in sequences:
             return True, response
-        if answered in self._overdue:
-            self._overdue.discard(answered)
-            self._answered_late.add(answered)
+        call = self._overdue.pop(answered, None)
+        if call is not None:
+            for sequence in [s for s, c in self._overdue.items() if c == call]:
+                del self._overdue[sequence]
+            self._answered_late.add(call)
             if len(self._answered_late) > OVERDUE_KEPT:
                 self._answered_late.discard(min(self._answered_late))
         return True, None
@@ -291,21 +315,24 @@ class ServiceCaller:
         if self._owner is None or sequence is None:
             return False
         with self._lock:
-            if sequence in self._overdue and self._wait_set is not None:
+            if self._wait_set is not None:
                 handle = self.client.handle
                 with self._owner.context.handle, handle:
                     while (
-                        sequence in self._overdue
-                        and self._take(handle, self._wait_set, 0.0, None)[0]
+                        sequence in self._overdue.values()
+                        and self._take(handle, self._wait_set, 0.0, ())[0]
                     ):
                         pass
             return sequence in self._answered_late
 
-    def call(self, text: str, timeout: float) -> tuple[bool, str] | None:
-        """Send ``text`` as ``load_namespace``; ``(success, message)``, or None after ``timeout``."""
+    def call(
+        self, text: str, timeout: float, resend_after: float | None = None
+    ) -> tuple[bool, str] | None:
+        """Send ``text`` as ``load_namespace``; ``(success, message)``, or None after ``timeout``
+        (``resend_after``: see :meth:`request`)."""
         request = self.srv_type.Request()
         request.load_namespace = text
-        response = self.request(request, timeout)
+        response = self.request(request, timeout, resend_after)
         if response is None:
             return None
         return bool(response.success), str(response.message)
@@ -396,6 +423,11 @@ def retry_lost_answers(service: Any, log: Any, attempts: int = SEND_ATTEMPTS) ->
     return service
 
 
+REPEATS_KEPT = 256
+"""Answers a :class:`DirectService` with ``repeat_key`` keeps for repeated requests: one call
+in flight per client, so as many clients as that may repeat at once."""
+
+
 class DirectService:
     """Serves one service from a thread of its own on a small node of its own (``name`` of the
     node, no parameter services, no rosout) that no executor spins: the thread waits on an rcl
@@ -408,10 +440,23 @@ class DirectService:
     Work the answer does not need can wait until it is sent: the callback hands it to
     :meth:`defer`, and the thread runs it right after sending, before it takes the next request
     (so deferred work and requests keep their order).
+
+    ``repeat_key(request)``: a request whose key equals that of one of the latest
+    :data:`REPEATS_KEPT` answered requests is a client's copy sent again
+    (``ServiceCaller.call(resend_after=...)``, after a lost request or answer): it gets the
+    same answer again, once tried (a repeat to a client not matched yet must not hold the thread
+    for seconds), and the callback does not run (:attr:`repeats` counts them). The key must
+    tell requests apart (``load_namespace``: an envelope names its source, run and ``seq``).
     """
 
     def __init__(
-        self, node: Any, node_name: str, srv_type: Any, service: str, callback: Callable
+        self,
+        node: Any,
+        node_name: str,
+        srv_type: Any,
+        service: str,
+        callback: Callable,
+        repeat_key: Callable[[Any], Any] | None = None,
     ) -> None:
         from rclpy.guard_condition import GuardCondition
         from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -424,6 +469,11 @@ class DirectService:
         self._stop = GuardCondition(None, None, context=node.context)
         self._stopping = False
         self._deferred: list[Callable[[], object]] = []
+        self._repeat_key = repeat_key
+        self._answers: collections.OrderedDict[Any, Any] = collections.OrderedDict()
+        """The latest answers by ``repeat_key`` of their request (serving thread)."""
+        self.repeats = 0
+        """Requests answered again from :attr:`_answers` (serving thread)."""
         context = node.context
         with context.handle:
             self._wait_set = _rclpy.WaitSet(0, 1, 0, 0, 1, 0, context.handle)
@@ -450,11 +500,22 @@ class DirectService:
                 if taken is None or taken[1] is None:
                     continue
                 request, header = taken
-                try:
-                    response = self._callback(request, self._srv_type.Response())
-                except Exception as exc:  # noqa: BLE001 - keep serving
-                    self._log.error(f"{service.srv_name}: callback failed: {exc!r}")
-                    response = self._srv_type.Response()
+                key = None if self._repeat_key is None else self._repeat_key(request)
+                response = None if key is None else self._answers.get(key)
+                attempts = SEND_ATTEMPTS
+                if response is not None:  # a copy: the same answer, once tried
+                    self.repeats += 1
+                    attempts = 1
+                else:
+                    try:
+                        response = self._callback(request, self._srv_type.Response())
+                    except Exception as exc:  # noqa: BLE001 - keep serving
+                        self._log.error(f"{service.srv_name}: callback failed: {exc!r}")
+                        response = self._srv_type.Response()
+                    if key is not None:
+                        self._answers[key] = response
+                        if len(self._answers) > REPEATS_KEPT:
+                            self._answers.popitem(last=False)
                 try:
                     send_response(
                         service.send_response,
@@ -463,6 +524,7 @@ class DirectService:
                         service.srv_name,
                         self._log,
                         lambda: self._stopping,
+                        attempts,
                     )
                 finally:  # the answer is out (or cannot go out): its work is still owed
                     self._run_deferred(service.srv_name)
