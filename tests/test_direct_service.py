@@ -63,7 +63,7 @@ SERVER = textwrap.dedent(
         AddDiagnostics,
         "/direct/echo",
         serve,
-        repeat_key=lambda request: request.load_namespace,
+        repeat_key=lambda request: ("the one client", request.load_namespace),
     )
     holder.append(service)
     # Fast DDS losing an answer, silently: the first answer to each "lost:" request is not sent.
@@ -90,6 +90,7 @@ SERVER = textwrap.dedent(
 CLIENT = textwrap.dedent(
     """
     import sys
+    import time
     import rclpy
     from lit_planner.rosutil import ServiceCaller
 
@@ -106,6 +107,17 @@ CLIENT = textwrap.dedent(
     print("lost once", caller.call("lost:a", 0.5), caller.resent)
     print("sent again", caller.call("lost:b", 20.0, 0.05), caller.resent > 0)
     print("after loss", caller.call("next-2", 10.0, 0.05))
+    # A slow answer (0.5 s) to a call sent again twice: late, through whichever copy comes
+    # first; the call counts as answered late once, and no copy's answer is taken for the next.
+    before = caller.resent
+    print("slow copies", caller.call("slow-2", 0.3, 0.02), caller.resent - before)
+    call = caller.last_overdue
+    for _ in range(500):
+        if caller.answered_late(call):
+            break
+        time.sleep(0.01)
+    print("answered late", caller.answered_late(call), call in caller._overdue.values())
+    print("after slow copies", caller.call("next-3", 10.0))
     flag = sys.argv[1]
     print("defer-wait", caller.call("defer-wait:" + flag, 20.0))
     open(flag, "w").close()
@@ -114,6 +126,7 @@ CLIENT = textwrap.dedent(
     order = caller.call("order", 20.0)[1].split(",")
     print("order", order[order.index("call:defer-wait:" + flag):])
     print("lost:b served", order.count("call:lost:b"))
+    print("slow-2 served", order.count("call:slow-2"))
     caller.destroy()
     try:
         caller.call("x", 0.1)
@@ -144,6 +157,11 @@ def test_direct_service_and_wait_set_client_across_processes(ros: RosSystem, tmp
     assert "sent again (True, 'echo:lost:b') True" in out
     assert "after loss (True, 'echo:next-2')" in out
     assert "lost:b served 1" in out
+    # Copies after 20, 60 and 140 ms (each wait twice the last) until the 300 ms deadline.
+    assert re.search(r"^slow copies None [123]$", out, re.MULTILINE), out
+    assert "answered late True False" in out
+    assert "after slow copies (True, 'echo:next-3')" in out
+    assert "slow-2 served 1" in out
     # Deferred work: after the answer (the client got it while the work was still waiting for
     # the client), before the next request; failing work is logged and serving goes on.
     assert f"defer-wait (True, 'echo:defer-wait:{flag}')" in out

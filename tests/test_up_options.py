@@ -36,6 +36,7 @@ import pytest
         (["--planner-param", "policy:=foo"], "--planner-param: policy must be one of"),
         (["--planner-param", "decision_timeout:=0"], "decision_timeout must be a positive"),
         (["--planner-param", "learner_resend:=-0.01"], "learner_resend must be 0 or more sec"),
+        (["--planner-param", "learner_resend:=1e-9"], "learner_resend must be 0 (never send"),
         (["--planner-param", "training_scenarios:=zz4"], "training_scenarios 'zz4': "),
         (["--learner-param", "train:=everything"], "--learner-param: train must be both"),
         (["--learner-param", "stats_period:=-1"], "stats_period must be a positive"),

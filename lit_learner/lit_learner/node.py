@@ -35,7 +35,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from lit_msgs_json.envelope import MessageError, decode
+from lit_msgs_json.envelope import MAX_MESSAGE_BYTES, MessageError, decode
 from lit_planner.rosutil import (
     DECIDE_SERVICE,
     EXPORT_SERVICE,
@@ -103,6 +103,25 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
     if not p["checkpoint"]:
         return "checkpoint must name a file"
     return None
+
+
+def _repeat_key(request: Any) -> tuple[tuple[str, str], int] | None:
+    """A decide request's client (the envelope's source and run) and identity (its text, hashed):
+    a planner's copy of a request it sent again is the same text. None for a text that is not
+    an envelope (served, and rejected, as new). About 7 us for a decision's 440 characters."""
+    text = request.load_namespace
+    if len(text) > MAX_MESSAGE_BYTES:
+        return None
+    try:
+        envelope = json.loads(text)
+    except ValueError:
+        return None
+    if not isinstance(envelope, dict):
+        return None
+    source, run_id = envelope.get("source"), envelope.get("run_id")
+    if not (isinstance(source, str) and isinstance(run_id, str)):
+        return None
+    return (source, run_id), hash(text)
 
 
 class LearnerNode:
@@ -200,7 +219,7 @@ class LearnerNode:
             AddDiagnostics,
             p["service"],
             self._serve,
-            repeat_key=lambda request: request.load_namespace,
+            repeat_key=_repeat_key,
         )
         self._repeats_logged = 0
         self.log.info(

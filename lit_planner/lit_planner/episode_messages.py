@@ -65,6 +65,8 @@ class DecisionSources:
     """The query's one note that a late learner answered and calls resume was logged."""
     resent_before: int = 0
     """The learner client's count of requests sent again when the query started."""
+    answered_by_copy_before: int = 0
+    """The learner client's count of calls answered through a copy when the query started."""
 
     def add(self, source: str, latency_ms: float | None = None) -> None:
         self.sources.append(source)

@@ -10,8 +10,8 @@
   loop), ``lit/episode`` (EpisodeSummary) and ``lit/path`` (``trajectory_msgs/JointTrajectory``).
 - ``policy: training``: a loop of ``episodes`` training queries over the training distribution;
   each decision calls the learner's ``/lit/learner/decide`` with a deadline of
-  ``decision_timeout`` s; a call without an answer after ``learner_resend`` s (then twice as
-  long, and so on) sends its request again, since Fast DDS now and then loses a request or an
+  ``decision_timeout`` s; a call without an answer after ``learner_resend`` s or an eighth of
+  its deadline, whichever is longer (then twice as long, and so on), sends its request again, since Fast DDS now and then loses a request or an
   answer in a client's first seconds under load, silently (the learner answers a repeated
   request again without taking it twice; 0: never). A late or absent learner: that decision
   falls back to the tensor policy
@@ -113,6 +113,9 @@ PARAMETERS: dict[str, Any] = {
 }
 """The node's ROS parameters and their defaults."""
 
+MIN_RESEND = 0.001
+"""The shortest ``learner_resend`` (s) taken: shorter sends many copies to no purpose."""
+
 INVALID_TERMINAL = {"invalid_start": "start", "invalid_goal": "goal"}
 """Core statuses that mean the request gave an unusable start or goal."""
 
@@ -139,6 +142,11 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
     for name in ("learner_retry", "learner_wait", "learner_resend"):
         if not (math.isfinite(p[name]) and p[name] >= 0):
             return f"{name} must be 0 or more seconds, got {p[name]}"
+    if 0 < p["learner_resend"] < MIN_RESEND:
+        return (
+            f"learner_resend must be 0 (never send again) or at least {MIN_RESEND:g} s, got "
+            f"{p['learner_resend']}"
+        )
     for name in ("decision_timeout", "first_decision_timeout"):
         if not (math.isfinite(p[name]) and p[name] > 0):
             return f"{name} must be a positive number of seconds, got {p[name]}"
@@ -585,7 +593,10 @@ class PlannerNode:
         listener = EventLog(
             job.episode_id, lambda payload: self.publish("solution", "SolutionUpdate", payload)
         )
-        episode = DecisionSources(resent_before=self.learner.resent)
+        episode = DecisionSources(
+            resent_before=self.learner.resent,
+            answered_by_copy_before=self.learner.answered_by_copy,
+        )
         params: dict[str, object] = {}
         if job.planner == "litstar" and self.params["decision_interval"] > 0:
             # 0: the planner's default (1; the learner decides psi_K at every expansion) or, with
@@ -685,7 +696,7 @@ class PlannerNode:
             answer = self.learner.call(
                 self.envelopes["decide"].encode("DecideRequest", payload),
                 deadline,
-                self.params["learner_resend"],
+                self._resend_after(deadline),
             )
             if answer is not None:
                 # Answered in time (an error too): the learner is there and its answers arrive.
@@ -730,6 +741,13 @@ class PlannerNode:
         episode.add("fallback-tensor")
         # The core rounds B half away from zero and clamps both, as for any external answer.
         return float(lookup(context.rho_global, context.rho_local, context.measure))
+
+    def _resend_after(self, deadline: float) -> float | None:
+        """When a learner call without an answer sends its request again: after
+        ``learner_resend`` or an eighth of its deadline, whichever is longer (then twice as
+        long, ...); None with ``learner_resend: 0``."""
+        resend = self.params["learner_resend"]
+        return max(resend, deadline / 8.0) if resend > 0 else None
 
     def _learner_caught_up(self, job: Job, episode: DecisionSources) -> bool:
         """Whether the learner answered, late, the one call that missed its deadline: it is
@@ -797,13 +815,15 @@ class PlannerNode:
         answer = self.learner.call(
             self.envelopes["decide"].encode("EpisodeEnd", payload),
             deadline,
-            self.params["learner_resend"],
+            self._resend_after(deadline),
         )
         resent = self.learner.resent - episode.resent_before
         if resent:
+            by_copy = self.learner.answered_by_copy - episode.answered_by_copy_before
             self.log.info(
                 f"episode {job.episode_id}: {resent} learner requests sent again (no answer "
-                f"within {self.params['learner_resend'] * 1e3:g} ms, then twice as long, ...)"
+                f"within learner_resend or an eighth of the deadline, then twice as long, ...); "
+                f"{by_copy} calls answered through a copy"
             )
         if answer is None:
             self.log.warning(

@@ -217,6 +217,10 @@ class ServiceCaller:
         mode)."""
         self.resent = 0
         """Requests sent again so far (``resend_after``, private mode)."""
+        self.answered_by_copy = 0
+        """Calls whose answer came to a copy sent again, not to the first request (private
+        mode): the first request or its answer was lost, or the answer was slower than the
+        copy's."""
         if private:
             self._owner = node = private_node(node, f"{node.get_name()}_{suffix}")
         self.client = node.create_client(srv_type, name, callback_group=callback_group)
@@ -276,28 +280,33 @@ class ServiceCaller:
                         interval *= 2.0
                         resend = now + interval
                         continue
-                    response = self._take(handle, wait_set, min(deadline, resend) - now, sent)[1]
+                    _, response, answered = self._take(
+                        handle, wait_set, min(deadline, resend) - now, sent
+                    )
                     if response is not None:
+                        if answered != sent[0]:
+                            self.answered_by_copy += 1
                         return response
 
     def _take(
         self, handle: Any, wait_set: Any, timeout: float, sequences: Sequence[int]
-    ) -> tuple[bool, Any]:
+    ) -> tuple[bool, Any, int | None]:
         """Wait up to ``timeout`` s for one answer and take it: ``(whether one was taken, the
-        response if it answers one of ``sequences`` else None)``. An answer to an overdue
+        response if it answers one of ``sequences`` else None, the sequence number it
+        answers)``. An answer to an overdue
         request is noted (:meth:`answered_late`) and dropped, as are answers to requests of a
         call already answered. Caller holds the lock and the handles."""
         wait_set.clear_entities()
         wait_set.add_client(handle)
         wait_set.wait(int(timeout * 1e9))
         if handle.pointer not in wait_set.get_ready_entities("client"):
-            return False, None
+            return False, None, None
         header, response = handle.take_response(self.srv_type.Response)
         if header is None:
-            return False, None
+            return False, None, None
         answered = header.request_id.sequence_number
         if answered in sequences:
-            return True, response
+            return True, response, answered
         call = self._overdue.pop(answered, None)
         if call is not None:
             for sequence in [s for s, c in self._overdue.items() if c == call]:
@@ -305,7 +314,7 @@ class ServiceCaller:
             self._answered_late.add(call)
             if len(self._answered_late) > OVERDUE_KEPT:
                 self._answered_late.discard(min(self._answered_late))
-        return True, None
+        return True, None, answered
 
     def answered_late(self, sequence: int | None) -> bool:
         """Whether the overdue request ``sequence`` (:attr:`last_overdue` of its call) has been
@@ -423,9 +432,9 @@ def retry_lost_answers(service: Any, log: Any, attempts: int = SEND_ATTEMPTS) ->
     return service
 
 
-REPEATS_KEPT = 256
-"""Answers a :class:`DirectService` with ``repeat_key`` keeps for repeated requests: one call
-in flight per client, so as many clients as that may repeat at once."""
+REPEAT_CLIENTS = 4096
+"""Clients whose latest answer a :class:`DirectService` with ``repeat_key`` keeps (the ones
+heard from last)."""
 
 
 class DirectService:
@@ -441,12 +450,13 @@ class DirectService:
     :meth:`defer`, and the thread runs it right after sending, before it takes the next request
     (so deferred work and requests keep their order).
 
-    ``repeat_key(request)``: a request whose key equals that of one of the latest
-    :data:`REPEATS_KEPT` answered requests is a client's copy sent again
-    (``ServiceCaller.call(resend_after=...)``, after a lost request or answer): it gets the
-    same answer again, once tried (a repeat to a client not matched yet must not hold the thread
-    for seconds), and the callback does not run (:attr:`repeats` counts them). The key must
-    tell requests apart (``load_namespace``: an envelope names its source, run and ``seq``).
+    ``repeat_key(request)``: ``(client, identity)`` of a request, or None (not cached). A
+    request whose identity equals that of the client's latest answered request is the client's
+    copy sent again (``ServiceCaller.call(resend_after=...)``, after a lost request or answer;
+    a client has one call in flight, and its copies come in order): it gets the same answer
+    again, once tried (a copy to a client not matched yet must not hold the thread for
+    seconds), and the callback does not run (:attr:`repeats` counts them). One answer is kept
+    per client, for the latest :data:`REPEAT_CLIENTS` clients.
     """
 
     def __init__(
@@ -470,8 +480,8 @@ class DirectService:
         self._stopping = False
         self._deferred: list[Callable[[], object]] = []
         self._repeat_key = repeat_key
-        self._answers: collections.OrderedDict[Any, Any] = collections.OrderedDict()
-        """The latest answers by ``repeat_key`` of their request (serving thread)."""
+        self._answers: collections.OrderedDict[Any, tuple[Any, Any]] = collections.OrderedDict()
+        """Each client's latest request identity and answer, by client (serving thread)."""
         self.repeats = 0
         """Requests answered again from :attr:`_answers` (serving thread)."""
         context = node.context
@@ -500,8 +510,7 @@ class DirectService:
                 if taken is None or taken[1] is None:
                     continue
                 request, header = taken
-                key = None if self._repeat_key is None else self._repeat_key(request)
-                response = None if key is None else self._answers.get(key)
+                key, response = self._repeated(request, service.srv_name)
                 attempts = SEND_ATTEMPTS
                 if response is not None:  # a copy: the same answer, once tried
                     self.repeats += 1
@@ -513,8 +522,10 @@ class DirectService:
                         self._log.error(f"{service.srv_name}: callback failed: {exc!r}")
                         response = self._srv_type.Response()
                     if key is not None:
-                        self._answers[key] = response
-                        if len(self._answers) > REPEATS_KEPT:
+                        client, identity = key
+                        self._answers[client] = (identity, response)
+                        self._answers.move_to_end(client)
+                        if len(self._answers) > REPEAT_CLIENTS:
                             self._answers.popitem(last=False)
                 try:
                     send_response(
@@ -533,6 +544,24 @@ class DirectService:
         except Exception as exc:  # noqa: BLE001 - RCLError when the context shuts down under the wait
             if context.ok() and not self._stopping:
                 self._log.error(f"{service.srv_name}: serving stopped: {exc!r}")
+
+    def _repeated(self, request: Any, name: str) -> tuple[Any, Any]:
+        """``(repeat key, the cached answer if the request is a copy else None)``; a key
+        function that raises is logged and the request served as new."""
+        if self._repeat_key is None:
+            return None, None
+        try:
+            key = self._repeat_key(request)
+            if key is None:
+                return None, None
+            client, identity = key
+            cached = self._answers.get(client)
+        except Exception as exc:  # noqa: BLE001 - keep serving
+            self._log.error(f"{name}: repeat key failed: {exc!r}")
+            return None, None
+        if cached is not None and cached[0] == identity:
+            return key, cached[1]
+        return key, None
 
     def defer(self, work: Callable[[], object]) -> None:
         """Run ``work`` on the serving thread once the current answer is sent (call it from the
