@@ -320,3 +320,32 @@ def test_an_answer_that_cannot_be_sent_does_not_end_the_executor_thread() -> Non
         log.errors
         == ["/broken: answer not sent: SystemError('returned a result with an exception set')"] * 2
     )
+
+
+def test_the_learner_keys_repeated_requests_by_planner_and_text() -> None:
+    """The learner's decide service keeps one answer per planner (the envelope's source and
+    run): a copy is the same text; the planner's next request (next seq) is a new one; a text
+    that is not an envelope is never taken for a copy (it is served, and rejected, each time)."""
+    from types import SimpleNamespace
+
+    from lit_learner.node import _repeat_key
+
+    from lit_msgs_json import Publisher
+
+    publisher = Publisher("/robot1/lit_planner", "run-1")
+    payload = {"episode_id": "e", "planning_time": 0.0, "time_budget": 1.0, "cost": None,
+               "minimum_cost": 1.0, "improvements": 0, "path_states": 0, "truncated": True,
+               "fallback_decisions": 0}  # fmt: skip
+    first = publisher.encode("EpisodeEnd", payload)
+    second = publisher.encode("EpisodeEnd", payload)
+
+    def key(text: str):  # type: ignore[no-untyped-def]
+        return _repeat_key(SimpleNamespace(load_namespace=text))
+
+    assert key(first) == key(first)
+    assert key(first)[0] == key(second)[0] == ("/robot1/lit_planner", "run-1")
+    assert key(first)[1] != key(second)[1]
+    other = Publisher("/robot2/lit_planner", "run-1").encode("EpisodeEnd", payload)
+    assert key(other)[0] != key(first)[0]
+    for text in ("not json", "[1, 2]", '{"source": ["a"], "run_id": "r"}', "{}"):
+        assert key(text) is None
