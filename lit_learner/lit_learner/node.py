@@ -108,7 +108,9 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
 def _repeat_key(request: Any) -> tuple[tuple[str, str], int] | None:
     """A decide request's client (the envelope's source and run) and identity (its text, hashed):
     a planner's copy of a request it sent again is the same text. None for a text that is not
-    an envelope (served, and rejected, as new). About 7 us for a decision's 440 characters."""
+    an envelope (served, and rejected, as new). The text is parsed twice (``_serve`` decodes it
+    again): about 7 us per decision request beside the decoding's 11 us (timeit, one-off,
+    2026-12-03)."""
     text = request.load_namespace
     if len(text) > MAX_MESSAGE_BYTES:
         return None
