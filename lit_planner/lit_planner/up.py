@@ -423,23 +423,8 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
 
 def _given_values(items: Sequence[str], known: dict[str, Any]) -> dict[str, Any]:
     """The values that the ``NAME:=VALUE`` items of known parameters give, with the type of each
-    default (the items passed :func:`_typed_params`)."""
-    values: dict[str, Any] = {}
-    for name, text in _params(items).items():
-        if name not in known:
-            continue
-        default, word = known[name], text.strip()
-        if isinstance(default, bool):
-            values[name] = _BOOLEAN_WORDS[word.lower()]
-        elif isinstance(default, int):
-            values[name] = int(word)
-        elif isinstance(default, float):
-            values[name] = float(word)
-        elif len(word) >= 2 and word[0] == word[-1] and word[0] in "'\"":
-            values[name] = word[1:-1]
-        elif word or default != "":
-            values[name] = text
-    return values
+    default (raises ValueError as :func:`_typed_params` does)."""
+    return {name: value for name, (value, _) in _read_params(items, known).items() if name in known}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -548,28 +533,40 @@ def _typed_params(items: Sequence[str], known: dict[str, Any]) -> dict[str, str]
     and ``y`` are not text to it, ``010`` is octal), so text is passed quoted, whole numbers for
     float parameters as floats (it refuses ``time_budget:=1``), integers and booleans in one
     spelling. An empty value keeps an empty default (rcl refuses an empty value)."""
-    result = {}
+    return {name: text for name, (_, text) in _read_params(items, known).items()}
+
+
+def _read_params(items: Sequence[str], known: dict[str, Any]) -> dict[str, tuple[Any, str]]:
+    """Each ``NAME:=VALUE`` item's value, typed as its parameter's default, and the spelling rcl
+    reads as that value (see :func:`_typed_params`); an unknown name keeps its text for both
+    (the caller reports it, or it is ROS's own, use_sim_time). ValueError names a bad value."""
+    result: dict[str, tuple[Any, str]] = {}
     for name, text in _params(items).items():
-        if name not in known:  # reported by the caller (or ROS's own, use_sim_time)
-            result[name] = text
+        if name not in known:
+            result[name] = (text, text)
             continue
         default, word = known[name], text.strip()
+        value: Any = None
         if isinstance(default, bool):
             ok, kind = word.lower() in _BOOLEAN_WORDS, "true or false"
-            text = str(_BOOLEAN_WORDS[word.lower()]).lower() if ok else text
+            if ok:
+                value = _BOOLEAN_WORDS[word.lower()]
+                text = str(value).lower()
         elif isinstance(default, int):
             ok = re.fullmatch(r"[+-]?(0|[1-9]\d*)", word) is not None and (
                 -(2**63) <= int(word) < 2**63
             )
             kind = "a whole number (no leading zeros)"
-            text = str(int(word)) if ok else text
+            if ok:
+                value = int(word)
+                text = str(value)
         elif isinstance(default, float):
             try:
-                number = float(word)
+                value = float(word)
             except ValueError:
-                number = math.nan
-            ok, kind = math.isfinite(number), "a finite number"
-            text = repr(number) if ok else text
+                value = math.nan
+            ok, kind = math.isfinite(value), "a finite number"
+            text = repr(value) if ok else text
         elif not word:
             if default == "":
                 continue  # the default already: rcl would refuse the empty value
@@ -577,10 +574,11 @@ def _typed_params(items: Sequence[str], known: dict[str, Any]) -> dict[str, str]
         else:
             ok, kind = True, "text"
             quoted = len(word) >= 2 and word[0] == word[-1] and word[0] in "'\""
+            value = word[1:-1] if quoted else text
             text = word if quoted else "'" + text.replace("'", "''") + "'"
         if not ok:
             raise ValueError(f"{name}:={text}: {name} takes {kind} (default {default!r})")
-        result[name] = text
+        result[name] = (value, text)
     return result
 
 
