@@ -185,6 +185,54 @@ def test_direct_service_and_wait_set_client_across_processes(ros: RosSystem, tmp
     assert "clean exit" in server.text()
 
 
+CROWD = textwrap.dedent(
+    """
+    import time
+    import rclpy
+    from diagnostic_msgs.srv import AddDiagnostics
+    from lit_planner.rosutil import ServiceCaller
+
+    rclpy.init()
+    node = rclpy.create_node("direct_crowd_client")
+    a = ServiceCaller(node, "/direct/echo", private=True, suffix="a")
+    b = ServiceCaller(node, "/direct/echo", private=True, suffix="b")
+    assert a.wait(60.0) and b.wait(60.0), "no server"
+    # A sends a request and is not scheduled while the server answers it and then 50 calls of
+    # B: every client of a service receives every answer, and with ROS's default history of 10
+    # A's reader dropped its own answer before A took it (silently).
+    request = AddDiagnostics.Request()
+    request.load_namespace = "held"
+    with a._owner.context.handle, a.client.handle:
+        held = a.client.handle.send_request(request)
+    time.sleep(0.3)
+    print("others", all(b.call(f"other-{i}", 10.0) == (True, f"echo:other-{i}") for i in range(50)))
+    response, deadline = None, time.monotonic() + 5.0
+    with a._lock, a._owner.context.handle, a.client.handle:
+        while response is None and time.monotonic() < deadline:
+            _, response, _ = a._take(a.client.handle, a._wait_set, 0.1, [held])
+    print("held", None if response is None else response.message)
+    a.destroy()
+    b.destroy()
+    node.destroy_node()
+    rclpy.shutdown()
+    """
+)
+
+
+def test_a_clients_answer_outlasts_many_answers_to_other_clients(ros: RosSystem) -> None:
+    """A client's answer waits in its reader while other clients' calls are answered (a planner
+    not scheduled while the learner serves other planners): the service QoS's history
+    (rosutil.service_qos) keeps it; ROS's default of 10 lost it every time."""
+    server = ros.start("server", [sys.executable, "-c", SERVER])
+    server.wait_for_log(r"^ready", timeout=60.0)
+    client = ros.start("crowd", [sys.executable, "-c", CROWD])
+    assert client.wait(120.0) == 0, client.tail()
+    out = client.text()
+    assert "others True" in out, client.tail()
+    assert "held echo:held" in out, client.tail()
+    assert ros.stop(server) == 0, server.tail()
+
+
 def test_send_response_retries_an_answer_fast_dds_dropped() -> None:
     """rclpy only warns when Fast DDS drops an answer; send_response tries again, logs when it
     gives up, and turns no other warning into an error (nor leaves its filter behind)."""

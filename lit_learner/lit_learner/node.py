@@ -45,6 +45,7 @@ from lit_planner.rosutil import (
     flush_publishers,
     json_qos,
     retry_lost_answers,
+    service_qos,
     spin_node,
     spin_quietly,
 )
@@ -195,7 +196,10 @@ class LearnerNode:
             use_global_arguments=False,  # a process-wide __node:= remap is the main node's
         )
         retry_lost_answers(
-            self._export_node.create_service(Trigger, EXPORT_SERVICE, self._serve_export), self.log
+            self._export_node.create_service(
+                Trigger, EXPORT_SERVICE, self._serve_export, qos_profile=service_qos()
+            ),
+            self.log,
         )
         self._export_executor = SingleThreadedExecutor()
         self._export_executor.add_node(self._export_node)

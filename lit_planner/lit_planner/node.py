@@ -80,6 +80,7 @@ from lit_planner.rosutil import (
     flush_publishers,
     json_qos,
     retry_lost_answers,
+    service_qos,
     spin_node,
 )
 
@@ -279,6 +280,7 @@ class PlannerNode:
                 AddDiagnostics,
                 PLAN_SERVICE,
                 self._serve_plan,
+                qos_profile=service_qos(),
                 callback_group=ReentrantCallbackGroup(),
             ),
             self.log,
