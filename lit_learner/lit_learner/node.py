@@ -218,7 +218,8 @@ class LearnerNode:
         # round trip is on the planner's critical path (see DirectService). The service is made
         # last, so that a planner that sees it finds everything else in place.
         # A planner sends a request again when its answer is slow to come (a request or an
-        # answer Fast DDS lost): the same envelope text, answered again from the cache.
+        # answer lost: rosutil.service_qos for one cause): the same envelope text, answered
+        # again from the cache.
         self._decide = DirectService(
             node,
             f"{NODE_NAME}_decide",
