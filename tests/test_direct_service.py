@@ -8,6 +8,7 @@ shut down cleanly."""
 
 from __future__ import annotations
 
+import json
 import re
 import sys
 import textwrap
@@ -373,12 +374,14 @@ def test_an_answer_that_cannot_be_sent_does_not_end_the_executor_thread() -> Non
 def test_the_learner_keys_repeated_requests_by_planner_and_text() -> None:
     """The learner's decide service keeps one answer per planner (the envelope's source and
     run): a copy is the same text; the planner's next request (next seq) is a new one; a text
-    that is not an envelope is never taken for a copy (it is served, and rejected, each time)."""
+    the service rejects is never taken for a copy (it is served, and rejected, each time). The
+    key's decoding is the one the service uses: each text is decoded once."""
     from types import SimpleNamespace
 
-    from lit_learner.node import _repeat_key
+    import pytest
+    from lit_learner.node import _DecodeOnce
 
-    from lit_msgs_json import Publisher
+    from lit_msgs_json import MessageError, Publisher
 
     publisher = Publisher("/robot1/lit_planner", "run-1")
     payload = {"episode_id": "e", "planning_time": 0.0, "time_budget": 1.0, "cost": None,
@@ -386,14 +389,23 @@ def test_the_learner_keys_repeated_requests_by_planner_and_text() -> None:
                "fallback_decisions": 0}  # fmt: skip
     first = publisher.encode("EpisodeEnd", payload)
     second = publisher.encode("EpisodeEnd", payload)
+    decoder = _DecodeOnce()
 
     def key(text: str):  # type: ignore[no-untyped-def]
-        return _repeat_key(SimpleNamespace(load_namespace=text))
+        return decoder.repeat_key(SimpleNamespace(load_namespace=text))
 
     assert key(first) == key(first)
     assert key(first)[0] == key(second)[0] == ("/robot1/lit_planner", "run-1")
     assert key(first)[1] != key(second)[1]
     other = Publisher("/robot2/lit_planner", "run-1").encode("EpisodeEnd", payload)
     assert key(other)[0] != key(first)[0]
-    for text in ("not json", "[1, 2]", '{"source": ["a"], "run_id": "r"}', "{}"):
+    stale = {**json.loads(first), "version": 99}
+    for text in ("not json", "[1, 2]", '{"source": ["a"], "run_id": "r"}', "{}", json.dumps(stale)):
         assert key(text) is None
+        with pytest.raises(MessageError):
+            decoder.decode(text)  # the service's answer: rejected
+    key(second)
+    message = decoder.decode(second)
+    assert decoder.decode(second) is message  # not decoded again
+    assert message.payload["episode_id"] == "e" and message.source == "/robot1/lit_planner"
+    assert decoder.decode(first) is not message

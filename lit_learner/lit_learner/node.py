@@ -35,7 +35,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from lit_msgs_json.envelope import MAX_MESSAGE_BYTES, MessageError, decode
+from lit_msgs_json.envelope import Message, MessageError, decode
 from lit_planner.rosutil import (
     DECIDE_SERVICE,
     EXPORT_SERVICE,
@@ -106,25 +106,46 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
     return None
 
 
-def _repeat_key(request: Any) -> tuple[tuple[str, str], int] | None:
-    """A decide request's client (the envelope's source and run) and identity (its text, hashed):
-    a planner's copy of a request it sent again is the same text. None for a text that is not
-    an envelope (served, and rejected, as new). The text is parsed twice (``_serve`` decodes it
-    again): about 7 us per decision request beside the decoding's 11 us (timeit, one-off,
-    2026-12-03)."""
-    text = request.load_namespace
-    if len(text) > MAX_MESSAGE_BYTES:
-        return None
-    try:
-        envelope = json.loads(text)
-    except ValueError:
-        return None
-    if not isinstance(envelope, dict):
-        return None
-    source, run_id = envelope.get("source"), envelope.get("run_id")
-    if not (isinstance(source, str) and isinstance(run_id, str)):
-        return None
-    return (source, run_id), hash(text)
+DECIDE_ACCEPT = ("DecideRequest", "EpisodeEnd")
+"""The messages the decide service takes."""
+
+
+class _DecodeOnce:
+    """Decodes each decide request once for the two that read it, from the serving thread: the
+    repeat key (:class:`DirectService` asks it first) and :meth:`LearnerNode._serve`. It keeps
+    the latest text's result, a message or the error."""
+
+    def __init__(self) -> None:
+        self._text: str | None = None
+        self._result: Message | MessageError | None = None
+
+    def decode(self, text: str) -> Message:
+        """``decode(text)`` for the decide service, reused for the same text as last time.
+
+        Raises:
+            MessageError: the text is rejected.
+        """
+        if text != self._text:
+            try:
+                result: Message | MessageError = decode(text, accept=DECIDE_ACCEPT)
+            except MessageError as exc:
+                result = exc
+            self._text, self._result = text, result
+        if isinstance(self._result, MessageError):
+            raise self._result
+        assert self._result is not None
+        return self._result
+
+    def repeat_key(self, request: Any) -> tuple[tuple[str, str], int] | None:
+        """A decide request's client (the envelope's source and run) and identity (its text,
+        hashed): a planner's copy of a request it sent again is the same text. None for a text
+        the service rejects (served, and rejected, as new)."""
+        text = request.load_namespace
+        try:
+            message = self.decode(text)
+        except MessageError:
+            return None
+        return (message.source, message.run_id), hash(text)
 
 
 class LearnerNode:
@@ -220,13 +241,14 @@ class LearnerNode:
         # A planner sends a request again when its answer is slow to come (a request or an
         # answer lost: rosutil.service_qos for one cause): the same envelope text, answered
         # again from the cache.
+        self._decoder = _DecodeOnce()
         self._decide = DirectService(
             node,
             f"{NODE_NAME}_decide",
             AddDiagnostics,
             p["service"],
             self._serve,
-            repeat_key=_repeat_key,
+            repeat_key=self._decoder.repeat_key,
         )
         self._repeats_logged = 0
         self.log.info(
@@ -289,7 +311,7 @@ class LearnerNode:
     def _serve(self, request: Any, response: Any) -> Any:
         # Module-level imports: an import statement here would cost microseconds per decision.
         try:
-            message = decode(request.load_namespace, accept=("DecideRequest", "EpisodeEnd"))
+            message = self._decoder.decode(request.load_namespace)  # decoded by the repeat key
         except MessageError as exc:
             response.success, response.message = False, self.reply.error(exc)
             self.log.warning(f"rejected: {exc}")

@@ -12,9 +12,9 @@
   each decision calls the learner's ``/lit/learner/decide`` with a deadline of
   ``decision_timeout`` s; a call without an answer after ``learner_resend`` s or an eighth of
   its deadline, whichever is longer (then twice as long, and so on), sends its request again,
-  since Fast DDS now and then loses a request or an answer in a client's first seconds under
-  load, silently (the learner answers a repeated request again without taking it twice; 0:
-  never). A late or absent learner: that decision falls back to the tensor policy
+  since a request or an answer can be lost silently (``rosutil.service_qos`` removed one cause;
+  the learner answers a repeated request again without taking it twice; 0: never). A late or
+  absent learner: that decision falls back to the tensor policy
   (``fixed`` without tensors), the episode is marked, a warning is logged, and for
   ``learner_retry`` s no decision call is tried (episode ends are still sent); then training
   resumes with the learner. Calls resume sooner when the learner answers the missed call late
