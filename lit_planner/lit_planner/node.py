@@ -668,6 +668,7 @@ class PlannerNode:
 
     def _decide(self, job: Job, episode: DecisionSources, budget: float, context: Any) -> float:
         kind = context.kind
+        window_starts = False
         if time.monotonic() < self._learner_down_until and self._learner_caught_up(job, episode):
             self._learner_down_until = 0.0
         if time.monotonic() >= self._learner_down_until:
@@ -727,11 +728,15 @@ class PlannerNode:
                         f"{self.params['learner_retry']:g} s) use the fallback policy"
                     )
                 else:
+                    window_starts = self._missed_in_a_row == 2
                     reason += (
                         f" ({self._missed_in_a_row} calls in a row); this decision and those "
                         f"in the next {self.params['learner_retry']:g} s use the fallback policy"
                     )
-            if not episode.warned:
+            # One warning a query, and one more when a second miss in a row starts the
+            # learner_retry window: after a late answer's "calls resume" the query's fallbacks
+            # would otherwise read as calls that went on.
+            if not episode.warned or window_starts:
                 episode.warned = True
                 self.log.warning(f"episode {job.episode_id}: {reason}")
         episode.fallbacks += 1
