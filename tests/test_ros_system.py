@@ -191,6 +191,26 @@ def test_the_planner_node_uses_its_tensors_as_trained_and_sees_them_change(
     _no_traceback(planner)
 
 
+def _long_request_running(
+    ros: RosSystem, recording: Recording, planner: Child, budget: str
+) -> Child:
+    """``lit call plan`` of np4 for ``budget`` s (request_id ``long``) to ``planner`` once it is
+    ready, returned once the request runs: its first solution was published."""
+    _ready(planner)
+    recording.wait_for_publishers("/lit/solution")
+    long = ros.call_start(
+        "--payload-only", "plan", "--scenario", "np4", "--time", budget, "--request-id", "long"
+    )
+    recording.wait_until(
+        "/lit/solution",
+        lambda updates: any(update["episode_id"] == "long" for update in updates),
+        timeout=60.0,
+        what="a solution of the long request",
+        watch=[planner],
+    )
+    return long
+
+
 def test_plan_requests_wait_in_the_queue_then_busy(ros: RosSystem) -> None:
     """A request arriving during a long one waits its turn; one beyond ``queue_limit`` is refused.
 
@@ -199,19 +219,7 @@ def test_plan_requests_wait_in_the_queue_then_busy(ros: RosSystem) -> None:
     """
     recording = ros.recorder(["/lit/solution"])
     planner = ros.planner(queue_limit=1)
-    _ready(planner)
-    recording.wait_for_publishers("/lit/solution")
-    long = ros.call_start(
-        "--payload-only", "plan", "--scenario", "np4", "--time", "6.0", "--request-id", "long"
-    )
-    # The long request runs once its first solution is published.
-    recording.wait_until(
-        "/lit/solution",
-        lambda updates: any(update["episode_id"] == "long" for update in updates),
-        timeout=60.0,
-        what="solution of the long request",
-        watch=[planner],
-    )
+    long = _long_request_running(ros, recording, planner, "6.0")
     shorts = [
         ros.call_start(
             "--payload-only", "plan", "--scenario", "np4", "--time", "0.2", "--request-id", name
@@ -232,6 +240,90 @@ def test_plan_requests_wait_in_the_queue_then_busy(ros: RosSystem) -> None:
     assert refused["request_schema"] == "PlanRequest"
     assert "queue_limit 1" in refused["message"]
     assert planner.running()
+    _no_traceback(planner)
+
+
+def test_cancel_ends_the_running_query_and_drops_a_queued_one(ros: RosSystem) -> None:
+    """``lit call cancel``: a queued plan request is answered without being started and the
+    running one stops with what it found; each answers its own caller (status ``cancelled``),
+    and the node keeps serving. A cancel naming no request, or a malformed one, changes nothing."""
+    recording = ros.recorder(["/lit/solution", EPISODE])
+    planner = ros.planner()
+    long = _long_request_running(ros, recording, planner, "300")
+    queued = ros.call_start(
+        "--payload-only", "plan", "--scenario", "np8", "--time", "300", "--request-id", "queued"
+    )
+    planner.wait_for_log(r"plan request queued waits behind 1", timeout=60.0)
+
+    for request_id, running, waiting in (("nobody", 0, 0), ("queued", 0, 1), ("long", 1, 0)):
+        answer = ros.call("--payload-only", "cancel", "--request-id", request_id)
+        assert answer.returncode == 0, answer
+        assert (answer.json()["running"], answer.json()["queued"]) == (running, waiting), answer
+        if request_id == "nobody":
+            assert "no plan request 'nobody' is running or queued" in answer.json()["message"]
+
+    dropped = finish_call(queued)
+    assert dropped.returncode == 0, dropped
+    payload = dropped.json()
+    assert payload["status"] == "cancelled" and payload["solved"] is False, payload
+    assert payload["time"] == 0.0 and payload["path"] == [] and payload["request_id"] == "queued"
+    stopped = finish_call(long)
+    assert stopped.returncode == 0, stopped
+    payload = stopped.json()
+    assert payload["status"] == "cancelled" and payload["solved"] is True, payload
+    assert "cancelled by a CancelRequest after" in payload["message"], payload
+    assert payload["time"] < 300.0 and payload["path_valid"] is True, payload
+    summary = recording.wait_until(
+        EPISODE,
+        lambda found: any(s["episode_id"] == "long" for s in found),
+        timeout=60.0,
+        what="the summary of the cancelled request",
+        watch=[planner],
+    )
+    assert next(s for s in summary if s["episode_id"] == "long")["status"] == "cancelled"
+
+    malformed = ros.call("raw", "/lit/planner/cancel", json.dumps({"not": "an envelope"}))
+    assert malformed.returncode == 1 and malformed.json()["payload"]["code"] == "envelope", (
+        malformed
+    )
+    after = ros.call("--payload-only", "plan", "--scenario", "np4", "--time", "0.2")
+    assert after.returncode == 0 and after.json()["status"] != "cancelled", after
+    assert planner.running()
+    _no_traceback(planner)
+
+
+@pytest.mark.parametrize("how", ["timeout", "sigint", "sigterm"])
+def test_lit_call_plan_cancels_the_query_it_stops_waiting_for(ros: RosSystem, how: str) -> None:
+    """``lit call plan`` that stops waiting (its ``--timeout``, Ctrl-C or SIGTERM) cancels its
+    request in the node, which then serves the next one instead of planning for nobody. (Until
+    the wait looked at the signal, a signalled call waited out its whole timeout.)"""
+    recording = ros.recorder(["/lit/solution"])
+    planner = ros.planner()
+    _ready(planner)
+    recording.wait_for_publishers("/lit/solution")
+    options = ["--timeout", "10"] if how == "timeout" else []
+    call = ros.call_start(*options, "plan", "--scenario", "np4", "--time", "300")
+    updates = recording.wait_until(  # it runs: a solution of the call's own request_id
+        "/lit/solution",
+        lambda updates: any(update["episode_id"].startswith("call-") for update in updates),
+        timeout=60.0,
+        what="a solution of the lit call request",
+        watch=[planner, call],
+    )
+    request_id = next(u["episode_id"] for u in updates if u["episode_id"].startswith("call-"))
+    if how != "timeout":
+        how_stopped = signal.SIGINT if how == "sigint" else signal.SIGTERM
+        assert ros.stop(call, how_stopped, timeout=60.0) == 130, call.text()
+    else:
+        assert call.wait(timeout=120.0) == 2, call.text()
+    assert f"cancel of plan request '{request_id}': cancelled the plan request" in call.text(), (
+        call.text()
+    )
+    planner.wait_for_log(
+        rf"plan request {request_id}: cancelled by a CancelRequest after", timeout=60.0
+    )
+    after = ros.call("--payload-only", "plan", "--scenario", "np4", "--time", "0.2")
+    assert after.returncode == 0 and after.json()["status"] != "cancelled", after
     _no_traceback(planner)
 
 

@@ -51,6 +51,8 @@ MESSAGE_VERSIONS: dict[str, int] = {
     "EpisodeEndResponse": 1,
     "PlanRequest": 1,
     "PlanResponse": 1,
+    "CancelRequest": 1,
+    "CancelResponse": 1,
     "Observation": 1,
     "Decision": 1,
     "SolutionUpdate": 1,

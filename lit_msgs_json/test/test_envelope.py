@@ -104,6 +104,13 @@ EXAMPLES: dict[str, dict[str, Any]] = {
         "counters": {"iterations": 12034, "batches": 41, "collision_checks": 880213},
         "path_valid": True,
     },
+    "CancelRequest": {"request_id": "req-0001"},
+    "CancelResponse": {
+        "request_id": "req-0001",
+        "running": 1,
+        "queued": 0,
+        "message": "cancelled the running query req-0001",
+    },
     "Observation": {
         "episode_id": EPISODE,
         "kind": "psi_K",
@@ -900,6 +907,22 @@ PAYLOAD_FAILURES: list[tuple[str, str, object, str, str]] = [
         "required",
     ),
     ("error-message-empty", "Error", with_("Error", message=""), "$.payload.message", "minLength"),
+    ("cancel-no-id", "CancelRequest", {}, "$.payload", "required"),
+    ("cancel-empty-id", "CancelRequest", {"request_id": ""}, "$.payload.request_id", "minLength"),
+    (
+        "cancel-extra",
+        "CancelRequest",
+        {"request_id": "a", "seq": 3},
+        "$.payload",
+        "additionalProperties",
+    ),
+    (
+        "cancelled-two-running",
+        "CancelResponse",
+        with_("CancelResponse", running=2),
+        "$.payload.running",
+        "maximum",
+    ),
 ]
 
 DECODE_FAILURES += [
@@ -958,7 +981,7 @@ def test_decode_failure_messages_explain() -> None:
     assert "got version 2 of PlanRequest, expected version 1" in message(
         envelope_text({}, "PlanRequest", version=2)
     )
-    assert "known: DecideRequest, DecideResponse, Decision, EpisodeEnd," in message(
+    assert "known: CancelRequest, CancelResponse, DecideRequest, DecideResponse," in message(
         envelope_text({}, "Foo")
     )
     assert "not valid JSON: NaN is not allowed" in message(GOOD.replace("0.42", "NaN"))

@@ -6,12 +6,18 @@ Examples::
     lit call plan --world world.json --time 1 --policy fit
     lit call decide --agent psi_K --rho-global 0.2 --rho-local 0.1 --measure 0.6
     lit call export
+    lit call cancel --request-id req-7
     lit call raw /lit/planner/plan '{"not": "an envelope"}'
 
 Prints the response as JSON on stdout (the envelope's payload with ``--payload-only``). Exit code
 0 for a successful response, 1 for an Error response, 2 when the service is not found (for plan,
 decide and raw also: has another type than ``AddDiagnostics``) or does not answer in time, or the
 arguments are wrong.
+
+``plan`` gives its request a ``request_id`` (``call-<hex>`` unless ``--request-id`` or the world
+file names one). When it stops waiting (``--timeout``, Ctrl-C, SIGTERM) it asks the planner
+node's cancel service to cancel that request, so the query does not go on, and holds up the
+queries behind it, for nobody.
 
 A world file is JSON: ``{"lower": [...], "upper": [...], "boxes": [{"lower": [...], "upper":
 [...]}, ...], "resolution": 0.001, "start": [...], "goal": [...]}`` (``resolution`` optional), or
@@ -32,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from lit_planner.rosutil import (
+    CANCEL_SERVICE,
     DECIDE_SERVICE,
     EXPORT_SERVICE,
     PLAN_SERVICE,
@@ -47,6 +54,9 @@ DEFAULT_TIMEOUT = 60.0
 """Seconds to wait for an answer (a plan's own time budget is added)."""
 DEFAULT_WAIT = 15.0
 """Seconds to wait for the service to appear."""
+CANCEL_WAIT = 10.0
+"""Seconds a plan call that gave up waits for the cancel service to appear, and then for its
+answer."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -62,7 +72,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         help=f"seconds to wait for the answer, all told (default: {DEFAULT_TIMEOUT:g}, plus the "
-        "plan's --time for plan; the query goes on in the node when the wait ends)",
+        "plan's --time for plan; a plan request is then cancelled in the node)",
     )
     parser.add_argument(
         "--payload-only", action="store_true", help="print only the response's payload"
@@ -97,7 +107,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     plan.add_argument(
         "--namespace", default="/", help="the planner node's namespace (default: %(default)s)"
     )
-    plan.add_argument("--request-id", help="echoed in the response (default: none)")
+    plan.add_argument(
+        "--request-id",
+        help="echoed in the response, and named by a cancel (default: call-<hex>)",
+    )
+    cancel = commands.add_parser(
+        "cancel", help="call <namespace>/lit/planner/cancel: cancel a plan request by its id"
+    )
+    cancel.add_argument(
+        "--request-id", required=True, help="the request_id of the plan request to cancel"
+    )
+    cancel.add_argument(
+        "--namespace", default="/", help="the planner node's namespace (default: %(default)s)"
+    )
     decide = commands.add_parser("decide", help="call /lit/learner/decide")
     decide.add_argument(
         "--agent",
@@ -223,12 +245,16 @@ def run(args: argparse.Namespace) -> int:
         if args.service in ("decide", "raw") and args.repeat > 1:
             return _repeat(caller, text, args)
         started = time.perf_counter()
-        answer = caller.call(text, args.timeout)
+        args.sent = True
+        # A Ctrl-C or SIGTERM shuts the context down; the wait notices it within 0.1 s.
+        answer = caller.call(text, args.timeout, interrupted=lambda: not rclpy.ok())
         elapsed = time.perf_counter() - started
         if answer is None:
             print(
                 f"lit call: error: {name} did not answer within {args.timeout:g} s", file=sys.stderr
             )
+            if args.service == "plan":
+                _cancel_plan(node, args)
             return 2
         success, message = answer
         _print(message, args.payload_only)
@@ -245,11 +271,17 @@ def run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         return 0 if success else 1
-    except Exception:  # filtered below
-        if rclpy.ok():
+    except (Exception, KeyboardInterrupt) as exc:  # filtered below
+        if not isinstance(exc, KeyboardInterrupt) and rclpy.ok():
             raise
-        # rclpy's SIGTERM (or SIGINT) handler shut the context down under a wait: a stop request.
+        # rclpy's SIGTERM (or SIGINT) handler shut the context down under a wait, or SIGINT's
+        # KeyboardInterrupt came through: a stop request.
         print("lit call: interrupted", file=sys.stderr)
+        if args.service == "plan" and getattr(args, "sent", False):
+            if rclpy.ok():
+                _cancel_plan(node, args)
+            else:
+                _cancel_plan_in_new_context(args)
         return 130
     finally:
         if caller is not None:
@@ -260,6 +292,68 @@ def run(args: argparse.Namespace) -> int:
             rclpy.shutdown()
         spinner.join(timeout=2.0)
         node.destroy_node()
+
+
+def _service_name(namespace: str, service: str) -> str:
+    """The absolute name of the planner node's ``service`` in ``namespace``."""
+    name = namespace.rstrip("/") + "/" + service
+    return name if name.startswith("/") else "/" + name
+
+
+def _cancel_plan(node: Any, args: argparse.Namespace) -> None:
+    """Ask the planner node to cancel the plan request this call gave up on; say on stderr
+    what it answered."""
+    from lit_msgs_json.envelope import MessageError, Publisher, decode
+
+    name = _service_name(args.namespace, CANCEL_SERVICE)
+    request_id = args.sent_request_id
+    publisher = Publisher(f"lit_call/{os.getpid()}", f"call-{uuid.uuid4().hex[:8]}")
+    try:
+        text = publisher.encode("CancelRequest", {"request_id": request_id})
+    except MessageError:  # a world file's own request_id that the node refused as well
+        return
+    caller = ServiceCaller(node, name, private=True, suffix="cancel")
+    try:
+        if not caller.wait(CANCEL_WAIT):
+            outcome = f"{name} not found within {CANCEL_WAIT:g} s; the query may go on in the node"
+        else:
+            answer = caller.call(text, CANCEL_WAIT, interrupted=lambda: not node.context.ok())
+            if answer is None:
+                outcome = f"{name} did not answer within {CANCEL_WAIT:g} s"
+            else:
+                try:
+                    reply = decode(answer[1], accept=("CancelResponse", "Error"))
+                    outcome = str(reply.payload["message"])
+                except MessageError as exc:
+                    outcome = f"unreadable answer from {name}: {exc}"
+    finally:
+        caller.destroy()
+    print(f"lit call: cancel of plan request {request_id!r}: {outcome}", file=sys.stderr)
+
+
+def _cancel_plan_in_new_context(args: argparse.Namespace) -> None:
+    """:func:`_cancel_plan` after a Ctrl-C or SIGTERM shut the call's context down: from a
+    context of its own (a second signal ends that one too, and the cancel with it)."""
+    import rclpy
+
+    context = rclpy.Context()
+    try:
+        rclpy.init(context=context)
+        node = rclpy.create_node(f"lit_call_{uuid.uuid4().hex[:8]}", context=context)
+        try:
+            _cancel_plan(node, args)
+        finally:
+            node.destroy_node()
+    except Exception as exc:  # noqa: BLE001 - the exit code stays 130 whatever happens here
+        if context.ok():
+            print(f"lit call: could not cancel the plan request: {exc}", file=sys.stderr)
+        else:
+            print(
+                "lit call: interrupted again; the plan request was not cancelled", file=sys.stderr
+            )
+    finally:
+        if context.ok():
+            rclpy.shutdown(context=context)
 
 
 def _other_types(node: Any, name: str) -> list[str]:
@@ -314,10 +408,14 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
             value = getattr(args, key)
             if value is not None:
                 payload[key] = value
-        name = args.namespace.rstrip("/") + "/" + PLAN_SERVICE
-        if not name.startswith("/"):
-            name = "/" + name
-        return name, publisher.encode("PlanRequest", payload)
+        # An id of its own, for the cancel this call sends when it stops waiting.
+        payload.setdefault("request_id", f"call-{uuid.uuid4().hex[:12]}")
+        args.sent_request_id = payload["request_id"]
+        return _service_name(args.namespace, PLAN_SERVICE), publisher.encode("PlanRequest", payload)
+    if args.service == "cancel":
+        return _service_name(args.namespace, CANCEL_SERVICE), publisher.encode(
+            "CancelRequest", {"request_id": args.request_id}
+        )
     if args.service == "decide":
         payload = {
             "agent": args.agent,
@@ -371,6 +469,7 @@ def _repeat(caller: ServiceCaller, text: str, args: argparse.Namespace) -> int:
     the call only.
     """
     import numpy as np
+    import rclpy
     from lit_msgs_json.envelope import MessageError, Publisher, decode
 
     request = json.loads(text) if args.service == "decide" else None
@@ -382,7 +481,7 @@ def _repeat(caller: ServiceCaller, text: str, args: argparse.Namespace) -> int:
         started = time.perf_counter()
         if request is not None:
             text = publisher.encode("DecideRequest", request["payload"])
-        answer = caller.call(text, args.timeout)
+        answer = caller.call(text, args.timeout, interrupted=lambda: not rclpy.ok())
         if answer is not None and answer[0] and request is not None:
             try:
                 decode(answer[1], accept="DecideResponse")

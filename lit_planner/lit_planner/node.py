@@ -5,6 +5,9 @@
   worker thread, off the executor, so the node keeps answering while it plans; requests that arrive
   while it is busy wait in a queue of ``queue_limit`` places, and beyond that are refused with a
   ``busy`` Error (never dropped silently).
+- Serves ``lit/planner/cancel`` (same carrier; a CancelRequest naming a ``request_id``): the
+  running plan request that carries it stops within an iteration and is answered with what it
+  found, queued ones are answered without planning (status ``cancelled`` for both).
 - Publishes ``lit/solution`` live, and after every query ``lit/observation`` and ``lit/decision``
   (one per decision point, from the planner's own record, so publishing never runs inside the timed
   loop), ``lit/episode`` (EpisodeSummary) and ``lit/path`` (``trajectory_msgs/JointTrajectory``).
@@ -15,10 +18,11 @@
   since a request or an answer can be lost silently (``rosutil.service_qos`` removed one cause;
   the learner answers a repeated request again without taking it twice; 0: never). A late or
   absent learner: that decision falls back to the tensor policy
-  (``fixed`` without tensors), the episode is marked, a warning is logged, and for
-  ``learner_retry`` s no decision call is tried (episode ends are still sent); then training
-  resumes with the learner. Calls resume sooner when the learner answers the missed call late
-  (a busy machine delayed one answer: the learner is alive), unless two calls in a row missed
+  (``fixed`` without tensors), the episode is marked, a warning is logged (again when a second
+  miss in a row starts the window), and for ``learner_retry`` s no decision call is tried
+  (episode ends are still sent); then training resumes with the learner. Calls resume sooner
+  when the learner answers the missed call late (a busy machine delayed one answer: the learner
+  is alive), unless two calls in a row missed
   (a late answer does not reset that count: a learner whose every answer is late gets the
   window). An episode end waits ``max(1 s, 20 * decision_timeout)``, and ``decision_timeout``
   after two calls in a row missed. The first call waits up to ``first_decision_timeout`` s
@@ -71,6 +75,7 @@ from lit_planner.episode_messages import (
 )
 from lit_planner.errors import TensorFileError
 from lit_planner.rosutil import (
+    CANCEL_SERVICE,
     DECIDE_SERVICE,
     PLAN_SEND_ATTEMPTS,
     PLAN_SERVICE,
@@ -199,6 +204,10 @@ class Job:
     done: threading.Event = field(default_factory=threading.Event)
     result: dict[str, Any] | None = None
     error: BaseException | None = None
+    cancelled: threading.Event = field(default_factory=threading.Event)
+    """Set by a CancelRequest naming the job's ``request_id`` (plan requests only)."""
+    stop: Any = None
+    """The running query's ``lit_core.CancelFlag``: set by a CancelRequest or by shutdown()."""
 
 
 class PlannerNode:
@@ -266,11 +275,11 @@ class PlannerNode:
         self._queued = 0
         self._queue_lock = threading.Lock()
         self._stopping = threading.Event()
-        import lit_core
-
-        # Set by shutdown(): the running query ends within an iteration (a 600 s request held the
-        # node past lit up's grace, which then killed it), and queued ones are not started.
-        self._cancel = lit_core.CancelFlag()
+        self._running: Job | None = None
+        """The query the worker runs; shutdown() sets its ``stop`` flag (a 600 s request held
+        the node past lit up's grace, which then killed it), and queued ones are not started."""
+        self._requests: list[Job] = []
+        """Plan requests queued or running, which a CancelRequest may name (under the lock)."""
         self._worker = threading.Thread(target=self._work, name="planner", daemon=True)
         self._worker.start()
         from diagnostic_msgs.srv import AddDiagnostics
@@ -286,12 +295,23 @@ class PlannerNode:
             self.log,
             attempts=PLAN_SEND_ATTEMPTS,
         )
+        retry_lost_answers(
+            node.create_service(
+                AddDiagnostics,
+                CANCEL_SERVICE,
+                self._serve_cancel,
+                qos_profile=service_qos(),
+                callback_group=ReentrantCallbackGroup(),
+            ),
+            self.log,
+        )
         DuplicateServerWatch(node, PLAN_SERVICE).start()
         self._driver = threading.Thread(target=self._drive, name="episodes", daemon=True)
         self._driver.start()
         self.log.info(
             f"ready: policy {p['policy']}, scenario {p['scenario']}, run_id {self.run_id}, "
-            f"service {node.resolve_service_name(PLAN_SERVICE)}"
+            f"service {node.resolve_service_name(PLAN_SERVICE)}, "
+            f"cancel {node.resolve_service_name(CANCEL_SERVICE)}"
         )
 
     # ------------------------------------------------------------------ parameters
@@ -369,6 +389,8 @@ class PlannerNode:
             if self._queued:
                 self.log.info(f"plan request {job.episode_id} waits behind {self._queued}")
             self._queued += 1
+            if job.request_id is not None:
+                self._requests.append(job)
             self._jobs.put(job)  # under the lock: shutdown() cannot slip between check and put
         job.done.wait()
         if job.error is not None:
@@ -390,6 +412,44 @@ class PlannerNode:
         assert job.result is not None
         response.success = True
         response.message = reply.encode("PlanResponse", self._plan_response(job))
+        return response
+
+    def _serve_cancel(self, request: Any, response: Any) -> Any:
+        """A CancelRequest: stop the running plan request and drop the queued ones that carry
+        its ``request_id``; each is still answered by the plan service (status ``cancelled``)."""
+        reply = self.envelopes["reply"]
+        try:
+            message = decode(request.load_namespace, accept="CancelRequest")
+        except MessageError as exc:
+            response.success, response.message = False, reply.error(exc)
+            self.log.warning(f"cancel request rejected: {exc}")
+            return response
+        request_id = message.payload["request_id"]
+        running = queued = 0
+        with self._queue_lock:
+            for job in self._requests:
+                if job.request_id != request_id:
+                    continue
+                job.cancelled.set()
+                if job is self._running:
+                    job.stop.set()
+                    running += 1
+                else:
+                    queued += 1
+        if running or queued:
+            parts = [f"{n} {what}" for n, what in ((running, "running"), (queued, "queued")) if n]
+            text = f"cancelled the plan request {request_id!r}: {' and '.join(parts)}"
+            self.log.info(text)
+        else:
+            text = (
+                f"no plan request {request_id!r} is running or queued here (already answered, "
+                "never received, or sent to another planner node)"
+            )
+        response.success = True
+        response.message = reply.encode(
+            "CancelResponse",
+            {"request_id": request_id, "running": running, "queued": queued, "message": text},
+        )
         return response
 
     def _problem_from_request(self, payload: dict[str, Any]) -> Any:
@@ -570,13 +630,23 @@ class PlannerNode:
         return True
 
     def _work(self) -> None:
+        import lit_core
+
         while True:
             job = self._jobs.get()
             if job is None:
                 return
             try:
-                if self._stopping.is_set():
+                with self._queue_lock:  # shutdown() and _serve_cancel() see it running or not
+                    stopping, cancelled = self._stopping.is_set(), job.cancelled.is_set()
+                    if not (stopping or cancelled):
+                        job.stop = lit_core.CancelFlag()
+                        self._running = job
+                if stopping:
                     job.error = _stopping_error(job.request_seq, service=job.kind == "service")
+                elif cancelled:
+                    job.result = _not_started(job)
+                    self.log.info(f"plan request {job.episode_id} cancelled before it started")
                 else:
                     self._run(job)
             except Exception as exc:  # noqa: BLE001 - reported; the node keeps serving
@@ -585,6 +655,9 @@ class PlannerNode:
             finally:
                 with self._queue_lock:
                     self._queued -= 1
+                    self._running = None
+                    if job in self._requests:
+                        self._requests.remove(job)
                 job.done.set()
 
     def _run(self, job: Job) -> None:
@@ -627,9 +700,16 @@ class PlannerNode:
             tensors_dir=self.params["tensors_dir"] or None,
             params=params,
             listener=listener,
-            cancel=self._cancel,
+            cancel=job.stop,
         )
-        cut_short = self._cancel.is_set()
+        if job.cancelled.is_set() and result["status"] not in INVALID_TERMINAL:
+            found = "the best path found until then" if result["solved"] else "no path found"
+            result["message"] = (
+                f"cancelled by a CancelRequest after {result['time']:.3g} s of planning; {found}"
+            )
+            result["status"] = "cancelled"
+            self.log.info(f"plan request {job.episode_id}: {result['message']}")
+        cut_short = job.stop.is_set() and not job.cancelled.is_set()  # shutdown()
         if cut_short and job.kind == "service":
             job.error = _stopping_error(
                 job.request_seq, f"the query was cut short after {result['time']:.3g} s of planning"
@@ -907,13 +987,36 @@ class PlannerNode:
         ``unavailable``."""
         with self._queue_lock:  # no request is queued after this (see _serve_plan)
             self._stopping.set()
-            self._cancel.set()
+            if self._running is not None:
+                self._running.stop.set()
             self._jobs.put(None)
         self._worker.join(timeout=30.0)
         if not self._worker.is_alive():
             self.learner.destroy()
         if not flush_publishers([*self.publishers.values(), self.path_publisher]):
             self.log.warning("some subscribers did not acknowledge the last messages")
+
+
+def _not_started(job: Job) -> dict[str, Any]:
+    """The result of a plan request cancelled while it waited: nothing planned."""
+    from lit_planner.planning import resolve_planner
+
+    planner, policy = resolve_planner(job.planner, job.policy or None)
+    return {
+        "status": "cancelled",
+        "solved": False,
+        "message": "cancelled by a CancelRequest before it started; nothing was planned",
+        "planner": planner,
+        "policy": policy,
+        "cost": math.inf,
+        "t_init": math.inf,
+        "c_init": math.inf,
+        "time": 0.0,
+        "improvements": [],
+        "path": [],
+        "counters": {},
+        "path_check": None,
+    }
 
 
 def _stopping_error(

@@ -29,6 +29,9 @@ EXPORT_SERVICE = "/lit/learner/export"
 """The learner's export service (``std_srvs/srv/Trigger``)."""
 PLAN_SERVICE = "lit/planner/plan"
 """The planner's plan service, relative to the planner node's namespace."""
+CANCEL_SERVICE = "lit/planner/cancel"
+"""The planner's cancel service (a CancelRequest names a plan request's ``request_id``),
+relative to the planner node's namespace."""
 TOPICS = {
     "observation": "lit/observation",
     "decision": "lit/decision",
@@ -183,6 +186,14 @@ def private_node(node: Any, name: str) -> Any:
     )
 
 
+INTERRUPT_POLL = 0.1
+"""Seconds between two looks at a :class:`ServiceCaller` call's ``interrupted``."""
+
+
+class CallInterrupted(RuntimeError):
+    """A :class:`ServiceCaller` call stopped waiting because its ``interrupted`` became true."""
+
+
 SETTLE_SECONDS = 0.1
 """Pause of :meth:`ServiceCaller.wait` after the service appeared (endpoint matching)."""
 
@@ -269,13 +280,22 @@ class ServiceCaller:
         time.sleep(SETTLE_SECONDS)
         return True
 
-    def request(self, request: Any, timeout: float, resend_after: float | None = None) -> Any:
+    def request(
+        self,
+        request: Any,
+        timeout: float,
+        resend_after: float | None = None,
+        interrupted: Callable[[], bool] | None = None,
+    ) -> Any:
         """Send ``request``; the response, or None after ``timeout``. ``resend_after`` (private
         mode only; ignored otherwise): without an answer after that many seconds send the same
         request again, then after twice as long, and so on until the deadline, and take the
-        first answer to any of them (the others are dropped when they come)."""
+        first answer to any of them (the others are dropped when they come). ``interrupted``
+        (private mode only): looked at every :data:`INTERRUPT_POLL` s while waiting; once true
+        the call raises :class:`CallInterrupted` (a signal handler that shut the context down
+        does not wake the wait set, which would wait out the whole timeout)."""
         if self._owner is not None:
-            return self._request_waiting(request, timeout, resend_after)
+            return self._request_waiting(request, timeout, resend_after, interrupted)
         done = threading.Event()
         future = self.client.call_async(request)
         future.add_done_callback(lambda _: done.set())
@@ -284,7 +304,13 @@ class ServiceCaller:
             return None
         return future.result()
 
-    def _request_waiting(self, request: Any, timeout: float, resend_after: float | None) -> Any:
+    def _request_waiting(
+        self,
+        request: Any,
+        timeout: float,
+        resend_after: float | None,
+        interrupted: Callable[[], bool] | None = None,
+    ) -> Any:
         with self._lock:
             if self._wait_set is None:
                 raise RuntimeError(f"the client of {self.name} was destroyed")
@@ -296,6 +322,8 @@ class ServiceCaller:
                 sent = [handle.send_request(request)]
                 resend = deadline if interval is None else time.monotonic() + interval
                 while True:
+                    if interrupted is not None and interrupted():
+                        raise CallInterrupted(f"the call of {self.name} was interrupted")
                     now = time.monotonic()
                     if now >= deadline:
                         call = sent[0]
@@ -310,9 +338,10 @@ class ServiceCaller:
                         interval *= 2.0
                         resend = now + interval
                         continue
-                    _, response, answered = self._take(
-                        handle, wait_set, min(deadline, resend) - now, sent
-                    )
+                    until = min(deadline, resend)
+                    if interrupted is not None:
+                        until = min(until, now + INTERRUPT_POLL)
+                    _, response, answered = self._take(handle, wait_set, until - now, sent)
                     if response is not None:
                         if answered != sent[0]:
                             self.answered_by_copy += 1
@@ -365,13 +394,17 @@ class ServiceCaller:
             return sequence in self._answered_late
 
     def call(
-        self, text: str, timeout: float, resend_after: float | None = None
+        self,
+        text: str,
+        timeout: float,
+        resend_after: float | None = None,
+        interrupted: Callable[[], bool] | None = None,
     ) -> tuple[bool, str] | None:
         """Send ``text`` as ``load_namespace``; ``(success, message)``, or None after ``timeout``
-        (``resend_after``: see :meth:`request`)."""
+        (``resend_after``, ``interrupted``: see :meth:`request`)."""
         request = self.srv_type.Request()
         request.load_namespace = text
-        response = self.request(request, timeout, resend_after)
+        response = self.request(request, timeout, resend_after, interrupted)
         if response is None:
             return None
         return bool(response.success), str(response.message)
