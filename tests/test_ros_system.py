@@ -255,18 +255,29 @@ def test_cancel_ends_the_running_query_and_drops_a_queued_one(ros: RosSystem) ->
     )
     planner.wait_for_log(r"plan request queued waits behind 1", timeout=60.0)
 
-    for request_id, running, waiting in (("nobody", 0, 0), ("queued", 0, 1), ("long", 1, 0)):
+    def cancel(request_id: str) -> dict[str, Any]:
         answer = ros.call("--payload-only", "cancel", "--request-id", request_id)
         assert answer.returncode == 0, answer
-        assert (answer.json()["running"], answer.json()["queued"]) == (running, waiting), answer
-        if request_id == "nobody":
-            assert "no plan request 'nobody' is running or queued" in answer.json()["message"]
+        return dict(answer.json())
 
+    nobody = cancel("nobody")
+    assert (nobody["running"], nobody["queued"]) == (0, 0), nobody
+    assert "no plan request 'nobody' is running or queued" in nobody["message"], nobody
+    answer = cancel("queued")
+    assert (answer["running"], answer["queued"]) == (0, 1), answer
+    # Answered at once, while the long request still runs: its place in the queue is free.
     dropped = finish_call(queued)
+    assert long.running(), finish_call(long)
     assert dropped.returncode == 0, dropped
     payload = dropped.json()
     assert payload["status"] == "cancelled" and payload["solved"] is False, payload
     assert payload["time"] == 0.0 and payload["path"] == [] and payload["request_id"] == "queued"
+    # A cancel that came before its plan request (a client that gave up just after sending).
+    late = ros.call("--payload-only", "plan", "--scenario", "np4", "--request-id", "nobody")
+    assert late.returncode == 0 and late.json()["status"] == "cancelled", late
+    assert "before it started" in late.json()["message"], late
+    answer = cancel("long")
+    assert (answer["running"], answer["queued"]) == (1, 0), answer
     stopped = finish_call(long)
     assert stopped.returncode == 0, stopped
     payload = stopped.json()
@@ -301,7 +312,7 @@ def test_lit_call_plan_cancels_the_query_it_stops_waiting_for(ros: RosSystem, ho
     planner = ros.planner()
     _ready(planner)
     recording.wait_for_publishers("/lit/solution")
-    options = ["--timeout", "10"] if how == "timeout" else []
+    options = ["--timeout", "20"] if how == "timeout" else []
     call = ros.call_start(*options, "plan", "--scenario", "np4", "--time", "300")
     updates = recording.wait_until(  # it runs: a solution of the call's own request_id
         "/lit/solution",

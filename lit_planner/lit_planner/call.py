@@ -54,7 +54,7 @@ DEFAULT_TIMEOUT = 60.0
 """Seconds to wait for an answer (a plan's own time budget is added)."""
 DEFAULT_WAIT = 15.0
 """Seconds to wait for the service to appear."""
-CANCEL_WAIT = 10.0
+CANCEL_WAIT = 5.0
 """Seconds a plan call that gave up waits for the cancel service to appear, and then for its
 answer."""
 
@@ -254,6 +254,7 @@ def run(args: argparse.Namespace) -> int:
                 f"lit call: error: {name} did not answer within {args.timeout:g} s", file=sys.stderr
             )
             if args.service == "plan":
+                args.sent = False  # a Ctrl-C during this cancel stops it: no second one
                 _cancel_plan(node, args)
             return 2
         success, message = answer
@@ -278,10 +279,10 @@ def run(args: argparse.Namespace) -> int:
         # KeyboardInterrupt came through: a stop request.
         print("lit call: interrupted", file=sys.stderr)
         if args.service == "plan" and getattr(args, "sent", False):
-            if rclpy.ok():
-                _cancel_plan(node, args)
-            else:
-                _cancel_plan_in_new_context(args)
+            # rclpy shuts the context down from a thread of its own, maybe not yet: done here,
+            # and the cancel goes from a context of its own.
+            rclpy.try_shutdown()
+            _cancel_plan_in_new_context(args)
         return 130
     finally:
         if caller is not None:
@@ -344,8 +345,8 @@ def _cancel_plan_in_new_context(args: argparse.Namespace) -> None:
             _cancel_plan(node, args)
         finally:
             node.destroy_node()
-    except Exception as exc:  # noqa: BLE001 - the exit code stays 130 whatever happens here
-        if context.ok():
+    except (Exception, KeyboardInterrupt) as exc:  # noqa: BLE001 - exit code 130 whatever happens
+        if context.ok() and not isinstance(exc, KeyboardInterrupt):
             print(f"lit call: could not cancel the plan request: {exc}", file=sys.stderr)
         else:
             print(

@@ -80,6 +80,7 @@ from lit_planner.rosutil import (
     PLAN_SEND_ATTEMPTS,
     PLAN_SERVICE,
     TOPICS,
+    DirectService,
     DuplicateServerWatch,
     ServiceCaller,
     flush_publishers,
@@ -122,6 +123,9 @@ PARAMETERS: dict[str, Any] = {
 MIN_RESEND = 0.001
 """The shortest ``learner_resend`` (s) taken: shorter sends many copies to no purpose."""
 
+CANCEL_EARLY = 10.0
+"""Seconds a CancelRequest naming no known plan request is remembered: a plan request with that
+request_id arriving meanwhile is answered as cancelled, once."""
 INVALID_TERMINAL = {"invalid_start": "start", "invalid_goal": "goal"}
 """Core statuses that mean the request gave an unusable start or goal."""
 
@@ -280,6 +284,10 @@ class PlannerNode:
         the node past lit up's grace, which then killed it), and queued ones are not started."""
         self._requests: list[Job] = []
         """Plan requests queued or running, which a CancelRequest may name (under the lock)."""
+        self._cancelled_early: dict[str, float] = {}
+        """request_ids a CancelRequest named before any plan request carried them, with when
+        (time.monotonic()): a plan request that arrives within CANCEL_EARLY s is answered as
+        cancelled (a client that gave up just after sending; under the lock)."""
         self._worker = threading.Thread(target=self._work, name="planner", daemon=True)
         self._worker.start()
         from diagnostic_msgs.srv import AddDiagnostics
@@ -295,15 +303,10 @@ class PlannerNode:
             self.log,
             attempts=PLAN_SEND_ATTEMPTS,
         )
-        retry_lost_answers(
-            node.create_service(
-                AddDiagnostics,
-                CANCEL_SERVICE,
-                self._serve_cancel,
-                qos_profile=service_qos(),
-                callback_group=ReentrantCallbackGroup(),
-            ),
-            self.log,
+        # A thread of its own: plan callbacks hold executor threads while their queries run or
+        # wait, and a cancel must not wait for one of them to end.
+        self._cancel_service = DirectService(
+            node, f"{NODE_NAME}_cancel", AddDiagnostics, CANCEL_SERVICE, self._serve_cancel
         )
         DuplicateServerWatch(node, PLAN_SERVICE).start()
         self._driver = threading.Thread(target=self._drive, name="episodes", daemon=True)
@@ -373,25 +376,35 @@ class PlannerNode:
                 response.success = False
                 response.message = reply.error(_stopping_error(message.seq))
                 return response
-            # One query runs, up to queue_limit wait: refuse only when the waiting places are full.
-            if self._queued > self.params["queue_limit"]:
-                response.success = False
-                response.message = reply.error(
-                    MessageError(
-                        "busy",
-                        f"planner busy: {self._queued} queries queued or running "
-                        f"(queue_limit {self.params['queue_limit']}); retry later",
-                        request_schema="PlanRequest",
-                        request_seq=message.seq,
+            early = self._cancelled_early.pop(job.request_id, None) if job.request_id else None
+            cancelled_early = early is not None and time.monotonic() - early <= CANCEL_EARLY
+            if not cancelled_early:
+                # One query runs, up to queue_limit wait: refuse only when the waiting places
+                # are full.
+                if self._queued > self.params["queue_limit"]:
+                    response.success = False
+                    response.message = reply.error(
+                        MessageError(
+                            "busy",
+                            f"planner busy: {self._queued} queries queued or running "
+                            f"(queue_limit {self.params['queue_limit']}); retry later",
+                            request_schema="PlanRequest",
+                            request_seq=message.seq,
+                        )
                     )
-                )
-                return response
-            if self._queued:
-                self.log.info(f"plan request {job.episode_id} waits behind {self._queued}")
-            self._queued += 1
-            if job.request_id is not None:
-                self._requests.append(job)
-            self._jobs.put(job)  # under the lock: shutdown() cannot slip between check and put
+                    return response
+                if self._queued:
+                    self.log.info(f"plan request {job.episode_id} waits behind {self._queued}")
+                self._queued += 1
+                if job.request_id is not None:
+                    self._requests.append(job)
+                self._jobs.put(job)  # under the lock: shutdown() cannot slip between check and put
+        if cancelled_early:
+            self.log.info(f"plan request {job.episode_id} was cancelled before it arrived")
+            job.result = _not_started(job)
+            response.success = True
+            response.message = reply.encode("PlanResponse", self._plan_response(job))
+            return response
         job.done.wait()
         if job.error is not None:
             response.success = False
@@ -427,15 +440,27 @@ class PlannerNode:
         request_id = message.payload["request_id"]
         running = queued = 0
         with self._queue_lock:
-            for job in self._requests:
+            for job in list(self._requests):
                 if job.request_id != request_id:
                     continue
                 job.cancelled.set()
                 if job is self._running:
                     job.stop.set()
                     running += 1
-                else:
+                else:  # answered now, not when the worker reaches it; its place is free
+                    job.result = _not_started(job)
+                    self._requests.remove(job)
+                    self._queued -= 1
+                    job.done.set()
                     queued += 1
+            if not (running or queued):
+                now = time.monotonic()
+                self._cancelled_early = {
+                    key: when
+                    for key, when in self._cancelled_early.items()
+                    if now - when <= CANCEL_EARLY
+                }
+                self._cancelled_early[request_id] = now
         if running or queued:
             parts = [f"{n} {what}" for n, what in ((running, "running"), (queued, "queued")) if n]
             text = f"cancelled the plan request {request_id!r}: {' and '.join(parts)}"
@@ -443,7 +468,8 @@ class PlannerNode:
         else:
             text = (
                 f"no plan request {request_id!r} is running or queued here (already answered, "
-                "never received, or sent to another planner node)"
+                "sent to another planner node, or not arrived yet: one that arrives within "
+                f"{CANCEL_EARLY:g} s is answered as cancelled)"
             )
         response.success = True
         response.message = reply.encode(
@@ -636,17 +662,16 @@ class PlannerNode:
             job = self._jobs.get()
             if job is None:
                 return
+            with self._queue_lock:  # shutdown() and _serve_cancel() see it running or not
+                if job.done.is_set():  # cancelled while queued: answered and counted out already
+                    continue
+                stopping = self._stopping.is_set()
+                if not stopping:
+                    job.stop = lit_core.CancelFlag()
+                    self._running = job
             try:
-                with self._queue_lock:  # shutdown() and _serve_cancel() see it running or not
-                    stopping, cancelled = self._stopping.is_set(), job.cancelled.is_set()
-                    if not (stopping or cancelled):
-                        job.stop = lit_core.CancelFlag()
-                        self._running = job
                 if stopping:
                     job.error = _stopping_error(job.request_seq, service=job.kind == "service")
-                elif cancelled:
-                    job.result = _not_started(job)
-                    self.log.info(f"plan request {job.episode_id} cancelled before it started")
                 else:
                     self._run(job)
             except Exception as exc:  # noqa: BLE001 - reported; the node keeps serving
@@ -702,14 +727,20 @@ class PlannerNode:
             listener=listener,
             cancel=job.stop,
         )
-        if job.cancelled.is_set() and result["status"] not in INVALID_TERMINAL:
+        with self._queue_lock:  # from now on a CancelRequest finds it no more
+            self._running = None
+            if job in self._requests:
+                self._requests.remove(job)
+            cancelled = job.cancelled.is_set()
+        cut_short = job.stop.is_set() and self._stopping.is_set()  # shutdown()
+        if cancelled and not cut_short and result["status"] not in INVALID_TERMINAL:
             found = "the best path found until then" if result["solved"] else "no path found"
             result["message"] = (
-                f"cancelled by a CancelRequest after {result['time']:.3g} s of planning; {found}"
+                f"cancelled by a CancelRequest after {result['time']:.3g} s of planning "
+                f"(status then: {result['status']}); {found}"
             )
             result["status"] = "cancelled"
             self.log.info(f"plan request {job.episode_id}: {result['message']}")
-        cut_short = job.stop.is_set() and not job.cancelled.is_set()  # shutdown()
         if cut_short and job.kind == "service":
             job.error = _stopping_error(
                 job.request_seq, f"the query was cut short after {result['time']:.3g} s of planning"
@@ -990,6 +1021,7 @@ class PlannerNode:
             if self._running is not None:
                 self._running.stop.set()
             self._jobs.put(None)
+        self._cancel_service.shutdown(timeout=5.0)
         self._worker.join(timeout=30.0)
         if not self._worker.is_alive():
             self.learner.destroy()
