@@ -260,9 +260,6 @@ def test_cancel_ends_the_running_query_and_drops_a_queued_one(ros: RosSystem) ->
         assert answer.returncode == 0, answer
         return dict(answer.json())
 
-    nobody = cancel("nobody")
-    assert (nobody["running"], nobody["queued"]) == (0, 0), nobody
-    assert "no plan request 'nobody' is running or queued" in nobody["message"], nobody
     answer = cancel("queued")
     assert (answer["running"], answer["queued"]) == (0, 1), answer
     # Answered at once, while the long request still runs: its place in the queue is free.
@@ -273,6 +270,9 @@ def test_cancel_ends_the_running_query_and_drops_a_queued_one(ros: RosSystem) ->
     assert payload["status"] == "cancelled" and payload["solved"] is False, payload
     assert payload["time"] == 0.0 and payload["path"] == [] and payload["request_id"] == "queued"
     # A cancel that came before its plan request (a client that gave up just after sending).
+    nobody = cancel("nobody")
+    assert (nobody["running"], nobody["queued"]) == (0, 0), nobody
+    assert "no plan request 'nobody' is running or queued" in nobody["message"], nobody
     late = ros.call("--payload-only", "plan", "--scenario", "np4", "--request-id", "nobody")
     assert late.returncode == 0 and late.json()["status"] == "cancelled", late
     assert "before it started" in late.json()["message"], late

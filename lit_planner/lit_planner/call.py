@@ -281,7 +281,10 @@ def run(args: argparse.Namespace) -> int:
         if args.service == "plan" and getattr(args, "sent", False):
             # rclpy shuts the context down from a thread of its own, maybe not yet: done here,
             # and the cancel goes from a context of its own.
-            rclpy.try_shutdown()
+            try:
+                rclpy.try_shutdown()
+            except Exception:  # noqa: BLE001, S110 - rclpy's signal thread won the race: down
+                pass
             _cancel_plan_in_new_context(args)
         return 130
     finally:

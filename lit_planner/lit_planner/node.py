@@ -306,7 +306,12 @@ class PlannerNode:
         # A thread of its own: plan callbacks hold executor threads while their queries run or
         # wait, and a cancel must not wait for one of them to end.
         self._cancel_service = DirectService(
-            node, f"{NODE_NAME}_cancel", AddDiagnostics, CANCEL_SERVICE, self._serve_cancel
+            node,
+            f"{NODE_NAME}_cancel",
+            AddDiagnostics,
+            CANCEL_SERVICE,
+            self._serve_cancel,
+            attempts=PLAN_SEND_ATTEMPTS,  # a new `lit call cancel` may match late, as for plans
         )
         DuplicateServerWatch(node, PLAN_SERVICE).start()
         self._driver = threading.Thread(target=self._drive, name="episodes", daemon=True)
@@ -440,6 +445,7 @@ class PlannerNode:
         request_id = message.payload["request_id"]
         running = queued = 0
         with self._queue_lock:
+            stopping = self._stopping.is_set()  # queued ones are answered unavailable then
             for job in list(self._requests):
                 if job.request_id != request_id:
                     continue
@@ -447,13 +453,15 @@ class PlannerNode:
                 if job is self._running:
                     job.stop.set()
                     running += 1
-                else:  # answered now, not when the worker reaches it; its place is free
+                elif (
+                    not stopping
+                ):  # answered now, not when the worker reaches it; its place is free
                     job.result = _not_started(job)
                     self._requests.remove(job)
                     self._queued -= 1
                     job.done.set()
                     queued += 1
-            if not (running or queued):
+            if not (running or queued or stopping):
                 now = time.monotonic()
                 self._cancelled_early = {
                     key: when
@@ -470,6 +478,8 @@ class PlannerNode:
                 f"no plan request {request_id!r} is running or queued here (already answered, "
                 "sent to another planner node, or not arrived yet: one that arrives within "
                 f"{CANCEL_EARLY:g} s is answered as cancelled)"
+                if not stopping
+                else f"the planner node is stopping; plan request {request_id!r} is not running"
             )
         response.success = True
         response.message = reply.encode(

@@ -530,6 +530,7 @@ class DirectService:
         service: str,
         callback: Callable,
         repeat_key: Callable[[Any], Any] | None = None,
+        attempts: int | None = None,
     ) -> None:
         from rclpy.guard_condition import GuardCondition
         from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -545,6 +546,8 @@ class DirectService:
         self._stopping = False
         self._deferred: list[Callable[[], object]] = []
         self._repeat_key = repeat_key
+        self._attempts = SEND_ATTEMPTS if attempts is None else attempts
+        """Tries of :func:`send_response` for a new answer (default :data:`SEND_ATTEMPTS`)."""
         self._answers: collections.OrderedDict[Any, tuple[Any, Any]] = collections.OrderedDict()
         """Each client's latest request identity and answer, by client (serving thread)."""
         self.repeats = 0
@@ -576,7 +579,7 @@ class DirectService:
                     continue
                 request, header = taken
                 key, response = self._repeated(request, service.srv_name)
-                attempts = SEND_ATTEMPTS
+                attempts = self._attempts
                 if response is not None:  # a copy: the same answer, once tried
                     self.repeats += 1
                     attempts = 1
