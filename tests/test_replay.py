@@ -529,6 +529,37 @@ def test_sample_bag_info_and_bench_replay(tmp_path: Path) -> None:
     assert summary["scenarios"]["np4"]["planners"]["litstar-fixed"] == SAMPLE_STATISTICS
 
 
+def test_the_readme_table_is_what_replay_regenerates_from_its_bag(tmp_path: Path) -> None:
+    """README's "LIT* vs OMPL's AIT*" table says `lit replay bench` of its bag regenerates it;
+    it had drifted (a c_final from before c_final became the cost at the budget)."""
+    sample = ROOT / "bags" / "samples" / "litstar_vs_aitstar"
+    result = _replay("bench", sample, "--out", tmp_path / "out")
+    assert result.returncode == 0, result.stderr
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    names = {"LIT* (fixed)": "litstar-fixed", "AIT*": "aitstar"}
+
+    def cell(stat: dict[str, Any], digits: int) -> str:
+        ci = stat["ci"]
+        return f"{stat['median']:.{digits}f} [{ci['lower']:.{digits}f}, {ci['upper']:.{digits}f}]"
+
+    readme = (ROOT / "README.md").read_text()
+    section = readme[readme.index("## LIT* vs OMPL's AIT*") : readme.index("The run's bag is")]
+    rows = [line for line in section.splitlines() if re.match(r"\| (np|rrd)\d+ \|", line)]
+    assert len(rows) == 4, section
+    for row in rows:
+        scenario, label, *_ = (part.strip() for part in row.strip("|").split("|"))
+        stats = summary["scenarios"][scenario]["planners"][names[label]]
+        expected = [
+            scenario,
+            label,
+            f"{round(stats['success_rate'] * 100)}%",
+            cell(stats["t_init"], 4),
+            cell(stats["c_init"], 3),
+            cell(stats["c_final"], 3),
+        ]
+        assert row == "| " + " | ".join(expected) + " |"
+
+
 def test_bench_replay_counts_skipped_messages(tmp_path: Path) -> None:
     """A bench bag with a foreign topic, an unknown schema and a newer version: skipped, counted,
     and the statistics stay those of the recorded runs."""
@@ -596,6 +627,100 @@ def test_bench_replay_of_a_damaged_record_says_the_tables_are_incomplete(tmp_pat
     assert "Traceback" not in result.stderr
     summary = (tmp_path / "out" / "summary.md").read_text()
     assert summary.startswith("> **Incomplete:** 1 of the 2 planned run records"), summary[:300]
+    incomplete = json.loads((tmp_path / "out" / "summary.json").read_text())["incomplete"]
+    assert (incomplete["planned"], incomplete["read"]) == (2, 1)
+    assert incomplete["note"].startswith("1 of the 2 planned run records")
+
+
+def _with_records(target: Path, records: Sequence[tuple[str, dict[str, Any]]]) -> Path:
+    """The sample's config message and then ``records`` (schema, payload), as one new bag."""
+    from rosbags.rosbag2 import Reader
+
+    with Reader(SAMPLE) as reader, BagRecorder(target, run_id="x") as recorder:
+        for connection in reader.connections:
+            recorder.add_topic(connection.topic, connection.msgtype)
+        for connection, stamp, raw in reader.messages():
+            if connection.topic == bag.BENCH_CONFIG_TOPIC:
+                recorder.write_raw(connection.topic, raw, stamp)
+        for seq, (schema, payload) in enumerate(records):
+            topic = (
+                bag.BENCH_CONFIG_TOPIC if schema == bag.BENCH_CONFIG_SCHEMA else bag.BENCH_RUN_TOPIC
+            )
+            text = envelope(schema, seq, "lit_bench", "x", payload, stamp_ns=stamp + 1 + seq)
+            recorder.write_string(topic, text, stamp + 1 + seq)
+    return target
+
+
+def _sample_payloads(schema: str) -> list[dict[str, Any]]:
+    from rosbags.rosbag2 import Reader
+
+    with Reader(SAMPLE) as reader:
+        documents = [
+            json.loads(bag.typestore().deserialize_cdr(raw, connection.msgtype).data)
+            for connection, _, raw in reader.messages()
+        ]
+    return [d["payload"] for d in documents if d["schema"] == schema]
+
+
+def test_bench_replay_counts_only_records_of_its_configuration(tmp_path: Path) -> None:
+    """A record of another scenario, planner or run does not stand in for a missing one (a salvage
+    of two benchmarks' files used to pass for complete); two benchmarks' configurations in one
+    bag and two records of one run are refused."""
+    first, second = _sample_payloads(bag.BENCH_RUN_SCHEMA)
+    stranger = dict(second, scenario="np8", scenario_key="np8")
+    mixed = _with_records(
+        tmp_path / "mixed", [(bag.BENCH_RUN_SCHEMA, first), (bag.BENCH_RUN_SCHEMA, stranger)]
+    )
+    result = _replay("bench", mixed, "--out", tmp_path / "out")
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "1 run record outside the benchmark's configuration" in result.stderr, result.stderr
+    assert "1 of the 2 planned run records are missing or unreadable" in result.stderr
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["incomplete"]["planned"] == 2 and summary["incomplete"]["read"] == 1
+    assert [r["scenario"] for r in summary["runs"]] == ["np4"]
+    lines = (tmp_path / "out" / "runs.jsonl").read_text().splitlines()
+    assert [json.loads(line)["run"] for line in lines] == [first["run"]]
+
+    twice = _with_records(
+        tmp_path / "twice",
+        [(bag.BENCH_RUN_SCHEMA, first), (bag.BENCH_RUN_SCHEMA, dict(first, t_init=1.0))],
+    )
+    _assert_clean_error(_replay("bench", twice, "--out", tmp_path / "o2"), "two records of")
+
+    (config,) = _sample_payloads(bag.BENCH_CONFIG_SCHEMA)
+    other = dict(config, started="2026-12-04T00:00:00+00:00")
+    two_configs = _with_records(
+        tmp_path / "two", [(bag.BENCH_CONFIG_SCHEMA, other), (bag.BENCH_RUN_SCHEMA, first)]
+    )
+    _assert_clean_error(
+        _replay("bench", two_configs, "--out", tmp_path / "o3"), "two lit bench runs"
+    )
+    assert not (tmp_path / "o2").exists() and not (tmp_path / "o3").exists()
+
+
+@pytest.mark.parametrize("lie", ["unlisted topic", "wrong count"])
+def test_metadata_that_disagrees_with_the_files_is_refused(lie: str, tmp_path: Path) -> None:
+    """rosbags reads the topics metadata.yaml lists: a topic it left out lost its messages
+    without a word (info counted 1 message, verify checked 0 paths, compact dropped them)."""
+    copy = _sample_copy(tmp_path, "lying")
+    metadata = copy / "metadata.yaml"
+    text = metadata.read_text()
+    if lie == "unlisted topic":
+        changed = text.replace(f"name: {bag.BENCH_RUN_TOPIC}", "name: /lit/episode")
+        fragment = f"2 messages of {bag.BENCH_RUN_TOPIC} in the files, a topic it does not list"
+    else:
+        listed = f"- message_count: 2\n    topic_metadata:\n      name: {bag.BENCH_RUN_TOPIC}\n"
+        changed = text.replace(listed, listed.replace(": 2", ": 30"))
+        fragment = f"it says 30 messages of {bag.BENCH_RUN_TOPIC}, the files hold 2"
+    assert changed != text
+    metadata.write_text(changed)
+    for command in ("info", "verify", "bench"):
+        _assert_clean_error(_replay(command, copy), fragment)
+    _assert_clean_error(_replay("compact", copy, tmp_path / "compacted"), "lit replay salvage")
+    assert not (tmp_path / "compacted").exists()
+    salvaged = _replay("salvage", copy, "-o", tmp_path / "salvaged")
+    assert salvaged.returncode == 0, salvaged.stderr
+    assert _replay("bench", tmp_path / "salvaged", "--out", tmp_path / "out").returncode == 0
 
 
 def test_bench_replay_of_a_bag_without_records_warns_and_writes_nothing(tmp_path: Path) -> None:

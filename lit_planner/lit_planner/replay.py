@@ -255,6 +255,15 @@ class BagReader:
         try:
             self.facts = self._facts()
             """Its metadata."""
+            mismatch = _metadata_mismatch(self.path, self.facts)
+            if mismatch:
+                # rosbags reads the topics metadata.yaml lists: the others' messages would be
+                # left out without a word.
+                raise ReplayError(
+                    f"bag {self.path}: its metadata.yaml does not match its MCAP file(s): "
+                    f"{mismatch}; rebuild the bag from its files with `lit replay salvage "
+                    f"{self.path}`"
+                )
         except BaseException:
             self.close()
             raise
@@ -333,6 +342,39 @@ class BagReader:
             topics=topics,
             messages=reader.message_count,
         )
+
+
+def _metadata_mismatch(path: Path, facts: BagFacts) -> str | None:
+    """How a bag folder's ``metadata.yaml`` disagrees with the message counts in its MCAP files'
+    summaries (a topic it leaves out, a count it misstates), in words; None when they agree, for
+    an ``.mcap`` file given alone, or when a file has no summary statistics to compare with."""
+    from mcap.reader import make_reader
+
+    if not path.is_dir():
+        return None
+    in_files: dict[str, int] = {}
+    for file in sorted(path.glob("*.mcap")):
+        try:
+            with file.open("rb") as handle:
+                summary = make_reader(handle).get_summary()
+        except Exception:  # noqa: BLE001 -- damage: the reader reports it when it gets there
+            return None
+        if summary is None or summary.statistics is None:
+            return None
+        for channel_id, count in summary.statistics.channel_message_counts.items():
+            channel = summary.channels.get(channel_id)
+            if channel is not None and count:
+                in_files[channel.topic] = in_files.get(channel.topic, 0) + count
+    listed = {topic.topic: topic.messages for topic in facts.topics}
+    for topic, count in sorted(in_files.items()):
+        if topic not in listed:
+            return f"{count} messages of {topic} in the files, a topic it does not list"
+        if listed[topic] != count:
+            return f"it says {listed[topic]} messages of {topic}, the files hold {count}"
+    for topic, count in sorted(listed.items()):
+        if count and topic not in in_files:
+            return f"it says {count} messages of {topic}, the files hold none"
+    return None
 
 
 def _check_readable(path: Path) -> None:
@@ -1376,8 +1418,18 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
                 item = decode(message, skipped)
                 if not isinstance(item, Envelope):
                     continue
-                if item.schema == bag.BENCH_CONFIG_SCHEMA and bag_config is None:
-                    bag_config = item
+                if item.schema == bag.BENCH_CONFIG_SCHEMA:
+                    if bag_config is None:
+                        bag_config = item
+                    elif item.payload != bag_config.payload:
+                        # e.g. the bags of two runs salvaged together into one: their records
+                        # could not be told apart by run.
+                        raise ReplayError(
+                            f"{path}: holds the configurations of two lit bench runs (a second "
+                            f"{bag.BENCH_CONFIG_TOPIC} message, seq {item.seq} of run "
+                            f"{item.run_id}, differs from the first); replay each run's bag "
+                            "on its own"
+                        )
                 elif item.schema == bag.BENCH_RUN_SCHEMA:
                     try:
                         codec.validate("BenchRun", item.payload)
@@ -1456,6 +1508,7 @@ def replay_bench(paths: Sequence[str | Path], out: Path) -> tuple[dict[str, Any]
     Calls the very functions ``lit bench`` uses (:func:`lit_planner.bench.cli.write_outputs`), so
     the same records give the same statistics.
     """
+    from lit_msgs_json import codec
     from lit_planner.bench import cli as bench_cli
     from lit_planner.bench import runner
 
@@ -1483,9 +1536,36 @@ def replay_bench(paths: Sequence[str | Path], out: Path) -> tuple[dict[str, Any]
         raise ReplayError(
             f"{paths[0]}: malformed {bag.BENCH_CONFIG_TOPIC} payload: {_describe(error)}"
         ) from None
+    recorded.runs = _runs_in_grid(recorded, config)
+    if not recorded.runs:
+        raise EmptyBenchBagError(
+            f"no {bag.BENCH_RUN_TOPIC} record in {', '.join(map(str, paths))} belongs to its "
+            f"benchmark's configuration ({recorded.skipped.line()}); nothing to tabulate"
+        )
     last_ns = max(run.stamp_ns for run in recorded.runs)
     finished = datetime.fromtimestamp(last_ns / 1e9, UTC)
+    planned = config.runs * len(config.scenarios) * len(config.planners)
+    incomplete = None
+    if len(recorded.runs) < planned:
+        # A damaged message, a gap or an interrupted benchmark: say so where the tables are read.
+        seen = [
+            f"{recorded.missing} seq gaps" if recorded.missing else "",
+            recorded.skipped.line() if recorded.skipped.total else "",
+        ]
+        why = "; ".join(filter(None, seen)) or "none damaged: an interrupted benchmark?"
+        incomplete = {
+            "planned": planned,
+            "read": len(recorded.runs),
+            "note": (
+                f"{planned - len(recorded.runs)} of the {planned} planned run records are missing "
+                f"or unreadable ({why}); the statistics cover the {len(recorded.runs)} read. "
+                "`lit replay info` shows the bag's gaps and skipped messages"
+            ),
+        }
     out.mkdir(parents=True, exist_ok=True)
+    with (out / bench_cli.RUNS_FILE).open("w", encoding="utf-8") as handle:
+        for run in recorded.runs:  # as lit bench writes them
+            handle.write(codec.dumps(runner.RUN_SCHEMA, run.payload) + "\n")
     try:
         summary = bench_cli.write_outputs(
             out,
@@ -1499,10 +1579,47 @@ def replay_bench(paths: Sequence[str | Path], out: Path) -> tuple[dict[str, Any]
             estimate=(float(estimate["planning_s"]), str(estimate["formula"])),
             argv=list(payload["argv"]),
             recorded=environment,
+            incomplete=incomplete,
         )
     except LitPlannerError as error:
         raise ReplayError(f"cannot regenerate the outputs: {error}") from None
     return summary, recorded
+
+
+def _runs_in_grid(recorded: BenchBag, config: Any) -> list[Envelope]:
+    """The run records that belong to the benchmark's configuration, one per scenario, planner
+    and run; any other is skipped (``recorded.skipped`` says where), so that it cannot stand in
+    for a missing one when the records are counted.
+
+    Raises:
+        ReplayError: two different records of the same scenario, planner and run.
+    """
+    grid = {
+        (scenario, planner, run)
+        for scenario in config.scenarios
+        for planner in config.planners
+        for run in range(config.runs)
+    }
+    kept: dict[tuple[str, str, int], Envelope] = {}
+    for item in recorded.runs:
+        cell = (item.payload["scenario"], item.payload["planner"], item.payload["run"])
+        where = f"{item.topic} seq {item.seq} of run {item.run_id}"
+        if cell not in grid:
+            recorded.skipped.add(
+                "run record outside the benchmark's configuration",
+                where,
+                f"scenario {cell[0]}, planner {cell[1]}, run {cell[2]}",
+            )
+        elif cell in kept:
+            earlier = kept[cell]
+            raise ReplayError(
+                f"two records of scenario {cell[0]}, planner {cell[1]}, run {cell[2]}: "
+                f"{earlier.topic} seq {earlier.seq} of run {earlier.run_id} and {where} (two "
+                "runs of the same benchmark?); replay each run's bag on its own"
+            )
+        else:
+            kept[cell] = item
+    return list(kept.values())
 
 
 # --- command line ----------------------------------------------------------------------------
@@ -1828,25 +1945,10 @@ def _bench(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     print(
-        f"{PROG} bench: {len(recorded.runs)} run records -> {out}/summary.json, summary.md, "
+        f"{PROG} bench: {len(recorded.runs)} run records -> {out}/summary.json, summary.md, runs.jsonl, "
         f"plots ({', '.join(summary['outputs']['plots']) or 'none'})"
     )
-    settings = summary["config"]
-    planned = settings["runs"] * len(settings["scenarios"]) * len(settings["planners"])
-    if len(recorded.runs) < planned:
-        # A damaged message, a gap or an interrupted benchmark: say so where the tables are read.
-        seen = [
-            f"{recorded.missing} seq gaps" if recorded.missing else "",
-            recorded.skipped.line() if recorded.skipped.total else "",
-        ]
-        why = "; ".join(filter(None, seen)) or "none damaged: an interrupted benchmark?"
-        note = (
-            f"{planned - len(recorded.runs)} of the {planned} planned run records are missing or "
-            f"unreadable ({why}); the statistics cover the {len(recorded.runs)} read. "
-            "`lit replay info` shows the bag's gaps and skipped messages"
-        )
-        summary_md = Path(out) / "summary.md"
-        summary_md.write_text(f"> **Incomplete:** {note}.\n\n" + summary_md.read_text())
-        print(f"{PROG} bench: warning: {note}", file=sys.stderr)
+    if "incomplete" in summary:
+        print(f"{PROG} bench: warning: {summary['incomplete']['note']}", file=sys.stderr)
         return 1
     return 0

@@ -226,12 +226,15 @@ def write_outputs(
     argv: list[str] | None = None,
     recorded: dict[str, Any] | None = None,
     planners: dict[str, Any] | None = None,
+    incomplete: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Compute the statistics, draw the plots, validate and write summary.json and summary.md.
 
     ``recorded`` (``lit replay bench``): the recorded run's ``cwd``, ``machine``, ``versions`` and
     ``planners`` instead of this process's. ``planners``: the planners' configuration as taken
-    when the benchmark read its policies (:func:`planner_setups` now when None).
+    when the benchmark read its policies (:func:`planner_setups` now when None). ``incomplete``
+    (``lit replay bench``): ``planned``, ``read`` and ``note`` when records are missing; both
+    files then say so first.
     """
     from lit_msgs_json import codec
     from lit_planner.bench import environment, plots, report, stats
@@ -258,6 +261,7 @@ def write_outputs(
     summary = {
         "schema": report.SUMMARY_SCHEMA,
         "version": report.SUMMARY_SCHEMA_VERSION,
+        **({"incomplete": incomplete} if incomplete else {}),
         "started": started.isoformat(timespec="seconds"),
         "finished": finished.isoformat(timespec="seconds"),
         "duration_s": duration,

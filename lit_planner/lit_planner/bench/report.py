@@ -20,7 +20,7 @@ from lit_planner.bench.runner import TENSOR_PLANNER
 
 SUMMARY_SCHEMA = "lit_msgs_json/BenchSummary"
 """Schema of ``summary.json``."""
-SUMMARY_SCHEMA_VERSION = 2
+SUMMARY_SCHEMA_VERSION = 3
 """Version of :data:`SUMMARY_SCHEMA` that this module writes."""
 METRICS = ("t_init", "c_init", "c_final")
 """Per-run quantities whose medians the tables show."""
@@ -415,7 +415,9 @@ def markdown(summary: dict[str, Any]) -> str:
     """``summary.md``: the comparison tables, every planner's statistics, notes and plots."""
     config = summary["config"]
     comp = summary["comparisons"]
+    incomplete = summary.get("incomplete")
     lines = [
+        *([f"> **Incomplete:** {incomplete['note']}.", ""] if incomplete else []),
         "# LIT* benchmark",
         "",
         f"`{' '.join(summary['command']['argv'])}`",
