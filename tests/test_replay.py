@@ -15,6 +15,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -349,6 +350,75 @@ def test_salvage_truncated_and_bit_flipped(tmp_path: Path) -> None:
     assert _replay("info", tmp_path / "footer.mcap").returncode == 2
     result = _replay("salvage", tmp_path / "footer.mcap")
     assert result.returncode == 0 and _recovered(result.stdout) == 300, result.stdout
+
+
+def test_a_changed_digit_fails_the_chunk_checksum(tmp_path: Path) -> None:
+    """The recorder writes each chunk's CRC-32 (rosbags writes 0, "none"): a digit changed inside
+    a message, which still decodes, is caught by every reader, and salvage keeps the other
+    chunks whole and leaves that one out, saying so."""
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader
+
+    source = _numbered_bag(tmp_path / "source", 300)
+    with _mcap(source).open("rb") as handle:
+        crcs = [
+            r.uncompressed_crc for r in StreamReader(handle, emit_chunks=True).records
+            if isinstance(r, Chunk)
+        ]  # fmt: skip
+    assert len(crcs) >= 5 and all(crcs)
+    data = _mcap(source).read_bytes()
+    assert data.count(b'"n": 150,') == 1
+    changed = tmp_path / "changed"
+    shutil.copytree(source, changed)
+    (changed / _mcap(source).name).write_bytes(data.replace(b'"n": 150,', b'"n": 950,'))
+    for command in ("info", "verify"):
+        _assert_clean_error(_replay(command, changed), "lit replay salvage")
+    result = _replay("salvage", changed, "-o", tmp_path / "salvaged")
+    assert result.returncode == 0, result.stderr
+    assert "does not match its records" in result.stdout, result.stdout
+    recovered = _recovered(result.stdout)
+    assert 250 < recovered < 300
+    info = replay.bag_info(tmp_path / "salvaged")["publishers"][0]
+    assert info["count"] == recovered and info["gaps"] == 1
+
+
+@pytest.mark.parametrize("command", ["compact", "bench"])
+def test_sigterm_leaves_no_half_written_output(command: str, tmp_path: Path) -> None:
+    """`kill PID` stops like Ctrl-C (exit 130) and removes what the command had written: a
+    SIGTERM used to leave half a compacted bag, and an interrupted bench a plots/ folder that then
+    blocked the rerun ("exists and is not empty")."""
+    shipped = ROOT / "bags" / "shipped"
+    source = shipped / ("train-20261130c" if command == "compact" else "tensor-paper-20261201")
+    out = tmp_path / "out"
+    args = [source, out] if command == "compact" else [source, "--out", out]
+    process = subprocess.Popen(
+        [sys.executable, "-m", "lit_planner.cli", "replay", command, *map(str, args)],
+        cwd=ROOT, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        while not out.exists() and process.poll() is None:
+            time.sleep(0.005)
+        process.send_signal(signal.SIGTERM)
+        _, stderr = process.communicate(timeout=120)
+    finally:
+        process.kill()
+        process.wait()
+    assert process.returncode == 130, stderr
+    assert "lit replay: interrupted" in stderr and "Traceback" not in stderr, stderr
+    assert not out.exists()
+
+
+def test_measure_counts_a_writer_killed_before_its_first_chunk(tmp_path: Path) -> None:
+    """With chunks larger than what the writer wrote before the kill, its .mcap file is empty:
+    that used to end the measurement with "is an empty file" (exit 2)."""
+    result = _replay("measure", "--messages", "100", "--kills", "1", "--chunk-bytes", "1048576")
+    assert result.returncode == 0, result.stdout + result.stderr
+    crash = re.search(
+        r"SIGKILL after (\d+) confirmed writes, (\d+) recovered, (\d+) lost", result.stdout
+    )
+    assert crash is not None, result.stdout
+    confirmed, recovered, lost = map(int, crash.groups())
+    assert recovered == 0 and lost == confirmed > 0
 
 
 # --- bad input -----------------------------------------------------------------------------

@@ -37,10 +37,12 @@ import functools
 import json
 import re
 import shlex
+import struct
 import subprocess
 import sys
 import threading
 import time
+import zlib
 from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
@@ -147,6 +149,10 @@ def parse_qos(spec: str) -> Qos:
     )
 
 
+CHUNK_CRC_OFFSET = 1 + 8 + 8 + 8 + 8
+"""Byte offset of the uncompressed CRC-32 in an MCAP chunk record."""
+
+
 class ChunkedMcapWriter(McapWriter):
     """rosbags' MCAP storage with a chunk size of ``chunk_bytes`` and a flush after each chunk."""
 
@@ -162,8 +168,23 @@ class ChunkedMcapWriter(McapWriter):
             self.close_chunk()
 
     def close_chunk(self) -> None:
-        """Write the open chunk with its message indexes and hand them to the operating system."""
+        """Write the open chunk with its message indexes and hand them to the operating system.
+
+        rosbags writes 0 for the chunk's CRC-32 (MCAP: "not computed"), so a flipped bit in a
+        number went unnoticed by every reader; this writes the CRC-32 of the uncompressed records
+        into the chunk record, which rosbags' and mcap's readers check.
+        """
+        records = self.chunk.bio.getbuffer()
+        crc = zlib.crc32(records)
+        del records  # a view would keep the BytesIO from being replaced
+        start = self.bio.tell()
         super().close_chunk()
+        end = self.bio.tell()
+        # The chunk record: opcode (1), length (8), start and end time (8 + 8), uncompressed
+        # size (8), then the CRC-32 (4).
+        self.bio.seek(start + CHUNK_CRC_OFFSET)
+        self.bio.write(struct.pack("<I", crc))
+        self.bio.seek(end)
         self.bio.flush()
 
     def flush(self) -> None:

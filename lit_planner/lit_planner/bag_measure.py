@@ -64,10 +64,17 @@ def run(args: argparse.Namespace) -> int:
             confirmed, recovered = crash_trial(
                 Path(folder) / f"kill{trial}", target, args.chunk_bytes
             )
-            losses.append(confirmed - recovered)
+            # A write can return and be killed before its report: one more recovered than
+            # confirmed is a write that was not lost, not a negative loss.
+            losses.append(max(0, confirmed - recovered))
+            unreported = (
+                f" ({recovered - confirmed} written after the last report)"
+                if recovered > confirmed
+                else ""
+            )
             print(
                 f"crash {trial + 1}/{args.kills}: SIGKILL after {confirmed} confirmed writes, "
-                f"{recovered} recovered, {confirmed - recovered} lost"
+                f"{recovered} recovered, {losses[-1]} lost{unreported}"
             )
     if losses:
         print(
@@ -117,6 +124,10 @@ def crash_trial(path: Path, target: int, chunk_bytes: int) -> tuple[int, int]:
     finally:
         child.kill()
         child.wait(timeout=30)
+    if not any(file.stat().st_size for file in path.glob("*.mcap")):
+        # Killed before its first chunk reached the file (chunks as large as the messages
+        # written): nothing to salvage, everything confirmed is lost.
+        return confirmed, 0
     _, results = salvage(path)
     return confirmed, sum(sum(result.messages.values()) for result in results)
 

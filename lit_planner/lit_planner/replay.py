@@ -37,7 +37,9 @@ import math
 import os
 import re
 import shutil
+import signal
 import sys
+import threading
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -352,6 +354,10 @@ def _metadata_mismatch(path: Path, facts: BagFacts) -> str | None:
 
     if not path.is_dir():
         return None
+    listed_files = load_metadata(path / "metadata.yaml").get("relative_file_paths") or []
+    for file in sorted(path.glob("*.mcap")):
+        if file.name not in listed_files:
+            return f"{file.name} is in the folder, not in the files it lists"
     in_files: dict[str, int] = {}
     for file in sorted(path.glob("*.mcap")):
         try:
@@ -1174,8 +1180,17 @@ def _magic_length(path: Path) -> int:
 
 
 def _chunk_records(chunk: Any) -> Iterator[object]:
-    """The schema, channel and message records of a chunk, checked as they are read."""
-    for _, record in _inner_records(_chunk_data(chunk), chunk):
+    """The schema, channel and message records of a chunk, checked as they are read; none of a
+    chunk whose CRC-32 (when written: 0 means none) does not match its records."""
+    import zlib
+
+    data = _chunk_data(chunk)
+    if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
+        raise ValueError(
+            f"its CRC-32 {chunk.uncompressed_crc:#010x} does not match its records "
+            f"({zlib.crc32(data):#010x}): damaged, none of its records kept"
+        )
+    for _, record in _inner_records(data, chunk):
         yield record
 
 
@@ -1300,10 +1315,15 @@ def _write_bag(
     number of messages written."""
     for key, value in custom.items():
         writer.set_custom_data(key, value)
+    existed = Path(writer.path).exists()
     try:
         writer.open()
-    except Exception as error:  # noqa: BLE001 -- rosbags' WriterError, OSError
-        raise ReplayError(f"cannot create {writer.path}: {_describe(error)}") from None
+    except BaseException as error:  # a signal may land while open() creates the folder
+        if not existed:
+            shutil.rmtree(writer.path, ignore_errors=True)
+        if isinstance(error, Exception):  # rosbags' WriterError, OSError
+            raise ReplayError(f"cannot create {writer.path}: {_describe(error)}") from None
+        raise
     connections: dict[Any, Any] = {}
     count = 0
     try:
@@ -1364,8 +1384,10 @@ def compact(source: str | Path, out: str | Path) -> dict[str, Any]:
             ),
         )
 
-    def size(path: Path) -> int:
-        return sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
+    def size(path: Path) -> int:  # the bag's own files (not a replay/ folder inside it)
+        if path.is_file():
+            return path.stat().st_size
+        return sum(f.stat().st_size for f in path.iterdir() if f.is_file())
 
     return {"messages": count, "bytes_before": size(source), "bytes_after": size(target)}
 
@@ -1679,6 +1701,9 @@ def run(args: argparse.Namespace) -> int:
         "measure": _measure,
         "tensors": _tensors,
     }
+    # `kill PID` stops like Ctrl-C: the same clean-up (no half-written bag or output folder).
+    main_thread = threading.current_thread() is threading.main_thread()  # signals: main only
+    previous = signal.signal(signal.SIGTERM, signal.default_int_handler) if main_thread else None
     try:
         return commands[args.replay_command](args)
     except ReplayError as error:
@@ -1694,6 +1719,9 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
+    finally:
+        if previous is not None:  # None: not set from Python, not restorable
+            signal.signal(signal.SIGTERM, previous)
 
 
 def _offline() -> Any:
@@ -1910,8 +1938,17 @@ def _bench(args: argparse.Namespace) -> int:
         )
     else:
         _check_new_folder(out, f"--out {out}")
+    existed = Path(out).exists()  # then empty (checked above)
     try:
         summary, recorded = replay_bench(args.bags, Path(out))
+    except KeyboardInterrupt:
+        # Half-written outputs would look complete and block the rerun.
+        if existed:
+            for child in Path(out).iterdir():
+                shutil.rmtree(child) if child.is_dir() else child.unlink()
+        else:
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     except EmptyBenchBagError as error:
         print(f"{PROG} bench: warning: {error}", file=sys.stderr)
         return 1
