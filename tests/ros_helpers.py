@@ -495,8 +495,24 @@ def record(path: Path, topics: Sequence[str]) -> int:
 
             return receive
 
+        def trajectory_subscriber(topic: str) -> Callable[[Any], None]:
+            def receive(message: Any) -> None:
+                points = [list(point.positions) for point in message.points]
+                document = {"payload": {"frame_id": message.header.frame_id, "points": points}}
+                out.write(json.dumps({"topic": topic, "message": document}) + "\n")
+                out.flush()
+
+            return receive
+
         for topic in topics:
-            node.create_subscription(String, topic, subscriber(topic), json_qos())
+            if topic.endswith("/lit/path"):  # trajectory_msgs/JointTrajectory, not JSON
+                from trajectory_msgs.msg import JointTrajectory
+
+                node.create_subscription(
+                    JointTrajectory, topic, trajectory_subscriber(topic), json_qos()
+                )
+            else:
+                node.create_subscription(String, topic, subscriber(topic), json_qos())
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         print(f"ready: recording {', '.join(topics)} into {path}", flush=True)

@@ -46,6 +46,7 @@ NODE_START = 120.0
 """Seconds a node may take to log ``ready:`` (the learner imports torch)."""
 EPISODE = "/lit/episode"
 STATS = "/lit/learner/stats"
+PATH = "/lit/path"
 TRAINING = {
     "policy": "training",
     "time_budget": 0.2,
@@ -102,21 +103,25 @@ def _avoids_obstacles(scenario: scenarios.Scenario, path: list[list[float]]) -> 
 
 
 def test_plan_service_round_trip(ros: RosSystem, tmp_path: Path) -> None:
-    """A separate client plans on a registered scenario and on an explicit world."""
+    """A separate client plans on a registered scenario and on an explicit world; a path through
+    a wall thinner than the world's check spacing is answered path_valid false (lit call exits 3)
+    and not published as a trajectory."""
+    recording = ros.recorder([EPISODE, PATH])
     planner = ros.planner()
     _ready(planner)
 
-    result = ros.call("--payload-only", "plan", "--scenario", "np4", "--time", "0.2")
-    assert result.returncode == 0, result
+    # A 10 m room cut by a 2 mm wall: no solution, but the world's default resolution (checks
+    # 10 mm apart) lets the planner through it.
+    sheet = {"lower": [0, 0], "upper": [10, 10], "boxes": [{"lower": [5, 0], "upper": [5.002, 10]}],
+             "start": [1, 5], "goal": [9, 5]}  # fmt: skip
+    sheet_file = tmp_path / "sheet.json"
+    sheet_file.write_text(json.dumps(sheet), encoding="utf-8")
+    result = ros.call("--payload-only", "plan", "--world", str(sheet_file), "--time", "0.2",
+                      "--seed", "1", "--request-id", "sheet")  # fmt: skip
+    assert result.returncode == 3, result
+    assert "failed the node's independent re-check" in result.stderr
     response = result.json()
-    scenario = scenarios.get("np4")
-    assert response["solved"] is True
-    assert response["scenario"] == "np4" and response["dimension"] == scenario.dim
-    assert response["path"][0] == pytest.approx(list(scenario.start))
-    assert response["path"][-1] == pytest.approx(list(scenario.goal))
-    assert response["cost"] > 0
-    assert response["cost"] >= math.dist(scenario.start, scenario.goal) - 1e-9
-    assert _avoids_obstacles(scenario, response["path"])
+    assert response["solved"] is True and response["path_valid"] is False
 
     world = {
         "lower": [0.0, 0.0],
@@ -127,9 +132,14 @@ def test_plan_service_round_trip(ros: RosSystem, tmp_path: Path) -> None:
     }
     world_file = tmp_path / "world.json"
     world_file.write_text(json.dumps(world), encoding="utf-8")
-    result = ros.call("--payload-only", "plan", "--world", str(world_file), "--time", "0.5")
-    assert result.returncode == 0, result
+    result = ros.call("--payload-only", "plan", "--world", str(world_file), "--time", "0.5",
+                      "--request-id", "world")  # fmt: skip
+    # At this world's resolution (10^-3 of its size, the default) a path may clip the wall's
+    # corner between the planner's checks by more than the re-check's finer spacing: then it is
+    # answered path_valid false, and lit call exits 3.
     response = result.json()
+    world_valid = response["path_valid"]
+    assert result.returncode == (0 if world_valid else 3), result
     assert response["solved"] is True and response["dimension"] == 2
     assert response["path"][0] == pytest.approx(world["start"])
     assert response["path"][-1] == pytest.approx(world["goal"])
@@ -142,6 +152,31 @@ def test_plan_service_round_trip(ros: RosSystem, tmp_path: Path) -> None:
     )
     assert _avoids_obstacles(explicit, response["path"])
     assert response["cost"] > 0.8  # around the wall, never through it
+
+    result = ros.call("--payload-only", "plan", "--scenario", "np4", "--time", "0.2",
+                      "--request-id", "np4")  # fmt: skip
+    assert result.returncode == 0, result
+    response = result.json()
+    scenario = scenarios.get("np4")
+    assert response["solved"] is True and response["path_valid"] is True
+    assert response["scenario"] == "np4" and response["dimension"] == scenario.dim
+    assert response["path"][0] == pytest.approx(list(scenario.start))
+    assert response["path"][-1] == pytest.approx(list(scenario.goal))
+    assert response["cost"] > 0
+    assert response["cost"] >= math.dist(scenario.start, scenario.goal) - 1e-9
+    assert _avoids_obstacles(scenario, response["path"])
+
+    # The trajectories come in the order the node published them: the last one's arrival means
+    # the others' would have come already.
+    recording.wait_until(
+        PATH, lambda found: any(p["frame_id"] == "np4" for p in found), timeout=60.0,
+        what="the np4 query's trajectory", watch=[planner],
+    )  # fmt: skip
+    published = [p["frame_id"] for p in recording.payloads(PATH)]
+    assert published == (["world", "np4"] if world_valid else ["np4"])
+    summaries = {p["episode_id"]: p for p in recording.payloads(EPISODE)}
+    assert summaries["sheet"]["path_valid"] is False and summaries["np4"]["path_valid"] is True
+    assert "failed the independent re-check (path_valid false); not published" in planner.text()
     assert planner.running()
     _no_traceback(planner)
 

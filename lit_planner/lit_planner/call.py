@@ -268,9 +268,11 @@ def run(args: argparse.Namespace) -> int:
             print(
                 "lit call: warning: the returned path failed the node's independent re-check "
                 "(path_valid false): it leaves the free space between the planner's collision "
-                "checks; do not execute it as it is",
+                "checks; do not execute it as it is (exit 3). A world with a finer resolution "
+                "has its edges checked more densely",
                 file=sys.stderr,
             )
+            return PATH_INVALID_EXIT
         return 0 if success else 1
     except (Exception, KeyboardInterrupt) as exc:  # filtered below
         if not isinstance(exc, KeyboardInterrupt) and rclpy.ok():
@@ -530,6 +532,11 @@ def _call_export(node: Any, args: argparse.Namespace) -> int:
         return 2
     print(response.message)
     return 0 if response.success else 1
+
+
+PATH_INVALID_EXIT = 3
+"""Exit status of ``lit call plan`` whose answer holds a path that failed the re-check (a script
+that only looks at the exit status must not take it for a plan to execute)."""
 
 
 def _path_failed_recheck(message: str) -> bool:

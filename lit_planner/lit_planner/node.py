@@ -1011,6 +1011,15 @@ class PlannerNode:
                 f"episode {job.episode_id}: its world is too large for the EpisodeSummary "
                 f"({dropped}); published without it, so lit replay verify cannot re-check its path"
             )
+        if summary.get("path_valid") is False:
+            # A controller listening on lit/path would execute it: the answer and the
+            # EpisodeSummary say path_valid false; the trajectory topic carries only paths that
+            # passed the re-check (or were not re-checked).
+            self.log.warning(
+                f"episode {job.episode_id}: its path failed the independent re-check "
+                "(path_valid false); not published on lit/path"
+            )
+            return
         trajectory = self._trajectory()
         trajectory.header.frame_id = job.episode_id
         trajectory.joint_names = [f"q{i}" for i in range(job.scenario.dim)]

@@ -304,7 +304,9 @@ class PathCheck:
     ok: bool
     """Valid, starts at the start and ends at the goal."""
     valid: bool
-    """Every checked point lies inside the bounds and outside every box."""
+    """Every checked point lies inside the bounds and outside every box, and no segment passes
+    through a box from one face to the opposite one (an exact test, which finds a box thinner
+    than the spacing)."""
     starts_at_start: bool
     """The first waypoint is within :data:`ENDPOINT_TOLERANCE` of the start."""
     ends_at_goal: bool
@@ -594,7 +596,10 @@ def check_path(scenario: Scenario, path: ArrayLike, resolution: float | None = N
 
     Every segment is sampled at ``resolution * max_extent / CHECK_REFINEMENT`` or finer, both
     endpoints included, and each sample is tested with :func:`is_valid`. The check stops at the
-    first invalid sample.
+    first invalid sample. A path whose samples are all valid is then tested segment by segment
+    against every box exactly for a segment that passes through a box (a wall thinner than the
+    spacing slips between samples; :func:`_first_box_crossing`); such a crossing gives the segment
+    and the middle of its stretch inside the box as the first invalid one.
 
     Args:
         scenario: the scenario the path claims to solve.
@@ -659,7 +664,53 @@ def check_path(scenario: Scenario, path: ArrayLike, resolution: float | None = N
         if first is not None:
             return result(checked + first, index, _samples(a, b, steps, np.array([first]))[0])
         checked += steps
+    # Samples miss a box thinner than their spacing (a custom world's coarse resolution, a box of
+    # zero thickness): every segment is also tested against every box exactly.
+    crossing = _first_box_crossing(scenario, waypoints)
+    if crossing is not None:
+        return result(checked, *crossing)
     return result(checked)
+
+
+def _first_box_crossing(scenario: Scenario, waypoints: FloatArray) -> tuple[int, FloatArray] | None:
+    """The first segment ``waypoints[i] -> waypoints[i + 1]`` that passes through a (closed)
+    box, exactly, with the middle of its stretch inside; None when none does.
+
+    Slab test: the parameter interval in which each coordinate lies within the box's, intersected
+    over the axes and with [0, 1]. *Through* means the stretch begins and ends on the same axis's
+    bounds: the segment crosses the box from one face to the opposite one (a wall thinner than the
+    samples' spacing, or of zero thickness). One that clips an edge or corner between samples
+    (in across one axis, out across another) is not reported: every planner here checks edges at
+    a resolution and clips corners by up to it."""
+    if len(waypoints) < 2 or len(scenario.boxes) == 0:
+        return None
+    box_lo, box_hi = scenario.boxes[None, :, 0, :], scenario.boxes[None, :, 1, :]
+    per_segment = len(scenario.boxes) * scenario.dim
+    chunk = max(1, _CHUNK_ELEMENTS // per_segment)
+    for begin in range(0, len(waypoints) - 1, chunk):
+        a = waypoints[begin : begin + chunk + 1][:-1][:, None, :]
+        d = np.diff(waypoints[begin : begin + chunk + 1], axis=0)[:, None, :]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_lo, t_hi = (box_lo - a) / d, (box_hi - a) / d
+        enter, leave = np.minimum(t_lo, t_hi), np.maximum(t_lo, t_hi)
+        # An axis the segment does not move along: inside the box's slab for every t, or never.
+        still = np.broadcast_to(d == 0.0, enter.shape)
+        within = (box_lo <= a) & (a <= box_hi)
+        enter = np.where(still, np.where(within, -np.inf, np.inf), enter)
+        leave = np.where(still, np.where(within, np.inf, -np.inf), leave)
+        first = np.maximum(enter.max(axis=2), 0.0)
+        last = np.minimum(leave.min(axis=2), 1.0)
+        # Through: in and out across the same axis (opposite faces, or the one face of a box of
+        # zero thickness). A stretch that enters across one axis and leaves across another clips
+        # an edge or corner, by less than the samples' spacing (else a sample found it).
+        through = enter.argmax(axis=2) == leave.argmin(axis=2)
+        hits = np.argwhere((first <= last) & through)
+        if len(hits):
+            segment, box = hits[0]  # argwhere is row-major: the first segment's first box
+            middle = (first[segment, box] + last[segment, box]) / 2.0
+            point = a[segment, 0] + middle * d[segment, 0]
+            return begin + int(segment), point
+    return None
 
 
 def _samples(a: FloatArray, b: FloatArray, steps: int, j: NDArray[np.int64]) -> FloatArray:

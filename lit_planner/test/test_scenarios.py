@@ -10,7 +10,7 @@ import zlib
 import numpy as np
 import pytest
 from lit_planner.errors import ScenarioError
-from lit_planner.scenarios import check_path, get, is_valid
+from lit_planner.scenarios import check_path, custom, get, is_valid
 
 from lit_planner import scenarios
 
@@ -156,7 +156,27 @@ def test_check_path_catches_a_thin_crossing_between_waypoints() -> None:
     assert not check.valid and check.first_invalid_index == 0
     assert check.first_invalid_point is not None
     assert check.first_invalid_point[0] >= -0.1 and check.first_invalid_point[1] <= 0.05
-    assert check_path(s, path, resolution=1e-2).valid  # too coarse to see the cut
+    # Samples too far apart to see the cut; a corner clip (in across x0, out across x1) is not a
+    # crossing, which the exact test looks for.
+    assert check_path(s, path, resolution=1e-2).valid
+
+
+@pytest.mark.parametrize("thickness", [2e-3, 0.0])
+def test_check_path_finds_a_wall_thinner_than_its_spacing(thickness: float) -> None:
+    """A 10 m room with a wall of 2 mm (or none: a box of zero thickness) at the default custom
+    resolution (10 mm checks, 3.5 mm samples): the samples step over it; the node said such a
+    straight path through it was valid."""
+    s = custom([0, 0], [10, 10], [([5, 0], [5 + thickness, 10])], [1, 5], [9, 5])
+    path = [[1, 5], [4.13, 5.0], [5.24, 5.0], [9, 5]]
+    assert check_path(s, path).spacing > thickness
+    check = check_path(s, path)
+    assert not check.valid and not check.ok and check.first_invalid_index == 1
+    assert check.first_invalid_point is not None
+    assert 5 <= check.first_invalid_point[0] <= 5 + thickness
+    around = check_path(s, [[1, 5], [4.9, 10], [5.1, 10], [9, 5]])  # y = 10 is the wall's too
+    assert not around.valid and around.first_invalid_index == 1
+    beside = custom([0, 0], [10, 10], [([5, 0], [5 + thickness, 9])], [1, 5], [9, 5])
+    assert check_path(beside, [[1, 5], [5, 9.5], [9, 5]]).ok  # passes above its end
 
 
 def test_check_path_endpoint_tolerance() -> None:
@@ -364,7 +384,7 @@ def test_check_path_finds_exactly_what_testing_every_sample_finds(name: str) -> 
     rng = np.random.default_rng(11)
     lower, upper = np.array(s.lower), np.array(s.upper)
     boxes = s.boxes
-    cases = 0
+    cases = grazes = 0
     for _ in range(150):
         kind = rng.integers(4)
         if kind == 0:  # anywhere
@@ -385,11 +405,21 @@ def test_check_path_finds_exactly_what_testing_every_sample_finds(name: str) -> 
         resolution = 1e-3 if rng.random() < 0.5 else 1e-4
         check = check_path(s, path, resolution=resolution)
         valid, index, point_, checked = _dense_reference(s, path, resolution)
+        assert check.points_checked == checked
+        if valid and not check.valid:
+            # Every sample is free, but a segment meets a box between samples (a graze): found
+            # by the exact test that follows the samples.
+            crossing = scenarios._first_box_crossing(s, path)
+            assert crossing is not None, path.tolist()
+            assert check.first_invalid_index == crossing[0], path.tolist()
+            assert check.first_invalid_point == tuple(crossing[1]), path.tolist()
+            grazes += 1
+            continue
         assert (check.valid, check.first_invalid_index) == (valid, index), path.tolist()
         assert check.first_invalid_point == point_, path.tolist()  # the same float64s
-        assert check.points_checked == checked
         cases += not valid
     assert 10 < cases < 150  # both verdicts were exercised
+    assert grazes < 150 - cases
 
 
 def test_check_path_refuses_a_resolution_too_fine_for_its_exact_search() -> None:

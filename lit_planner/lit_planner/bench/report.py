@@ -530,7 +530,8 @@ def markdown(summary: dict[str, Any]) -> str:
             "records do not carry them: recorded before commit dc8015a)."
         ),
         (
-            f"- Independent path check (numpy, 4× finer than the planners' resolution): {invalid} of "
+            "- Independent path check (numpy: samples 4× finer than the planners' resolution; "
+            f"for runs since 2026-12-04 also an exact test for a segment through a box): {invalid} of "
             f"{solved} returned paths invalid (such a run still counts as solved, with its times "
             "and costs, in the tables; the invalid paths column counts it)."
         ),
