@@ -34,6 +34,8 @@ EXIT_UNSOLVED = 1
 """The planner ran but found no exact solution (see ``status`` and ``message``)."""
 EXIT_BAD_INPUT = 2
 """The query could not be set up; nothing was planned."""
+EXIT_PATH_INVALID = 3
+"""The planner found a solution whose path failed the independent re-check (as ``lit call``)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -129,7 +131,10 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(planning.json_safe(result), allow_nan=False))
     else:
         print("\n".join(summary_lines(result, scenario)))
-    return EXIT_SOLVED if result["solved"] else EXIT_UNSOLVED
+    if not result["solved"]:
+        return EXIT_UNSOLVED
+    check = result.get("path_check")
+    return EXIT_PATH_INVALID if check is not None and not check["valid"] else EXIT_SOLVED
 
 
 def _check_policy_name(policy: str | None) -> None:
