@@ -421,6 +421,26 @@ def test_measure_counts_a_writer_killed_before_its_first_chunk(tmp_path: Path) -
     assert recovered == 0 and lost == confirmed > 0
 
 
+def test_an_mcap_file_of_another_kind_is_named_as_such(tmp_path: Path) -> None:
+    """An MCAP file whose profile is not ros2 (another program's) is no bag: it was told to
+    "recover it with lit replay salvage", and salvage then found nothing to salvage."""
+    from mcap.writer import Writer
+
+    plain = tmp_path / "plain.mcap"
+    with plain.open("wb") as handle:
+        writer = Writer(handle)
+        writer.start(profile="", library="test")
+        schema = writer.register_schema(name="text", encoding="jsonschema", data=b"{}")
+        channel = writer.register_channel(topic="/x", message_encoding="json", schema_id=schema)
+        writer.add_message(channel, log_time=1, data=b"{}", publish_time=1)
+        writer.finish()
+    folder = tmp_path / "folder"
+    folder.mkdir()
+    shutil.copy(plain, folder / "plain.mcap")
+    for bag_path in (plain, folder):
+        _assert_clean_error(_replay("info", bag_path), "not a ROS 2 bag")
+
+
 # --- bad input -----------------------------------------------------------------------------
 
 

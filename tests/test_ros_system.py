@@ -1067,6 +1067,29 @@ def test_a_training_episode_cut_short_goes_to_the_learner_and_is_not_published(
     _no_traceback(planner, learner)
 
 
+def test_a_learner_shutting_down_answers_unavailable(ros: RosSystem) -> None:
+    """Requests that reach the learner while it shuts down (checkpoint, export) are answered with
+    an unavailable Error: they went unanswered, and a `lit call decide --repeat` waited out its
+    --timeout and said "call N failed: None"."""
+    recording = ros.recorder([STATS])
+    learner = ros.learner(stats_period=0.2)
+    _ready(learner)
+    calls = ros.call_start("--timeout", "600", "--payload-only", "decide", "--repeat", "100000000")
+    recording.wait_until(
+        STATS, lambda found: any(p["decisions"] >= 50 for p in found), timeout=120.0,
+        what="decisions answered", watch=[learner, calls],
+    )  # fmt: skip
+    assert ros.stop(learner, signal.SIGTERM, timeout=60.0) == 0, learner.tail()
+    result = finish_call(calls, timeout=60.0)  # not the 600 s timeout
+    assert result.returncode == 1, result
+    error = result.json()
+    assert error["code"] == "unavailable", error
+    assert "the learner is shutting down" in error["message"], error
+    assert error["request_schema"] == "DecideRequest", error
+    assert "was answered with an error" in result.stderr, result
+    _no_traceback(learner)
+
+
 def test_sigterm_shuts_both_nodes_down_cleanly(ros: RosSystem) -> None:
     """SIGTERM mid-training: exit code 0, no processes left behind, a checkpoint written."""
     recording = ros.recorder([EPISODE])

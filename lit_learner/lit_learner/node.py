@@ -184,6 +184,9 @@ class LearnerNode:
         self._work = threading.Condition(self._lock)
         self._export_lock = threading.Lock()
         self._stopping = False
+        self._export_stopping = False
+        self._export_busy = threading.Lock()
+        """The export service stops last: until then it answers that the learner stops."""
         self._planners: set[str] = set()
         self._decisions = 0
         self._unapplied: collections.deque[tuple[Any, float | None, str, str | None]] = (
@@ -226,7 +229,7 @@ class LearnerNode:
         self._export_executor.add_node(self._export_node)
         self._export_thread = threading.Thread(
             target=spin_quietly,
-            args=(self._export_executor, lambda: self._stopping),
+            args=(self._export_executor, lambda: self._export_stopping),
             name="export",
             daemon=True,
         )
@@ -470,11 +473,19 @@ class LearnerNode:
 
     def _serve_export(self, request: Any, response: Any) -> Any:
         del request
-        try:
-            paths = self.export("request")
-        except Exception as exc:  # noqa: BLE001 - report, keep serving
-            response.success, response.message = False, f"export failed: {exc}"
-            return response
+        with self._export_busy:  # the shutdown waits for an export in progress
+            if self._stopping:
+                response.success = False
+                response.message = (
+                    "the learner is shutting down: it exports on its way out when it trained "
+                    f"since its last export (into {self.params['export_dir']})"
+                )
+                return response
+            try:
+                paths = self.export("request")
+            except Exception as exc:  # noqa: BLE001 - report, keep serving
+                response.success, response.message = False, f"export failed: {exc}"
+                return response
         response.success = True
         response.message = json.dumps({k: str(v) for k, v in paths.items()})
         return response
@@ -603,22 +614,43 @@ class LearnerNode:
         self.stats_publisher.publish(message)
 
     def shutdown(self) -> None:
-        """Stop serving decisions and training, then checkpoint (and export if trained since the
-        last export)."""
-        self._decide.shutdown(timeout=30.0)
+        """Stop taking decisions and training, then checkpoint (and export if trained since the
+        last export). Until it is done, requests are answered ``unavailable`` (they went
+        unanswered, and their clients waited out their timeouts)."""
+        self._decide.refuse(self._refuse)  # returns once a request being served is done
         with self._work:
             self._stopping = True
             self._work.notify_all()
         self._trainer.join(timeout=30.0)
         self.apply_commits()  # every answered decision is in the last checkpoint
-        self._export_executor.shutdown(timeout_sec=2.0)
-        self._export_thread.join(timeout=30.0)
-        self._export_node.destroy_node()
+        with self._export_busy:  # an export request in progress is done; later ones refused
+            pass
         self.checkpoint()
         if self.core.episodes != self._episodes_at_export:
             self.export("shutdown")
         self._publish_stats()  # the final state, then wait until the recorder has it
         flush_publishers([self.stats_publisher])
+        self._export_stopping = True
+        self._export_executor.shutdown(timeout_sec=2.0)
+        self._export_thread.join(timeout=30.0)
+        self._export_node.destroy_node()
+        self._decide.shutdown(timeout=5.0)
+
+    def _refuse(self, request: Any, response: Any) -> Any:
+        """The decide service's answer while the learner shuts down."""
+        try:
+            message = self._decoder.decode(request.load_namespace)
+            about = {"request_schema": message.name, "request_seq": message.seq}
+        except MessageError:
+            about = {}
+        error = MessageError(
+            "unavailable",
+            "the learner is shutting down (checkpoint and export); it takes requests again when "
+            "it is started again",
+            **about,
+        )
+        response.success, response.message = False, self.reply.error(error)
+        return response
 
 
 def _finite_number(value: object) -> bool:
@@ -632,7 +664,17 @@ def main(args: Sequence[str] | None = None) -> int:
     # The trainer thread runs Python between torch calls; a decision that arrives then waits for
     # the GIL up to the switch interval (5 ms by default), which showed in the round trip's p99.
     sys.setswitchinterval(0.0005)
-    return spin_node(LearnerNode, sys.argv if args is None else args, threads=1)
+    from lit_learner.errors import CheckpointError
+
+    try:
+        return spin_node(LearnerNode, sys.argv if args is None else args, threads=1)
+    except CheckpointError as exc:  # a damaged checkpoint: one line, not two tracebacks
+        print(
+            f"lit_learner_node: error: {exc}; restore the file, or start anew with "
+            "-p fresh:=true (the file is then overwritten at the first checkpoint)",
+            file=sys.stderr,
+        )
+        return 2
 
 
 if __name__ == "__main__":

@@ -494,9 +494,16 @@ def _repeat(caller: ServiceCaller, text: str, args: argparse.Namespace) -> int:
             except MessageError as exc:
                 answer = (False, str(exc))
         elapsed = time.perf_counter() - started
-        if answer is None or not answer[0]:
-            print(f"lit call: error: call {index} failed: {answer}", file=sys.stderr)
-            return 2 if answer is None else 1
+        if answer is None:
+            print(
+                f"lit call: error: call {index}: no answer within --timeout {args.timeout:g} s",
+                file=sys.stderr,
+            )
+            return 2
+        if not answer[0]:
+            _print(answer[1], args.payload_only)  # the Error, as a single call prints it
+            print(f"lit call: error: call {index} was answered with an error", file=sys.stderr)
+            return 1
         if index >= 20:
             times.append(elapsed * 1e3)
     ms = np.asarray(times)

@@ -279,6 +279,10 @@ class PlannerNode:
         self._queued = 0
         self._queue_lock = threading.Lock()
         self._stopping = threading.Event()
+        self._unanswered = 0
+        """Plan requests taken whose answer is not sent yet (a send may retry for seconds for a
+        client that matches late): the shutdown waits for them before the node is destroyed."""
+        self._answers_sent = threading.Condition()
         self._running: Job | None = None
         """The query the worker runs; shutdown() sets its ``stop`` flag (a 600 s request held
         the node past lit up's grace, which then killed it), and queued ones are not started."""
@@ -302,6 +306,7 @@ class PlannerNode:
             ),
             self.log,
             attempts=PLAN_SEND_ATTEMPTS,
+            on_sent=self._answer_sent,
         )
         # A thread of its own: plan callbacks hold executor threads while their queries run or
         # wait, and a cancel must not wait for one of them to end.
@@ -355,7 +360,21 @@ class PlannerNode:
 
     # ------------------------------------------------------------------ service
 
+    def _answer_sent(self) -> None:
+        with self._answers_sent:
+            self._unanswered -= 1
+            self._answers_sent.notify_all()
+
     def _serve_plan(self, request: Any, response: Any) -> Any:
+        with self._answers_sent:  # every call's response is sent (and counted) after it returns
+            self._unanswered += 1
+        try:
+            return self._plan_answer(request, response)
+        except BaseException:  # no response, so no send to count it
+            self._answer_sent()
+            raise
+
+    def _plan_answer(self, request: Any, response: Any) -> Any:
         reply = self.envelopes["reply"]
         try:
             message = decode(request.load_namespace, accept="PlanRequest")
@@ -626,6 +645,7 @@ class PlannerNode:
             # Not default_rng(seed): that would repeat a learner agent's numbers for equal seeds.
             distribution = TrainingDistribution(names, draw_generator(p["training_seed"]))
         mode = "training" if training else "inference"
+        failed = 0
         for index in range(p["episodes"]):
             if self._stopping.is_set():
                 return
@@ -643,16 +663,21 @@ class PlannerNode:
                 self._queued += 1
                 self._jobs.put(job)
             job.done.wait()
+            if job.error is not None and self._stopping.is_set():
+                # Ctrl-C or SIGTERM: not a failure, and the episodes are not done.
+                self.log.info(f"episode {job.episode_id} not finished: {job.error}")
+                return
             if job.error is not None:
+                failed += 1
                 self.log.error(f"episode {job.episode_id} failed: {job.error}")
+        done = f"{p['episodes']} {p['policy']} episodes done" + (
+            f" ({failed} of them failed)" if failed else ""
+        )
         if p["exit_when_done"]:
-            self.log.info(f"{p['episodes']} {p['policy']} episodes done")
+            self.log.info(done)
             self.finished = True
         else:
-            self.log.info(
-                f"{p['episodes']} {p['policy']} episodes done; still serving plan requests until "
-                "stopped (Ctrl-C or SIGTERM)"
-            )
+            self.log.info(f"{done}; still serving plan requests until stopped (Ctrl-C or SIGTERM)")
 
     def _wait_for_subscribers(self, count: int, timeout: float) -> bool:
         """Until each topic has ``count`` matched subscriptions (a recorder, a client): topics are
@@ -1042,6 +1067,13 @@ class PlannerNode:
             self._jobs.put(None)
         self._cancel_service.shutdown(timeout=5.0)
         self._worker.join(timeout=30.0)
+        # The answers (unavailable, for the queued ones) go out from the executor's threads; a
+        # node destroyed under a send still retrying lost it ("answer not sent: InvalidHandle").
+        with self._answers_sent:
+            if not self._answers_sent.wait_for(
+                lambda: self._unanswered <= 0, timeout=PLAN_SEND_ATTEMPTS * 0.1 + 2.0
+            ):
+                self.log.warning(f"{self._unanswered} plan answers still unsent at shutdown")
         if not self._worker.is_alive():
             self.learner.destroy()
         if not flush_publishers([*self.publishers.values(), self.path_publisher]):

@@ -249,6 +249,9 @@ class BagReader:
             self._reader = Reader(self.path)
             self._reader.open()
         except Exception as error:  # noqa: BLE001 -- damaged files raise anything
+            foreign = _not_ros2(self.path)
+            if foreign:
+                raise ReplayError(f"{self.path}: {foreign}") from None
             reason = _mcap_damage(self.path) or _metadata_damage(self.path) or _describe(error)
             raise ReplayError(
                 f"cannot read bag {self.path}: {reason}; if its writer was killed or the "
@@ -392,6 +395,9 @@ def _check_readable(path: Path) -> None:
         if not entries:
             raise ReplayError(f"{path} is an empty directory, not a bag")
         if not (path / "metadata.yaml").is_file():
+            foreign = _not_ros2(path)
+            if foreign:
+                raise ReplayError(f"{path}: {foreign}")
             if any(entry.suffix == ".mcap" for entry in entries):
                 raise ReplayError(
                     f"{path} has no metadata.yaml: its writer did not finish (killed?); recover it "
@@ -403,6 +409,28 @@ def _check_readable(path: Path) -> None:
         raise ReplayError(f"{path} is an empty file")
     if path.suffix != ".mcap":
         raise ReplayError(f"{path} is not a bag: expected a bag directory or an .mcap file")
+
+
+def _not_ros2(path: Path) -> str | None:
+    """Why the MCAP file(s) of ``path`` are no ROS 2 bag (their header's profile is not "ros2",
+    as another program's MCAP files), in words; None when one is, or none can be read (damage:
+    the salvage hint applies then)."""
+    from mcap.reader import make_reader
+
+    files = sorted(path.glob("*.mcap")) if path.is_dir() else [path]
+    profiles = []
+    for file in files:
+        try:
+            with file.open("rb") as handle:
+                profiles.append(make_reader(handle).get_header().profile)
+        except Exception:  # noqa: BLE001 -- damage: reported elsewhere
+            return None
+    if not profiles or "ros2" in profiles:
+        return None
+    return (
+        f"MCAP data of another kind (profile {profiles[0]!r}, not 'ros2'): not a ROS 2 bag; "
+        "lit replay reads rosbag2 bags (MCAP with the ros2 profile)"
+    )
 
 
 def _chunk_compression(path: Path) -> str:

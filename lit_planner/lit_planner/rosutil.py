@@ -482,14 +482,25 @@ every try holds the process's send lock for up to 100 ms (the learner's export k
 :data:`SEND_ATTEMPTS`, since its decide service sends through the same lock)."""
 
 
-def retry_lost_answers(service: Any, log: Any, attempts: int = SEND_ATTEMPTS) -> Any:
+def retry_lost_answers(
+    service: Any,
+    log: Any,
+    attempts: int = SEND_ATTEMPTS,
+    on_sent: Callable[[], None] | None = None,
+) -> Any:
     """Make the executor's answers of ``service`` (an rclpy ``Service``) go through
-    :func:`send_response` (``attempts`` tries); returns ``service``."""
+    :func:`send_response` (``attempts`` tries); returns ``service``. ``on_sent``: called after
+    each answer went out (or could not), e.g. to let a shutdown wait for answers still being
+    sent before it destroys the node."""
     send = service.send_response
     name = service.srv_name
 
     def retrying(response: Any, header: Any) -> None:
-        send_response(send, response, header, name, log, attempts=attempts)
+        try:
+            send_response(send, response, header, name, log, attempts=attempts)
+        finally:
+            if on_sent is not None:
+                on_sent()
 
     service.send_response = retrying  # the executor calls srv.send_response(response, header)
     return service
@@ -544,6 +555,8 @@ class DirectService:
         )
         self._stop = GuardCondition(None, None, context=node.context)
         self._stopping = False
+        self._busy = threading.Lock()
+        """Held by the serving thread from taking a request until its deferred work is done."""
         self._deferred: list[Callable[[], object]] = []
         self._repeat_key = repeat_key
         self._attempts = SEND_ATTEMPTS if attempts is None else attempts
@@ -577,41 +590,46 @@ class DirectService:
                     taken = service.handle.service_take_request(self._srv_type.Request)
                 if taken is None or taken[1] is None:
                     continue
-                request, header = taken
-                key, response = self._repeated(request, service.srv_name)
-                attempts = self._attempts
-                if response is not None:  # a copy: the same answer, once tried
-                    self.repeats += 1
-                    attempts = 1
-                else:
-                    try:
-                        response = self._callback(request, self._srv_type.Response())
-                    except Exception as exc:  # noqa: BLE001 - keep serving
-                        self._log.error(f"{service.srv_name}: callback failed: {exc!r}")
-                        response = self._srv_type.Response()
-                    if key is not None:
-                        client, identity = key
-                        self._answers[client] = (identity, response)
-                        self._answers.move_to_end(client)
-                        if len(self._answers) > REPEAT_CLIENTS:
-                            self._answers.popitem(last=False)
-                try:
-                    send_response(
-                        service.send_response,
-                        response,
-                        header,
-                        service.srv_name,
-                        self._log,
-                        lambda: self._stopping,
-                        attempts,
-                    )
-                finally:  # the answer is out (or cannot go out): its work is still owed
-                    self._run_deferred(service.srv_name)
+                with self._busy:
+                    self._answer(*taken)
         except ExternalShutdownException:
             return
         except Exception as exc:  # noqa: BLE001 - RCLError when the context shuts down under the wait
             if context.ok() and not self._stopping:
                 self._log.error(f"{service.srv_name}: serving stopped: {exc!r}")
+
+    def _answer(self, request: Any, header: Any) -> None:
+        """Run the callback (or take a copy's cached answer), send, run the deferred work."""
+        service = self._service
+        key, response = self._repeated(request, service.srv_name)
+        attempts = self._attempts
+        if response is not None:  # a copy: the same answer, once tried
+            self.repeats += 1
+            attempts = 1
+        else:
+            try:
+                response = self._callback(request, self._srv_type.Response())
+            except Exception as exc:  # noqa: BLE001 - keep serving
+                self._log.error(f"{service.srv_name}: callback failed: {exc!r}")
+                response = self._srv_type.Response()
+            if key is not None:
+                client, identity = key
+                self._answers[client] = (identity, response)
+                self._answers.move_to_end(client)
+                if len(self._answers) > REPEAT_CLIENTS:
+                    self._answers.popitem(last=False)
+        try:
+            send_response(
+                service.send_response,
+                response,
+                header,
+                service.srv_name,
+                self._log,
+                lambda: self._stopping,
+                attempts,
+            )
+        finally:  # the answer is out (or cannot go out): its work is still owed
+            self._run_deferred(service.srv_name)
 
     def _repeated(self, request: Any, name: str) -> tuple[Any, Any]:
         """``(repeat key, the cached answer if the request is a copy else None)``; a key
@@ -643,6 +661,14 @@ class DirectService:
                 work()
             except Exception as exc:  # noqa: BLE001 - keep serving
                 self._log.error(f"{name}: deferred work failed: {exc!r}")
+
+    def refuse(self, callback: Callable) -> None:
+        """Answer every request from now on with ``callback(request, response)`` (e.g. an
+        ``unavailable`` Error while the owner shuts down), and return once a request being
+        served the old way is answered and its deferred work done."""
+        self._callback = callback
+        with self._busy:
+            pass
 
     def shutdown(self, timeout: float = 2.0) -> None:
         """Stop the thread and destroy the node."""
