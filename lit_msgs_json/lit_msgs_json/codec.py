@@ -130,7 +130,16 @@ def loads(name: str, text: str | bytes) -> Any:
         raise SchemaError(
             name.removeprefix("lit_msgs_json/"), "$", "json", f"not valid JSON: {exc}"
         ) from exc
-    validate(name, obj)
+    except RecursionError:  # arrays or objects nested thousands deep
+        raise SchemaError(
+            name.removeprefix("lit_msgs_json/"), "$", "json", "not usable JSON: nested too deeply"
+        ) from None
+    try:
+        validate(name, obj)
+    except RecursionError:
+        raise SchemaError(
+            name.removeprefix("lit_msgs_json/"), "$", "json", "not usable JSON: nested too deeply"
+        ) from None
     return obj
 
 

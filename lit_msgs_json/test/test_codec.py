@@ -192,3 +192,9 @@ def test_prepare_builds_the_validators_ahead_and_names_unknown_schemas() -> None
     assert codec._fast_envelope_validator.cache_info().currsize == 2
     with pytest.raises(UnknownSchemaError):
         prepare(["NoSuchMessage"])
+
+
+def test_json_nested_too_deeply_is_a_schema_error() -> None:
+    """A sidecar of 100 000 nested arrays raised RecursionError (a traceback in lit tensors)."""
+    with pytest.raises(SchemaError, match="nested too deeply"):
+        loads("lit_msgs_json/TensorSidecar", "[" * 100_000)

@@ -52,6 +52,7 @@ from lit_planner import ompl2
 from lit_planner.errors import LitPlannerError, ScenarioError
 
 RUNS_FILE = "runs.jsonl"
+BENCH_RUN_SCHEMA = "lit_msgs_json/BenchRun"
 """The bench runner's per-run records, one JSON object per line."""
 DATABASE_NAME = "benchmark.db"
 """The Planner Arena database, written into the results folder."""
@@ -230,10 +231,17 @@ def read_runs(path: Path) -> list[dict[str, Any]]:
         ArenaError: the file is missing, a line is not a JSON object, or a record lacks
             ``scenario`` or ``planner``.
     """
+    from lit_msgs_json import codec
+
     if not path.is_file():
         raise ArenaError(f"{path} not found: run `lit bench` first (it writes {RUNS_FILE})")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as error:
+        raise ArenaError(f"{path}: not UTF-8 text ({error.reason} at byte {error.start})") from None
     records = []
-    for number, line in enumerate(path.read_text().splitlines(), start=1):
+    seen: dict[tuple[Any, ...], int] = {}
+    for number, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
             continue
         try:
@@ -244,6 +252,18 @@ def read_runs(path: Path) -> list[dict[str, Any]]:
             raise ArenaError(
                 f"{path}:{number}: expected a JSON object, got {type(record).__name__}"
             )
+        if record.get("schema") == BENCH_RUN_SCHEMA:
+            try:  # a lit bench record: as lit bench wrote it (no NaN, no negative cost, ...)
+                codec.loads(BENCH_RUN_SCHEMA, line)
+            except codec.SchemaError as error:
+                raise ArenaError(f"{path}:{number}: not a valid run record: {error}") from None
+        key = tuple(record.get(k) for k in ("scenario", "instance", "planner", "run"))
+        if None not in key[2:] and key in seen:
+            raise ArenaError(
+                f"{path}:{number}: a second record of scenario {key[0]}, planner {key[2]}, run "
+                f"{key[3]} (the first is line {seen[key]}): two benchmarks in one file?"
+            )
+        seen.setdefault(key, number)
         records.append(record)
     return records
 

@@ -18,6 +18,7 @@ import argparse
 import json
 import math
 import sys
+import threading
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -113,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
             )
         planning.quiet_ompl(planner)
         lit_core.set_global_seed(args.seed)
-        result = planning.plan(
+        result = _plan_interruptibly(
             scenario,
             planner,
             policy,
@@ -135,6 +136,35 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_UNSOLVED
     check = result.get("path_check")
     return EXIT_PATH_INVALID if check is not None and not check["valid"] else EXIT_SOLVED
+
+
+def _plan_interruptibly(*args: Any, **kwargs: Any) -> dict[str, Any]:
+    """:func:`planning.plan` on a thread of its own: the main thread stays in Python, so Ctrl-C
+    stops the query within an iteration through a ``lit_core.CancelFlag`` (inside the core,
+    Python's handler could only run once the whole budget was spent)."""
+    cancel = lit_core.CancelFlag()
+    outcome: dict[str, Any] = {}
+    done = threading.Event()  # not Thread.join: one interrupted by Ctrl-C may return early after
+
+    def work() -> None:
+        try:
+            outcome["result"] = planning.plan(*args, cancel=cancel, **kwargs)
+        except BaseException as error:  # noqa: BLE001 -- raised again on the main thread
+            outcome["error"] = error
+        finally:
+            done.set()
+
+    threading.Thread(target=work, name="plan", daemon=True).start()
+    try:
+        while not done.wait(0.05):
+            pass
+    except KeyboardInterrupt:
+        cancel.set()
+        done.wait()  # the core stops within an iteration; exiting under it would abort
+        raise
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["result"]
 
 
 def _check_policy_name(policy: str | None) -> None:

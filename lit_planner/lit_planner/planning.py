@@ -60,6 +60,11 @@ TENSOR_FILES = {"B": "b_tensor.npy", "psi_K": "k_tensor.npy"}
 """File name of each output's lookup tensor inside a tensor folder (sidecars: same stem, .json)."""
 MAX_SEED = 2**32 - 1
 """Largest seed the core accepts (an unsigned 32-bit integer)."""
+_ARGUMENT_PARAMS = {"seed": "seed", "time_budget": "time"}
+"""Planner parameters that :func:`plan` sets from its own arguments."""
+MAX_TIME = 1e9
+"""Longest planning time, s (about 32 years): OMPL's time-based stop counts nanoseconds in 64
+bits, and from about 9.2e9 s on it overflowed, so OMPL's planners stopped at once (timeout)."""
 
 DecisionCallback = Callable[[lit_core.DecisionContext], float]
 
@@ -428,6 +433,12 @@ def plan(
     else:
         policy_object = make_policy(policy_name, tensors_dir, interpolation)
 
+    for name, argument in _ARGUMENT_PARAMS.items():
+        if params and name in params:
+            # The parameter would win over the argument, and the result report the argument.
+            raise PlannerError(
+                f"params {name!r} is given as an argument of plan: use {argument}= instead"
+            )
     # A psi_K tensor is used as it was trained: one decision every that many expansions.
     params = {**policy_params(policy_object), **(params or {})}
     for label, value in (("max_iterations", max_iterations), ("max_batches", max_batches)):
@@ -443,6 +454,8 @@ def plan(
         time = 0.0 if stops_on_count else problem.time_budget
     elif not (math.isfinite(time) and time > 0):
         raise PlannerError(f"time must be a positive number of seconds, got {time}")
+    elif time > MAX_TIME:
+        raise PlannerError(f"time must be at most {MAX_TIME:g} s, got {time:g}")
 
     try:
         result: dict[str, Any] = lit_core.solve(

@@ -204,6 +204,14 @@ def test_missing_and_malformed_runs_files(tmp_path: Path) -> None:
     process = subprocess.run([sys.executable, "-m", "lit_planner.cli", "arena", str(tmp_path)],
                              capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
     assert process.returncode == 2 and "no 'scenario' name" in process.stderr
+    (tmp_path / arena.RUNS_FILE).write_bytes(b"\xff\xfe")  # was a UnicodeDecodeError traceback
+    with pytest.raises(arena.ArenaError, match="not UTF-8 text"):
+        arena.export_arena(tmp_path)
+    # A file holding a benchmark twice (cat of two runs.jsonl) counted every run twice.
+    line = json.dumps(RECORDS[0]) + "\n"
+    (tmp_path / arena.RUNS_FILE).write_text(line + line)
+    with pytest.raises(arena.ArenaError, match=r"runs.jsonl:2: a second record of scenario"):
+        arena.export_arena(tmp_path)
 
 
 def test_worker_refuses_a_process_with_lit_core(tmp_path: Path) -> None:

@@ -131,6 +131,26 @@ def test_plan_offers_only_the_policies_it_takes() -> None:
     assert process.stderr == "lit plan: unknown policy 'foo'; expected one of fixed, fit, tensor\n"
 
 
+def test_ctrl_c_stops_lit_plan_during_its_query() -> None:
+    """Ctrl-C 3 s into a 600 s query ends it (exit 130): Python's handler could only run once
+    the core returned, so lit plan used to plan out its whole budget first."""
+    process = subprocess.Popen(
+        [sys.executable, "-m", "lit_planner.cli", "plan", "--scenario", "np8", "--time", "600"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        with pytest.raises(subprocess.TimeoutExpired):
+            process.wait(timeout=3.0)  # set up and planning by then
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=120)  # far short of the budget
+        assert process.returncode == 130, err
+        assert "lit plan: interrupted" in err and "Traceback" not in err, err
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+
+
 def test_demo_solves_the_default_scenario(tmp_path: Path) -> None:
     # A free domain of its own: lit test holds the run's domain, and the demo claims the one it
     # runs on (found free here, then released to the demo).

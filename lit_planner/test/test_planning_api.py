@@ -671,3 +671,13 @@ def test_query_for_takes_a_scenario_or_its_name() -> None:
     assert by_name.dimension == by_object.dimension == 4
     with pytest.raises(ScenarioError, match="unknown scenario 'np'"):
         planning.query_for("np")
+
+
+def test_arguments_are_not_overridden_by_params_and_times_are_bounded() -> None:
+    """params={"seed": 5} planned with seed 5 and reported seed 1; a time of 1e10 s overflowed
+    OMPL's nanosecond clock, and its planners stopped at once as timed out."""
+    for name in ("seed", "time_budget"):
+        with pytest.raises(PlannerError, match=f"params '{name}' is given as an argument"):
+            plan("np4", max_iterations=10, params={name: 5})
+    with pytest.raises(PlannerError, match="time must be at most"):
+        plan("np4", planner="rrtconnect", time=1e10)

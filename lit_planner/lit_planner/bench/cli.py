@@ -20,6 +20,7 @@ import argparse
 import json
 import math
 import os
+import shutil
 import signal
 import sys
 import threading
@@ -114,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
         # into bag and summary.
         policies = runner.benchmark_policies(config.planners, config.tensors_dir, made)
         setups = planner_setups(config, policies)
+        out_existed = args.out is not None and args.out.resolve().exists()
         out = _out_dir(args.out)
     except (LitPlannerError, ValueError) as error:
         print(f"lit bench: {error}", file=sys.stderr)
@@ -139,6 +141,10 @@ def run(args: argparse.Namespace) -> int:
             )
         except (bag.BagError, OSError) as error:
             print(f"lit bench: {error}", file=sys.stderr)
+            # Nothing ran: leave no output folder behind, which would block the retry.
+            runs_path.unlink(missing_ok=True)
+            if not out_existed:
+                shutil.rmtree(out, ignore_errors=True)
             return 2
         print(f"lit bench: recording the bag {recording.recorder.path}", file=sys.stderr)
 

@@ -115,6 +115,14 @@ class BenchConfig:
     """Planners that were asked for but do not run, with the reason."""
 
     def __post_init__(self) -> None:
+        longest = max(
+            (scenario_for(name, self.instance).time_budget for name in self.scenarios), default=0.0
+        )
+        if longest * self.time_scale > planning.MAX_TIME:
+            raise ValueError(
+                f"--time-scale {self.time_scale:g} gives budgets up to {longest * self.time_scale:g}"
+                f" s, more than the {planning.MAX_TIME:g} s a planner can be given"
+            )
         if self.t_init_repeats < 1:
             raise ValueError(f"--t-init-repeats must be at least 1, got {self.t_init_repeats}")
         others = [p for p in self.planners if planning.resolve_planner(p)[0] != planning.LITSTAR]
