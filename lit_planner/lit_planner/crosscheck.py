@@ -338,7 +338,15 @@ def format_table(report: Mapping[str, Any]) -> str:
             problems.append(f"cost below the known optimum: {', '.join(below)}")
         if disagreements:
             problems.append(f"best costs disagree: {', '.join(disagreements)}")
-        lines.append("lit crosscheck: FAILED: " + "; ".join(problems))
+        uncompared = [f"{row['scenario']} {row['label']}" for row in report["rows"]
+                      if row["agrees"] is False and row["difference"] is None
+                      and row["planner"] != report["litstar"]]  # fmt: skip
+        if uncompared:  # the line used to end empty ("FAILED: ")
+            problems.append(
+                "no best costs to compare (no solution in LIT*'s runs, the planner's, or both): "
+                + ", ".join(uncompared)
+            )
+        lines.append("lit crosscheck: FAILED: " + ("; ".join(problems) or "see the table above"))
     return "\n".join(lines)
 
 

@@ -79,6 +79,14 @@ def test_verdict_of_an_invalid_path_and_a_disagreement() -> None:
     below = crosscheck._row(scenario, "bitstar", "x", [run("bitstar", 0.40)])
     assert below["below_optimum"] and not below["ok"]  # np4's optimum is 0.4236
 
+    # Nothing solved on one side: the verdict says so (its line used to end "FAILED: ").
+    unsolved = {"planner": "irrtstar", "solved": False, "c_final": None, "validation": None}
+    rows = crosscheck._rows(scenario, "litstar-fixed", [run("litstar-fixed", 0.45)], [unsolved],
+                            ["irrtstar"], 0.10)  # fmt: skip
+    text = crosscheck.format_table(dict(report, rows=rows))
+    assert text.endswith("FAILED: no best costs to compare (no solution in LIT*'s runs, the "
+                         "planner's, or both): np4 OMPL 2.0.1 Informed RRT*"), text  # fmt: skip
+
 
 def test_short_real_crosscheck_on_np4(tmp_path: Path) -> None:
     """One run of each planner, short times; a huge tolerance: here only validity is judged."""

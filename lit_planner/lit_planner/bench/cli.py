@@ -396,7 +396,11 @@ def _config(
     if args.instance < 0:  # the fixed scenarios ignore it: checked here, not after the runs
         raise ValueError(f"--instance must be 0 or more, got {args.instance}")
     planning.check_seed(args.seed)
-    planning.check_seed(args.seed + runs - 1)
+    if args.seed + runs - 1 > planning.MAX_SEED:
+        raise ValueError(
+            f"--runs {runs} from --seed {args.seed} would use seeds up to {args.seed + runs - 1}, "
+            f"beyond the largest seed {planning.MAX_SEED}"
+        )
     if not scenario_names or not planners:
         raise ValueError("need at least one scenario and one planner")
     for label, names in (("scenario", scenario_names), ("planner", planners)):
