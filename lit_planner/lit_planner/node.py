@@ -1070,14 +1070,20 @@ class PlannerNode:
         # The answers (unavailable, for the queued ones) go out from the executor's threads; a
         # node destroyed under a send still retrying lost it ("answer not sent: InvalidHandle").
         with self._answers_sent:
+            # At most a few seconds: a client that went away never matches, and lit up allows
+            # each node 20 s to stop.
             if not self._answers_sent.wait_for(
-                lambda: self._unanswered <= 0, timeout=PLAN_SEND_ATTEMPTS * 0.1 + 2.0
+                lambda: self._unanswered <= 0, timeout=SHUTDOWN_SEND_WAIT
             ):
                 self.log.warning(f"{self._unanswered} plan answers still unsent at shutdown")
         if not self._worker.is_alive():
             self.learner.destroy()
         if not flush_publishers([*self.publishers.values(), self.path_publisher]):
             self.log.warning("some subscribers did not acknowledge the last messages")
+
+
+SHUTDOWN_SEND_WAIT = 3.0
+"""Seconds the shutdown waits for plan answers still being sent (to a client matching late)."""
 
 
 def _not_started(job: Job) -> dict[str, Any]:

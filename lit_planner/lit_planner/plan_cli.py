@@ -160,7 +160,12 @@ def _plan_interruptibly(*args: Any, **kwargs: Any) -> dict[str, Any]:
             pass
     except KeyboardInterrupt:
         cancel.set()
-        done.wait()  # the core stops within an iteration; exiting under it would abort
+        while True:  # the core stops within an iteration; exiting under it would abort
+            try:
+                done.wait()
+                break
+            except KeyboardInterrupt:  # a second Ctrl-C: still wait for that iteration
+                continue
         raise
     if "error" in outcome:
         raise outcome["error"]

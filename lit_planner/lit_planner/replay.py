@@ -357,7 +357,8 @@ def _metadata_mismatch(path: Path, facts: BagFacts) -> str | None:
 
     if not path.is_dir():
         return None
-    listed_files = load_metadata(path / "metadata.yaml").get("relative_file_paths") or []
+    listed = load_metadata(path / "metadata.yaml").get("relative_file_paths") or []
+    listed_files = {Path(str(name)).name for name in listed}  # as rosbags reads them
     for file in sorted(path.glob("*.mcap")):
         if file.name not in listed_files:
             return f"{file.name} is in the folder, not in the files it lists"
@@ -1212,11 +1213,21 @@ def _chunk_records(chunk: Any) -> Iterator[object]:
     chunk whose CRC-32 (when written: 0 means none) does not match its records."""
     import zlib
 
+    from mcap.records import Message
+
     data = _chunk_data(chunk)
     if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
+        # Its schema and channel records are kept when they read (a later chunk's messages may
+        # need them when the file has no summary to repeat them); none of its messages.
+        try:
+            for _, record in _inner_records(data, chunk):
+                if not isinstance(record, Message):
+                    yield record
+        except ValueError:
+            pass
         raise ValueError(
             f"its CRC-32 {chunk.uncompressed_crc:#010x} does not match its records "
-            f"({zlib.crc32(data):#010x}): damaged, none of its records kept"
+            f"({zlib.crc32(data):#010x}): damaged, none of its messages kept"
         )
     for _, record in _inner_records(data, chunk):
         yield record
