@@ -135,7 +135,14 @@ def test_bench_rejects_bad_input(tmp_path: Path) -> None:
     )  # fmt: skip
     assert result.returncode == 2, result.stderr
     assert f"found no lookup tensors in {tmp_path / 'empty'} (given)" in result.stderr
+    result = _lit(
+        "bench", "--planners", "litstar-fit,rrtconnect", "--tensors", str(tmp_path / "empty"),
+        "--out", str(tmp_path / "t"),
+    )  # fmt: skip  # --tensors with no planner that reads them was silently ignored
+    assert result.returncode == 2, result.stderr
+    assert "--tensors is for litstar-tensor, which is not among the planners" in result.stderr
     assert not (tmp_path / "y").exists() and not (tmp_path / "z").exists()
+    assert not (tmp_path / "t").exists()
     # Checked before any run: --instance -1 failed only when the summary was written.
     result = _lit("bench", "--scenarios", "np4", "--instance", "-1", "--out", str(tmp_path / "i"))
     assert result.returncode == 2 and "--instance must be 0 or more" in result.stderr

@@ -54,12 +54,15 @@ for pkg in "${DEB_PACKAGES[@]}"; do
 done
 if [ "${#missing[@]}" -gt 0 ]; then
   say "installing Debian packages: ${missing[*]}"
+  # Another apt-get (another checkout's setup, unattended upgrades) may hold dpkg's lock: wait
+  # for it up to 10 minutes instead of failing at once.
   apt_install() {
-    as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends "$@" >&2
+    as_root env DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y \
+      --no-install-recommends "$@" >&2
   }
   if ! apt_install "${missing[@]}"; then
     say "apt-get install failed; running apt-get update and retrying once"
-    as_root env DEBIAN_FRONTEND=noninteractive apt-get update >&2
+    as_root env DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 update >&2
     apt_install "${missing[@]}" || die "could not install Debian packages: ${missing[*]}"
   fi
 fi

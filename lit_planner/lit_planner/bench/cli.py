@@ -413,6 +413,11 @@ def _config(
                 f"scenario {name!r}: give the instance with --instance, not in the name"
             )
         runner.scenario_for(name, args.instance)
+    if args.tensors is not None and runner.TENSOR_PLANNER not in planners:
+        raise ValueError(
+            f"--tensors is for {runner.TENSOR_PLANNER}, which is not among the planners "
+            f"({', '.join(planners)})"
+        )
     running, skipped, made = runner.select_planners(planners, args.tensors)
     if not running:
         raise ValueError("none of the requested planners can run")
