@@ -25,6 +25,8 @@ from typing import Any
 
 from lit_planner.replay import BagReader, Envelope, ReplayError, Skipped, decode
 
+from lit_planner import argtypes
+
 MAX_INTERVAL = 2**32 - 1
 """Largest psi_K decision interval (the planner's unsigned parameter)."""
 
@@ -46,8 +48,10 @@ class RecordedEpisode:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``lit replay tensors``."""
-    parser.add_argument("bags", type=Path, nargs="+", metavar="BAG")
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="tensor folder")
+    parser.add_argument("bags", type=argtypes.path, nargs="+", metavar="BAG")
+    parser.add_argument(
+        "--out", type=argtypes.path, required=True, metavar="DIR", help="tensor folder"
+    )
     parser.add_argument("--seed", type=int, default=0, help="learner seed (default 0)")
     parser.add_argument(
         "--train", choices=("both", "B", "psi_K"), default="both", help="agents that learn"

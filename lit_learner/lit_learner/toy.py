@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import Any
 
 from lit_learner import train
+from lit_planner import argtypes
 
 DEFAULT_LEARNER_SEEDS = (1,)
 DEFAULT_EPISODES = 600
@@ -326,7 +327,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--out",
-        type=Path,
+        type=argtypes.path,
         help="output folder, written at the end (default runs/toy-<UTC time>); its earlier toy "
         "files are overwritten, other files kept",
     )

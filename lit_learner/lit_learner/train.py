@@ -49,6 +49,7 @@ from lit_learner.metrics import (
     histogram_column,
     plot_training_curves,
 )
+from lit_planner import argtypes
 
 TRAINING_SEEDS = (1_000_000, 2**32 - 1)
 """Inclusive range of planner seeds for training episodes (benchmarks use 1..100)."""
@@ -694,10 +695,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="weight of the psi_K agent's search cost before the first solution (default 1; a "
         "new run only: a resumed run keeps its checkpoint's)",
     )
-    parser.add_argument("--out", type=Path, help="run folder (default runs/train-<UTC time>)")
-    parser.add_argument("--resume", type=Path, metavar="CHECKPOINT", help="continue a run")
     parser.add_argument(
-        "--export", type=Path, metavar="DIR", help="write the lookup tensors here at the end"
+        "--out", type=argtypes.path, help="run folder (default runs/train-<UTC time>)"
+    )
+    parser.add_argument("--resume", type=argtypes.path, metavar="CHECKPOINT", help="continue a run")
+    parser.add_argument(
+        "--export",
+        type=argtypes.path,
+        metavar="DIR",
+        help="write the lookup tensors here at the end",
     )
     parser.add_argument(
         "--checkpoint-every",
@@ -710,7 +716,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument(
         "--bag-dir",
-        type=Path,
+        type=argtypes.path,
         default=None,
         help="record every episode's messages to BAG_DIR/<run folder name> (default: bags/)",
     )

@@ -37,6 +37,7 @@ import uuid
 from pathlib import Path
 from typing import Any
 
+from lit_planner import argtypes
 from lit_planner.rosutil import (
     CANCEL_SERVICE,
     DECIDE_SERVICE,
@@ -81,7 +82,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     plan = commands.add_parser("plan", help="call <namespace>/lit/planner/plan")
     where = plan.add_mutually_exclusive_group(required=True)
     where.add_argument("--scenario", help="registered scenario, e.g. np8 or rrd8/3")
-    where.add_argument("--world", type=Path, help="JSON file with an explicit world")
+    where.add_argument("--world", type=argtypes.path, help="JSON file with an explicit world")
     plan.add_argument(
         "--time", type=float, help="time budget, s (default: the scenario's; a world's: 1)"
     )

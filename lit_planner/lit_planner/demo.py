@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 from typing import Any, Self
 
-from lit_planner import plan_cli, planning, scenarios
+from lit_planner import argtypes, plan_cli, planning, scenarios
 from lit_planner.errors import LitPlannerError
 from lit_planner.rosutil import add_domain_option, resolve_domain_id
 from lit_planner.scenarios import Scenario
@@ -74,7 +74,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_domain_option(parser, DEMO_DOMAIN_ID)
     parser.add_argument(
         "--out",
-        type=Path,
+        type=argtypes.path,
         default=None,
         help="folder for the bag and the learner's files (default: bags/<run> and runs/<run>)",
     )

@@ -20,12 +20,11 @@ import math
 import sys
 import threading
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import lit_core
 
-from lit_planner import planning, scenarios
+from lit_planner import argtypes, planning, scenarios
 from lit_planner.errors import LitPlannerError, PlannerError
 from lit_planner.scenarios import Scenario
 
@@ -84,7 +83,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--tensors",
-        type=Path,
+        type=argtypes.path,
         metavar="DIR",
         help="tensor policy: folder with b_tensor.npy / k_tensor.npy "
         f"(default: ${planning.TENSORS_ENV} or the checkout's tensors/)",

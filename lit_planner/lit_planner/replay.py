@@ -50,7 +50,7 @@ from typing import Any, Self
 
 import numpy as np
 
-from lit_planner import bag, scenarios
+from lit_planner import argtypes, bag, scenarios
 from lit_planner.errors import LitPlannerError
 
 PROG = "lit replay"
@@ -1690,22 +1690,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Subcommands of ``lit replay``."""
     sub = parser.add_subparsers(dest="replay_command", metavar="SUBCOMMAND", required=True)
     info = sub.add_parser("info", help="topics, counts, time span, run metadata, seq accounting")
-    info.add_argument("bag", type=Path, metavar="BAG", help="bag directory or .mcap file")
+    info.add_argument("bag", type=argtypes.path, metavar="BAG", help="bag directory or .mcap file")
     info.add_argument("--json", action="store_true", help="print JSON")
     verify = sub.add_parser("verify", help="re-check every recorded path against its world")
-    verify.add_argument("bags", type=Path, nargs="+", metavar="BAG")
+    verify.add_argument("bags", type=argtypes.path, nargs="+", metavar="BAG")
     rescue = sub.add_parser(
         "salvage", help="recover the readable messages of a killed or damaged bag into a new bag"
     )
-    rescue.add_argument("bag", type=Path, metavar="BAG")
+    rescue.add_argument("bag", type=argtypes.path, metavar="BAG")
     rescue.add_argument(
-        "-o", "--out", type=Path, metavar="OUT", help=f"new bag (default: BAG{SALVAGED_SUFFIX})"
+        "-o",
+        "--out",
+        type=argtypes.path,
+        metavar="OUT",
+        help=f"new bag (default: BAG{SALVAGED_SUFFIX})",
     )
     squeeze = sub.add_parser(
         "compact", help="rewrite a bag with zstd-compressed MCAP chunks (smaller, same messages)"
     )
-    squeeze.add_argument("bag", type=Path, metavar="BAG")
-    squeeze.add_argument("out", type=Path, metavar="OUT", help="new bag folder")
+    squeeze.add_argument("bag", type=argtypes.path, metavar="BAG")
+    squeeze.add_argument("out", type=argtypes.path, metavar="OUT", help="new bag folder")
     from lit_planner import bag_measure
 
     tensors = sub.add_parser(
@@ -1719,10 +1723,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     bench = sub.add_parser(
         "bench", help="regenerate lit bench's summary.json, tables and plots from its bag(s)"
     )
-    bench.add_argument("bags", type=Path, nargs="+", metavar="BAG")
+    bench.add_argument("bags", type=argtypes.path, nargs="+", metavar="BAG")
     bench.add_argument(
         "--out",
-        type=Path,
+        type=argtypes.path,
         metavar="DIR",
         help=f"output folder, new or empty (default: <first BAG>/{REPLAY_DIR})",
     )

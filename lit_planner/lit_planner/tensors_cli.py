@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lit_planner import planning, tensor_files
+from lit_planner import argtypes, planning, tensor_files
 from lit_planner.errors import LitPlannerError, TensorFileError
 
 EXIT_WRITTEN = 0
@@ -64,7 +64,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     info.add_argument(
         "folder",
         nargs="?",
-        type=Path,
+        type=argtypes.path,
         metavar="DIR",
         help=f"tensor folder (default: ${planning.TENSORS_ENV}, else the checkout's tensors/)",
     )
@@ -93,7 +93,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "expansion)",
     )
     constant.add_argument(
-        "--out", type=Path, required=True, metavar="DIR", help="folder to write into (created)"
+        "--out",
+        type=argtypes.path,
+        required=True,
+        metavar="DIR",
+        help="folder to write into (created)",
     )
 
 

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any, Self
 
+from lit_planner import argtypes
 from lit_planner.rosutil import (
     DEFAULT_DOMAIN_ID,
     LOCALHOST_ENV,
@@ -330,7 +331,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="learner checkpoint, resumed if found (default: runs/RUN/learner/checkpoint.pt)",
     )
     parser.add_argument("--no-record", action="store_true", help="do not record a bag")
-    parser.add_argument("--bag", type=Path, default=None, help="bag directory (default bags/RUN)")
+    parser.add_argument(
+        "--bag", type=argtypes.path, default=None, help="bag directory (default bags/RUN)"
+    )
     parser.add_argument(
         "--planner-param",
         action="append",

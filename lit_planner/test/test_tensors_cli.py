@@ -67,6 +67,28 @@ def test_bad_input_is_one_line_and_writes_nothing(
     assert (tmp_path / "b_tensor.npy").read_bytes() == b"kept"
 
 
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["tensors", "constant", "--b", "100", "--out"],
+        ["bench", "--quick", "--no-bag", "--out"],
+        ["train", "--episodes", "1", "--out"],
+        ["replay", "info"],
+        ["plan", "--scenario", "np4", "--policy", "tensor", "--tensors"],
+    ],
+)
+def test_an_empty_path_is_refused_not_taken_for_here(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, args: list[str]
+) -> None:
+    """``--out ""`` (an unset shell variable) used to write into the current folder."""
+    monkeypatch.chdir(tmp_path)
+    process = lit(*args, "")
+    assert process.returncode == 2
+    assert "empty path (an unset shell variable?)" in process.stderr
+    assert "Traceback" not in process.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_file_as_the_folder_is_refused(tmp_path: Path) -> None:
     target = tmp_path / "file"
     target.write_text("x")

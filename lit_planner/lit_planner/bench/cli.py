@@ -29,7 +29,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from lit_planner import bag, planning, scenarios
+from lit_planner import argtypes, bag, planning, scenarios
 from lit_planner.bench import runner
 from lit_planner.errors import LitPlannerError
 
@@ -59,7 +59,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--runs", type=int, help="runs per scenario and planner (default: the preset's, else 100)"
     )
     parser.add_argument(
-        "--out", type=Path, help="run folder (default: results/<timestamp>); must be new or empty"
+        "--out",
+        type=argtypes.path,
+        help="run folder (default: results/<timestamp>); must be new or empty",
     )
     parser.add_argument(
         "--time-scale",
@@ -86,7 +88,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--tensors",
-        type=Path,
+        type=argtypes.path,
         metavar="DIR",
         help="trained tensors for litstar-tensor (default: $LIT_TENSORS, else tensors/)",
     )
@@ -99,7 +101,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--bag-dir",
-        type=Path,
+        type=argtypes.path,
         metavar="DIR",
         help="record the bag into DIR/<run folder name> (default: the repository's bags/)",
     )
