@@ -386,6 +386,19 @@ class LearnerCore:
             core = cls(LearnerConfig.from_dict(state["config"]))
         except (ConfigError, TypeError, KeyError) as exc:
             raise CheckpointError(f"{path}: bad config in checkpoint: {exc}") from exc
+        try:
+            core._restore(state)
+        except (KeyError, TypeError, ValueError, IndexError, RuntimeError) as exc:
+            # Parts missing or of the wrong shape (written by something else, or edited): one
+            # line, not a traceback; torch reports shape mismatches as RuntimeError.
+            raise CheckpointError(
+                f"{path}: incomplete or inconsistent checkpoint ({type(exc).__name__}: {exc})"
+            ) from exc
+        return core
+
+    def _restore(self, state: dict[str, Any]) -> None:
+        """The saved state of :meth:`load_checkpoint` into this fresh core."""
+        core = self
         for name, agent in core.agents.items():
             agent.load_state_dict(state["agents"][name])
         core.pairing.load_state_dict(state["pairing"])
@@ -402,7 +415,6 @@ class LearnerCore:
         torch.set_rng_state(state["rng"]["torch"])
         np.random.set_state(state["rng"]["numpy"])
         random.setstate(state["rng"]["python"])
-        return core
 
     # ------------------------------------------------------------------ export
 

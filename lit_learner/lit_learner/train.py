@@ -542,7 +542,10 @@ class DriverState:
     """``--bag-dir`` (absolute), or None for the checkout's ``bags/``."""
 
     def save(self, path: Path) -> None:
-        path.write_text(json.dumps(dataclasses.asdict(self), indent=2) + "\n")
+        """Written whole or not at all (a kill mid-write leaves the previous file)."""
+        partial = path.with_name(path.name + ".partial")
+        partial.write_text(json.dumps(dataclasses.asdict(self), indent=2) + "\n")
+        os.replace(partial, path)
 
     @classmethod
     def load(cls, path: Path) -> DriverState:
@@ -699,6 +702,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--out", type=argtypes.path, help="run folder (default runs/train-<UTC time>)"
     )
     parser.add_argument("--resume", type=argtypes.path, metavar="CHECKPOINT", help="continue a run")
+    parser.add_argument(
+        "--rollback",
+        action="store_true",
+        help="with --resume of a checkpoint older than the run's newest: train from it again "
+        "(removes the later checkpoints and metrics rows)",
+    )
     parser.add_argument(
         "--export",
         type=argtypes.path,
@@ -917,8 +926,13 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
     hooks = hooks or TrainingHooks()
     lit_core.set_log_level("warn")
     command = ["lit", "train", *(sys.argv[2:] if sys.argv[1:2] == ["train"] else sys.argv[1:])]
-    if args.decision_interval is not None and args.decision_interval < 1:
-        raise TrainingError(f"--decision-interval must be at least 1, got {args.decision_interval}")
+    if args.decision_interval is not None and not (
+        1 <= args.decision_interval <= planning.MAX_DECISION_INTERVAL
+    ):  # the planner's parameter is unsigned 32-bit: refused now, not in the first episode
+        raise TrainingError(
+            f"--decision-interval must be between 1 and {planning.MAX_DECISION_INTERVAL}, "
+            f"got {args.decision_interval}"
+        )
     if args.no_bag and args.bag_dir is not None:
         raise TrainingError(f"--bag-dir {args.bag_dir} and --no-bag contradict each other")
     started = {  # a run's own settings, as given (None: not given)
@@ -964,6 +978,16 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 "whole run folder"
             )
         state = DriverState.load(state_path(checkpoint))
+        newer = _newer_checkpoints(run_dir, state.episode, checkpoint)
+        if newer and not args.rollback:
+            episode, path = newer[-1]
+            raise TrainingError(
+                f"--resume {checkpoint} (episode {state.episode}): the run has a later "
+                f"checkpoint, {path} (episode {episode}); resume that one to continue, or add "
+                f"--rollback to train from episode {state.episode} again (it removes the "
+                f"{len(newer)} later checkpoint(s) and the metrics rows after episode "
+                f"{state.episode})"
+            )
         if args.out is not None and Path(args.out).resolve() != run_dir:
             raise TrainingError(
                 f"--out {args.out} with --resume: the run folder is the checkpoint's ({run_dir}); "
@@ -1000,16 +1024,30 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 "cannot carry; resume it with --no-bag"
             )
         core = LearnerCore.load_checkpoint(checkpoint)
+        if core.episodes != state.episode:  # a kill between writing the two files
+            raise TrainingError(
+                f"--resume {checkpoint}: the checkpoint holds {core.episodes} episodes and its "
+                f"driver state {state_path(checkpoint).name} {state.episode}; they were not "
+                "written together: resume another checkpoint of the run"
+            )
         if args.episodes is not None:
             state.episodes = args.episodes
         if args.minutes is not None:
             state.minutes = args.minutes
         state.resumed_with.append(command)
+        if state.phase == PHASE_K and state.schedule != "joint" and not _finished(state):
+            print(
+                f"lit train: the psi_K phase began at episode {state.episodes_per_phase.get(PHASE_B, 0)}"
+                "; the episodes added by this resume train psi_K",
+                file=sys.stderr,
+            )
         if args.checkpoint_every is not None:
             state.checkpoint_every = args.checkpoint_every
         rng = np.random.default_rng()
         rng.bit_generator.state = state.rng_state
     else:
+        if args.rollback:
+            raise TrainingError("--rollback goes with --resume")
         stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
         run_dir = Path(args.out) if args.out else Path("runs") / f"train-{stamp}"
         if (run_dir / METRICS_FILE).exists():
@@ -1050,6 +1088,11 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         core = LearnerCore(config)
         rng = draw_generator(seed)
     distribution = TrainingDistribution(state.scenarios, rng)  # checks the names first
+    if args.export is not None and Path(args.export).resolve() == run_dir.resolve():
+        # Its provenance.json and curves would be copied onto themselves after the whole run.
+        raise TrainingError(
+            f"--export {args.export} is the run folder; export into a folder of its own"
+        )
     run_dir.mkdir(parents=True, exist_ok=True)
     lock = _lock_run_folder(run_dir)  # held until this process ends
     b_range = agent_range(core.config.b, (20.0, 200.0))
@@ -1072,15 +1115,19 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             f"the checkpoint (episode {state.episode}); they run again",
             file=sys.stderr,
         )
-    recording = _open_bag(state, run_dir) if state.record_bag else None
+    # No bag for a resume that only exports (its episodes are done): it would stay empty.
+    recording = _open_bag(state, run_dir) if state.record_bag and not _finished(state) else None
     progress = _progress(state, disable=args.no_progress)
     session_start = time.perf_counter() - state.elapsed
     periodic = _earlier_checkpoints(run_dir, state.episode)  # a resumed run prunes them too
-    for later in _later_checkpoints(run_dir, state.episode):  # of the history dropped above
-        later.unlink(missing_ok=True)
-        state_path(later).unlink(missing_ok=True)
-        print(f"lit train: removed {later} (after the checkpoint resumed from)", file=sys.stderr)
+    if args.resume is not None:  # --rollback: the history dropped above
+        for _, later in _newer_checkpoints(run_dir, state.episode, Path(args.resume)):
+            later.unlink(missing_ok=True)
+            state_path(later).unlink(missing_ok=True)
+            print(f"lit train: removed {later} (--rollback)", file=sys.stderr)
     interrupted = False
+    failure: Exception | None = None
+    episode_id: str | None = None
     try:
         while not (_finished(state) or interrupted or STOP_REQUESTED.is_set()):
             phase = _phase_for(state)
@@ -1092,11 +1139,12 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 b_tensor = _switch_to_k(core, state, run_dir)
             state.phase = phase
             spec = distribution.draw(state.episode)
+            episode_id = f"{state.run_id}-{spec.index:07d}"
             outcome = run_episode(
                 core,
                 spec,
                 phase,
-                f"{state.run_id}-{spec.index:07d}",
+                episode_id,
                 decision_interval=state.decision_interval,
                 b_tensor=b_tensor,
                 b_range=b_range,
@@ -1126,10 +1174,16 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         # Between queries: the learner is consistent unless Ctrl-C hit a gradient step (lit
         # train's own handler raises none: it sets STOP_REQUESTED).
         interrupted = True
+    except Exception as error:  # noqa: BLE001 - saved below, then raised again
+        failure = error
     finally:
         progress.close()
         if recording is not None:
             recording.close()
+    if failure is not None:
+        _save_after_failure(core, state, rng, run_dir, episode_id, failure)
+        lock.close()
+        raise failure
     interrupted = interrupted or STOP_REQUESTED.is_set()
     FINISHING.set()
     final = _checkpoint(core, state, rng, run_dir, "final")
@@ -1161,6 +1215,58 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
     return TrainingResult("\n".join(lines), interrupted)
 
 
+def _save_after_failure(
+    core: Any,
+    state: DriverState,
+    rng: np.random.Generator,
+    run_dir: Path,
+    episode_id: str | None,
+    failure: Exception,
+) -> None:
+    """An error stopped the run inside an episode: drop that episode's open steps and save the
+    episodes done as the final checkpoint (up to --checkpoint-every episodes would be lost
+    otherwise); the resumed run goes on with the next query (the failed one's was drawn)."""
+    if core.episodes != state.episode:  # the learner closed it before the error: no match
+        print(
+            f"lit train: episode {state.episode} failed after the learner had closed it; no "
+            "final checkpoint written (it would not match the metrics): resume the last "
+            "periodic one",
+            file=sys.stderr,
+        )
+        return
+    if episode_id is not None:
+        core.abandon_episode(episode_id)
+    try:
+        final = _checkpoint(core, state, rng, run_dir, "final")
+    except Exception as error:  # noqa: BLE001 - the first error is the one raised
+        print(
+            f"lit train: episode {state.episode} failed, and so did saving the final checkpoint "
+            f"({error})",
+            file=sys.stderr,
+        )
+        return
+    print(
+        f"lit train: episode {state.episode} failed ({type(failure).__name__}); the "
+        f"{state.episode} episodes before it are in {final}: --resume it to continue",
+        file=sys.stderr,
+    )
+
+
+def _newer_checkpoints(run_dir: Path, episode: int, resumed: Path) -> list[tuple[int, Path]]:
+    """(episode, path) of the run's checkpoints past ``episode``, oldest first: the periodic
+    ones and the final one (an older final one is left after a crash), ``resumed`` excepted."""
+    newer = [(number, path) for number, path in _periodic_checkpoints(run_dir) if number > episode]
+    final = run_dir / CHECKPOINT_DIR / "final.ckpt"
+    if final.exists() and final.resolve() != resumed.resolve():
+        try:
+            final_episode = DriverState.load(state_path(final)).episode
+        except TrainingError:  # its driver state is gone or damaged: it cannot be resumed
+            final_episode = None
+        if final_episode is not None and final_episode > episode:
+            newer.append((final_episode, final))
+    return sorted(newer)
+
+
 def _periodic_checkpoints(run_dir: Path) -> list[tuple[int, Path]]:
     """(episode, path) of the run's periodic checkpoints, oldest first."""
     found = []
@@ -1174,12 +1280,6 @@ def _periodic_checkpoints(run_dir: Path) -> list[tuple[int, Path]]:
 def _earlier_checkpoints(run_dir: Path, episode: int) -> list[Path]:
     """The run's periodic checkpoints up to ``episode``, oldest first."""
     return [path for number, path in _periodic_checkpoints(run_dir) if number <= episode]
-
-
-def _later_checkpoints(run_dir: Path, episode: int) -> list[Path]:
-    """The run's periodic checkpoints after ``episode`` (a resume from an earlier checkpoint
-    trains those episodes again; the files would look like the run's newest state)."""
-    return [path for number, path in _periodic_checkpoints(run_dir) if number > episode]
 
 
 def _lock_run_folder(run_dir: Path) -> Any:

@@ -288,6 +288,17 @@ def test_missing_checkpoint(tmp_path: Path) -> None:
         LearnerCore.load_checkpoint(tmp_path / "none.pt")
 
 
+def test_a_checkpoint_with_parts_missing_is_one_error(tmp_path: Path) -> None:
+    """A checkpoint edited or written by something else: CheckpointError, not a KeyError."""
+    path = tmp_path / "core.pt"
+    LearnerCore(LearnerConfig(seed=0)).save_checkpoint(path)
+    state = torch.load(path, weights_only=False)
+    del state["agents"]["B"]["replay"]
+    torch.save(state, path)
+    with pytest.raises(CheckpointError, match="incomplete or inconsistent checkpoint"):
+        LearnerCore.load_checkpoint(path)
+
+
 def flat_state(core: LearnerCore) -> dict[str, object]:
     state: dict[str, object] = {}
     for name, agent in core.agents.items():

@@ -375,7 +375,12 @@ def test_run_reports_bad_input_as_one_line(
     assert train.run(arguments(tmp_path / "run", scenarios="np4,xx9", episodes=1)) == 2
     assert "training scenario 'xx9'" in capsys.readouterr().err
     assert train.run(arguments(tmp_path / "run", decision_interval=0)) == 2
-    assert "--decision-interval must be at least 1, got 0" in capsys.readouterr().err
+    assert "--decision-interval must be between 1 and 4294967295, got 0" in capsys.readouterr().err
+    # Beyond the planner's unsigned 32-bit parameter: refused before a run folder or bag exists
+    # (it failed in the first episode and left a run that could not be resumed).
+    assert train.run(arguments(tmp_path / "run", decision_interval=2**32)) == 2
+    assert "got 4294967296" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
     assert train.run(arguments(tmp_path / "run", w_search=-1.0)) == 2
     assert "--w-search must be finite and >= 0, got -1.0" in capsys.readouterr().err
     assert train.run(arguments(tmp_path / "run", resume=tmp_path / "x.ckpt", w_search=2.0)) == 2
@@ -447,7 +452,16 @@ def test_resume_from_an_earlier_checkpoint_trains_its_episodes_again_once(
     hooks = train.TrainingHooks(learner_config=small_config())
     train.train(arguments(run_dir, episodes=6, scenarios="np4", checkpoint_every=3), hooks)
     earlier = run_dir / train.CHECKPOINT_DIR / "episode-0000003.ckpt"
-    train.train(arguments(run_dir, episodes=5, resume=earlier))
+    rows = (run_dir / METRICS_FILE).read_text()
+    # Not without --rollback: a stale final.ckpt resumed after a crash lost the later episodes.
+    with pytest.raises(train.TrainingError) as refused:
+        train.train(arguments(run_dir, episodes=5, resume=earlier))
+    assert "has a later checkpoint" in str(refused.value) and "final.ckpt (episode 6)" in str(
+        refused.value
+    )
+    assert "removes the 2 later checkpoint(s)" in str(refused.value)
+    assert (run_dir / METRICS_FILE).read_text() == rows  # nothing touched
+    train.train(arguments(run_dir, episodes=5, resume=earlier, rollback=True))
     err = capsys.readouterr().err
     assert "dropped the rows of 3 episodes after the checkpoint" in err
     assert "removed" in err and "episode-0000006.ckpt" in err  # of the dropped history
@@ -498,6 +512,65 @@ def test_an_earlier_export_is_refused_before_training_and_a_run_exports_without_
     assert (run_dir / METRICS_FILE).read_text() == rows  # no episode trained
     assert json.loads((export_dir / train.PROVENANCE_FILE).read_text())["episodes"] == 2
     assert planning.make_policy("tensor", export_dir) is not None
+
+
+def test_an_error_in_an_episode_saves_the_episodes_before_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Only Ctrl-C used to reach the final checkpoint: any other error lost the episodes since
+    the last periodic one (up to --checkpoint-every - 1)."""
+    from lit_learner.core import LearnerCore
+
+    original = LearnerCore.close_episode
+    calls = {"count": 0}
+
+    def failing_third(self: LearnerCore, end: Any) -> Any:
+        calls["count"] += 1
+        if calls["count"] == 3:  # the query planned, its decisions taken
+            raise OSError(28, "No space left on device")
+        return original(self, end)
+
+    monkeypatch.setattr(LearnerCore, "close_episode", failing_third)
+    run_dir = tmp_path / "run"
+    hooks = train.TrainingHooks(learner_config=small_config())
+    with pytest.raises(OSError, match="No space left"):
+        train.train(arguments(run_dir, episodes=6, scenarios="np4", no_bag=True), hooks)
+    final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
+    assert "episode 2 failed (OSError); the 2 episodes before it are in" in capsys.readouterr().err
+    assert train.DriverState.load(train.state_path(final)).episode == 2
+    monkeypatch.setattr(LearnerCore, "close_episode", original)
+    train.train(arguments(run_dir, resume=final))  # its open steps were dropped
+    assert train.DriverState.load(train.state_path(final)).episode == 6
+    with (run_dir / METRICS_FILE).open(newline="") as handle:
+        assert [int(row["episode"]) for row in csv.DictReader(handle)] == list(range(6))
+
+
+def test_export_into_the_run_folder_is_refused_and_an_export_records_no_bag(
+    tmp_path: Path,
+) -> None:
+    run_dir = tmp_path / "run"
+    with pytest.raises(train.TrainingError, match="is the run folder"):
+        train.train(arguments(run_dir, episodes=1, scenarios="np4", export=run_dir))
+    assert not run_dir.exists()
+    hooks = train.TrainingHooks(learner_config=small_config())
+    train.train(arguments(run_dir, episodes=1, scenarios="np4"), hooks)  # bag beside the run
+    before = sorted(path.name for path in tmp_path.iterdir())
+    final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
+    result = train.train(arguments(run_dir, resume=final, export=tmp_path / "tensors"))
+    assert "bag" not in result.summary
+    assert sorted(path.name for path in tmp_path.iterdir()) == sorted([*before, "tensors"])
+
+
+def test_a_checkpoint_and_driver_state_of_different_writes_are_refused(tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    hooks = train.TrainingHooks(learner_config=small_config())
+    train.train(arguments(run_dir, episodes=2, scenarios="np4", no_bag=True), hooks)
+    final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
+    state = json.loads(train.state_path(final).read_text())
+    state["episode"] = 1  # as the previous write left it
+    train.state_path(final).write_text(json.dumps(state))
+    with pytest.raises(train.TrainingError, match="holds 2 episodes and its driver state"):
+        train.train(arguments(run_dir, episodes=4, resume=final))
 
 
 def test_unknown_scenario_leaves_no_run_folder(tmp_path: Path) -> None:

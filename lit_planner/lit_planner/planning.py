@@ -60,6 +60,8 @@ TENSOR_FILES = {"B": "b_tensor.npy", "psi_K": "k_tensor.npy"}
 """File name of each output's lookup tensor inside a tensor folder (sidecars: same stem, .json)."""
 MAX_SEED = 2**32 - 1
 """Largest seed the core accepts (an unsigned 32-bit integer)."""
+MAX_DECISION_INTERVAL = 2**32 - 1
+"""Most expansions per psi_K decision the core accepts (an unsigned 32-bit integer)."""
 _ARGUMENT_PARAMS = {"seed": "seed", "time_budget": "time"}
 """Planner parameters that :func:`plan` sets from its own arguments."""
 MAX_TIME = 1e9
@@ -253,7 +255,11 @@ def trained_decision_interval(path: Path) -> int:
     value = sidecar.provenance.get("decision_interval")
     if value is None:
         return 0
-    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_SEED:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int)
+        or not 1 <= value <= MAX_DECISION_INTERVAL
+    ):
         raise TensorFileError(
             f"{tensor_files.sidecar_path(path)}: $.provenance.decision_interval must be a whole "
             f"number of at least 1, got {value!r}"

@@ -265,9 +265,9 @@ def write_constant(
     if decision_interval is not None:
         if psi_k is None:
             raise TensorFileError("--decision-interval applies to psi_K: give --psi-k too")
-        if not 1 <= decision_interval <= planning.MAX_SEED:
+        if not 1 <= decision_interval <= planning.MAX_DECISION_INTERVAL:
             raise TensorFileError(
-                f"--decision-interval must be a whole number 1..{planning.MAX_SEED}, "
+                f"--decision-interval must be a whole number 1..{planning.MAX_DECISION_INTERVAL}, "
                 f"got {decision_interval}"
             )
     if folder.exists() and not folder.is_dir():
