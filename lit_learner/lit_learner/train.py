@@ -31,7 +31,6 @@ import math
 import os
 import shlex
 import shutil
-import subprocess
 import sys
 import threading
 import time
@@ -570,21 +569,9 @@ def state_path(checkpoint: Path) -> Path:
 
 def git_commit() -> str | None:
     """The checkout's commit, with ``-dirty`` when tracked files are modified; None outside git."""
-    root = Path(__file__).resolve().parents[2]
-    try:
-        commit = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=True
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=root,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return None
-    return commit + ("-dirty" if dirty else "")
+    from lit_planner.bench.environment import commit_label
+
+    return commit_label(Path(__file__).resolve().parents[2])
 
 
 def provenance(state: DriverState, run_dir: Path) -> dict[str, Any]:

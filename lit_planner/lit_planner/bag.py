@@ -38,7 +38,6 @@ import json
 import re
 import shlex
 import struct
-import subprocess
 import sys
 import threading
 import time
@@ -582,14 +581,8 @@ class EpisodeRecording:
 
 
 def _git_commit() -> str:
-    try:
-        answer = subprocess.run(
-            ["git", "-C", str(_ROOT), "rev-parse", "HEAD"],
-            capture_output=True,
-            text=True,
-            timeout=5,
-            check=False,
-        )
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-    return answer.stdout.strip() if answer.returncode == 0 else "unknown"
+    """The checkout's commit, with ``-dirty`` when tracked files are modified, as the tensors'
+    provenance names it."""
+    from lit_planner.bench.environment import commit_label
+
+    return commit_label(_ROOT) or "unknown"

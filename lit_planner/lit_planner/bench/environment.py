@@ -43,7 +43,7 @@ def versions(root: Path) -> dict[str, Any]:
         "matplotlib": matplotlib.__version__,
         "lit_core": _lit_core(),
         "ompl": _ompl_version(),
-        "git": _git(root),
+        "git": git_state(root),
     }
 
 
@@ -120,7 +120,10 @@ def _ompl_version() -> str | None:
     return None
 
 
-def _git(root: Path) -> dict[str, Any] | None:
+def git_state(root: Path) -> dict[str, Any] | None:
+    """``{"commit", "dirty"}`` of the git checkout at ``root`` (dirty: tracked files modified;
+    None if git could not tell); None outside git."""
+
     def git(*args: str) -> str | None:
         try:
             answer = subprocess.run(
@@ -139,6 +142,15 @@ def _git(root: Path) -> dict[str, Any] | None:
         return None
     status = git("status", "--porcelain", "--untracked-files=no")
     return {"commit": commit, "dirty": bool(status) if status is not None else None}
+
+
+def commit_label(root: Path) -> str | None:
+    """The checkout's commit as provenance names it, ``-dirty`` appended when tracked files are
+    modified; None outside git."""
+    state = git_state(root)
+    if state is None:
+        return None
+    return state["commit"] + ("-dirty" if state["dirty"] else "")
 
 
 def _iso_mtime(path: Path) -> str:
