@@ -62,7 +62,13 @@ MAX_SEED = 2**32 - 1
 """Largest seed the core accepts (an unsigned 32-bit integer)."""
 MAX_DECISION_INTERVAL = 2**32 - 1
 """Most expansions per psi_K decision the core accepts (an unsigned 32-bit integer)."""
-_ARGUMENT_PARAMS = {"seed": "seed", "time_budget": "time"}
+_ARGUMENT_PARAMS = {
+    "seed": "seed",
+    "time_budget": "time",
+    "policy": "policy",
+    "max_iterations": "max_iterations",
+    "max_batches": "max_batches",
+}
 """Planner parameters that :func:`plan` sets from its own arguments."""
 MAX_TIME = 1e9
 """Longest planning time, s (about 32 years): OMPL's time-based stop counts nanoseconds in 64

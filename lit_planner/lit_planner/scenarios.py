@@ -437,9 +437,9 @@ def _check_extent(lower: np.ndarray, upper: np.ndarray, resolution: float) -> No
             f"the world is too large: its size ({float(np.max(extent)):.3g} along its longest "
             "axis) makes the diagonal or the volume overflow double precision"
         )
-    if not (math.isfinite(resolution) and MIN_RESOLUTION <= resolution <= 1):
-        raise ScenarioError(
-            f"resolution must be in [{MIN_RESOLUTION:g}, 1], got {resolution} (a finer one makes "
+    if not (math.isfinite(resolution) and MIN_RESOLUTION <= resolution < 1):
+        raise ScenarioError(  # 1 itself passed here and failed in the core with a bare ValueError
+            f"resolution must be in [{MIN_RESOLUTION:g}, 1), got {resolution} (a finer one makes "
             "one edge check take seconds and gigabytes)"
         )
     if measure <= 0 or not resolution * float(np.max(extent)) > 0:

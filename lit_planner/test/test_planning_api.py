@@ -138,6 +138,15 @@ def test_same_seed_same_result() -> None:
     assert other["path"] != runs[0]["path"]
 
 
+def test_a_batch_prunes_only_after_a_new_solution() -> None:
+    """A prune with the cost unchanged removes nothing and rebuilt the sample arrays every batch
+    (67 % of np16's planning time once the search stalled)."""
+    result = plan("np8", policy="fit", seed=3000, max_iterations=60_000)
+    counters = result["counters"]
+    assert result["solved"] and counters["pruned_samples"] > 0
+    assert 1 <= counters["prunes"] <= len(result["improvements"]) < counters["batches"] / 4
+
+
 def test_max_batches_stops_litstar() -> None:
     result = plan("np4", max_batches=3)
     assert result["counters"]["batches"] == 3
@@ -304,6 +313,25 @@ def test_external_policy_failures_fall_back(capfd: pytest.CaptureFixture[str]) -
         make_policy("fixed", callback=broken)
     with pytest.raises(PlannerError, match="needs a callable"):
         plan("np4", policy="external", max_iterations=10)
+
+
+@pytest.mark.parametrize("stop", [KeyboardInterrupt, SystemExit])
+def test_ctrl_c_in_an_external_policy_ends_the_solve(stop: type[BaseException]) -> None:
+    """KeyboardInterrupt (or SystemExit) in the callback was taken for a failed answer: the solve
+    went on with the fixed value to its budget and the interrupt was lost."""
+    calls = []
+
+    def interrupted(context: lit_core.DecisionContext) -> float:
+        calls.append(context.kind)
+        if len(calls) == 3:
+            raise stop
+        return 100.0 if context.kind == "B" else math.e
+
+    policy = make_policy("external", callback=interrupted)
+    with pytest.raises(stop):
+        plan("np4", policy=policy, max_iterations=ITERATIONS)
+    assert len(calls) == 3 and policy.failures == 0  # not asked again, not a failure
+    assert plan("np4", policy="fit", max_iterations=10)["counters"]["iterations"] == 10  # usable
 
 
 def test_external_policy_time_is_not_planning_time() -> None:
@@ -653,9 +681,13 @@ def test_an_unknown_planner_parameter_is_a_planner_error_naming_the_known_ones(
     for planner in ("litstar", "bitstar"):
         with pytest.raises(PlannerError, match=rf"{planner} rejected the value 'x' of its "):
             planning.plan("np4", planner, time=0.05, params={"rewire_factor": "x"})
-    # An unsigned one took -3 as 4294967293.
-    with pytest.raises(PlannerError, match=r"'batch_size': it was stored as 4294967293, not the"):
+    # An unsigned one took -3 as 4294967293 (now refused by the fixed policy's own check).
+    with pytest.raises(
+        PlannerError, match=r"rejected the value '-3' of its parameter 'batch_size'"
+    ):
         planning.plan("np4", "litstar", "fixed", time=0.05, params={"batch_size": "-3"})
+    with pytest.raises(PlannerError, match=r"'decision_interval': it was stored as 4294967293"):
+        planning.plan("np4", "litstar", "fixed", time=0.05, params={"decision_interval": "-3"})
     with pytest.raises(PlannerError, match=r"'decision_interval': it was stored as 1, not the"):
         planning.plan("np4", "litstar", "fixed", time=0.05, params={"decision_interval": "0"})
     # checked before OMPL's setParam, which would print an error line of its own
@@ -676,7 +708,8 @@ def test_query_for_takes_a_scenario_or_its_name() -> None:
 def test_arguments_are_not_overridden_by_params_and_times_are_bounded() -> None:
     """params={"seed": 5} planned with seed 5 and reported seed 1; a time of 1e10 s overflowed
     OMPL's nanosecond clock, and its planners stopped at once as timed out."""
-    for name in ("seed", "time_budget"):
+    for name in ("seed", "time_budget", "policy", "max_iterations", "max_batches"):
+        # params={"policy": "fixed"} planned with the fixed policy under policy="fit".
         with pytest.raises(PlannerError, match=f"params '{name}' is given as an argument"):
             plan("np4", max_iterations=10, params={name: 5})
     with pytest.raises(PlannerError, match="time must be at most"):

@@ -443,6 +443,7 @@ def test_custom_world_sizes_that_break_the_arithmetic_are_refused(
         scenarios.custom([lower, lower], [upper, upper], [], [0.0, 0.0], [0.0, 0.0])
     big = scenarios.custom([-1e100, -1e100], [1e100, 1e100], [], [-1.0, 0.0], [1.0, 0.0])
     assert big.dim == 2  # large but finite worlds stay allowed
-    for resolution in (0.0, 1e-10):  # 1e-10 ran the planner out of memory on one edge check
+    # 1e-10 ran the planner out of memory on one edge check; 1 failed in the core (bare ValueError)
+    for resolution in (0.0, 1e-10, 1.0):
         with pytest.raises(ScenarioError, match="resolution must be in"):
             scenarios.custom([0, 0], [1, 1], [], [0.1, 0.1], [0.9, 0.9], resolution=resolution)

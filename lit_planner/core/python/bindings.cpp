@@ -98,6 +98,25 @@ namespace
         }
     }
 
+    /** \brief A KeyboardInterrupt or SystemExit in an external policy's callback, carried out of the solve and
+     *  raised again in Python (see the exception translator in the module). */
+    class PythonPolicyAbort : public PolicyAbort
+    {
+    public:
+        explicit PythonPolicyAbort(py::error_already_set error)
+          : PolicyAbort(error.what()), error_(std::move(error))
+        {
+        }
+        void restore() const
+        {
+            py::error_already_set copy = error_;
+            copy.restore();
+        }
+
+    private:
+        py::error_already_set error_;
+    };
+
     /** \brief Records LIT*'s events, and forwards them to an optional Python listener. */
     class RecordingListener : public PlannerListener
     {
@@ -400,6 +419,7 @@ namespace
             counters["valid_samples"] = c.validSamples;
             counters["invalid_samples"] = c.invalidSamples;
             counters["pruned_samples"] = c.prunedSamples;
+            counters["prunes"] = c.prunes;
             counters["collision_checks"] = c.collisionChecks;
             counters["edges_evaluated"] = c.edgesEvaluated;
             counters["edges_sparsely_checked"] = c.edgesSparselyChecked;
@@ -435,6 +455,17 @@ PYBIND11_MODULE(lit_core, m)
 {
     m.doc() = "LIT* core (C++17 on OMPL 1.5.2): box worlds, the LITstar planner, parameter policies, OMPL baselines";
     py::register_exception<TensorError>(m, "TensorError", PyExc_ValueError);
+    py::register_exception_translator([](std::exception_ptr thrown) {
+        try
+        {
+            if (thrown)
+                std::rethrow_exception(thrown);
+        }
+        catch (const PythonPolicyAbort &abort)
+        {
+            abort.restore();  // the KeyboardInterrupt or SystemExit itself
+        }
+    });
 
     m.def("set_log_level", [](const std::string &level) {
         static const std::map<std::string, ompl::msg::LogLevel> levels{{"debug", ompl::msg::LOG_DEBUG},
@@ -586,7 +617,17 @@ PYBIND11_MODULE(lit_core, m)
                  auto holder = std::make_shared<py::function>(std::move(callback));
                  ExternalPolicy::Callback call = [holder](const DecisionContext &context) {
                      py::gil_scoped_acquire gil;
-                     py::object answer = (*holder)(context);
+                     py::object answer;
+                     try
+                     {
+                         answer = (*holder)(context);
+                     }
+                     catch (py::error_already_set &error)
+                     {
+                         if (!error.matches(PyExc_Exception))  // KeyboardInterrupt, SystemExit: not a failed answer
+                             throw PythonPolicyAbort(std::move(error));
+                         throw;
+                     }
                      try
                      {
                          return answer.cast<double>();

@@ -70,6 +70,10 @@ namespace lit
     }
     void LITstar::setRewireFactor(double factor)
     {
+        // 0 or less gave K = 1 and inf an overflowed K of 0: planners that never solved, without a word.
+        if (!(std::isfinite(factor) && factor > 0.0 && factor <= 1e6))
+            throw ompl::Exception("LITstar: the rewire factor must be a number in (0, 1e6], got " +
+                                  std::to_string(factor));
         rewireFactor_ = factor;
     }
     double LITstar::getRewireFactor() const
@@ -211,6 +215,7 @@ namespace lit
         problemInitialized_ = false;
         batchLimitReached_ = false;
         bestCost_ = infinity;
+        pruneDue_ = false;
         bestPathStates_.clear();
         improvements_ = 0u;
         counters_ = LITstarCounters{};
@@ -236,14 +241,24 @@ namespace lit
             statusMessage_ = "the start state is missing, out of bounds or in collision";
             return ompl::base::PlannerStatus::INVALID_START;
         }
-        // nextGoal() returns the same scratch state each time: each goal is copied as it is read.
+        // nextGoal() returns the same scratch state each time: each goal is copied as it is read. A continuous goal
+        // region (OMPL's GoalSpace, say) never runs out of goal samples: it gets the first MAX_GOAL_SAMPLES (the loop
+        // filled memory before the clock started).
         std::vector<std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>>> owned;
         std::vector<const ompl::base::State *> goals;
-        while (const ompl::base::State *g = pis_.nextGoal())
+        const std::size_t goalLimit = std::min<std::size_t>(
+            goal->as<ompl::base::GoalSampleableRegion>()->maxSampleCount(), MAX_GOAL_SAMPLES);
+        while (goals.size() < goalLimit)
         {
+            const ompl::base::State *g = pis_.nextGoal();
+            if (g == nullptr)
+                break;
             owned.emplace_back(si_->cloneState(g), [this](ompl::base::State *state) { si_->freeState(state); });
             goals.push_back(owned.back().get());
         }
+        if (goals.size() == MAX_GOAL_SAMPLES && pis_.haveMoreGoalStates())
+            OMPL_WARN("%s: planning to the first %zu goal samples of the goal region", getName().c_str(),
+                      MAX_GOAL_SAMPLES);
         if (goals.empty())
         {
             statusMessage_ = "the goal state is missing, out of bounds or in collision";
@@ -262,7 +277,7 @@ namespace lit
         graph_->start()->costToCome_ = 0.0;
         firstSolutionMeasure_ = 0.0;
         batchSize_ = static_cast<unsigned int>(std::max(1, policy_->initialBatchSize()));
-        neighbourFactor_ = M_E;
+        neighbourFactor_ = policy_->initialNeighbourFactor();
         problemInitialized_ = true;
         return ompl::base::PlannerStatus::UNKNOWN;
     }
@@ -730,6 +745,7 @@ namespace lit
     {
         const bool first = !std::isfinite(bestCost_);
         bestCost_ = goal->costToCome_;
+        pruneDue_ = true;
         ++improvements_;
         if (first)
             firstSolutionMeasure_ = getMeasure();
@@ -775,8 +791,12 @@ namespace lit
         forwardQueue_->clear();
         reverseQueue_ = {};
         std::size_t pruned = 0u;
-        if (std::isfinite(bestCost_))
+        if (pruneDue_ && std::isfinite(bestCost_))
+        {
             pruned = graph_->prune(bestCost_, [this](State *state) { detachFromForwardTree(state); });
+            ++counters_.prunes;
+        }
+        pruneDue_ = false;
         counters_.prunedSamples += pruned;
         const std::size_t checksBefore = graph_->validDraws() + graph_->invalidDraws();
         graph_->addBatch(batchSize_, bestCost_, [this] { return shouldStop(); });
@@ -812,7 +832,7 @@ namespace lit
         const double n = static_cast<double>(dimension_);
         const double q = std::max(static_cast<double>(graph_->numValid()), 2.0);
         const double k = std::ceil(rewireFactor_ * neighbourFactor * (1.0 + 1.0 / n) * std::log(q));
-        return static_cast<std::size_t>(std::max(1.0, k));
+        return static_cast<std::size_t>(std::clamp(k, 1.0, 1e12));  // a cast of a larger double is undefined
     }
 
     std::vector<const ompl::base::State *> LITstar::bestPathRawStates() const

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <exception>
+#include <stdexcept>
+#include <string>
 
 namespace lit
 {
@@ -27,6 +29,18 @@ namespace lit
         if (!std::isfinite(value))
             return std::nullopt;
         return std::clamp(value, ParameterLimits::minNeighbourFactor, ParameterLimits::maxNeighbourFactor);
+    }
+
+    FixedPolicy::FixedPolicy(int batchSize, double neighbourFactor)
+      : batchSize_(batchSize), neighbourFactor_(neighbourFactor)
+    {
+        // B = 0 or less became B = 1 and the factor was never used: both were accepted without a word.
+        if (batchSize < 1)
+            throw std::invalid_argument("FixedPolicy: the batch size must be at least 1, got " +
+                                        std::to_string(batchSize));
+        if (!(std::isfinite(neighbourFactor) && neighbourFactor > 0.0))
+            throw std::invalid_argument("FixedPolicy: the neighbour factor must be a positive number, got " +
+                                        std::to_string(neighbourFactor));
     }
 
     double FixedPolicy::decide(const DecisionContext &context)
@@ -84,6 +98,10 @@ namespace lit
         try
         {
             answer = callback_(context);
+        }
+        catch (const PolicyAbort &)
+        {
+            throw;  // ends the solve
         }
         catch (const std::exception &e)
         {

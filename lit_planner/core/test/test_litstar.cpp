@@ -5,7 +5,9 @@
 
 #include <ompl/base/OptimizationObjective.h>
 #include <ompl/base/ScopedState.h>
+#include <ompl/base/goals/GoalSpace.h>
 #include <ompl/base/goals/GoalStates.h>
+#include <ompl/base/spaces/RealVectorStateSpace.h>
 #include <ompl/base/PlannerTerminationCondition.h>
 #include <ompl/base/ProblemDefinition.h>
 #include <ompl/util/Exception.h>
@@ -13,7 +15,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <memory>
+#include <stdexcept>
 #include <thread>
 #include <vector>
 
@@ -404,6 +408,58 @@ TEST(LITstar, EveryGoalOfAGoalSetIsKept)
     EXPECT_DOUBLE_EQ(path.back()[0], -0.3);
     EXPECT_DOUBLE_EQ(path.back()[1], 0.3);
     EXPECT_LT(planner->bestCost(), 0.35);  // about 0.316, the straight line to the near goal
+}
+
+TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
+{
+    // OMPL's GoalSpace never runs out of goal samples: reading them all filled memory before the clock started.
+    BoxProblem problem = test::narrowPassage(4, 1e-3);
+    auto region = std::make_shared<ompl::base::GoalSpace>(problem.si);
+    auto box = std::make_shared<ompl::base::RealVectorStateSpace>(4);
+    ompl::base::RealVectorBounds bounds(4);
+    bounds.setLow(0.15);
+    bounds.setHigh(0.25);
+    box->setBounds(bounds);
+    region->setSpace(box);
+    problem.pdef->setGoal(region);
+    auto planner = std::make_shared<LITstar>(problem.si);
+    planner->setMaxBatches(30u);
+    planner->setProblemDefinition(problem.pdef);
+    EXPECT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    EXPECT_EQ(planner->graph().goals().size(), LITstar::MAX_GOAL_SAMPLES);
+    const auto path = planner->bestPath();
+    for (const double x : path.back())  // it ends in the region
+    {
+        EXPECT_GE(x, 0.15);
+        EXPECT_LE(x, 0.25);
+    }
+}
+
+TEST(LITstar, ParametersOutsideTheirRangeAreRefused)
+{
+    BoxProblem problem = test::narrowPassage(2, 1e-3);
+    LITstar planner(problem.si);
+    for (const double factor : {0.0, -1.0, 1e300, std::numeric_limits<double>::infinity(),
+                                std::numeric_limits<double>::quiet_NaN()})
+        EXPECT_THROW(planner.setRewireFactor(factor), ompl::Exception) << factor;
+    planner.setRewireFactor(0.5);
+    EXPECT_DOUBLE_EQ(planner.getRewireFactor(), 0.5);
+    EXPECT_THROW(FixedPolicy(0), std::invalid_argument);
+    EXPECT_THROW(FixedPolicy(-5), std::invalid_argument);
+    EXPECT_THROW(FixedPolicy(100, std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);
+    EXPECT_THROW(FixedPolicy(100, 0.0), std::invalid_argument);
+}
+
+TEST(LITstar, AFixedPolicysNeighbourFactorIsUsed)
+{
+    // FixedPolicy(B, psi_K) ignored psi_K: the planner used e whatever it said.
+    BoxProblem problem = test::narrowPassage(4, 1e-3);
+    auto planner = std::make_shared<LITstar>(problem.si);
+    planner->setPolicy(std::make_shared<FixedPolicy>(100, 12.0));
+    planner->setMaxBatches(2u);
+    planner->setProblemDefinition(problem.pdef);
+    planner->solve(ompl::base::plannerNonTerminatingCondition());
+    EXPECT_DOUBLE_EQ(planner->currentNeighbourFactor(), 12.0);
 }
 
 TEST(LITstar, AResolutionTooFineForTheEdgeChecksIsAnError)

@@ -11,6 +11,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
 namespace lit
@@ -107,7 +108,13 @@ namespace lit
             return 100;
         }
 
-        /** \brief Whether psi_K is decided at expansions (false: the planner uses e throughout). */
+        /** \brief psi_K until the first decision, and throughout when decidesNeighbourFactor() is false. */
+        virtual double initialNeighbourFactor() const
+        {
+            return M_E;
+        }
+
+        /** \brief Whether psi_K is decided at expansions (false: initialNeighbourFactor() throughout). */
         virtual bool decidesNeighbourFactor() const
         {
             return true;
@@ -130,10 +137,8 @@ namespace lit
     class FixedPolicy : public ParameterPolicy
     {
     public:
-        explicit FixedPolicy(int batchSize = 100, double neighbourFactor = M_E)
-          : batchSize_(batchSize), neighbourFactor_(neighbourFactor)
-        {
-        }
+        /** \throws std::invalid_argument for a batch size below 1 or a factor that is not a positive number. */
+        explicit FixedPolicy(int batchSize = 100, double neighbourFactor = M_E);
         std::string name() const override
         {
             return "fixed";
@@ -145,6 +150,10 @@ namespace lit
         int initialBatchSize() const override
         {
             return batchSize_;
+        }
+        double initialNeighbourFactor() const override
+        {
+            return neighbourFactor_;
         }
         bool decidesNeighbourFactor() const override
         {
@@ -231,6 +240,15 @@ namespace lit
         std::shared_ptr<const LookupTensor> neighbourTensor_;
         Interpolation interpolation_;
         unsigned int decisionInterval_;
+    };
+
+    /** \brief Thrown by an external policy's callback to end the solve rather than fall back to a fixed value:
+     *  the Python bindings throw it for KeyboardInterrupt and SystemExit (Ctrl-C during a solve was taken for a
+     *  failed answer, and the solve planned on to its budget). */
+    class PolicyAbort : public std::runtime_error
+    {
+    public:
+        using std::runtime_error::runtime_error;
     };
 
     /** \brief Delegates to a callable (the learner in training). Out-of-range answers are clamped; a NaN

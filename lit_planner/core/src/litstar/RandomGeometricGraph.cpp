@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 namespace lit::litstar
 {
@@ -46,9 +47,6 @@ namespace lit::litstar
             si_->freeState(state->raw_);
         states_.clear();
         packed_.clear();
-        for (auto *raw : invalid_)
-            si_->freeState(raw);
-        invalid_.clear();
         packedInvalid_.clear();
         start_ = nullptr;
         goals_.clear();
@@ -68,12 +66,6 @@ namespace lit::litstar
     void RandomGeometricGraph::appendPacked(std::vector<double> &packed, const double *x) const
     {
         packed.insert(packed.end(), x, x + dim_);
-    }
-
-    void RandomGeometricGraph::keepInvalid(ompl::base::State *raw)
-    {
-        invalid_.push_back(raw);
-        appendPacked(packedInvalid_, coordinatesOf(raw));
     }
 
     void RandomGeometricGraph::computeLowerBounds(State *state) const
@@ -110,29 +102,33 @@ namespace lit::litstar
         std::size_t added = 0u;
         std::size_t failures = 0u;
         std::size_t draws = 0u;
+        ompl::base::State *raw = nullptr;  // reused until a valid sample takes it
         while (added < batchSize && failures < 10u)
         {
             if (stop && ++draws % STOP_CHECK_INTERVAL == 0u && stop())
                 break;
-            ompl::base::State *raw = si_->allocState();
+            if (raw == nullptr)
+                raw = si_->allocState();
             if (!sampler_.sample(maxCost, raw))
             {
-                si_->freeState(raw);
                 ++failures;  // the informed set is (numerically) empty inside the bounds
                 continue;
             }
             if (si_->isValid(raw))
             {
                 computeLowerBounds(createState(raw));
+                raw = nullptr;
                 ++added;
                 ++validDraws_;
             }
             else
             {
-                keepInvalid(raw);
+                appendPacked(packedInvalid_, coordinatesOf(raw));
                 ++invalidDraws_;
             }
         }
+        if (raw != nullptr)
+            si_->freeState(raw);
         ++version_;
         return added;
     }
@@ -150,9 +146,9 @@ namespace lit::litstar
 
     void RandomGeometricGraph::addInvalidSample(const std::vector<double> &x)
     {
-        ompl::base::State *raw = si_->allocState();
-        si_->getStateSpace()->copyFromReals(raw, x);
-        keepInvalid(raw);
+        if (x.size() != dim_)
+            throw std::invalid_argument("RandomGeometricGraph: an invalid sample of the wrong dimension");
+        appendPacked(packedInvalid_, x.data());
         ++version_;
     }
 
@@ -219,22 +215,20 @@ namespace lit::litstar
         packed_.clear();
         for (const auto &state : states_)
             appendPacked(packed_, state->coordinates_);
-        std::vector<ompl::base::State *> keptInvalid;
-        keptInvalid.reserve(invalid_.size());
-        for (auto *raw : invalid_)
+        std::size_t out = 0u;  // compacted in place, in order
+        for (std::size_t at = 0u; at < packedInvalid_.size(); at += dim_)
         {
-            if (sampler_.heuristicCost(coordinatesOf(raw)) > maxCost)
+            if (sampler_.heuristicCost(packedInvalid_.data() + at) > maxCost)
             {
-                si_->freeState(raw);
                 ++removed;
+                continue;
             }
-            else
-                keptInvalid.push_back(raw);
+            if (out != at)
+                std::copy_n(packedInvalid_.begin() + static_cast<std::ptrdiff_t>(at), dim_,
+                            packedInvalid_.begin() + static_cast<std::ptrdiff_t>(out));
+            out += dim_;
         }
-        invalid_ = std::move(keptInvalid);
-        packedInvalid_.clear();
-        for (const auto *raw : invalid_)
-            appendPacked(packedInvalid_, coordinatesOf(raw));
+        packedInvalid_.resize(out);
         if (removed > 0u)
         {
             // Incoming lists may hold removed states: they are rebuilt as the samples are asked for their
@@ -390,8 +384,9 @@ namespace lit::litstar
 
     double RandomGeometricGraph::ratioCalc() const
     {
-        const double total = static_cast<double>(states_.size() + invalid_.size());
-        return total > 0.0 ? static_cast<double>(invalid_.size()) / total : 0.0;
+        const double invalid = static_cast<double>(numInvalid());
+        const double total = static_cast<double>(states_.size()) + invalid;
+        return total > 0.0 ? invalid / total : 0.0;
     }
 
     std::size_t RandomGeometricGraph::countWithin(const std::vector<double> &packed, const double *centre,

@@ -141,7 +141,7 @@ namespace lit::litstar
         }
         std::size_t numInvalid() const
         {
-            return invalid_.size();
+            return packedInvalid_.size() / dim_;
         }
         /** \brief Draws rejected by the validity checker since the last clear (kept or later pruned). */
         std::size_t invalidDraws() const
@@ -177,8 +177,6 @@ namespace lit::litstar
         State *createState(ompl::base::State *raw);
         /** \brief Appends a point's dim_ coordinates to a packed array. */
         void appendPacked(std::vector<double> &packed, const double *x) const;
-        /** \brief Adds an (owned) invalid state to invalid_ and its coordinates to packedInvalid_. */
-        void keepInvalid(ompl::base::State *raw);
         void computeLowerBounds(State *state) const;
         /** \brief Whether \e state is among the k nearest that \e owner was last asked for, given that it was
          *  at some point since the last prune. */
@@ -192,10 +190,11 @@ namespace lit::litstar
         ompl::base::SpaceInformationPtr si_;
         InformedSampler sampler_;
         std::vector<std::unique_ptr<State>> states_;
-        std::vector<ompl::base::State *> invalid_;
         /** \brief The valid samples' coordinates, dim_ per sample, in the order of states_ (for linear scans). */
         std::vector<double> packed_;
-        /** \brief The same for invalid_ (for the local ratios). */
+        /** \brief The invalid samples' coordinates, dim_ per sample: all that is kept of them (for the invalid
+         *  ratios and the prune). An OMPL state each, as they used to be kept as well, took about 2.4 times the
+         *  memory in R^16 (an unsolvable query keeps every invalid draw) and two allocations per draw. */
         std::vector<double> packedInvalid_;
         unsigned int dim_;
         /** \brief Incremented by clear(); neighbour caches of an older epoch are recomputed. (A prune filters
