@@ -1025,7 +1025,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         if state.phase == PHASE_K and state.schedule != "joint" and not _finished(state):
             print(
                 f"lit train: the psi_K phase began at episode {state.episodes_per_phase.get(PHASE_B, 0)}"
-                "; the episodes added by this resume train psi_K",
+                "; the rest of the run trains psi_K",
                 file=sys.stderr,
             )
         if args.checkpoint_every is not None:
@@ -1112,7 +1112,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             later.unlink(missing_ok=True)
             state_path(later).unlink(missing_ok=True)
             print(f"lit train: removed {later} (--rollback)", file=sys.stderr)
-    interrupted = False
+    interrupted = broke_off = False
     failure: Exception | None = None
     episode_id: str | None = None
     try:
@@ -1158,9 +1158,10 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                     old.unlink(missing_ok=True)
                     state_path(old).unlink(missing_ok=True)
     except KeyboardInterrupt:
-        # Between queries: the learner is consistent unless Ctrl-C hit a gradient step (lit
-        # train's own handler raises none: it sets STOP_REQUESTED).
-        interrupted = True
+        # lit train's own handler raises none (it sets STOP_REQUESTED); a caller's Ctrl-C in
+        # Python's default handler lands wherever Python is, often inside a query (it now leaves
+        # plan() from the policy callback): that episode's open steps are dropped below.
+        interrupted = broke_off = True
     except Exception as error:  # noqa: BLE001 - saved below, then raised again
         failure = error
     finally:
@@ -1173,7 +1174,18 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         raise failure
     interrupted = interrupted or STOP_REQUESTED.is_set()
     FINISHING.set()
-    final = _checkpoint(core, state, rng, run_dir, "final")
+    final: Path | None = None
+    if broke_off and core.episodes != state.episode:
+        print(
+            f"lit train: interrupted after the learner had closed episode {state.episode}; no "
+            "final checkpoint written (it would not match the metrics): resume the last "
+            "periodic one",
+            file=sys.stderr,
+        )
+    else:
+        if broke_off and episode_id is not None:
+            core.abandon_episode(episode_id)  # its pending steps would pair with its rerun
+        final = _checkpoint(core, state, rng, run_dir, "final")
     curves = plot_training_curves(run_dir / METRICS_FILE, run_dir / CURVES_FILE, HISTOGRAM_BINS)
     record = provenance(state, run_dir)
     (run_dir / PROVENANCE_FILE).write_text(json.dumps(record, indent=2) + "\n")
@@ -1183,7 +1195,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             f"({state.episodes_per_phase}), run folder {run_dir}"
             + (" (interrupted: --resume the final checkpoint to continue)" if interrupted else "")
         ),
-        f"  checkpoint {final}, metrics {run_dir / METRICS_FILE}, curves {curves}",
+        f"  checkpoint {final or 'not written'}, metrics {run_dir / METRICS_FILE}, curves {curves}",
     ]
     if recording is not None:
         lines.append(f"  bag {recording.recorder.path} (lit replay info / tensors)")
@@ -1242,16 +1254,36 @@ def _save_after_failure(
 def _newer_checkpoints(run_dir: Path, episode: int, resumed: Path) -> list[tuple[int, Path]]:
     """(episode, path) of the run's checkpoints past ``episode``, oldest first: the periodic
     ones and the final one (an older final one is left after a crash), ``resumed`` excepted."""
-    newer = [(number, path) for number, path in _periodic_checkpoints(run_dir) if number > episode]
+    newer = []
+    for number, path in _periodic_checkpoints(run_dir):
+        if number <= episode or path.resolve() == resumed.resolve():
+            continue
+        try:
+            DriverState.load(state_path(path))
+        except TrainingError:  # no (readable) driver state: it cannot be resumed
+            continue
+        newer.append((number, path))
     final = run_dir / CHECKPOINT_DIR / "final.ckpt"
     if final.exists() and final.resolve() != resumed.resolve():
         try:
             final_episode = DriverState.load(state_path(final)).episode
         except TrainingError:  # its driver state is gone or damaged: it cannot be resumed
             final_episode = None
-        if final_episode is not None and final_episode > episode:
+        # One past the metrics rows is a final checkpoint of a branch an earlier resume
+        # abandoned (before --rollback, such a resume removed only the periodic ones).
+        rows = _metrics_rows(run_dir)
+        if final_episode is not None and episode < final_episode <= rows:
             newer.append((final_episode, final))
     return sorted(newer)
+
+
+def _metrics_rows(run_dir: Path) -> int:
+    """Episode rows in the run's metrics file (0 without one)."""
+    try:
+        with (run_dir / METRICS_FILE).open(newline="") as handle:
+            return max(0, sum(1 for _ in handle) - 1)
+    except OSError:
+        return 0
 
 
 def _periodic_checkpoints(run_dir: Path) -> list[tuple[int, Path]]:

@@ -423,6 +423,36 @@ def test_ctrl_c_finishes_the_query_then_stops_with_a_final_checkpoint(
     assert state.episode == len(outcomes)
 
 
+def test_ctrl_c_that_leaves_a_query_leaves_a_checkpoint_that_resumes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Python's own Ctrl-C lands wherever Python is: a second one while the first is handled
+    leaves the policy callback and plan(). The final checkpoint held the episode's open steps
+    and its resume failed (the rerun episode has the same id)."""
+    from lit_learner.core import LearnerCore
+
+    original = LearnerCore.decide
+    calls = {"count": 0}
+
+    def decide_interrupted_twice(self: LearnerCore, request: object) -> float:
+        calls["count"] += 1
+        if calls["count"] in (30, 31):
+            raise KeyboardInterrupt
+        return original(self, request)
+
+    monkeypatch.setattr(LearnerCore, "decide", decide_interrupted_twice)
+    run_dir = tmp_path / "run"
+    hooks = train.TrainingHooks(learner_config=small_config())
+    result = train.train(arguments(run_dir, episodes=50, scenarios="np4", no_bag=True), hooks)
+    assert result.interrupted
+    final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
+    done = train.DriverState.load(train.state_path(final)).episode
+    assert LearnerCore.load_checkpoint(final).open_episodes() == set()
+    monkeypatch.setattr(LearnerCore, "decide", original)
+    train.train(arguments(run_dir, episodes=done + 2, resume=final))
+    assert train.DriverState.load(train.state_path(final)).episode == done + 2
+
+
 def test_ctrl_c_exits_with_130(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -48,7 +48,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from lit_planner import ompl2
+from lit_planner import argtypes, ompl2
 from lit_planner.errors import LitPlannerError, ScenarioError
 
 RUNS_FILE = "runs.jsonl"
@@ -122,7 +122,7 @@ class ArenaExport:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``lit arena``."""
-    parser.add_argument("results_dir", metavar="RESULTS_DIR",
+    parser.add_argument("results_dir", metavar="RESULTS_DIR", type=argtypes.path,
                         help=f"a bench run folder holding {RUNS_FILE}")  # fmt: skip
     parser.add_argument("--database", default=DATABASE_NAME,
                         help="database file name inside RESULTS_DIR (default: %(default)s)")  # fmt: skip

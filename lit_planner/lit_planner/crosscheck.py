@@ -42,7 +42,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from lit_planner import ompl2, scenarios
+from lit_planner import argtypes, ompl2, scenarios
 from lit_planner.errors import LitPlannerError
 
 DEFAULT_SCENARIOS = ("np4", "rrd4")
@@ -104,7 +104,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="relative tolerance on the best costs (default: %(default)s)",
     )
     parser.add_argument(
-        "--json", metavar="FILE", help="also write every run and the verdict as JSON"
+        "--json",
+        metavar="FILE",
+        type=argtypes.path,
+        help="also write every run and the verdict as JSON",
     )
 
 

@@ -709,8 +709,10 @@ class PlannerNode:
                     job.error = _stopping_error(job.request_seq, service=job.kind == "service")
                 else:
                     self._run(job)
-            except Exception as exc:  # noqa: BLE001 - reported; the node keeps serving
-                job.error = exc
+            except BaseException as exc:  # noqa: BLE001 - reported; the node keeps serving
+                # BaseException too: a SystemExit from a policy callback now leaves plan(), and
+                # would have ended this worker with the queue unserved.
+                job.error = exc if isinstance(exc, Exception) else RuntimeError(repr(exc))
                 self.log.error(f"{job.kind} query {job.episode_id} failed: {exc!r}")
             finally:
                 with self._queue_lock:

@@ -58,11 +58,11 @@ namespace lit
     // ---------------------------------------------------------------------------------------------- parameters
     void LITstar::setBatchSize(unsigned int batchSize)
     {
-        if (batchSize == 0u)
-            throw ompl::Exception("LITstar: the batch size must be positive");
+        if (batchSize == 0u || batchSize > static_cast<unsigned int>(std::numeric_limits<int>::max()))
+            throw ompl::Exception("LITstar: the batch size must be between 1 and 2^31 - 1");
+        if (policy_ && policy_->name() == "fixed")  // keeps the fixed policy's psi_K
+            policy_ = std::make_shared<FixedPolicy>(static_cast<int>(batchSize), policy_->initialNeighbourFactor());
         fixedBatchSize_ = batchSize;
-        if (policy_ && policy_->name() == "fixed")
-            policy_ = std::make_shared<FixedPolicy>(static_cast<int>(fixedBatchSize_));
     }
     unsigned int LITstar::getBatchSize() const
     {
@@ -91,7 +91,8 @@ namespace lit
     void LITstar::setPolicyName(const std::string &name)
     {
         if (name == "fixed")
-            policy_ = std::make_shared<FixedPolicy>(static_cast<int>(fixedBatchSize_));
+            policy_ = std::make_shared<FixedPolicy>(
+                static_cast<int>(fixedBatchSize_), policy_ && policy_->name() == "fixed" ? policy_->initialNeighbourFactor() : M_E);
         else if (name == "fit")
             policy_ = std::make_shared<FitPolicy>();
         else
@@ -241,24 +242,27 @@ namespace lit
             statusMessage_ = "the start state is missing, out of bounds or in collision";
             return ompl::base::PlannerStatus::INVALID_START;
         }
-        // nextGoal() returns the same scratch state each time: each goal is copied as it is read. A continuous goal
-        // region (OMPL's GoalSpace, say) never runs out of goal samples: it gets the first MAX_GOAL_SAMPLES (the loop
-        // filled memory before the clock started).
+        // nextGoal() returns the same scratch state each time: each goal is copied as it is read. It samples once and
+        // answers null for a sample out of bounds or in collision, so the loop goes on while the goal has samples
+        // left. A goal set is read to its end; a region without end of samples (OMPL's GoalSpace) gives its first
+        // MAX_GOAL_SAMPLES valid ones, in at most 10 times as many draws (reading them all filled memory before the
+        // clock started).
         std::vector<std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>>> owned;
         std::vector<const ompl::base::State *> goals;
-        const std::size_t goalLimit = std::min<std::size_t>(
-            goal->as<ompl::base::GoalSampleableRegion>()->maxSampleCount(), MAX_GOAL_SAMPLES);
-        while (goals.size() < goalLimit)
+        const unsigned int samples = goal->as<ompl::base::GoalSampleableRegion>()->maxSampleCount();
+        const bool endless = samples == std::numeric_limits<unsigned int>::max();
+        const std::size_t goalLimit = endless ? MAX_GOAL_SAMPLES : samples;
+        for (std::size_t draws = 0u; goals.size() < goalLimit && draws < 10u * goalLimit && pis_.haveMoreGoalStates();
+             ++draws)
         {
             const ompl::base::State *g = pis_.nextGoal();
             if (g == nullptr)
-                break;
+                continue;
             owned.emplace_back(si_->cloneState(g), [this](ompl::base::State *state) { si_->freeState(state); });
             goals.push_back(owned.back().get());
         }
-        if (goals.size() == MAX_GOAL_SAMPLES && pis_.haveMoreGoalStates())
-            OMPL_WARN("%s: planning to the first %zu goal samples of the goal region", getName().c_str(),
-                      MAX_GOAL_SAMPLES);
+        if (endless)
+            OMPL_INFORM("%s: planning to %zu goal samples of the goal region", getName().c_str(), goals.size());
         if (goals.empty())
         {
             statusMessage_ = "the goal state is missing, out of bounds or in collision";
@@ -832,7 +836,9 @@ namespace lit
         const double n = static_cast<double>(dimension_);
         const double q = std::max(static_cast<double>(graph_->numValid()), 2.0);
         const double k = std::ceil(rewireFactor_ * neighbourFactor * (1.0 + 1.0 / n) * std::log(q));
-        return static_cast<std::size_t>(std::clamp(k, 1.0, 1e12));  // a cast of a larger double is undefined
+        if (!(k >= 1.0))  // NaN too (a cast of NaN or of a double beyond size_t is undefined)
+            return 1u;
+        return static_cast<std::size_t>(std::min(k, 1e12));
     }
 
     std::vector<const ompl::base::State *> LITstar::bestPathRawStates() const

@@ -413,11 +413,14 @@ TEST(LITstar, EveryGoalOfAGoalSetIsKept)
 TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
 {
     // OMPL's GoalSpace never runs out of goal samples: reading them all filled memory before the clock started.
+    // A quarter of this region is inside the wall (x0 < 0.1): nextGoal() answers null for those samples, which
+    // must not end the reading.
     BoxProblem problem = test::narrowPassage(4, 1e-3);
     auto region = std::make_shared<ompl::base::GoalSpace>(problem.si);
     auto box = std::make_shared<ompl::base::RealVectorStateSpace>(4);
     ompl::base::RealVectorBounds bounds(4);
     bounds.setLow(0.15);
+    bounds.setLow(0, 0.05);
     bounds.setHigh(0.25);
     box->setBounds(bounds);
     region->setSpace(box);
@@ -428,10 +431,11 @@ TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
     EXPECT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
     EXPECT_EQ(planner->graph().goals().size(), LITstar::MAX_GOAL_SAMPLES);
     const auto path = planner->bestPath();
-    for (const double x : path.back())  // it ends in the region
+    EXPECT_GE(path.back()[0], 0.1);  // it ends in the free part of the region
+    for (std::size_t i = 1; i < path.back().size(); ++i)
     {
-        EXPECT_GE(x, 0.15);
-        EXPECT_LE(x, 0.25);
+        EXPECT_GE(path.back()[i], 0.15);
+        EXPECT_LE(path.back()[i], 0.25);
     }
 }
 
@@ -456,10 +460,14 @@ TEST(LITstar, AFixedPolicysNeighbourFactorIsUsed)
     BoxProblem problem = test::narrowPassage(4, 1e-3);
     auto planner = std::make_shared<LITstar>(problem.si);
     planner->setPolicy(std::make_shared<FixedPolicy>(100, 12.0));
+    planner->setBatchSize(50u);  // a new fixed policy with this B: it kept psi_K = e
+    EXPECT_THROW(planner->setBatchSize(3000000000u), ompl::Exception);
+    EXPECT_EQ(planner->getBatchSize(), 50u);  // a refused value is not kept
     planner->setMaxBatches(2u);
     planner->setProblemDefinition(problem.pdef);
     planner->solve(ompl::base::plannerNonTerminatingCondition());
     EXPECT_DOUBLE_EQ(planner->currentNeighbourFactor(), 12.0);
+    EXPECT_EQ(planner->currentBatchSize(), 50u);
 }
 
 TEST(LITstar, AResolutionTooFineForTheEdgeChecksIsAnError)

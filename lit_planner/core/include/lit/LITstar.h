@@ -48,9 +48,9 @@ namespace lit
     class LITstar : public ompl::base::Planner
     {
     public:
-        /** \brief Goal samples taken from a goal region at the start of a problem (a continuous region has no end
-         *  of them; a goal set keeps its first this many states, with a warning). Many goals slow the search down:
-         *  on NP in R^4 with goals drawn in a 0.1-wide box, 30 batches solved with 100 goals and not with 1000. */
+        /** \brief Goal samples taken at the start of a problem from a goal region without end of samples (OMPL's
+         *  GoalSpace; a goal set is read whole). Many goals slow the search down: on NP in R^4 with goals drawn in
+         *  a 0.1-wide box, 30 batches solved with 100 goals and not with 1000. */
         static constexpr std::size_t MAX_GOAL_SAMPLES = 100u;
 
         explicit LITstar(const ompl::base::SpaceInformationPtr &si);
