@@ -885,13 +885,31 @@ def _check_folders(args: argparse.Namespace) -> None:
         problem = write_problem(value)
         if problem is not None:
             raise TrainingError(f"{label} {value}: {problem}")
-    if args.export is not None and Path(args.export).is_dir() and any(Path(args.export).iterdir()):
+    if (
+        args.export is not None
+        and Path(args.export).is_dir()
+        and any(Path(args.export).iterdir())
+        and not _own_export(Path(args.export), args.resume)
+    ):
         # Found now, not after an hour of training; an export never replaces another one (the
         # shipped tensors in tensors/ included) nor mixes with files that describe something else.
         raise TrainingError(
             f"--export {args.export}: exists and is not empty; choose a new or empty folder "
             "(lit train does not overwrite an earlier export)"
         )
+
+
+def _own_export(folder: Path, resume: Path | None) -> bool:
+    """Whether ``folder`` holds an export of the run that ``resume`` continues (an interrupted
+    run exports the state it reached; the resumed run replaces that export)."""
+    if resume is None:
+        return False
+    try:
+        record = json.loads((folder / PROVENANCE_FILE).read_text(encoding="utf-8"))
+        exported_from = Path(record["run_folder"]).resolve()
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+    return exported_from == Path(resume).resolve().parent.parent
 
 
 def agent_range(agent_config: Any, fallback: tuple[float, float]) -> tuple[float, float]:

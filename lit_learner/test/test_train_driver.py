@@ -589,6 +589,18 @@ def test_export_into_the_run_folder_is_refused_and_an_export_records_no_bag(
     result = train.train(arguments(run_dir, resume=final, export=tmp_path / "tensors"))
     assert "bag" not in result.summary
     assert sorted(path.name for path in tmp_path.iterdir()) == sorted([*before, "tensors"])
+    # A resume may replace its own run's export (an interrupted run exports what it reached),
+    # never another run's.
+    train.train(arguments(run_dir, resume=final, episodes=2, export=tmp_path / "tensors"))
+    provenance = json.loads((tmp_path / "tensors" / train.PROVENANCE_FILE).read_text())
+    assert provenance["episodes"] == 2
+    other = tmp_path / "other"
+    train.train(arguments(other, episodes=1, scenarios="np4", no_bag=True), hooks)
+    with pytest.raises(train.TrainingError, match="exists and is not empty"):
+        train.train(
+            arguments(other, resume=other / train.CHECKPOINT_DIR / "final.ckpt",
+                      export=tmp_path / "tensors", no_bag=True)
+        )  # fmt: skip
 
 
 def test_a_checkpoint_and_driver_state_of_different_writes_are_refused(tmp_path: Path) -> None:

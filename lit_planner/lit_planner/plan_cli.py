@@ -191,11 +191,14 @@ def summary_lines(result: Mapping[str, Any], scenario: Scenario) -> list[str]:
     counters = result["counters"]
     policy = f" (policy {result['policy']})" if result.get("policy") else ""
     budget = result.get("time_budget")
+    status = result["status"]
+    if status == "timeout" and not budget:  # OMPL's name for any stop: here a count limit
+        status = "stopped at the iteration or batch limit"
     lines = [
         f"scenario   {scenario.key}: {scenario.description}",
         f"planner    {result['planner']}{policy}, seed {result['seed']}, "
         + (f"budget {_duration(budget)}" if budget else "no time limit"),
-        f"status     {result['status']}: {'solved' if result['solved'] else 'not solved'}"
+        f"status     {status}: {'solved' if result['solved'] else 'not solved'}"
         + (f" ({result['message']})" if result.get("message") else ""),
     ]
     if result["improvements"]:
