@@ -138,6 +138,23 @@ def test_same_seed_same_result() -> None:
     assert other["path"] != runs[0]["path"]
 
 
+@pytest.mark.parametrize("policy", ["fixed", "fit", "tensor"])
+def test_a_free_straight_line_is_the_first_solution(policy: str) -> None:
+    """In an empty R^16 world LIT* stayed at 2.55 for its whole budget (the start was never among
+    the goal's k nearest) while BIT* and AIT* returned the straight line, 2.0, at once: it now
+    checks the start-goal line before its first batch, as they do. A blocked line is black-listed
+    and the search goes on as before (NP: the same first solution)."""
+    from lit_planner import scenarios
+
+    free = scenarios.custom([-0.5] * 16, [0.5] * 16, [], [-0.1] * 16, [0.4] * 16)
+    result = plan(free, policy=policy, time=1.0, seed=3000)
+    assert result["cost"] == pytest.approx(2.0, rel=1e-12) and result["path_check"]["valid"]
+    assert result["counters"]["iterations"] == 1 and result["counters"]["batches"] == 0
+    assert len(result["path"]) == 2
+    blocked = plan("np8", policy=policy, max_iterations=3000, seed=7)
+    assert blocked["counters"]["edges_invalid"] >= 1 and blocked["c_init"] > 0.4236
+
+
 def test_a_batch_prunes_only_after_a_new_solution() -> None:
     """A prune with the cost unchanged removes nothing and rebuilt the sample arrays every batch
     (67 % of np16's planning time once the search stalled)."""

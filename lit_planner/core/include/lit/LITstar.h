@@ -145,6 +145,10 @@ namespace lit
         void forwardStep();
         /** \brief Prune, sample a batch of B valid states, restart the reverse search, re-seed the forward queue. */
         void improveApproximation();
+        /** \brief Before the first batch: the straight line from the start to each goal, checked in full (the
+         *  first search of OMPL's BIT*, AIT* and EIT*, over a graph of the start and the goals alone). A free one is
+         *  a solution (the optimum, for the nearest goal); a blocked one is black-listed. */
+        void connectTerminals();
         void restartReverseSearch();
         void expandReverse(litstar::State *state);
         void expandForward(litstar::State *state);
