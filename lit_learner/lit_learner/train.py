@@ -579,7 +579,7 @@ def provenance(state: DriverState, run_dir: Path) -> dict[str, Any]:
     return {
         "command": shlex.join(state.command),
         "resumed_with": [shlex.join(command) for command in state.resumed_with],
-        "run_folder": str(run_dir),
+        "run_folder": str(run_dir.resolve()),
         "run_id": state.run_id,
         "git_commit": git_commit(),
         "started_utc": state.started_utc,
@@ -895,7 +895,7 @@ def _check_folders(args: argparse.Namespace) -> None:
         # shipped tensors in tensors/ included) nor mixes with files that describe something else.
         raise TrainingError(
             f"--export {args.export}: exists and is not empty; choose a new or empty folder "
-            "(lit train does not overwrite an earlier export)"
+            "(lit train overwrites only an earlier export of the run it resumes)"
         )
 
 
@@ -906,10 +906,13 @@ def _own_export(folder: Path, resume: Path | None) -> bool:
         return False
     try:
         record = json.loads((folder / PROVENANCE_FILE).read_text(encoding="utf-8"))
-        exported_from = Path(record["run_folder"]).resolve()
-    except (OSError, ValueError, KeyError, TypeError):
+        exported_by = record["run_id"]
+        resumed = DriverState.load(state_path(Path(resume))).run_id
+    except (OSError, ValueError, KeyError, TypeError, TrainingError):
         return False
-    return exported_from == Path(resume).resolve().parent.parent
+    # The run id, not the run folder: a relative run folder (runs/train-...) named another run's
+    # when resolved from another directory (the shipped tensors' among them).
+    return isinstance(exported_by, str) and exported_by == resumed
 
 
 def agent_range(agent_config: Any, fallback: tuple[float, float]) -> tuple[float, float]:
@@ -983,6 +986,13 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 "whole run folder"
             )
         state = DriverState.load(state_path(checkpoint))
+        rows = _metrics_rows(run_dir)
+        if state.episode > rows:
+            raise TrainingError(
+                f"--resume {checkpoint}: it holds {state.episode} episodes and {METRICS_FILE} "
+                f"{rows} rows: a checkpoint of a history an earlier resume went back from; resume "
+                "one of the run's periodic checkpoints"
+            )
         newer = _newer_checkpoints(run_dir, state.episode, checkpoint)
         if newer and not args.rollback:
             episode, path = newer[-1]
@@ -1130,6 +1140,11 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             later.unlink(missing_ok=True)
             state_path(later).unlink(missing_ok=True)
             print(f"lit train: removed {later} (--rollback)", file=sys.stderr)
+        stale = _stale_final(run_dir, state.episode, Path(args.resume))
+        if stale is not None:  # of a history an earlier resume went back from
+            stale.unlink(missing_ok=True)
+            state_path(stale).unlink(missing_ok=True)
+            print(f"lit train: removed {stale} (past the metrics rows)", file=sys.stderr)
     interrupted = broke_off = False
     failure: Exception | None = None
     episode_id: str | None = None
@@ -1159,10 +1174,10 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 effort_clock=state.effort_clock,
                 limit_terminates=state.limit_terminates,
             )
-            state.episode += 1
+            log.append(_row(outcome, core, ranges))  # first: an interrupt between the two
+            state.episode += 1  # leaves a row to drop, never a counted episode without its row
             state.elapsed = time.perf_counter() - session_start
             state.episodes_per_phase[phase] = state.episodes_per_phase.get(phase, 0) + 1
-            log.append(_row(outcome, core, ranges))
             if hooks.on_episode is not None:
                 hooks.on_episode(outcome)
             _advance(progress, state, outcome)
@@ -1211,13 +1226,23 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         (
             f"lit train: {state.episode} episodes in {state.elapsed / 60:.1f} min "
             f"({state.episodes_per_phase}), run folder {run_dir}"
-            + (" (interrupted: --resume the final checkpoint to continue)" if interrupted else "")
+            + (
+                (
+                    " (interrupted: --resume the final checkpoint to continue)"
+                    if final is not None
+                    else " (interrupted: --resume the last periodic checkpoint to continue)"
+                )
+                if interrupted
+                else ""
+            )
         ),
         f"  checkpoint {final or 'not written'}, metrics {run_dir / METRICS_FILE}, curves {curves}",
     ]
     if recording is not None:
         lines.append(f"  bag {recording.recorder.path} (lit replay info / tensors)")
-    if args.export is not None:
+    if args.export is not None and final is None:
+        lines.append(f"  not exported to {args.export}: the learner's state matches no checkpoint")
+    elif args.export is not None:
         replaced = [  # written there by something else while this run trained
             name for name in planning.TENSOR_FILES.values() if (Path(args.export) / name).exists()
         ]
@@ -1293,6 +1318,19 @@ def _newer_checkpoints(run_dir: Path, episode: int, resumed: Path) -> list[tuple
         if final_episode is not None and episode < final_episode <= rows:
             newer.append((final_episode, final))
     return sorted(newer)
+
+
+def _stale_final(run_dir: Path, episode: int, resumed: Path) -> Path | None:
+    """The run's final checkpoint if it lies past ``episode`` and past the metrics rows (left by
+    a resume, before --rollback, that went back to an earlier checkpoint); None otherwise."""
+    final = run_dir / CHECKPOINT_DIR / "final.ckpt"
+    if not final.exists() or final.resolve() == resumed.resolve():
+        return None
+    try:
+        final_episode = DriverState.load(state_path(final)).episode
+    except TrainingError:
+        return None
+    return final if final_episode > max(episode, _metrics_rows(run_dir)) else None
 
 
 def _metrics_rows(run_dir: Path) -> int:

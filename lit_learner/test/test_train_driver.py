@@ -544,6 +544,28 @@ def test_an_earlier_export_is_refused_before_training_and_a_run_exports_without_
     assert planning.make_policy("tensor", export_dir) is not None
 
 
+def test_a_final_checkpoint_past_the_metrics_rows_is_not_resumed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A resume that went back to an earlier checkpoint (before --rollback) left final.ckpt of
+    the abandoned history: resuming it would continue that history beside the new rows."""
+    run_dir = tmp_path / "run"
+    hooks = train.TrainingHooks(learner_config=small_config())
+    train.train(
+        arguments(run_dir, episodes=6, scenarios="np4", checkpoint_every=3, no_bag=True), hooks
+    )
+    metrics = run_dir / METRICS_FILE
+    metrics.write_text("".join(metrics.read_text().splitlines(keepends=True)[:5]))  # 4 rows
+    final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
+    with pytest.raises(train.TrainingError, match="holds 6 episodes and metrics.csv 4 rows"):
+        train.train(arguments(run_dir, episodes=8, resume=final))
+    earlier = run_dir / train.CHECKPOINT_DIR / "episode-0000003.ckpt"
+    train.train(arguments(run_dir, episodes=5, resume=earlier, rollback=True, no_bag=True))
+    err = capsys.readouterr().err
+    assert "episode-0000006.ckpt (--rollback)" in err and "(past the metrics rows)" in err
+    assert train.DriverState.load(train.state_path(final)).episode == 5
+
+
 def test_an_error_in_an_episode_saves_the_episodes_before_it(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

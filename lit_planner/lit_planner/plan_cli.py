@@ -192,8 +192,9 @@ def summary_lines(result: Mapping[str, Any], scenario: Scenario) -> list[str]:
     policy = f" (policy {result['policy']})" if result.get("policy") else ""
     budget = result.get("time_budget")
     status = result["status"]
-    if status == "timeout" and not budget:  # OMPL's name for any stop: here a count limit
-        status = "stopped at the iteration or batch limit"
+    if status == "timeout" and (not budget or result["time"] < budget):
+        # OMPL's name for any stop: here a count limit (or a cancel) before the time budget
+        status = "stopped before the time budget (iteration or batch limit)"
     lines = [
         f"scenario   {scenario.key}: {scenario.description}",
         f"planner    {result['planner']}{policy}, seed {result['seed']}, "

@@ -99,9 +99,12 @@ def test_plan_summary_is_readable() -> None:
     assert "independent re-check passed" in process.stdout
     assert "optimum 0.6308" in process.stdout
     # OMPL calls every stop a timeout; with no time limit it was the iteration limit.
-    process = lit("plan", "--scenario", "np4", "--iterations", "1")
-    assert process.returncode == 1, process.stderr
-    assert "stopped at the iteration or batch limit: not solved" in process.stdout
+    for limits in (["--iterations", "1"], ["--iterations", "1", "--time", "5"]):
+        process = lit("plan", "--scenario", "np4", *limits)
+        assert process.returncode == 1, process.stderr
+        assert "stopped before the time budget (iteration or batch limit): not solved" in (
+            process.stdout
+        )
 
 
 @pytest.mark.parametrize(

@@ -249,9 +249,11 @@ namespace lit
         // clock started).
         std::vector<std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>>> owned;
         std::vector<const ompl::base::State *> goals;
-        const unsigned int samples = goal->as<ompl::base::GoalSampleableRegion>()->maxSampleCount();
-        const bool endless = samples == std::numeric_limits<unsigned int>::max();
-        const std::size_t goalLimit = endless ? MAX_GOAL_SAMPLES : samples;
+        // A goal set (GoalStates, GoalLazySamples) is read whole; any other region is capped (its sample count is
+        // unbounded or as large as the region says).
+        const bool goalSet = goal->hasType(ompl::base::GOAL_STATES);
+        const std::size_t samples = goal->as<ompl::base::GoalSampleableRegion>()->maxSampleCount();
+        const std::size_t goalLimit = goalSet ? samples : std::min(samples, MAX_GOAL_SAMPLES);
         for (std::size_t draws = 0u; goals.size() < goalLimit && draws < 10u * goalLimit && pis_.haveMoreGoalStates();
              ++draws)
         {
@@ -261,7 +263,7 @@ namespace lit
             owned.emplace_back(si_->cloneState(g), [this](ompl::base::State *state) { si_->freeState(state); });
             goals.push_back(owned.back().get());
         }
-        if (endless)
+        if (!goalSet)
             OMPL_INFORM("%s: planning to %zu goal samples of the goal region", getName().c_str(), goals.size());
         if (goals.empty())
         {
@@ -743,11 +745,18 @@ namespace lit
     {
         // In an empty R^16 world the start was never among the goal's k nearest: LIT* stayed 28 % above the straight
         // line for its whole budget while BIT* and AIT* returned it at once. A blocked line usually fails at its
-        // first checks (bisection order: the midpoint first).
+        // first checks (bisection order: the midpoint first). Nearest goal first: the first free line is the best.
         State *start = graph_->start();
-        for (State *goal : graph_->goals())
+        std::vector<State *> goals = graph_->goals();
+        std::stable_sort(goals.begin(), goals.end(), [&](const State *a, const State *b) {
+            return graph_->distance(start, a) < graph_->distance(start, b);
+        });
+        for (State *goal : goals)
         {
-            if (isBlacklisted(start, goal))
+            const double cost = graph_->distance(start, goal);
+            if (cost >= bestCost_ || shouldStop())
+                break;
+            if (isBlacklisted(start, goal) || isWhitelisted(start, goal))
                 continue;
             ++counters_.edgesEvaluated;
             if (!checkEdge(start, goal, fullCheck))
@@ -755,9 +764,9 @@ namespace lit
                 blacklist(start, goal);
                 continue;
             }
-            const double cost = graph_->distance(start, goal);
             if (cost < goal->costToCome_)
                 rewire(start, goal, cost);
+            break;
         }
         checkForImprovedSolution();
     }
