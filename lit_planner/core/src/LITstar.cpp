@@ -249,9 +249,9 @@ namespace lit
         // clock started).
         std::vector<std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>>> owned;
         std::vector<const ompl::base::State *> goals;
-        // A goal set (GoalStates, GoalLazySamples) is read whole; any other region is capped (its sample count is
-        // unbounded or as large as the region says).
-        const bool goalSet = goal->hasType(ompl::base::GOAL_STATES);
+        // A goal state or goal set (GoalState, GoalStates, GoalLazySamples) is read whole; any other region is
+        // capped (its sample count is unbounded or as large as the region says).
+        const bool goalSet = goal->hasType(ompl::base::GOAL_STATE) || goal->hasType(ompl::base::GOAL_STATES);
         const std::size_t samples = goal->as<ompl::base::GoalSampleableRegion>()->maxSampleCount();
         const std::size_t goalLimit = goalSet ? samples : std::min(samples, MAX_GOAL_SAMPLES);
         for (std::size_t draws = 0u; goals.size() < goalLimit && draws < 10u * goalLimit && pis_.haveMoreGoalStates();
