@@ -35,7 +35,8 @@ EXIT_UNSOLVED = 1
 EXIT_BAD_INPUT = 2
 """The query could not be set up; nothing was planned."""
 EXIT_PATH_INVALID = 3
-"""The planner found a solution whose path failed the independent re-check (as ``lit call``)."""
+"""The planner found a solution whose path failed the independent re-check (``path_check.ok``
+false, as ``lit call``'s ``path_valid``)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -134,7 +135,9 @@ def run(args: argparse.Namespace) -> int:
     if not result["solved"]:
         return EXIT_UNSOLVED
     check = result.get("path_check")
-    return EXIT_PATH_INVALID if check is not None and not check["valid"] else EXIT_SOLVED
+    # ok, as the summary's verdict and the planner node's path_valid: also a path that does not
+    # start at the start or end at the goal (valid covers collisions only).
+    return EXIT_PATH_INVALID if check is not None and not check["ok"] else EXIT_SOLVED
 
 
 def _plan_interruptibly(*args: Any, **kwargs: Any) -> dict[str, Any]:

@@ -107,6 +107,30 @@ def test_plan_summary_is_readable() -> None:
         )
 
 
+def test_a_path_that_fails_the_recheck_exits_3(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Exit 3 followed path_check.valid (collisions only) while the summary's verdict and the
+    node's path_valid follow ok: a path not ending at the goal printed FAILED and exited 0."""
+    import argparse
+
+    from lit_planner import plan_cli
+
+    real = plan_cli._plan_interruptibly
+
+    def not_at_the_goal(*args: Any, **kwargs: Any) -> dict[str, Any]:
+        result = real(*args, **kwargs)
+        result["path_check"] = {**result["path_check"], "ok": False, "ends_at_goal": False}
+        return result
+
+    monkeypatch.setattr(plan_cli, "_plan_interruptibly", not_at_the_goal)
+    parser = argparse.ArgumentParser()
+    plan_cli.add_arguments(parser)
+    args = parser.parse_args(["--scenario", "np4", "--iterations", "2000"])
+    assert plan_cli.run(args) == plan_cli.EXIT_PATH_INVALID
+    assert "FAILED" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
