@@ -25,6 +25,7 @@ decide and learn in every episode.
 from __future__ import annotations
 
 import argparse
+import csv
 import dataclasses
 import json
 import math
@@ -1306,38 +1307,40 @@ def _newer_checkpoints(run_dir: Path, episode: int, resumed: Path) -> list[tuple
         except TrainingError:  # no (readable) driver state: it cannot be resumed
             continue
         newer.append((number, path))
-    final = run_dir / CHECKPOINT_DIR / "final.ckpt"
-    if final.exists() and final.resolve() != resumed.resolve():
-        try:
-            final_episode = DriverState.load(state_path(final)).episode
-        except TrainingError:  # its driver state is gone or damaged: it cannot be resumed
-            final_episode = None
-        # One past the metrics rows is a final checkpoint of a branch an earlier resume
-        # abandoned (before --rollback, such a resume removed only the periodic ones).
-        rows = _metrics_rows(run_dir)
-        if final_episode is not None and episode < final_episode <= rows:
-            newer.append((final_episode, final))
+    final = _final_checkpoint(run_dir, resumed)
+    # One past the metrics rows is a final checkpoint of a branch an earlier resume abandoned
+    # (before --rollback, such a resume removed only the periodic ones): see _stale_final.
+    if final is not None and episode < final[0] <= _metrics_rows(run_dir):
+        newer.append(final)
     return sorted(newer)
 
 
 def _stale_final(run_dir: Path, episode: int, resumed: Path) -> Path | None:
     """The run's final checkpoint if it lies past ``episode`` and past the metrics rows (left by
     a resume, before --rollback, that went back to an earlier checkpoint); None otherwise."""
+    final = _final_checkpoint(run_dir, resumed)
+    if final is None or final[0] <= max(episode, _metrics_rows(run_dir)):
+        return None
+    return final[1]
+
+
+def _final_checkpoint(run_dir: Path, resumed: Path) -> tuple[int, Path] | None:
+    """(episode, path) of the run's final checkpoint, unless it is ``resumed`` or its driver
+    state is gone or damaged (it cannot be resumed then)."""
     final = run_dir / CHECKPOINT_DIR / "final.ckpt"
     if not final.exists() or final.resolve() == resumed.resolve():
         return None
     try:
-        final_episode = DriverState.load(state_path(final)).episode
+        return DriverState.load(state_path(final)).episode, final
     except TrainingError:
         return None
-    return final if final_episode > max(episode, _metrics_rows(run_dir)) else None
 
 
 def _metrics_rows(run_dir: Path) -> int:
-    """Episode rows in the run's metrics file (0 without one)."""
+    """Episode rows in the run's metrics file (0 without one), read as MetricsLog reads it."""
     try:
         with (run_dir / METRICS_FILE).open(newline="") as handle:
-            return max(0, sum(1 for _ in handle) - 1)
+            return sum(1 for _ in csv.DictReader(handle))
     except OSError:
         return 0
 

@@ -60,9 +60,15 @@ namespace lit
     {
         if (batchSize == 0u || batchSize > static_cast<unsigned int>(std::numeric_limits<int>::max()))
             throw ompl::Exception("LITstar: the batch size must be between 1 and 2^31 - 1");
-        if (policy_ && policy_->name() == "fixed")  // keeps the fixed policy's psi_K
-            policy_ = std::make_shared<FixedPolicy>(static_cast<int>(batchSize), policy_->initialNeighbourFactor());
+        if (policy_ && policy_->name() == "fixed")
+            policy_ = fixedPolicy(batchSize);
         fixedBatchSize_ = batchSize;
+    }
+    ParameterPolicyPtr LITstar::fixedPolicy(unsigned int batchSize) const
+    {
+        // A fixed policy set before keeps its psi_K (setBatchSize used to reset it to e).
+        const double psi = policy_ && policy_->name() == "fixed" ? policy_->initialNeighbourFactor() : M_E;
+        return std::make_shared<FixedPolicy>(static_cast<int>(batchSize), psi);
     }
     unsigned int LITstar::getBatchSize() const
     {
@@ -91,8 +97,7 @@ namespace lit
     void LITstar::setPolicyName(const std::string &name)
     {
         if (name == "fixed")
-            policy_ = std::make_shared<FixedPolicy>(
-                static_cast<int>(fixedBatchSize_), policy_ && policy_->name() == "fixed" ? policy_->initialNeighbourFactor() : M_E);
+            policy_ = fixedPolicy(fixedBatchSize_);
         else if (name == "fit")
             policy_ = std::make_shared<FitPolicy>();
         else
@@ -244,13 +249,11 @@ namespace lit
         }
         // nextGoal() returns the same scratch state each time: each goal is copied as it is read. It samples once and
         // answers null for a sample out of bounds or in collision, so the loop goes on while the goal has samples
-        // left. A goal set is read to its end; a region without end of samples (OMPL's GoalSpace) gives its first
-        // MAX_GOAL_SAMPLES valid ones, in at most 10 times as many draws (reading them all filled memory before the
-        // clock started).
+        // left. A goal state or set is read to its end; any other region (OMPL's GoalSpace, whose samples never
+        // end) gives at most MAX_GOAL_SAMPLES valid ones, in at most 10 times as many draws (reading them all filled
+        // memory before the clock started).
         std::vector<std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>>> owned;
         std::vector<const ompl::base::State *> goals;
-        // A goal state or goal set (GoalState, GoalStates, GoalLazySamples) is read whole; any other region is
-        // capped (its sample count is unbounded or as large as the region says).
         const bool goalSet = goal->hasType(ompl::base::GOAL_STATE) || goal->hasType(ompl::base::GOAL_STATES);
         const std::size_t samples = goal->as<ompl::base::GoalSampleableRegion>()->maxSampleCount();
         const std::size_t goalLimit = goalSet ? samples : std::min(samples, MAX_GOAL_SAMPLES);

@@ -48,8 +48,8 @@ namespace lit
     class LITstar : public ompl::base::Planner
     {
     public:
-        /** \brief Goal samples taken at the start of a problem from a goal region without end of samples (OMPL's
-         *  GoalSpace; a goal set is read whole). Many goals slow the search down: on NP in R^4 with goals drawn in
+        /** \brief Goal samples taken at the start of a problem from a goal region other than a goal state or set
+         *  (OMPL's GoalSpace, say; a goal set is read whole). Many goals slow the search down: on NP in R^4 with goals drawn in
          *  a 0.1-wide box, 30 batches solved with 100 goals and not with 1000. */
         static constexpr std::size_t MAX_GOAL_SAMPLES = 100u;
 
@@ -145,10 +145,12 @@ namespace lit
         void forwardStep();
         /** \brief Prune, sample a batch of B valid states, restart the reverse search, re-seed the forward queue. */
         void improveApproximation();
-        /** \brief Before the first batch: the straight line from the start to each goal, checked in full (the
-         *  first search of OMPL's BIT*, AIT* and EIT*, over a graph of the start and the goals alone). A free one is
-         *  a solution (the optimum, for the nearest goal); a blocked one is black-listed. */
+        /** \brief Before the first batch: the straight lines from the start to the goals, nearest goal first, each
+         *  checked in full, up to the first free one (the first search of BIT*, AIT* and EIT*, over a graph of the
+         *  start and the goals alone). A free line is a solution; a blocked one is black-listed. */
         void connectTerminals();
+        /** \brief A fixed policy of batch size \e batchSize, with the current fixed policy's psi_K if there is one. */
+        ParameterPolicyPtr fixedPolicy(unsigned int batchSize) const;
         void restartReverseSearch();
         void expandReverse(litstar::State *state);
         void expandForward(litstar::State *state);

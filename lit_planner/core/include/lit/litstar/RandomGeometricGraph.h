@@ -193,8 +193,8 @@ namespace lit::litstar
         /** \brief The valid samples' coordinates, dim_ per sample, in the order of states_ (for linear scans). */
         std::vector<double> packed_;
         /** \brief The invalid samples' coordinates, dim_ per sample: all that is kept of them (for the invalid
-         *  ratios and the prune). An OMPL state each, as they used to be kept as well, took about 2.4 times the
-         *  memory in R^16 (an unsolvable query keeps every invalid draw) and two allocations per draw. */
+         *  ratios and the prune). An OMPL state each, as they used to be kept as well, took about 190 more bytes per
+         *  sample in R^16 (an unsolvable query keeps every invalid draw) and two allocations per draw. */
         std::vector<double> packedInvalid_;
         unsigned int dim_;
         /** \brief Incremented by clear(); neighbour caches of an older epoch are recomputed. (A prune filters
