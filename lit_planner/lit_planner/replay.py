@@ -258,9 +258,10 @@ class BagReader:
                 f"file is damaged, recover it with `lit replay salvage {self.path}`"
             ) from None
         try:
-            self.facts = self._facts()
+            summaries = _mcap_summaries(self.path)
+            self.facts = self._facts(summaries)
             """Its metadata."""
-            mismatch = _metadata_mismatch(self.path, self.facts)
+            mismatch = _metadata_mismatch(self.path, self.facts, summaries)
             if mismatch:
                 # rosbags reads the topics metadata.yaml lists: the others' messages would be
                 # left out without a word.
@@ -317,7 +318,7 @@ class BagReader:
             read += 1
             yield item
 
-    def _facts(self) -> BagFacts:
+    def _facts(self, summaries: Sequence[Any]) -> BagFacts:
         reader = self._reader
         meta = getattr(reader.storage, "metadata", None)
         custom = dict(getattr(meta, "custom", None) or {})
@@ -332,7 +333,7 @@ class BagReader:
             storage = "mcap"
         compression = " ".join(
             filter(None, (reader.compression_mode or "", reader.compression_format or ""))
-        ) or _chunk_compression(self.path)
+        ) or _chunk_compression(summaries)
         topics = [
             TopicSummary(topic, info.msgtype or "?", info.msgcount)
             for topic, info in sorted(reader.topics.items())
@@ -349,12 +350,11 @@ class BagReader:
         )
 
 
-def _metadata_mismatch(path: Path, facts: BagFacts) -> str | None:
+def _metadata_mismatch(path: Path, facts: BagFacts, summaries: Sequence[Any]) -> str | None:
     """How a bag folder's ``metadata.yaml`` disagrees with the message counts in its MCAP files'
     summaries (a topic it leaves out, a count it misstates), in words; None when they agree, for
-    an ``.mcap`` file given alone, or when a file has no summary statistics to compare with."""
-    from mcap.reader import make_reader
-
+    an ``.mcap`` file given alone, or when a file has no summary statistics to compare with.
+    ``summaries`` are the :func:`_mcap_summaries` of ``path``."""
     if not path.is_dir():
         return None
     listed = load_metadata(path / "metadata.yaml").get("relative_file_paths") or []
@@ -363,11 +363,8 @@ def _metadata_mismatch(path: Path, facts: BagFacts) -> str | None:
         if file.name not in listed_files:
             return f"{file.name} is in the folder, not in the files it lists"
     in_files: dict[str, int] = {}
-    for file in sorted(path.glob("*.mcap")):
-        try:
-            with file.open("rb") as handle:
-                summary = make_reader(handle).get_summary()
-        except Exception:  # noqa: BLE001 -- damage: the reader reports it when it gets there
+    for summary in summaries:
+        if isinstance(summary, Exception):  # damage: the reader reports it when it gets there
             return None
         if summary is None or summary.statistics is None:
             return None
@@ -434,19 +431,29 @@ def _not_ros2(path: Path) -> str | None:
     )
 
 
-def _chunk_compression(path: Path) -> str:
-    """The MCAP chunk compression of a bag's files ("chunks zstd"), which rosbag2's metadata does
-    not record; "" when uncompressed or unknown."""
+def _mcap_summaries(path: Path) -> list[Any]:
+    """The MCAP summary of each MCAP file of a bag (a folder's in name order, or the file given),
+    read once for every check that needs one: None for a file without one, the exception for a
+    file that cannot be read."""
     from mcap.reader import make_reader
 
-    found: set[str] = set()
+    found: list[Any] = []
     for file in sorted(path.glob("*.mcap")) if path.is_dir() else [path]:
         try:
             with file.open("rb") as handle:
-                summary = make_reader(handle).get_summary()
-        except Exception:  # noqa: BLE001, S112 -- a damaged file: the reader reports it elsewhere
-            continue
-        if summary is not None:
+                found.append(make_reader(handle).get_summary())
+        except Exception as error:  # noqa: BLE001 -- damaged files raise anything
+            found.append(error)
+    return found
+
+
+def _chunk_compression(summaries: Sequence[Any]) -> str:
+    """The MCAP chunk compression of a bag's files ("chunks zstd") from their
+    :func:`_mcap_summaries`, which rosbag2's metadata does not record; "" when uncompressed or
+    unknown (a damaged file: the reader reports it elsewhere)."""
+    found: set[str] = set()
+    for summary in summaries:
+        if summary is not None and not isinstance(summary, Exception):
             found.update(index.compression for index in summary.chunk_indexes if index.compression)
     return f"chunks {', '.join(sorted(found))}" if found else ""
 
