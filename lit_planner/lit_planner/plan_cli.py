@@ -222,7 +222,9 @@ def summary_lines(result: Mapping[str, Any], scenario: Scenario) -> list[str]:
             f"{counters['pruned_samples']} pruned, in {counters['batches']} batches"
         )
         edges = (
-            f"{counters['edges_evaluated']} evaluated, {counters['edges_invalid']} found invalid"
+            f"{counters['edges_evaluated']} fully checked by the forward search, "
+            f"{counters.get('edges_sparsely_checked', 0)} sparsely by the reverse search, "
+            f"{counters['edges_invalid']} found invalid"
         )
         lines += [f"samples    {samples}", f"edges      {edges}"]
     checks = f"checks     {counters['validity_checks']} collision checks"

@@ -209,7 +209,7 @@ def test_demo_solves_the_default_scenario(tmp_path: Path) -> None:
     assert "solved" in process.stdout
     assert scenarios.get(scenarios.DEFAULT_SCENARIO).description in process.stdout
     for words in ("t_init", "c_init", "ratio", "improvement", "batches", "collision checks",
-                  "evaluated", "re-check passed"):  # fmt: skip
+                  "fully checked by the forward search", "re-check passed"):  # fmt: skip
         assert words in process.stdout
 
 
