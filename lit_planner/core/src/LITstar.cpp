@@ -247,27 +247,44 @@ namespace lit
             statusMessage_ = "the start state is missing, out of bounds or in collision";
             return ompl::base::PlannerStatus::INVALID_START;
         }
-        // nextGoal() returns the same scratch state each time: each goal is copied as it is read. It samples once and
-        // answers null for a sample out of bounds or in collision, so the loop goes on while the goal has samples
-        // left. A goal state or set is read to its end; any other region (OMPL's GoalSpace, whose samples never
-        // end) gives at most MAX_GOAL_SAMPLES valid ones, in at most 10 times as many draws (reading them all filled
-        // memory before the clock started).
+        // A goal state or set is read to its end through PlannerInputStates: nextGoal() answers null (with OMPL's
+        // warning, once per state) for a goal out of bounds or in collision. Any other region (OMPL's GoalSpace,
+        // whose samples never end) is sampled here: at most MAX_GOAL_SAMPLES valid samples in at most 10 times as
+        // many draws (reading them all filled memory before the clock started), and one line for the draws out of
+        // bounds or in collision instead of OMPL's warning for each.
         std::vector<std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>>> owned;
         std::vector<const ompl::base::State *> goals;
-        const bool goalSet = goal->hasType(ompl::base::GOAL_STATE) || goal->hasType(ompl::base::GOAL_STATES);
-        const std::size_t samples = goal->as<ompl::base::GoalSampleableRegion>()->maxSampleCount();
-        const std::size_t goalLimit = goalSet ? samples : std::min(samples, MAX_GOAL_SAMPLES);
-        for (std::size_t draws = 0u; goals.size() < goalLimit && draws < 10u * goalLimit && pis_.haveMoreGoalStates();
-             ++draws)
+        const auto keep = [&](const ompl::base::State *g)
         {
-            const ompl::base::State *g = pis_.nextGoal();
-            if (g == nullptr)
-                continue;
             owned.emplace_back(si_->cloneState(g), [this](ompl::base::State *state) { si_->freeState(state); });
             goals.push_back(owned.back().get());
+        };
+        if (goal->hasType(ompl::base::GOAL_STATE) || goal->hasType(ompl::base::GOAL_STATES))
+        {
+            while (pis_.haveMoreGoalStates())
+                if (const ompl::base::State *g = pis_.nextGoal())
+                    keep(g);
         }
-        if (!goalSet)
-            OMPL_INFORM("%s: planning to %zu goal samples of the goal region", getName().c_str(), goals.size());
+        else
+        {
+            const auto *region = goal->as<ompl::base::GoalSampleableRegion>();
+            const std::size_t limit = std::min<std::size_t>(region->maxSampleCount(), MAX_GOAL_SAMPLES);
+            std::size_t draws = 0u;
+            if (region->canSample())
+            {
+                std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>> scratch(
+                    si_->allocState(), [this](ompl::base::State *state) { si_->freeState(state); });
+                for (; goals.size() < limit && draws < 10u * limit; ++draws)
+                {
+                    region->sampleGoal(scratch.get());
+                    if (si_->satisfiesBounds(scratch.get()) && si_->isValid(scratch.get()))
+                        keep(scratch.get());
+                }
+            }
+            OMPL_INFORM("%s: planning to %zu goal samples of the goal region (%zu of %zu draws out of bounds or in "
+                        "collision)",
+                        getName().c_str(), goals.size(), draws - goals.size(), draws);
+        }
         if (goals.empty())
         {
             statusMessage_ = "the goal state is missing, out of bounds or in collision";

@@ -10,6 +10,7 @@
 #include <ompl/base/spaces/RealVectorStateSpace.h>
 #include <ompl/base/PlannerTerminationCondition.h>
 #include <ompl/base/ProblemDefinition.h>
+#include <ompl/util/Console.h>
 #include <ompl/util/Exception.h>
 
 #include <gtest/gtest.h>
@@ -18,7 +19,9 @@
 #include <limits>
 #include <memory>
 #include <stdexcept>
+#include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 using namespace lit;
@@ -413,8 +416,19 @@ TEST(LITstar, EveryGoalOfAGoalSetIsKept)
 TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
 {
     // OMPL's GoalSpace never runs out of goal samples: reading them all filled memory before the clock started.
-    // A quarter of this region is inside the wall (x0 < 0.1): nextGoal() answers null for those samples, which
-    // must not end the reading.
+    // A quarter of this region is inside the wall (x0 < 0.1): those samples must not end the reading, and they are
+    // reported in one line, not in a warning each (OMPL's PlannerInputStates warned for every one).
+    struct Messages : ompl::msg::OutputHandler
+    {
+        std::vector<std::pair<ompl::msg::LogLevel, std::string>> lines;
+        void log(const std::string &text, ompl::msg::LogLevel level, const char *, int) override
+        {
+            lines.emplace_back(level, text);
+        }
+    } messages;
+    const ompl::msg::LogLevel level = ompl::msg::getLogLevel();
+    ompl::msg::setLogLevel(ompl::msg::LOG_INFO);
+    ompl::msg::useOutputHandler(&messages);
     BoxProblem problem = test::narrowPassage(4, 1e-3);
     auto region = std::make_shared<ompl::base::GoalSpace>(problem.si);
     auto box = std::make_shared<ompl::base::RealVectorStateSpace>(4);
@@ -428,8 +442,19 @@ TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
     auto planner = std::make_shared<LITstar>(problem.si);
     planner->setMaxBatches(30u);
     planner->setProblemDefinition(problem.pdef);
-    EXPECT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    const ompl::base::PlannerStatus status = planner->solve(ompl::base::plannerNonTerminatingCondition());
+    ompl::msg::restorePreviousOutputHandler();
+    ompl::msg::setLogLevel(level);
+    EXPECT_EQ(status, ompl::base::PlannerStatus::EXACT_SOLUTION);
     EXPECT_EQ(planner->graph().goals().size(), LITstar::MAX_GOAL_SAMPLES);
+    std::size_t warnings = 0u, goalLines = 0u;
+    for (const auto &[lineLevel, text] : messages.lines)
+    {
+        warnings += lineLevel >= ompl::msg::LOG_WARN ? 1u : 0u;
+        goalLines += text.find("goal samples of the goal region") != std::string::npos ? 1u : 0u;
+    }
+    EXPECT_EQ(warnings, 0u);
+    EXPECT_EQ(goalLines, 1u);
     const auto path = planner->bestPath();
     EXPECT_GE(path.back()[0], 0.1);  // it ends in the free part of the region
     for (std::size_t i = 1; i < path.back().size(); ++i)
