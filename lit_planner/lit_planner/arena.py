@@ -370,10 +370,13 @@ def _planner_section(
 
 
 def _run_properties(record: Mapping[str, Any], time_limit: float | None) -> dict[str, str]:
-    """One run's ``name TYPE -> value`` (strings as the log holds them)."""
-    solved = _solved(record)
-    improvements = _improvements(record)
+    """One run's ``name TYPE -> value`` (strings as the log holds them): as ``lit bench``'s
+    tables count it, solved when the first solution came within the budget, and the final cost
+    the cost at the budget (:func:`_in_budget`)."""
+    solved, improvements = _in_budget(record, time_limit)
     c_final = _float(record.get("c_final", record.get("cost")))
+    if improvements:
+        c_final = min(cost for _, cost in improvements)
     c_init = _float(record.get("c_init"))
     t_init = _float(record.get("t_init"))
     if not solved:
@@ -424,8 +427,11 @@ def _run_properties(record: Mapping[str, Any], time_limit: float | None) -> dict
 def _progress(
     record: Mapping[str, Any], time_limit: float | None, points: int
 ) -> list[tuple[float, float]]:
-    """(time, best cost) at every improvement and on an even grid up to the time limit."""
-    improvements = _improvements(record) if _solved(record) else []
+    """(time, best cost) at every improvement within the budget and on an even grid up to the
+    time limit."""
+    solved, improvements = _in_budget(record, time_limit)
+    if not solved:
+        improvements = []
     horizon = time_limit if time_limit and time_limit > 0 else None
     times = {t for t, _ in improvements}
     if horizon is not None and points > 0:
@@ -447,6 +453,22 @@ def _improvements(record: Mapping[str, Any]) -> list[tuple[float, float]]:
             if math.isfinite(t) and math.isfinite(cost):
                 pairs.append((t, cost))
     return sorted(pairs)
+
+
+def _in_budget(
+    record: Mapping[str, Any], time_limit: float | None
+) -> tuple[bool, list[tuple[float, float]]]:
+    """Whether the run counts as solved and its improvements up to its budget (the record's own,
+    else the scenario's time limit), as ``lit bench``'s tables count them
+    (:func:`lit_planner.bench.report.solved_in_budget`): a run whose first solution came after
+    the budget (LIT* checks it between iterations, OMPL's planners stop on the wall clock) has no
+    solution at the budget, and an improvement after it does not count."""
+    improvements = _improvements(record)
+    budget = _budget(record) or time_limit
+    if not budget:
+        return _solved(record), improvements
+    within = [(t, cost) for t, cost in improvements if t <= budget]
+    return _solved(record) and (not improvements or bool(within)), within
 
 
 def _solved(record: Mapping[str, Any]) -> bool:

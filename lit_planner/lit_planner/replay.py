@@ -1620,14 +1620,18 @@ def replay_bench(paths: Sequence[str | Path], out: Path) -> tuple[dict[str, Any]
             f"{recorded.missing} seq gaps" if recorded.missing else "",
             recorded.skipped.line() if recorded.skipped.total else "",
         ]
-        why = "; ".join(filter(None, seen)) or "none damaged: an interrupted benchmark?"
+        why = "; ".join(filter(None, seen)) or (
+            "none damaged: the benchmark was interrupted, or its bag was cut short and salvaged"
+        )
         incomplete = {
             "planned": planned,
             "read": len(recorded.runs),
             "note": (
                 f"{planned - len(recorded.runs)} of the {planned} planned run records are missing "
-                f"or unreadable ({why}); the statistics cover the {len(recorded.runs)} read. "
-                "`lit replay info` shows the bag's gaps and skipped messages"
+                f"or unreadable ({why}); the statistics cover the {len(recorded.runs)} read, so "
+                "the medians compared in a table may come from different runs of each planner "
+                "(the query-by-query tables pair only the queries both planners ran). `lit "
+                "replay info` shows the bag's gaps and skipped messages"
             ),
         }
     out.mkdir(parents=True, exist_ok=True)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import re
 import sqlite3
@@ -226,3 +227,22 @@ def test_worker_refuses_a_process_with_lit_core(tmp_path: Path) -> None:
     assert "must not run in a process that has imported lit_core" in answer["error"]
     assert answer["process"]["ompl_loaded"] is False
     assert not (tmp_path / "x.db").exists()
+
+
+def test_a_run_counts_as_the_bench_tables_count_it() -> None:
+    """The log's solved flag and final cost agree with `lit bench`'s tables: an improvement after
+    the budget does not count (an OMPL planner's final cost was the one it returned, 1.81 where
+    the summary said 1.84), and a first solution after the budget is no solution."""
+    on_time = record("np4", "informed_rrtstar", 1, improvements=[[0.05, 2.0], [0.11, 1.84],
+                                                                  [0.13, 1.81]])  # fmt: skip
+    properties = arena._run_properties(on_time, 0.12)
+    assert properties["final cost REAL"] == properties["best cost REAL"] == "1.84"
+    assert properties["solved BOOLEAN"] == "1" and properties["improvements INTEGER"] == "2"
+    assert properties["time of last improvement REAL"] == "0.11"
+    assert [t for t, _ in arena._progress(on_time, 0.12, 4)] == [0.03, 0.05, 0.06, 0.09, 0.11,
+                                                                 0.12]  # fmt: skip
+    late = record("np4", "informed_rrtstar", 2, improvements=[[0.125, 2.0]])
+    properties = arena._run_properties(late, 0.12)
+    assert properties["solved BOOLEAN"] == "0"
+    assert properties["final cost REAL"] == properties["time to first solution REAL"] == "inf"
+    assert all(math.isinf(cost) for _, cost in arena._progress(late, 0.12, 4))

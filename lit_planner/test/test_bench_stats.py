@@ -448,3 +448,63 @@ def test_c_final_is_the_cost_at_the_time_budget() -> None:
     late = record | {"t_init": 0.125, "improvements": [[0.125, 2.0]]}
     assert report.record_value(late, "c_final") == math.inf  # no cost at the budget
     assert report.record_value(record | {"solved": False}, "c_final") == math.inf
+
+
+def test_a_first_solution_after_the_budget_is_no_solution(tmp_path: Any) -> None:
+    """Every table, curve and comparison counts such a run as unsolved, as its cost at the budget
+    does: a FIT* run with t_init 16.3 ms on a 15 ms budget counted as solved, so the summary
+    said 9/10 solved with a finite median t_init above the budget and an infinite median
+    c_final. The run's own first time decides, not a smaller rerun timing."""
+    late = {"solved": True, "t_init": 0.11, "c_init": 2.0, "c_final": 2.0, "time_budget": 0.12,
+            "improvements": [[0.125, 2.0]]}  # fmt: skip
+    assert not report.solved_in_budget(late)
+    assert report.solved_in_budget(late | {"improvements": [[0.12, 2.0]]})
+    assert not report.solved_in_budget(late | {"solved": False})
+    assert report.solved_in_budget(late | {"improvements": []})  # no curve: the record decides
+    for metric in ("t_init", "c_init", "c_final"):
+        assert report.record_value(late, metric) == math.inf
+    parts = _summary()
+    fixed = [r for r in parts["records"] if r["planner"] == "litstar-fixed"]
+    for record in fixed[:5]:  # 5 of 8 runs: the median is infinite
+        record["improvements"] = [[0.125, record["c_init"]]]
+    summary = _write_summary(tmp_path, parts)
+    entry = summary["scenarios"]["np4"]["planners"]["litstar-fixed"]
+    assert entry["solved"] == 3 and entry["success_rate"] == 3 / 8
+    assert entry["t_init"]["median"] == entry["c_init"]["median"] == "inf"
+    assert entry["checks_init"]["median"] == "inf"
+    assert summary["scenarios"]["np4"]["curves"]["litstar-fixed"]["success"][-1] == 3 / 8
+    assert summary["comparisons"]["fit"]["rows"]["np4"]["paired"]["pairs"] == 8
+    assert "3/8" in (tmp_path / "summary.md").read_text(encoding="utf-8")
+    assert summary["statistics"]["paired_rule"] == report.PAIRED_RULE
+
+
+@pytest.mark.parametrize(
+    ("low", "high", "expected"),
+    [
+        (0.0117, 0.0152, ["0.012", "0.013", "0.014", "0.015"]),  # within a decade: 4 of 7 ticks
+        (0.0032, 0.0167, ["0.005", "0.01"]),  # the 2s and 5s, and the decade
+        (0.012, 0.3, ["0.02", "0.05", "0.1", "0.2"]),
+        (0.0011, 2.0, ["0.01", "0.1", "1"]),  # three decades: the decades only
+    ],
+)
+def test_time_axis_labels_are_few_and_plain(low: float, high: float, expected: list[str]) -> None:
+    """A plot over less than two decades labelled every minor tick in scientific notation, and
+    the labels ran into each other (a 15 ms budget's plot)."""
+    import matplotlib.pyplot as plt
+    from lit_planner.bench import plots
+
+    figure, axes = plt.subplots()
+    try:
+        axes.step([low, high], [0.0, 1.0])
+        axes.set_xscale("log")
+        axes.set_xlim(low, high)
+        plots._time_labels(axes)
+        figure.canvas.draw()
+        labels = [
+            tick.label1.get_text()
+            for tick in (*axes.xaxis.get_major_ticks(), *axes.xaxis.get_minor_ticks())
+            if low <= tick.get_loc() <= high and tick.label1.get_text()
+        ]
+    finally:
+        plt.close(figure)
+    assert sorted(labels, key=float) == expected

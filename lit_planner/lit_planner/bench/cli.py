@@ -132,6 +132,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"lit bench: writing to {out}", file=sys.stderr)
 
     started = datetime.now(UTC)
+    # The machine and the versions as the benchmark starts (the checkout or the built core may
+    # change while it runs): the bag and both outputs record these.
+    facts = _environment_facts()
     clock = time.perf_counter()
     runs_path = out / RUNS_FILE
     runs_path.touch()
@@ -139,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_bag:
         try:
             recording = _start_recording(
-                args, out, config, preset, requested, started, estimate, setups
+                args, out, config, preset, requested, started, estimate, setups, facts
             )
         except (bag.BagError, OSError) as error:
             print(f"lit bench: {error}", file=sys.stderr)
@@ -195,6 +198,7 @@ def run(args: argparse.Namespace) -> int:
         duration=duration,
         estimate=(estimate, formula),
         planners=setups,
+        environment_facts=facts,
     )
     print((out / SUMMARY_MD).read_text(encoding="utf-8"))
     # Planner Arena database from OMPL benchmark logs (PyPI ompl, in its own process).
@@ -235,6 +239,7 @@ def write_outputs(
     recorded: dict[str, Any] | None = None,
     planners: dict[str, Any] | None = None,
     incomplete: dict[str, Any] | None = None,
+    environment_facts: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Compute the statistics, draw the plots, validate and write summary.json and summary.md.
 
@@ -242,10 +247,11 @@ def write_outputs(
     ``planners`` instead of this process's. ``planners``: the planners' configuration as taken
     when the benchmark read its policies (:func:`planner_setups` now when None). ``incomplete``
     (``lit replay bench``): ``planned``, ``read`` and ``note`` when records are missing; both
-    files then say so first.
+    files then say so first. ``environment_facts``: ``machine`` and ``versions`` as taken when
+    the benchmark started (now when None and not ``recorded``).
     """
     from lit_msgs_json import codec
-    from lit_planner.bench import environment, plots, report, stats
+    from lit_planner.bench import plots, report, stats
 
     scenario_info = {}
     for name in config.scenarios:
@@ -265,7 +271,7 @@ def write_outputs(
         if planner_curves:
             paths = plots.plot_scenario(name, summaries[name], planner_curves, out / PLOTS_DIR)
             plot_files[name] = [str(path.relative_to(out)) for path in paths]
-    root = Path(__file__).resolve().parents[3]
+    facts = environment_facts if environment_facts is not None else _environment_facts()
     summary = {
         "schema": report.SUMMARY_SCHEMA,
         "version": report.SUMMARY_SCHEMA_VERSION,
@@ -283,8 +289,8 @@ def write_outputs(
         "skipped": [
             {"planner": s.planner, "reason": s.reason, "detail": s.detail} for s in config.skipped
         ],
-        "machine": recorded["machine"] if recorded else environment.machine(),
-        "versions": recorded["versions"] if recorded else environment.versions(root),
+        "machine": (recorded or facts)["machine"],
+        "versions": (recorded or facts)["versions"],
         "planners": (recorded["planners"] if recorded else planners or planner_setups(config)),
         "scenarios": summaries,
         "comparisons": report.comparisons(
@@ -292,6 +298,7 @@ def write_outputs(
         ),
         "statistics": {
             "interval_rule": report.CI_RULE,
+            "paired_rule": report.PAIRED_RULE,
             "min_runs_for_interval": stats.MIN_RUNS_FOR_INTERVAL,
         },
         "runs": [{k: v for k, v in r.items() if k != "path"} for r in records],
@@ -347,11 +354,10 @@ def _start_recording(
     started: datetime,
     estimate: float,
     setups: dict[str, Any],
+    facts: dict[str, Any],
 ) -> bag.BenchRecording:
     """Open the run's bag and record its BenchConfig: everything ``lit replay bench`` needs
     besides the run records (the summary's config, command and environment)."""
-    from lit_planner.bench import environment
-
     payload = {
         "config": summary_config(config, requested),
         "preset": preset,
@@ -362,12 +368,20 @@ def _start_recording(
         "skipped": [
             {"planner": s.planner, "reason": s.reason, "detail": s.detail} for s in config.skipped
         ],
-        "machine": environment.machine(),
-        "versions": environment.versions(Path(__file__).resolve().parents[3]),
+        "machine": facts["machine"],
+        "versions": facts["versions"],
         "planners": setups,
     }
     parent = args.bag_dir if args.bag_dir is not None else bag.default_bag_root()
     return bag.BenchRecording(bag.unique_directory(parent, out.name), out.name, payload)
+
+
+def _environment_facts() -> dict[str, Any]:
+    """This machine and the versions of the code and libraries (``machine``, ``versions``)."""
+    from lit_planner.bench import environment
+
+    root = Path(__file__).resolve().parents[3]
+    return {"machine": environment.machine(), "versions": environment.versions(root)}
 
 
 def _config(

@@ -18,6 +18,7 @@ matplotlib.use("Agg")  # files only: no display, no GUI toolkit
 
 import matplotlib.pyplot as plt  # after choosing the backend
 import numpy as np
+from matplotlib.ticker import FuncFormatter, NullFormatter
 
 from lit_planner.bench import stats
 from lit_planner.bench.report import label
@@ -94,6 +95,7 @@ def plot_scenario(
     success_axes.set_ylabel("success (%)")
     success_axes.set_xlabel("time (s)")
     success_axes.grid(True, which="both", alpha=0.3)
+    _time_labels(success_axes)
     figure.tight_layout()
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -103,6 +105,35 @@ def plot_scenario(
         paths.append(path)
     plt.close(figure)
     return paths
+
+
+def _time_labels(axes: plt.Axes) -> None:
+    """Plain numbers (0.01, 0.2) on the log time axis, which the two panels share. Over less
+    than two decades matplotlib labels every minor tick in scientific notation, and the labels
+    run into each other: there only the 2s and 5s of each decade are labelled, or, when fewer
+    than two labels would show (a range within one decade), about five of the minor ticks."""
+    axes.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    low, high = axes.get_xlim()
+    if not 0 < low < high or high / low >= 100.0:
+        axes.xaxis.set_minor_formatter(NullFormatter())
+        return
+    seen = [v for v in axes.xaxis.get_minorticklocs() if low <= v <= high]
+    labelled = [v for v in seen if _leading_digit(v) in (2, 5)]
+    majors = [v for v in axes.xaxis.get_majorticklocs() if low <= v <= high]
+    if len(labelled) + len(majors) < 2:
+        labelled = seen[:: max(1, math.ceil(len(seen) / 5))]
+
+    def minor(value: float, _position: int) -> str:
+        return f"{value:g}" if any(math.isclose(value, v, rel_tol=1e-9) for v in labelled) else ""
+
+    axes.xaxis.set_minor_formatter(FuncFormatter(minor))
+
+
+def _leading_digit(value: float) -> int | None:
+    """The leading digit of a tick value when it is one digit times a power of ten, else None."""
+    mantissa = value / 10.0 ** math.floor(math.log10(value) + 1e-9)
+    digit = round(mantissa)
+    return digit if math.isclose(mantissa, digit, rel_tol=1e-6) else None
 
 
 def _initial_solution_marker(axes: plt.Axes, entry: dict, colour: object, top: float) -> None:

@@ -39,8 +39,10 @@ CI_RULE = (
     "then the one of highest coverage, then (mirror-image ties) the upper one; this reproduces "
     "PDT's table (n = 100: ranks 38 and 64). For n < 8 no pair reaches 99%: the interval is null "
     "and the tables show the full range (min–max) instead, marked †. Unsolved runs count as "
-    "infinite time and cost. c_final is the cost at the time budget, as the cost curves show "
-    "it (an improvement reported after the budget does not count)."
+    "infinite time and cost, and so does a run whose first solution came after the time budget "
+    "(the run's own first time; LIT* checks its budget between iterations, OMPL's planners stop "
+    "on the wall clock). c_final is the cost at the time budget, as the cost curves show it (an "
+    "improvement reported after the budget does not count)."
 )
 """The interval rule in words, written into both outputs."""
 BEST_OMPL_RULE = (
@@ -61,14 +63,28 @@ def ext(value: float | None) -> float | str | None:
     return "inf" if math.isinf(value) else float(value)
 
 
-def record_value(record: Record, metric: str) -> float:
-    """``t_init``, ``c_init`` or ``c_final`` of a record; inf for a run without a solution.
+def solved_in_budget(record: Record) -> bool:
+    """Whether a run counts as solved in the tables, curves and comparisons: it returned a
+    solution, and its first solution came within its time budget. The run's own first time
+    decides (its first improvement; with ``--t-init-repeats`` ``t_init`` is the smallest of the
+    timings, which may be below the budget when the run's was not). An OMPL planner (on the wall
+    clock, which runs past the budget while it stops) or LIT* (whose budget is checked between
+    iterations) can report a first solution a little after the budget: such a run has no solution
+    at the budget, as its cost curve says."""
+    if not record["solved"]:
+        return False
+    budget = record.get("time_budget")
+    improvements = record.get("improvements")
+    return not (budget and improvements and float(improvements[0][0]) > float(budget))
 
-    ``c_final`` is the cost at the time budget, as the cost curves have it: an improvement that
-    an OMPL planner (on the wall clock, which runs past the budget while it stops) or LIT* (whose
-    budget is checked between iterations) reported after the budget does not count, and a run
-    whose first solution came after it has no cost at the budget (inf)."""
-    value = record[metric] if record["solved"] else None
+
+def record_value(record: Record, metric: str) -> float:
+    """``t_init``, ``c_init`` or ``c_final`` of a record; inf for a run without a solution within
+    its budget (:func:`solved_in_budget`).
+
+    ``c_final`` is the cost at the time budget, as the cost curves have it: an improvement
+    reported after the budget does not count."""
+    value = record[metric] if solved_in_budget(record) else None
     budget = record.get("time_budget")
     if metric == "c_final" and value is not None and record.get("improvements") and budget:
         return float(stats.costs_at(record["improvements"], [float(budget)])[0])
@@ -98,8 +114,8 @@ def planner_statistics(records: Sequence[Record]) -> dict[str, Any]:
     """Success rate, invalid paths and the medians of one (scenario, planner)."""
     result: dict[str, Any] = {
         "runs": len(records),
-        "solved": sum(bool(r["solved"]) for r in records),
-        "success_rate": stats.success_rate(r["solved"] for r in records),
+        "solved": sum(solved_in_budget(r) for r in records),
+        "success_rate": stats.success_rate(solved_in_budget(r) for r in records),
         "invalid_paths": sum(r["solved"] and r["path_valid"] is False for r in records),
     }
     for metric in METRICS:
@@ -111,13 +127,13 @@ def planner_statistics(records: Sequence[Record]) -> dict[str, Any]:
 
 
 def effort_values(records: Sequence[Record]) -> list[float] | None:
-    """Each run's validity checks up to its first solution (inf when unsolved); None when the
-    records do not carry them (an older bag), even if every run failed."""
+    """Each run's validity checks up to its first solution (inf when unsolved within the budget);
+    None when the records do not carry them (an older bag), even if every run failed."""
     if not any(EFFORT in record for record in records):
         return None
     values = []
     for record in records:
-        if not record["solved"]:
+        if not solved_in_budget(record):
             values.append(math.inf)
         elif record.get(EFFORT) is None:
             return None
@@ -135,7 +151,7 @@ def curves(
     grid = stats.time_grid(budget, min(finite) if finite else None)
     result = {}
     for planner, records in records_by_planner.items():
-        runs = [r["improvements"] if r["solved"] else [] for r in records]
+        runs = [r["improvements"] if solved_in_budget(r) else [] for r in records]
         result[planner] = stats.cost_curve(runs, grid)
     return grid, result
 
@@ -288,7 +304,7 @@ PAIRED_RULE = (
     "its 99% interval (the interval rule above); improvement = (1 - ratio) x 100, so an interval "
     "of the ratio that contains 1 means no difference at this confidence"
 )
-"""The paired comparison in words, written into both outputs."""
+"""The paired comparison in words, written into both outputs (summary.json's ``statistics``)."""
 
 
 def paired(
@@ -307,7 +323,7 @@ def paired(
     if ours is None or reference is None:
         return None
     pairs = [(ours[key], reference[key]) for key in sorted(ours.keys() & reference.keys())]
-    pairs = [(mine, ref) for mine, ref in pairs if mine["solved"] or ref["solved"]]
+    pairs = [(m, r) for m, r in pairs if solved_in_budget(m) or solved_in_budget(r)]
     if not pairs:
         return None
     result: dict[str, Any] = {"pairs": len(pairs)}
