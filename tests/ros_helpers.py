@@ -530,10 +530,52 @@ def record(path: Path, topics: Sequence[str]) -> int:
     return 0
 
 
+def publish_burst(topic: str, count: int) -> int:
+    """Publish ``count`` JSON strings on ``topic`` with the contract's QoS once a subscriber is
+    matched, print ``acked`` when every subscriber has acknowledged all of them, then wait for
+    SIGTERM (a publisher that leaves at once could take undelivered samples with it)."""
+    import rclpy
+    from lit_planner.rosutil import json_qos
+    from rclpy.duration import Duration
+    from rclpy.signals import SignalHandlerOptions
+    from std_msgs.msg import String
+
+    stopping = False
+
+    def stop(*_: object) -> None:
+        nonlocal stopping
+        stopping = True
+
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGTERM, stop)
+    node = rclpy.create_node(f"lit_test_burst_{os.getpid()}")
+    publisher = node.create_publisher(String, topic, json_qos())
+    deadline = time.monotonic() + 60.0
+    while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    for index in range(count):
+        publisher.publish(String(data=json.dumps({"burst": index})))
+    acked = publisher.wait_for_all_acked(Duration(seconds=60.0))
+    print("acked" if acked else "not acked", flush=True)
+    while not stopping:
+        time.sleep(0.05)
+    node.destroy_node()
+    rclpy.shutdown()
+    return 0
+
+
 def main(argv: Sequence[str]) -> int:
-    """``ros_helpers.py record OUT TOPIC...``."""
+    """``ros_helpers.py record OUT TOPIC...`` or ``ros_helpers.py publish TOPIC COUNT`` (ROS
+    arguments after ``--ros-args``, which ``lit_planner.up.System`` appends, are ignored)."""
+    argv = list(argv)
+    if "--ros-args" in argv:
+        argv = argv[: argv.index("--ros-args")]
+    if len(argv) == 3 and argv[0] == "publish":
+        return publish_burst(argv[1], int(argv[2]))
     if len(argv) < 3 or argv[0] != "record":
-        print("usage: ros_helpers.py record OUT.jsonl TOPIC...", file=sys.stderr)
+        print(
+            "usage: ros_helpers.py record OUT.jsonl TOPIC... | publish TOPIC COUNT", file=sys.stderr
+        )
         return 2
     return record(Path(argv[1]), argv[2:])
 

@@ -10,6 +10,7 @@ decisions as the episodes' summaries say were made.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 from lit_planner.up import System
@@ -146,3 +147,45 @@ def test_training_run_bag_gives_deterministic_offline_tensors(tmp_path: Path) ->
         a, b, c = (np.load(tmp_path / run / name) for run in ("a", "b", "c"))
         assert np.array_equal(a, b), name
         assert not np.array_equal(a, c), name
+
+
+def test_recorder_writes_what_it_received_before_it_stops(tmp_path: Path) -> None:
+    """SIGTERM right after a burst that every subscriber acknowledged: the bag holds all of it.
+    The recorder closed its bag while the executor still held the burst (171 of 2000 messages
+    recorded, a BagError traceback for the rest); `ros2 launch` and compose stop every node at
+    once, so the end of a run was lost."""
+    import os
+    import signal
+    import sys
+
+    import ros_helpers
+
+    burst = 2000
+    domain, lock = reserve_domain()
+    bag = tmp_path / "bag"
+    system = System(domain, tmp_path, echo=None)
+    try:
+        recorder = system.start(
+            "recorder", "lit_recorder_node", {"bag": str(bag), "run_id": "burst"}
+        )
+        system.wait_ready("recorder")
+        publisher = system.start(
+            "publisher",
+            [sys.executable, ros_helpers.__file__, "publish", "/lit/observation", str(burst)],
+        )
+        deadline = time.monotonic() + 120.0
+        while not any(line.startswith(("acked", "not acked")) for line in publisher.lines):
+            assert publisher.process.poll() is None, "\n".join(publisher.lines[-30:])
+            assert time.monotonic() < deadline, "\n".join(publisher.lines[-30:])
+            time.sleep(0.01)
+        assert "acked" in publisher.lines, publisher.lines
+        os.kill(recorder.process.pid, signal.SIGTERM)  # our own child, by its PID
+        assert recorder.process.wait(60) == 0, "\n".join(recorder.lines[-30:])
+    finally:
+        codes = system.stop()
+        if lock is not None:
+            lock.close()
+    assert codes["recorder"] == 0
+    assert not any("Traceback" in line for line in recorder.lines), recorder.lines[-30:]
+    counts = {topic["topic"]: topic["messages"] for topic in replay.bag_info(bag)["topics"]}
+    assert counts["/lit/observation"] == burst

@@ -270,6 +270,11 @@ class BagRecorder:
         except Exception as error:  # rosbags' WriterError, OSError
             raise BagError(f"bag {self.path}: cannot create it: {error}") from error
 
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` has run (writes raise :class:`BagError` then)."""
+        return self._closed
+
     def add_topic(self, topic: str, msgtype: str, *, qos: str = DEFAULT_QOS) -> None:
         """Declare ``topic`` with its type and offered QoS (see :func:`parse_qos`).
 

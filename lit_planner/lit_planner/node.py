@@ -543,15 +543,6 @@ class PlannerNode:
                 "invalid-request", str(exc), field=f"$.payload.{where}", rule=where,
                 request_schema="PlanRequest", request_seq=seq,
             ) from exc  # fmt: skip
-        if tuple(problem.start) == tuple(problem.goal):
-            raise MessageError(
-                "invalid-request",
-                "start and goal are the same state: there is nothing to plan",
-                field="$.payload.goal",
-                rule="differs-from-start",
-                request_schema="PlanRequest",
-                request_seq=seq,
-            )
         planner = payload.get("planner", "litstar")
         if planner != "litstar" and "policy" in payload:
             raise MessageError(

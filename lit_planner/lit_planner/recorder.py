@@ -29,6 +29,11 @@ TYPES = {
 """Topic types the recorder takes (the contract's)."""
 DISCOVERY_PERIOD = 0.5
 """Seconds between scans of the ROS graph for new ``/lit/`` topics."""
+DRAIN_QUIET = 0.3
+"""On shutdown, the bag closes once no message has arrived for this many seconds (the executor
+still delivers what the readers hold: a burst published just before the signal)."""
+DRAIN_LIMIT = 5.0
+"""The longest shutdown waits for messages to stop arriving (a publisher that never stops)."""
 
 
 class Recorder:
@@ -57,7 +62,10 @@ class Recorder:
         self._importlib = importlib
         self._lock = threading.Lock()
         self._subscriptions: dict[str, Any] = {}
+        self._closing = False
         self.counts: dict[str, int] = {}
+        self.dropped = 0
+        """Messages that arrived after the bag was closed (after the drain: not recorded)."""
         for name in TOPICS.values():
             topic = "/" + name
             self._subscribe(topic, _topic_type(name))
@@ -67,7 +75,7 @@ class Recorder:
 
     def _subscribe(self, topic: str, msgtype: str) -> None:
         with self._lock:
-            if topic in self._subscriptions or msgtype not in TYPES:
+            if self._closing or topic in self._subscriptions or msgtype not in TYPES:
                 return
             module, name = TYPES[msgtype]
             cls = getattr(self._importlib.import_module(module), name)
@@ -85,16 +93,48 @@ class Recorder:
                         self._subscribe(topic, msgtype)
 
     def _write(self, topic: str, data: bytes) -> None:
-        self.bag.write_raw(topic, bytes(data), time.time_ns())
-        self.counts[topic] += 1
+        from lit_planner.bag import BagError
+
+        try:
+            self.bag.write_raw(topic, bytes(data), time.time_ns())
+        except BagError:
+            if not self.bag.closed:
+                raise
+            with self._lock:
+                self.dropped += 1  # after the drain: counted, not a traceback in the executor
+            return
+        with self._lock:
+            self.counts[topic] += 1
+
+    def _received(self) -> int:
+        with self._lock:
+            return sum(self.counts.values())
 
     def shutdown(self) -> None:
-        """Close the bag (writes metadata.yaml) and log what it holds."""
+        """Write what has arrived, then close the bag (writes metadata.yaml) and log what it
+        holds. The executor still runs here: messages the readers already hold (a burst sent
+        just before the signal; `ros2 launch` and compose stop every node at once) are written
+        until none has arrived for ``DRAIN_QUIET`` s, at most ``DRAIN_LIMIT`` s; closing at once
+        lost them (171 of 2000 acknowledged messages recorded)."""
+        deadline = time.monotonic() + DRAIN_LIMIT
+        seen = self._received()
+        while time.monotonic() < deadline:
+            time.sleep(DRAIN_QUIET)
+            now = self._received()
+            if now == seen:
+                break
+            seen = now
+        with self._lock:
+            self._closing = True
+            subscriptions = list(self._subscriptions.values())
+        for subscription in subscriptions:
+            self.node.destroy_subscription(subscription)
         self.bag.close()
-        total = sum(self.counts.values())
+        total = self._received()
+        dropped = f"; {self.dropped} arrived after it closed" if self.dropped else ""
         self.log.info(
             f"closed {self.bag.path}: {total} messages on "
-            f"{sum(1 for n in self.counts.values() if n)} topics"
+            f"{sum(1 for n in self.counts.values() if n)} topics{dropped}"
         )
 
 

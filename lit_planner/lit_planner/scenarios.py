@@ -371,7 +371,8 @@ def custom(
 
     Raises:
         ScenarioError: inconsistent dimensions, bounds or boxes with lower > upper, non-finite
-            numbers, a dimension outside ``MIN_DIM..MAX_DIM``.
+            numbers, a dimension outside ``MIN_DIM..MAX_DIM``, start and goal within
+            ``ENDPOINT_TOLERANCE`` of each other.
     """
     dim = len(lower)
     if not MIN_DIM <= dim <= MAX_DIM:
@@ -397,6 +398,14 @@ def custom(
         raise ScenarioError(f"box {bad[0]} has a lower corner above its upper corner")
     if not (math.isfinite(time_budget) and time_budget > 0):
         raise ScenarioError(f"time budget must be positive, got {time_budget}", part="time")
+    with np.errstate(under="ignore"):
+        separation = float(np.linalg.norm(np.asarray(goal, float) - np.asarray(start, float)))
+    if separation <= ENDPOINT_TOLERANCE:  # OMPL's AIT* aborts the process on a zero distance
+        raise ScenarioError(
+            f"start and goal are the same state ({separation:.3g} apart, within the "
+            f"{ENDPOINT_TOLERANCE:g} that counts as reaching a point): there is nothing to plan",
+            part="goal",
+        )
     resolution = DEFAULT_CUSTOM_RESOLUTION if resolution is None else float(resolution)
     _check_extent(np.asarray(lower, float), np.asarray(upper, float), resolution)
     corners.setflags(write=False)

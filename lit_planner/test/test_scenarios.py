@@ -447,3 +447,14 @@ def test_custom_world_sizes_that_break_the_arithmetic_are_refused(
     for resolution in (0.0, 1e-10, 1.0):
         with pytest.raises(ScenarioError, match="resolution must be in"):
             scenarios.custom([0, 0], [1, 1], [], [0.1, 0.1], [0.9, 0.9], resolution=resolution)
+
+
+@pytest.mark.parametrize("offset", [0.0, 1e-170, 5e-324, 1e-10])
+def test_a_goal_at_the_start_is_refused(offset: float) -> None:
+    """A goal within ENDPOINT_TOLERANCE of the start is the start: the exact-equality check let
+    1e-170 apart through, which OMPL's AIT* answered by aborting the planner node's process
+    (std::terminate) and BIT* with a path of cost 0."""
+    with pytest.raises(ScenarioError, match="start and goal are the same state") as caught:
+        scenarios.custom([-1.0, -1.0], [1.0, 1.0], [], [0.0, 0.0], [offset, 0.0])
+    assert caught.value.part == "goal"
+    assert scenarios.custom([-1.0, -1.0], [1.0, 1.0], [], [0.0, 0.0], [1e-6, 0.0]).goal[0] == 1e-6
