@@ -398,6 +398,8 @@ def custom(
         raise ScenarioError(f"box {bad[0]} has a lower corner above its upper corner")
     if not (math.isfinite(time_budget) and time_budget > 0):
         raise ScenarioError(f"time budget must be positive, got {time_budget}", part="time")
+    resolution = DEFAULT_CUSTOM_RESOLUTION if resolution is None else float(resolution)
+    _check_extent(np.asarray(lower, float), np.asarray(upper, float), resolution)
     with np.errstate(under="ignore"):
         separation = float(np.linalg.norm(np.asarray(goal, float) - np.asarray(start, float)))
     if separation <= ENDPOINT_TOLERANCE:  # OMPL's AIT* aborts the process on a zero distance
@@ -406,8 +408,6 @@ def custom(
             f"{ENDPOINT_TOLERANCE:g} that counts as reaching a point): there is nothing to plan",
             part="goal",
         )
-    resolution = DEFAULT_CUSTOM_RESOLUTION if resolution is None else float(resolution)
-    _check_extent(np.asarray(lower, float), np.asarray(upper, float), resolution)
     corners.setflags(write=False)
     return Scenario(
         name=f"{CUSTOM_FAMILY}{dim}",
