@@ -411,6 +411,44 @@ def test_training_episodes_reach_the_learner(ros: RosSystem) -> None:
     _no_traceback(planner, learner)
 
 
+def test_a_failing_checkpoint_leaves_the_trainer_running_and_probes_train_nothing(
+    ros: RosSystem,
+) -> None:
+    """A checkpoint that cannot be written (its folder is a file) is logged, counted in the
+    stats and tried again: the trainer thread used to die with the first one while the node
+    went on answering, and the process then exited 0 without its export. `lit call decide`
+    sends probes: answered and counted, never stored as transitions (a `--repeat` benchmark
+    used to fill the live learner's replay buffer with made-up steps)."""
+    blocker = ros.workdir / "not-a-folder"
+    blocker.write_text("a file where the checkpoint's folder should be\n", encoding="utf-8")
+    recording = ros.recorder([EPISODE, STATS])
+    learner = ros.learner(
+        checkpoint=str(blocker / "checkpoint.pt"), checkpoint_period=1.0, stats_period=0.2
+    )
+    _ready(learner)
+    probes = ros.call("--payload-only", "decide", "--repeat", "30")
+    assert probes.returncode == 0, probes
+    stats = recording.wait_until(
+        STATS, lambda found: any(p["decisions"] >= 50 for p in found), timeout=60.0,
+        what="the probes counted as answered decisions", watch=[learner],
+    )  # fmt: skip
+    assert all(n == 0 for n in stats[-1]["transitions"].values()), stats[-1]
+    planner = ros.planner(episodes=2, exit_when_done=True, **TRAINING)
+    assert planner.wait(timeout=300.0) == 0, planner.tail()
+    recording.wait_until(
+        STATS,
+        lambda found: any(p["metrics"].get("trainer/errors", 0) >= 2 for p in found),
+        timeout=60.0, what="two failed checkpoints counted", watch=[learner],
+    )  # fmt: skip
+    assert "trying again" in learner.text()
+    answer = ros.call("--payload-only", "decide")  # still serving
+    assert answer.returncode == 0, answer
+    # The shutdown's own checkpoint fails too: logged, and the exit code says so.
+    assert ros.stop(learner, signal.SIGTERM, timeout=60.0) == 1, learner.tail()
+    assert "shutdown failed" in learner.text()
+    assert "Exception in thread" not in learner.text(), learner.tail(60)
+
+
 def test_two_planners_train_one_learner(ros: RosSystem) -> None:
     """Planners in ``/robot1`` and ``/robot2`` train the same learner at the same time."""
     topics = ["/robot1" + EPISODE, "/robot2" + EPISODE]

@@ -60,6 +60,8 @@ TRAINER_NICE = 10
 scheduler gives them a core; decisions and the DDS threads that carry them must not queue behind
 them. The README gives the measurement (`lit call decide --repeat 3000` against
 ``trainer_nice:=0`` and ``:=10``)."""
+TRAINER_RETRY = 5.0
+"""Seconds the trainer waits after a failed step or checkpoint before it tries again."""
 
 PARAMETERS: dict[str, Any] = {
     "checkpoint": "runs/learner/checkpoint.pt",
@@ -189,6 +191,8 @@ class LearnerNode:
         """The export service stops last: until then it answers that the learner stops."""
         self._planners: set[str] = set()
         self._decisions = 0
+        self._probes = 0
+        """Probe requests answered (``probe``: nothing recorded), counted in the stats' decisions."""
         self._unapplied: collections.deque[tuple[Any, float | None, str, str | None]] = (
             collections.deque()
         )
@@ -206,6 +210,7 @@ class LearnerNode:
         self._last_checkpoint = time.monotonic()
         self._started = time.monotonic()
         self._last_metrics: dict[str, float] = {}
+        self._trainer_errors = 0
         self._exported_at_end = False
         self.reply = Publisher(self.source, self.run_id)
         self.stats = Publisher(self.source, self.run_id)
@@ -338,9 +343,11 @@ class LearnerNode:
                     explore=payload.get("explore", True),
                     after_fallback=payload.get("after_fallback", False),
                 )
+                probe = payload.get("probe", False)
                 # Without the lock: a gradient step in progress does not hold the decision up
                 # (the actor snapshot is the one published after the last step).
-                self._check_order(decision)
+                if not probe:
+                    self._check_order(decision)
                 value, a_norm, version = self.core.choose(decision, published=True)
                 response.success = True
                 response.message = self.reply.encode(
@@ -353,6 +360,10 @@ class LearnerNode:
                         "explore": bool(decision.explore),
                     },
                 )
+                if probe:  # answered only: no step, no episode, no transition
+                    with self._queue_lock:
+                        self._probes += 1
+                    return response
                 self._latest_time[episode] = decision.planning_time
                 abandoned = self._open_episode.get(message.source)
                 if abandoned == episode:
@@ -513,13 +524,29 @@ class LearnerNode:
                     self._work.wait(timeout=1.0)
                 if self._stopping:
                     return
-            with self._networks:
-                record = self.core.update_step(lock=self._lock)
-            if record is not None:
+            try:
+                with self._networks:
+                    record = self.core.update_step(lock=self._lock)
+                if record is not None:
+                    with self._lock:
+                        losses = {f"losses/{k}": float(v) for k, v in record.items()}
+                        self._last_metrics.update(losses)
+                else:
+                    self._maintain()
+            except Exception as exc:  # noqa: BLE001 - the thread must outlive a full disk
+                # A checkpoint that cannot be written (full disk, a folder gone) or a failed
+                # step: counted in the stats, logged, tried again after a pause. The thread used
+                # to end for good while the node kept answering as if it trained.
                 with self._lock:
-                    self._last_metrics.update({f"losses/{k}": float(v) for k, v in record.items()})
-            else:
-                self._maintain()
+                    self._trainer_errors += 1
+                    self._last_metrics["trainer/errors"] = float(self._trainer_errors)
+                self.log.error(
+                    f"training step or checkpoint failed ({self._trainer_errors} so far): "
+                    f"{type(exc).__name__}: {exc}; trying again in {TRAINER_RETRY:g} s"
+                )
+                with self._work:
+                    if not self._stopping:
+                        self._work.wait(timeout=TRAINER_RETRY)
             self.apply_commits()  # decisions answered while this thread held the lock
 
     def _due(self) -> bool:
@@ -601,7 +628,7 @@ class LearnerNode:
                     name: int(agent.transitions) for name, agent in self.core.agents.items()
                 },
                 "pending_updates": int(self.core.pending_updates),
-                "decisions": self._decisions,
+                "decisions": self._decisions + self._probes,
                 "planners": sorted(self._planners)[:1024],
                 "metrics": {
                     k: float(v) for k, v in self._last_metrics.items() if _finite_number(v)

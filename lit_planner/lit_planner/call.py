@@ -439,6 +439,7 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
             "improvements": args.improvements,
             "path_states": args.path_states,
             "explore": args.explore,
+            "probe": True,  # made-up features: answered, never trained on
         }
         return args.service_name, publisher.encode("DecideRequest", payload)
     if args.service == "export":

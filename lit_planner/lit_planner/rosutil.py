@@ -701,7 +701,8 @@ def spin_node(
         threads: executor threads.
 
     Returns:
-        0 after a clean shutdown.
+        0 after a clean shutdown, 1 when the owner's ``shutdown()`` raised (a checkpoint or
+        export that could not be written: logged, and the exit code says so).
     """
     localhost_environment()
     import rclpy
@@ -737,6 +738,7 @@ def spin_node(
         target=_spin, args=(executor, stop, stopping), name="executor", daemon=True
     )
     spinner.start()
+    code = 0
     try:
         while not stop.wait(0.2):
             if getattr(owner, "finished", False):
@@ -745,8 +747,9 @@ def spin_node(
         if hasattr(owner, "shutdown"):
             try:
                 owner.shutdown()
-            except Exception as exc:  # noqa: BLE001 - must not hide the clean exit
-                node.get_logger().error(f"shutdown: {exc}")
+            except Exception as exc:  # noqa: BLE001 - stop the executor and the node all the same
+                node.get_logger().error(f"shutdown failed: {type(exc).__name__}: {exc}")
+                code = 1
         stopping.set()
         executor.shutdown(timeout_sec=2.0)
         spinner.join(timeout=2.0)
@@ -759,7 +762,7 @@ def spin_node(
                 rclpy.shutdown()
             except (ExternalShutdownException, RuntimeError):
                 pass
-    return 0
+    return code
 
 
 MAX_DOMAIN_ID = 232
