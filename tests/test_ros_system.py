@@ -153,6 +153,13 @@ def test_plan_service_round_trip(ros: RosSystem, tmp_path: Path) -> None:
     assert _avoids_obstacles(explicit, response["path"])
     assert response["cost"] > 0.8  # around the wall, never through it
 
+    # No path within 0.1 ms: nothing on lit/path (an empty trajectory went out, which a
+    # joint_trajectory_controller takes as "stop").
+    result = ros.call("--payload-only", "plan", "--scenario", "np8", "--time", "0.0001",
+                      "--request-id", "tiny")  # fmt: skip
+    assert result.returncode == 0, result
+    assert result.json()["solved"] is False and result.json()["path"] == [], result
+
     result = ros.call("--payload-only", "plan", "--scenario", "np4", "--time", "0.2",
                       "--request-id", "np4")  # fmt: skip
     assert result.returncode == 0, result
@@ -870,6 +877,30 @@ BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
         "invalid-request",
         "$.payload.goal",
         "nothing to plan",
+    ),
+    (
+        "plan: a goal 1e-170 from the start",  # AIT* aborted the planner node's process
+        ["plan", "--scenario", "np4", "--planner", "aitstar", "--goal=-0.2,1e-170,0,0"],
+        None,
+        "invalid-request",
+        "$.payload.goal",
+        "start and goal are the same state",
+    ),
+    (
+        "plan: an iteration limit for an OMPL planner",  # was an internal Error
+        [
+            "raw",
+            PLAN,
+            json.dumps(
+                _envelope(
+                    "PlanRequest", {"scenario": "np8", "planner": "aitstar", "max_iterations": 10}
+                )
+            ),
+        ],
+        None,
+        "invalid-request",
+        "$.payload.max_iterations",
+        "aitstar stops on time only",
     ),
     (
         "plan: a policy for an OMPL planner",  # was silently ignored

@@ -40,6 +40,11 @@ import pytest
         (["--planner-param", "training_scenarios:=zz4"], "training_scenarios 'zz4': "),
         (["--learner-param", "train:=everything"], "--learner-param: train must be both"),
         (["--learner-param", "stats_period:=-1"], "stats_period must be a positive"),
+        # Names and run ids the node could not use (they crashed it with a traceback).
+        (["--planner-param", "learner_service:=bad-name"], "is not a ROS service name"),
+        (["--learner-param", "service:=/lit/x~y"], "is not a ROS service name"),
+        (["--planner-param", "run_id:=" + "r" * 200], "run_id 'rrrr"),
+        (["--learner-param", "run_id:=" + "r" * 200], "is too long"),
         (["--checkpoint", "EXISTING"], "a folder; give the checkpoint file"),
         (["--bag", "EXISTING"], "exists already"),
         (["--bag", "NEW", "--no-record"], "--bag and --no-record contradict each other"),

@@ -45,6 +45,8 @@ from lit_planner.rosutil import (
     flush_publishers,
     json_qos,
     retry_lost_answers,
+    run_id_problem,
+    service_name_problem,
     service_qos,
     spin_node,
     spin_quietly,
@@ -105,7 +107,7 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
         return f"stats_period must be a positive number of seconds, got {p['stats_period']}"
     if not p["checkpoint"]:
         return "checkpoint must name a file"
-    return None
+    return service_name_problem("service", p["service"]) or run_id_problem("run_id", p["run_id"])
 
 
 DECIDE_ACCEPT = ("DecideRequest", "EpisodeEnd")
@@ -590,12 +592,14 @@ class LearnerNode:
 
     def export(self, why: str) -> dict[str, Path]:
         """Write both lookup tensors (and a checkpoint copy) into ``export_dir``."""
+        with self._lock:  # the serving thread adds planners meanwhile
+            planners, episodes = sorted(self._planners), self.core.episodes
         record = {
             "exported_by": "lit_learner_node",
             "reason": why,
             "run_id": self.run_id,
-            "planners": sorted(self._planners),
-            "episodes": self.core.episodes,
+            "planners": planners,
+            "episodes": episodes,
             "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         }
         # One export at a time, decisions going on meanwhile; and not beside a checkpoint (the

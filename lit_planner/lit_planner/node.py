@@ -73,7 +73,7 @@ from lit_planner.episode_messages import (
     summary_payload,
     unit,
 )
-from lit_planner.errors import TensorFileError
+from lit_planner.errors import LitPlannerError, TensorFileError
 from lit_planner.rosutil import (
     CANCEL_SERVICE,
     DECIDE_SERVICE,
@@ -86,6 +86,8 @@ from lit_planner.rosutil import (
     flush_publishers,
     json_qos,
     retry_lost_answers,
+    run_id_problem,
+    service_name_problem,
     service_qos,
     spin_node,
 )
@@ -126,6 +128,13 @@ MIN_RESEND = 0.001
 CANCEL_EARLY = 10.0
 """Seconds a CancelRequest naming no known plan request is remembered: a plan request with that
 request_id arriving meanwhile is answered as cancelled, once."""
+EXECUTOR_THREADS = 8
+"""The planner node's executor threads at least; more for a long queue (``PlannerNode.threads``)."""
+SPARE_THREADS = 3
+"""Executor threads kept free of plan requests (the running one and ``queue_limit`` waiting)."""
+MAX_REQUEST_TIME = 600.0
+"""Planning time of a request that gives an iteration or batch limit and no ``time``: the longest
+``time`` PlanRequest allows."""
 INVALID_TERMINAL = {"invalid_start": "start", "invalid_goal": "goal"}
 """Core statuses that mean the request gave an unusable start or goal."""
 
@@ -163,6 +172,11 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
     for name in ("seed", "training_seed"):
         if not 0 <= p[name] <= MAX_SEED:
             return f"{name} must be between 0 and {MAX_SEED}, got {p[name]}"
+    problem = service_name_problem("learner_service", p["learner_service"]) or run_id_problem(
+        "run_id", p["run_id"]
+    )
+    if problem:
+        return problem
     if p["episodes"] > 0:  # the only use of scenario and training_scenarios
         from lit_learner.train import TrainingDistribution, TrainingError
 
@@ -236,6 +250,10 @@ class PlannerNode:
         self.run_id = p["run_id"] or f"{time.strftime('%Y%m%d-%H%M%S')}-{uuid.uuid4().hex[:6]}"
         self.source = node.get_fully_qualified_name()
         self.finished = False
+        self.threads = max(EXECUTOR_THREADS, int(p["queue_limit"]) + SPARE_THREADS + 1)
+        """Executor threads (spin_node): each plan request in progress or waiting holds one, and
+        busy answers, cancels, parameter services and timers need their own (with 8 threads a
+        queue_limit of 8 left none: requests beyond it waited unanswered instead of busy)."""
         qos = json_qos()
         self._string = String
         self._trajectory = JointTrajectory
@@ -443,6 +461,14 @@ class PlannerNode:
                     request_schema="PlanRequest",
                     request_seq=message.seq,
                 )
+            elif isinstance(job.error, LitPlannerError):  # the request's options, not the node
+                response.message = reply.error(
+                    job.error,
+                    code="invalid-request",
+                    message=str(job.error)[:3000],
+                    request_schema="PlanRequest",
+                    request_seq=message.seq,
+                )
             else:
                 response.message = reply.error(job.error)
             return response
@@ -553,6 +579,21 @@ class PlannerNode:
                 request_schema="PlanRequest",
                 request_seq=seq,
             )
+        for key in ("max_iterations", "max_batches"):
+            if planner != "litstar" and payload.get(key):
+                raise MessageError(
+                    "invalid-request",
+                    f"{planner} stops on time only: {key} is LIT*'s",
+                    field=f"$.payload.{key}",
+                    rule="litstar-only",
+                    request_schema="PlanRequest",
+                    request_seq=seq,
+                )
+        time_limit = payload.get("time")
+        if time_limit is None and (payload.get("max_iterations") or payload.get("max_batches")):
+            # A count limit alone plans without a time limit in the Python API; a request keeps
+            # the schema's longest time as well (the worker was busy for good otherwise).
+            time_limit = MAX_REQUEST_TIME
         policy = payload.get(
             "policy", "tensor" if self.params["policy"] == "training" else self.params["policy"]
         )
@@ -561,7 +602,7 @@ class PlannerNode:
             scenario=problem,
             policy=policy if planner == "litstar" else "",
             planner=planner,
-            time=payload.get("time"),
+            time=time_limit,
             seed=int(payload.get("seed", self.params["seed"])),
             max_iterations=int(payload.get("max_iterations", 0)),
             max_batches=int(payload.get("max_batches", 0)),
@@ -1038,7 +1079,12 @@ class PlannerNode:
                 "(path_valid false); not published on lit/path"
             )
             return
+        if not result.get("path"):
+            # No path (unsolved): nothing to publish. An empty JointTrajectory went out, which a
+            # joint_trajectory_controller takes as "stop the current motion".
+            return
         trajectory = self._trajectory()
+        trajectory.header.stamp = self.node.get_clock().now().to_msg()
         trajectory.header.frame_id = job.episode_id
         trajectory.joint_names = [f"q{i}" for i in range(job.scenario.dim)]
         for state, elapsed in zip(result["path"], path_timing(result["path"]), strict=True):
@@ -1115,7 +1161,7 @@ def _stopping_error(
 
 def main(args: Sequence[str] | None = None) -> int:
     """Console script ``lit_planner_node`` (ROS arguments: ``--ros-args -p policy:=training``)."""
-    return spin_node(PlannerNode, sys.argv if args is None else args, threads=8)
+    return spin_node(PlannerNode, sys.argv if args is None else args, threads=EXECUTOR_THREADS)
 
 
 if __name__ == "__main__":

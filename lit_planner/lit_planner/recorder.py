@@ -44,7 +44,7 @@ class Recorder:
 
         from rclpy.node import Node
 
-        from lit_planner.bag import BagRecorder, default_bag_root
+        from lit_planner.bag import BagRecorder, default_bag_root, unique_directory
 
         self.node = node = Node(NODE_NAME)
         self.log = node.get_logger()
@@ -52,7 +52,10 @@ class Recorder:
         node.declare_parameter("run_id", "")
         node.declare_parameter("chunk_bytes", 64 * 1024)
         run_id = node.get_parameter("run_id").value or time.strftime("run-%Y%m%d-%H%M%S")
-        bag = node.get_parameter("bag").value or str(default_bag_root() / run_id)
+        # An explicit bag folder that exists is refused (BagRecorder); the default one, named
+        # after the run id, takes a free name (<run_id>-2, ...): a second `docker compose up`
+        # with the same run id failed at start.
+        bag = node.get_parameter("bag").value or str(unique_directory(default_bag_root(), run_id))
         self.bag = BagRecorder(
             Path(bag),
             run_id=run_id,

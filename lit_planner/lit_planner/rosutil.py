@@ -695,8 +695,9 @@ def spin_node(
 
     Args:
         make_owner: builds the object that owns the node (called after ``rclpy.init``); it has a
-            ``node`` attribute, optionally a ``finished`` flag and a ``shutdown()`` method, which
-            runs after the signal and before the executor stops.
+            ``node`` attribute, optionally a ``finished`` flag, a ``threads`` count (instead of
+            ``threads``) and a ``shutdown()`` method, which runs after the signal and before the
+            executor stops.
         args: command line (ROS arguments after ``--ros-args``).
         threads: executor threads.
 
@@ -731,6 +732,7 @@ def spin_node(
     freeze_startup_objects()
     # One thread: rclpy's single-threaded executor has a much shorter callback path (a service
     # round trip of about 0.3 ms against several ms with the thread pool).
+    threads = int(getattr(owner, "threads", threads))
     executor = SingleThreadedExecutor() if threads == 1 else MultiThreadedExecutor(threads)
     executor.add_node(node)
     stopping = threading.Event()
@@ -768,6 +770,36 @@ def spin_node(
 MAX_DOMAIN_ID = 232
 """Largest ROS domain id Fast DDS can use on Linux (it computes its ports from the id; above
 this it fails at start-up with "Calculated port number is too high")."""
+
+
+def service_name_problem(label: str, name: str) -> str | None:
+    """Why ``name`` cannot be a ROS service name (rcl's own rules, relative names and ``~``
+    included), in words; None when it can. A node given such a name failed at start with
+    rclpy's traceback."""
+    from rclpy.exceptions import InvalidServiceNameException
+    from rclpy.validate_topic_name import validate_topic_name
+
+    try:
+        validate_topic_name(name, is_service=True)
+    except InvalidServiceNameException as error:
+        reason = str(error).splitlines()[0].rstrip(": ")
+        return f"{label} {name!r} is not a ROS service name: {reason}"
+    return None
+
+
+def run_id_problem(label: str, run_id: str) -> str | None:
+    """Why ``run_id`` cannot be a message envelope's ``run_id``, in words; None when it can (an
+    empty one: the node makes one up)."""
+    from lit_msgs_json.envelope import MessageError, Publisher
+
+    if not run_id:
+        return None
+    try:
+        Publisher("lit", run_id)
+    except MessageError as error:
+        reason = str(error).replace(repr(run_id), "it")
+        return f"{label} {run_id[:40]!r}{'...' if len(run_id) > 40 else ''}: {reason}"
+    return None
 
 
 def domain_id(text: str) -> int:

@@ -39,6 +39,9 @@ STOP_ORDER = ("planner", "learner", "recorder")
 """Processes stop in this order: the recorder last, so it keeps the final messages."""
 GRACE_SECONDS = 20.0
 """SIGTERM → SIGKILL grace period per process (the learner may be exporting tensors)."""
+LEARNER_START = 180.0
+"""Seconds `lit up` waits for the learner's ``ready:`` before it starts a training planner (torch
+imports in it; a learner that exits or never gets ready stops `lit up` with its log)."""
 POLL_SECONDS = 0.1
 """How often an interrupted stop looks at its signal count."""
 WHY_WAIT = {
@@ -470,6 +473,15 @@ def run(args: argparse.Namespace) -> int:
             **_typed_params(args.learner_param, learner_node.PARAMETERS),
         }
         system.start("learner", "lit_learner_node", learner)
+        if args.policy == "training":
+            # Training episodes ask the learner from their first decision: the planner waits
+            # only learner_wait (10 s) for it, and torch's start-up on a loaded machine can take
+            # longer, which turned the first decisions into fallbacks.
+            # A learner that exits is found by the loop below; Ctrl-C still stops at once.
+            child, deadline = system.children["learner"], time.monotonic() + LEARNER_START
+            while not child.ready.wait(0.2) and child.process.poll() is None:
+                if stop.is_set() or time.monotonic() > deadline:
+                    break
         planner = {
             "policy": args.policy,
             "episodes": args.episodes,
