@@ -213,6 +213,8 @@ class LearnerNode:
         self._started = time.monotonic()
         self._last_metrics: dict[str, float] = {}
         self._trainer_errors = 0
+        self._retry_at = 0.0
+        """Monotonic time before which a failed checkpoint or export is not tried again."""
         self._exported_at_end = False
         self.reply = Publisher(self.source, self.run_id)
         self.stats = Publisher(self.source, self.run_id)
@@ -539,20 +541,24 @@ class LearnerNode:
                 # A checkpoint that cannot be written (full disk, a folder gone) or a failed
                 # step: counted in the stats, logged, tried again after a pause. The thread used
                 # to end for good while the node kept answering as if it trained.
+                # (A failed gradient step is dropped: its batch was drawn and counted.)
                 with self._lock:
                     self._trainer_errors += 1
                     self._last_metrics["trainer/errors"] = float(self._trainer_errors)
+                self._retry_at = time.monotonic() + TRAINER_RETRY
                 self.log.error(
                     f"training step or checkpoint failed ({self._trainer_errors} so far): "
-                    f"{type(exc).__name__}: {exc}; trying again in {TRAINER_RETRY:g} s"
+                    f"{type(exc).__name__}: {exc}; a checkpoint or export is tried again in "
+                    f"{TRAINER_RETRY:g} s"
                 )
-                with self._work:
-                    if not self._stopping:
-                        self._work.wait(timeout=TRAINER_RETRY)
             self.apply_commits()  # decisions answered while this thread held the lock
 
     def _due(self) -> bool:
-        """Whether a checkpoint or the end-of-training export is owed (caller holds the lock)."""
+        """Whether a checkpoint or the end-of-training export is owed (caller holds the lock);
+        not until ``TRAINER_RETRY`` s after one failed (episode ends wake the trainer, and each
+        retry copies the whole state under both locks)."""
+        if time.monotonic() < self._retry_at:
+            return False
         return self._checkpoint_due(self.core.episodes) or self._export_due(self.core.episodes)
 
     def _checkpoint_due(self, episodes: int) -> bool:
@@ -567,6 +573,8 @@ class LearnerNode:
         return bool(limit) and episodes >= limit and not self._exported_at_end
 
     def _maintain(self) -> None:
+        if time.monotonic() < self._retry_at:
+            return
         with self._lock:
             episodes = self.core.episodes
         if self._checkpoint_due(episodes):
@@ -656,9 +664,16 @@ class LearnerNode:
         self.apply_commits()  # every answered decision is in the last checkpoint
         with self._export_busy:  # an export request in progress is done; later ones refused
             pass
-        self.checkpoint()
-        if self.core.episodes != self._episodes_at_export:
-            self.export("shutdown")
+        # Each step is tried even when one before it failed (a checkpoint that cannot be written
+        # must not cost the export, the final stats or the services' shutdown); the first
+        # failure is raised at the end, so the process exits 1.
+        failures: list[Exception] = []
+        for step in (self.checkpoint, self._export_at_shutdown):
+            try:
+                step()
+            except Exception as exc:  # noqa: BLE001 - collected, raised below
+                self.log.error(f"shutdown: {type(exc).__name__}: {exc}")
+                failures.append(exc)
         self._publish_stats()  # the final state, then wait until the recorder has it
         flush_publishers([self.stats_publisher])
         self._export_stopping = True
@@ -666,6 +681,12 @@ class LearnerNode:
         self._export_thread.join(timeout=30.0)
         self._export_node.destroy_node()
         self._decide.shutdown(timeout=5.0)
+        if failures:
+            raise failures[0]
+
+    def _export_at_shutdown(self) -> None:
+        if self.core.episodes != self._episodes_at_export:
+            self.export("shutdown")
 
     def _refuse(self, request: Any, response: Any) -> Any:
         """The decide service's answer while the learner shuts down."""

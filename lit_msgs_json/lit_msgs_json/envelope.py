@@ -2,7 +2,7 @@
 
 On the wire a message is one JSON text of at most ``MAX_MESSAGE_BYTES`` UTF-8 bytes::
 
-    {"schema": "lit_msgs_json/DecideRequest", "version": 2, "seq": 7,
+    {"schema": "lit_msgs_json/DecideRequest", "version": 3, "seq": 7,
      "stamp_ns": 1715240100000000000, "source": "planner/host/4711",
      "run_id": "train-2026-05-09", "payload": {...}}
 
@@ -45,7 +45,7 @@ MAX_NESTING = 64
 """Deepest nesting of arrays and objects a message may have (the schemas need far less)."""
 
 MESSAGE_VERSIONS: dict[str, int] = {
-    "DecideRequest": 2,
+    "DecideRequest": 3,
     "DecideResponse": 1,
     "EpisodeEnd": 2,
     "EpisodeEndResponse": 1,
@@ -67,8 +67,9 @@ both versions instead of a ``payload`` error about a field it does not know. Fil
 (``TensorSidecar``, ``BenchRun``, ``BenchSummary``) and ``Envelope`` itself are not messages."""
 
 OLDER_VERSIONS: dict[str, dict[int, tuple[str, ...]]] = {
-    # version 2 (2026-11-30): the planner's fallback marks, for the learner's pairing
-    "DecideRequest": {1: ("after_fallback",)},
+    # version 2 (2026-11-30): the planner's fallback marks, for the learner's pairing; version 3
+    # (2026-12-04): probes, answered and never trained on (lit call decide)
+    "DecideRequest": {1: ("after_fallback", "probe"), 2: ("probe",)},
     "EpisodeEnd": {1: ("fallback_agents",)},
     # version 2 (2026-12-02): the world of a custom scenario, for lit replay verify; version 3
     # (2026-12-03): a training query's final features, for lit replay tensors

@@ -292,7 +292,7 @@ def test_message_versions_name_every_message_schema() -> None:
     assert set(EXAMPLES) == set(MESSAGE_VERSIONS)
     # version 2 of the two the planner's fallback marks went into (optional fields)
     assert {name: v for name, v in MESSAGE_VERSIONS.items() if v != 1} == {
-        "DecideRequest": 2,
+        "DecideRequest": 3,  # and probe
         "EpisodeEnd": 2,
         "EpisodeSummary": 3,  # the world of a custom scenario; a training query's final features
     }
@@ -763,7 +763,7 @@ ENVELOPE_FAILURES: list[tuple[str, dict[str, object], str, str, str, str | None,
         "Envelope",
         3,
     ),
-    ("wrong-version", {"version": 3}, "version", "$.version", "version", DR, 3),
+    ("wrong-version", {"version": 4}, "version", "$.version", "version", DR, 3),
 ]
 
 # (id, schema, payload, field, rule): the envelope is fine, the payload is not
@@ -975,8 +975,8 @@ def test_decode_failure_messages_explain() -> None:
     assert f"message is {size} bytes, more than the limit of {MAX_MESSAGE_BYTES} bytes" in (
         message(GOOD + " " * MAX_MESSAGE_BYTES)
     )
-    assert "got version 3 of DecideRequest, expected versions 1, 2" in message(
-        envelope_text({}, version=3)
+    assert "got version 4 of DecideRequest, expected versions 1, 2, 3" in message(
+        envelope_text({}, version=4)
     )
     assert "got version 2 of PlanRequest, expected version 1" in message(
         envelope_text({}, "PlanRequest", version=2)
@@ -1023,10 +1023,10 @@ def test_size_limit_boundary() -> None:
 
 
 def test_decoded_integers_are_ints() -> None:
-    text = GOOD.replace('"seq": 3', '"seq": 3.0').replace('"version": 2', '"version": 2.0')
+    text = GOOD.replace('"seq": 3', '"seq": 3.0').replace('"version": 3', '"version": 3.0')
     assert text != GOOD.replace('"seq": 3', '"seq": 3.0')
     message = decode(text)
-    assert (message.seq, message.version) == (3, 2)
+    assert (message.seq, message.version) == (3, 3)
     assert type(message.seq) is int and type(message.version) is int
 
 
@@ -1099,9 +1099,19 @@ def test_publishers_send_the_current_version() -> None:
     for name in ("DecideRequest", "EpisodeEnd", "PlanRequest"):
         doc = json.loads(Publisher("p", "r").encode(name, EXAMPLES[name]))
         assert doc["version"] == MESSAGE_VERSIONS[name]
-    assert accepted_versions("DecideRequest") == (1, 2)
+    assert accepted_versions("DecideRequest") == (1, 2, 3)
     assert accepted_versions("EpisodeEnd") == (1, 2)
     assert accepted_versions("PlanRequest") == (1,)
+
+
+def test_decide_request_version_3_adds_probe() -> None:
+    """A probe sent to a learner that only knows version 2 is refused as a newer version, and a
+    version 2 request that carries probe is a payload error (the field is not in version 2)."""
+    payload = dict(EXAMPLES["DecideRequest"])
+    assert decode(envelope_text({**payload, "probe": True})).payload["probe"] is True
+    assert decode(envelope_text(payload, version=2)).version == 2
+    with pytest.raises(MessageError, match="probe is not a field of version 2"):
+        decode(envelope_text({**payload, "probe": True}, version=2))
 
 
 def test_episode_summary_version_3_adds_the_final_features() -> None:

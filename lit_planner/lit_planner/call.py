@@ -58,6 +58,9 @@ DEFAULT_WAIT = 15.0
 CANCEL_WAIT = 5.0
 """Seconds a plan call that gave up waits for the cancel service to appear, and then for its
 answer."""
+CANCEL_RESEND = 1.0
+"""Seconds without an answer after which a cancel request is sent again (then after 2, 4, ...
+s): the planner node answers a copy as the request it repeats."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -160,6 +163,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--explore", action="store_true", help="exploration noise on (default: off)"
     )
     decide.add_argument(
+        "--no-probe",
+        dest="probe",
+        action="store_false",
+        help="send the requests as a planner's steps, which the learner records and trains on "
+        "(default: probes, answered and never trained on); for round trips of the planner's own "
+        "path against a throwaway learner, as lit system-bench does",
+    )
+    decide.add_argument(
         "--service-name", default=DECIDE_SERVICE, help="service to call (default: %(default)s)"
     )
     decide.add_argument(
@@ -247,8 +258,14 @@ def run(args: argparse.Namespace) -> int:
             return _repeat(caller, text, args)
         started = time.perf_counter()
         args.sent = True
-        # A Ctrl-C or SIGTERM shuts the context down; the wait notices it within 0.1 s.
-        answer = caller.call(text, args.timeout, interrupted=lambda: not rclpy.ok())
+        # A Ctrl-C or SIGTERM shuts the context down; the wait notices it within 0.1 s. A cancel
+        # is sent again without an answer (a request or answer lost while the new client was
+        # still being matched: once in CI, 60 s of silence); the node answers a copy as the
+        # request it repeats.
+        resend = CANCEL_RESEND if args.service == "cancel" else None
+        answer = caller.call(
+            text, args.timeout, resend_after=resend, interrupted=lambda: not rclpy.ok()
+        )
         elapsed = time.perf_counter() - started
         if answer is None:
             print(
@@ -324,7 +341,12 @@ def _cancel_plan(node: Any, args: argparse.Namespace) -> None:
         if not caller.wait(CANCEL_WAIT):
             outcome = f"{name} not found within {CANCEL_WAIT:g} s; the query may go on in the node"
         else:
-            answer = caller.call(text, CANCEL_WAIT, interrupted=lambda: not node.context.ok())
+            answer = caller.call(
+                text,
+                CANCEL_WAIT,
+                resend_after=CANCEL_RESEND,
+                interrupted=lambda: not node.context.ok(),
+            )
             if answer is None:
                 outcome = f"{name} did not answer within {CANCEL_WAIT:g} s"
             else:
@@ -439,7 +461,7 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
             "improvements": args.improvements,
             "path_states": args.path_states,
             "explore": args.explore,
-            "probe": True,  # made-up features: answered, never trained on
+            "probe": args.probe,  # made-up features: by default answered, never trained on
         }
         return args.service_name, publisher.encode("DecideRequest", payload)
     if args.service == "export":

@@ -73,7 +73,7 @@ from lit_planner.episode_messages import (
     summary_payload,
     unit,
 )
-from lit_planner.errors import LitPlannerError, TensorFileError
+from lit_planner.errors import PlannerError, ScenarioError, TensorFileError
 from lit_planner.rosutil import (
     CANCEL_SERVICE,
     DECIDE_SERVICE,
@@ -137,6 +137,21 @@ MAX_REQUEST_TIME = 600.0
 ``time`` PlanRequest allows."""
 INVALID_TERMINAL = {"invalid_start": "start", "invalid_goal": "goal"}
 """Core statuses that mean the request gave an unusable start or goal."""
+
+
+def _cancel_repeat_key(request: Any) -> tuple[tuple[str, str], int] | None:
+    """A cancel request's client (the envelope's source and run) and identity (its text): a
+    client's copy sent again is the same text, answered again without cancelling twice (a second
+    cancel of a request just dropped would be remembered, and cancel a new request of that id).
+    None for a text the service rejects (served, and rejected, as new)."""
+    from lit_msgs_json.envelope import MessageError, decode
+
+    text = request.load_namespace
+    try:
+        message = decode(text, accept="CancelRequest")
+    except MessageError:
+        return None
+    return (message.source, message.run_id), hash(text)
 
 
 def parameter_problem(p: Mapping[str, Any]) -> str | None:
@@ -334,6 +349,7 @@ class PlannerNode:
             AddDiagnostics,
             CANCEL_SERVICE,
             self._serve_cancel,
+            repeat_key=_cancel_repeat_key,  # a copy sent again gets the same answer
             attempts=PLAN_SEND_ATTEMPTS,  # a new `lit call cancel` may match late, as for plans
         )
         DuplicateServerWatch(node, PLAN_SERVICE).start()
@@ -461,7 +477,7 @@ class PlannerNode:
                     request_schema="PlanRequest",
                     request_seq=message.seq,
                 )
-            elif isinstance(job.error, LitPlannerError):  # the request's options, not the node
+            elif isinstance(job.error, (PlannerError, ScenarioError)):  # the request's options
                 response.message = reply.error(
                     job.error,
                     code="invalid-request",

@@ -29,7 +29,7 @@ TYPES = {
 """Topic types the recorder takes (the contract's)."""
 DISCOVERY_PERIOD = 0.5
 """Seconds between scans of the ROS graph for new ``/lit/`` topics."""
-DRAIN_QUIET = 0.3
+DRAIN_QUIET = 1.0
 """On shutdown, the bag closes once no message has arrived for this many seconds (the executor
 still delivers what the readers hold: a burst published just before the signal)."""
 DRAIN_LIMIT = 5.0
@@ -117,8 +117,9 @@ class Recorder:
         """Write what has arrived, then close the bag (writes metadata.yaml) and log what it
         holds. The executor still runs here: messages the readers already hold (a burst sent
         just before the signal; `ros2 launch` and compose stop every node at once) are written
-        until none has arrived for ``DRAIN_QUIET`` s, at most ``DRAIN_LIMIT`` s; closing at once
-        lost them (171 of 2000 acknowledged messages recorded)."""
+        until none has arrived for ``DRAIN_QUIET`` s (long enough for an executor starved of the
+        CPU for a moment), at most ``DRAIN_LIMIT`` s; closing at once lost them (171 of 2000
+        acknowledged messages recorded)."""
         deadline = time.monotonic() + DRAIN_LIMIT
         seen = self._received()
         while time.monotonic() < deadline:

@@ -400,12 +400,16 @@ def custom(
         raise ScenarioError(f"time budget must be positive, got {time_budget}", part="time")
     resolution = DEFAULT_CUSTOM_RESOLUTION if resolution is None else float(resolution)
     _check_extent(np.asarray(lower, float), np.asarray(upper, float), resolution)
-    with np.errstate(under="ignore"):
+    with np.errstate(under="ignore", over="ignore"):
         separation = float(np.linalg.norm(np.asarray(goal, float) - np.asarray(start, float)))
-    if separation <= ENDPOINT_TOLERANCE:  # OMPL's AIT* aborts the process on a zero distance
+        size = float(np.max(np.asarray(upper, float) - np.asarray(lower, float)))
+    # ENDPOINT_TOLERANCE counts as reaching a point; in a world smaller than a metre, that share
+    # of its size (a world 1e-10 across is not all one point).
+    tolerance = min(ENDPOINT_TOLERANCE, ENDPOINT_TOLERANCE * size)
+    if separation <= tolerance:  # OMPL's AIT* aborts the process on a zero distance
         raise ScenarioError(
             f"start and goal are the same state ({separation:.3g} apart, within the "
-            f"{ENDPOINT_TOLERANCE:g} that counts as reaching a point): there is nothing to plan",
+            f"{tolerance:g} that counts as reaching a point): there is nothing to plan",
             part="goal",
         )
     corners.setflags(write=False)

@@ -148,7 +148,12 @@ def _decide_round_trips(system: System, args: argparse.Namespace) -> None:
     print("| service | calls | median | p99 | max | median / echo median |")
     print("|---|---|---|---|---|---|")
     rows = [
-        (f"decide {agent}", _round_trips(system, ["decide", "--agent", agent], args.calls))
+        # --no-probe: the path a planner's request takes (recorded and paired after the answer),
+        # as the runs before probes existed measured it; the learner is this run's own.
+        (
+            f"decide {agent}",
+            _round_trips(system, ["decide", "--agent", agent, "--no-probe"], args.calls),
+        )
         for agent in ("psi_K", "B")
     ]
     echo = _round_trips(system, ["raw", ECHO_SERVICE, _decide_text()], args.calls)

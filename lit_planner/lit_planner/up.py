@@ -41,7 +41,8 @@ GRACE_SECONDS = 20.0
 """SIGTERM → SIGKILL grace period per process (the learner may be exporting tensors)."""
 LEARNER_START = 180.0
 """Seconds `lit up` waits for the learner's ``ready:`` before it starts a training planner (torch
-imports in it; a learner that exits or never gets ready stops `lit up` with its log)."""
+imports in it). A learner that exits first stops `lit up` without a planner; after this long the
+planner starts all the same and falls back until the learner answers."""
 POLL_SECONDS = 0.1
 """How often an interrupted stop looks at its signal count."""
 WHY_WAIT = {
@@ -477,11 +478,13 @@ def run(args: argparse.Namespace) -> int:
             # Training episodes ask the learner from their first decision: the planner waits
             # only learner_wait (10 s) for it, and torch's start-up on a loaded machine can take
             # longer, which turned the first decisions into fallbacks.
-            # A learner that exits is found by the loop below; Ctrl-C still stops at once.
+            # Ctrl-C still stops at once; a learner that exits stops lit up (below) before any
+            # planner starts; one not ready in time leaves the planner its fallback decisions.
             child, deadline = system.children["learner"], time.monotonic() + LEARNER_START
             while not child.ready.wait(0.2) and child.process.poll() is None:
                 if stop.is_set() or time.monotonic() > deadline:
                     break
+        learner_gone = system.children["learner"].process.poll() is not None
         planner = {
             "policy": args.policy,
             "episodes": args.episodes,
@@ -497,7 +500,8 @@ def run(args: argparse.Namespace) -> int:
             "wait_for_subscribers": 0 if args.no_record else 1,
             **_typed_params(args.planner_param, planner_node.PARAMETERS),
         }
-        system.start("planner", "lit_planner_node", planner)
+        if not (stop.is_set() or learner_gone):
+            system.start("planner", "lit_planner_node", planner)
         while not stop.wait(0.2):
             if any(c.process.poll() is not None for c in system.children.values()):
                 dead = [n for n, c in system.children.items() if c.process.poll() is not None]

@@ -261,7 +261,9 @@ namespace lit
         };
         if (goal->hasType(ompl::base::GOAL_STATE) || goal->hasType(ompl::base::GOAL_STATES))
         {
-            while (pis_.haveMoreGoalStates())
+            // As many as the set holds now: a GoalLazySamples (a goal set) grows while its thread samples.
+            const std::size_t members = goal->as<ompl::base::GoalSampleableRegion>()->maxSampleCount();
+            for (std::size_t read = 0u; read < members && pis_.haveMoreGoalStates(); ++read)
                 if (const ompl::base::State *g = pis_.nextGoal())
                     keep(g);
         }
