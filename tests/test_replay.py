@@ -441,6 +441,22 @@ def test_an_mcap_file_of_another_kind_is_named_as_such(tmp_path: Path) -> None:
         _assert_clean_error(_replay("info", bag_path), "not a ROS 2 bag")
 
 
+def test_a_sqlite3_bag_is_named_as_such(tmp_path: Path) -> None:
+    """A rosbag2 bag in sqlite3 storage was said to have a metadata.yaml that does not match its
+    MCAP files, with a salvage hint, and salvage then found no .mcap file."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    bag_path = tmp_path / "sqlite"
+    with Writer(bag_path, version=8) as writer:
+        connection = writer.add_connection("/chatter", "std_msgs/msg/String", typestore=store)
+        message = store.types["std_msgs/msg/String"](data="hi")
+        writer.write(connection, 1, store.serialize_cdr(message, "std_msgs/msg/String"))
+    for verb in ("info", "salvage", "verify"):
+        _assert_clean_error(_replay(verb, bag_path), "in 'sqlite3' storage")
+
+
 # --- bad input -----------------------------------------------------------------------------
 
 
@@ -1158,3 +1174,43 @@ def test_a_reader_that_left_is_not_an_error(tmp_path: Path) -> None:
         os.close(write_end)
     assert result.returncode == 141, result.stderr
     assert "error" not in result.stderr and "Traceback" not in result.stderr
+
+
+def test_salvage_keeps_each_files_channels_apart(tmp_path: Path) -> None:
+    """MCAP channel ids are unique within one file only: a folder whose two files numbered the
+    same two topics the other way round got its messages filed under each other's topic."""
+    from mcap.writer import Writer
+
+    string = bag.typestore().types[bag.STRING_TYPE]
+    folder = tmp_path / "two"
+    folder.mkdir()
+    for name, topics in (
+        ("a", ["/lit/first", "/lit/second"]),
+        ("b", ["/lit/second", "/lit/first"]),
+    ):
+        with (folder / f"{name}.mcap").open("wb") as handle:
+            writer = Writer(handle)
+            writer.start(profile="ros2", library="test")
+            schema = writer.register_schema(
+                name=bag.STRING_TYPE, encoding="ros2msg", data=b"string data"
+            )
+            ids = {
+                topic: writer.register_channel(
+                    topic=topic, message_encoding="cdr", schema_id=schema
+                )
+                for topic in topics
+            }
+            for stamp, topic in enumerate(topics, start=1):
+                data = bag.typestore().serialize_cdr(string(data=topic), bag.STRING_TYPE)
+                writer.add_message(ids[topic], log_time=stamp, data=bytes(data), publish_time=stamp)
+            writer.finish()
+    result = _replay("salvage", folder)
+    assert result.returncode == 0, result.stderr
+    salvaged = tmp_path / "two-salvaged"
+    with replay.BagReader(salvaged) as reader:
+        seen = []
+        for message in reader.messages():
+            seen.append(message.topic)
+            text = bag.typestore().deserialize_cdr(message.data, bag.STRING_TYPE).data
+            assert text == message.topic, (message.topic, text)
+    assert sorted(seen) == ["/lit/first", "/lit/first", "/lit/second", "/lit/second"]

@@ -250,16 +250,24 @@ def _bag_custom_data(path: Path) -> dict[str, Any]:
 
 def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
     """Complete training episodes (summary, and as many observations as decisions), in the
-    order their summaries were recorded."""
+    order their summaries were recorded. A message read twice (a bag given with its compacted
+    or salvaged copy: the same topic, publisher, run and seq) counts once; it was paired twice,
+    and the pairing failed on the second copy's earlier times."""
     skipped = Skipped()
     found: dict[tuple[str, str, str], RecordedEpisode] = {}
     order: list[tuple[str, str, str]] = []
+    seen: set[tuple[str, str, str, int]] = set()
     for path in paths:
         with BagReader(path) as reader:
             for message in reader.messages():
                 item = decode(message, skipped)
                 if not isinstance(item, Envelope) or not isinstance(item.payload, dict):
                     continue
+                identity = (item.topic, item.source, item.run_id, item.seq)
+                if identity in seen:
+                    skipped.counts["message read twice (a bag and its copy?)"] += 1
+                    continue
+                seen.add(identity)
                 episode_id = item.payload.get("episode_id")
                 if episode_id is None:
                     continue

@@ -103,6 +103,14 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path
     assert all(p["missing"] == 0 and p["leading"] == 0 for p in info["publishers"])
     episodes, _ = read_episodes([bag])
     assert len(episodes) == 12
+    # The bag and a copy of it (a compacted or salvaged one): each message counts once.
+    import shutil
+
+    shutil.copytree(bag, tmp_path / "copy")
+    twice, skipped = read_episodes([bag, tmp_path / "copy"])
+    assert [e.key for e in twice] == [e.key for e in episodes]
+    assert [len(e.decisions) for e in twice] == [len(e.decisions) for e in episodes]
+    assert skipped.counts["message read twice (a bag and its copy?)"] > 0
     from lit_learner.offline import recorded_decision_interval
 
     assert recorded_decision_interval([bag]).value == 10  # the bag names its interval

@@ -402,11 +402,26 @@ def _check_readable(path: Path) -> None:
                     f"with `lit replay salvage {path}`"
                 )
             raise ReplayError(f"{path} is not a bag: no metadata.yaml and no .mcap file")
+        _check_storage(path)
         return
     if path.stat().st_size == 0:
         raise ReplayError(f"{path} is an empty file")
     if path.suffix != ".mcap":
         raise ReplayError(f"{path} is not a bag: expected a bag directory or an .mcap file")
+
+
+def _check_storage(folder: Path) -> None:
+    """A bag folder whose ``metadata.yaml`` names a storage other than MCAP (sqlite3) is named as
+    such: it was "its files hold none" with a salvage hint, and salvage found no .mcap file."""
+    try:
+        storage = load_metadata(folder / "metadata.yaml").get("storage_identifier")
+    except ReplayError:
+        return  # a damaged or missing metadata.yaml: reported where the bag is read
+    if storage not in (None, "", "mcap"):
+        raise ReplayError(
+            f"{folder}: a rosbag2 bag in {storage!r} storage; lit replay reads MCAP bags "
+            "(convert it with `ros2 bag convert`, storage_id mcap)"
+        )
 
 
 def _not_ros2(path: Path) -> str | None:
@@ -979,19 +994,22 @@ class _StrictStream:
 @dataclass
 class _Salvaged:
     """Records gathered from the files; messages are resolved against the channels at the end
-    (a damaged first chunk loses the channel records that the summary section repeats)."""
+    (a damaged first chunk loses the channel records that the summary section repeats).
+    Schemas and channels are kept by (file, id): MCAP ids are unique within one file only (two
+    files of a folder numbered their channels differently, and messages went under each
+    other's topics)."""
 
-    schemas: dict[int, Any] = field(default_factory=dict)
-    channels: dict[int, Any] = field(default_factory=dict)
+    schemas: dict[tuple[Path, int], Any] = field(default_factory=dict)
+    channels: dict[tuple[Path, int], Any] = field(default_factory=dict)
     messages: list[tuple[SalvageResult, int, int, bytes]] = field(default_factory=list)
 
     def take(self, record: object, result: SalvageResult) -> None:
         from mcap.records import Channel, Message, Schema
 
         if isinstance(record, Schema):
-            self.schemas[record.id] = record
+            self.schemas[(result.file, record.id)] = record
         elif isinstance(record, Channel):
-            self.channels[record.id] = record
+            self.channels[(result.file, record.id)] = record
         elif isinstance(record, Message):
             self.messages.append((result, record.channel_id, record.log_time, record.data))
 
@@ -1027,8 +1045,10 @@ def salvage(source: str | Path, out: str | Path | None = None) -> tuple[Path, li
         _read_mcap(result, gathered)
     kept: list[tuple[Any, Any, int, bytes]] = []
     for result, channel_id, log_ns, data in gathered.messages:
-        channel = gathered.channels.get(channel_id)
-        schema = gathered.schemas.get(channel.schema_id) if channel is not None else None
+        channel = gathered.channels.get((result.file, channel_id))
+        schema = (
+            gathered.schemas.get((result.file, channel.schema_id)) if channel is not None else None
+        )
         if channel is None or schema is None or not _cdr_ok(schema.name, data):
             result.dropped += 1
             continue
@@ -1049,6 +1069,8 @@ def _mcap_files(source: Path) -> list[Path]:
             raise ReplayError(f"{source} is an empty directory, not a bag")
         files = sorted(source.glob("*.mcap"))
         if not files:
+            if (source / "metadata.yaml").is_file():
+                _check_storage(source)
             raise ReplayError(f"{source} holds no .mcap file to salvage")
     else:
         files = [source]
@@ -1344,7 +1366,15 @@ def _write_salvaged(
         bag.ChunkedWriter(target),
         custom,
         (
-            (channel.id, channel.topic, schema.name, lambda c=channel: profiles(c), log_ns, data)
+            # One connection per topic and type, whichever file's channel id it had.
+            (
+                (channel.topic, schema.name),
+                channel.topic,
+                schema.name,
+                lambda c=channel: profiles(c),
+                log_ns,
+                data,
+            )
             for channel, schema, log_ns, data in kept
         ),
     )
