@@ -464,24 +464,31 @@ def _process_table() -> dict[int, tuple[int, int]]:
 # ---------------------------------------------------------------------- the recorder
 
 
+def _stoppable_node(prefix: str) -> tuple[Any, Callable[[], bool]]:
+    """rclpy started without its own signal handlers, a node ``<prefix>_<pid>``, and whether a
+    SIGTERM or SIGINT has come since (the caller's loop ends then and shuts down in order)."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    flag = [False]
+
+    def stop(*_: object) -> None:
+        flag[0] = True
+
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGTERM, stop)
+    signal.signal(signal.SIGINT, stop)
+    return rclpy.create_node(f"{prefix}_{os.getpid()}"), lambda: flag[0]
+
+
 def record(path: Path, topics: Sequence[str]) -> int:
     """Append every message on ``topics`` to ``path`` as JSON lines until SIGTERM/SIGINT."""
     import rclpy
     from lit_planner.rosutil import json_qos
     from rclpy.executors import SingleThreadedExecutor
-    from rclpy.signals import SignalHandlerOptions
     from std_msgs.msg import String
 
-    stopping = False
-
-    def stop(*_: object) -> None:
-        nonlocal stopping
-        stopping = True
-
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGTERM, stop)
-    signal.signal(signal.SIGINT, stop)
-    node = rclpy.create_node(f"lit_test_recorder_{os.getpid()}")
+    node, stopped = _stoppable_node("lit_test_recorder")
     with open(path, "a", encoding="utf-8") as out:
 
         def subscriber(topic: str) -> Callable[[Any], None]:
@@ -517,7 +524,7 @@ def record(path: Path, topics: Sequence[str]) -> int:
         executor.add_node(node)
         print(f"ready: recording {', '.join(topics)} into {path}", flush=True)
         publishers = dict.fromkeys(topics, 0)
-        while not stopping:
+        while not stopped():
             executor.spin_once(timeout_sec=0.05)
             for topic, known in publishers.items():
                 count = node.count_publishers(topic)
@@ -537,18 +544,9 @@ def publish_burst(topic: str, count: int) -> int:
     import rclpy
     from lit_planner.rosutil import json_qos
     from rclpy.duration import Duration
-    from rclpy.signals import SignalHandlerOptions
     from std_msgs.msg import String
 
-    stopping = False
-
-    def stop(*_: object) -> None:
-        nonlocal stopping
-        stopping = True
-
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGTERM, stop)
-    node = rclpy.create_node(f"lit_test_burst_{os.getpid()}")
+    node, stopped = _stoppable_node("lit_test_burst")
     publisher = node.create_publisher(String, topic, json_qos())
     deadline = time.monotonic() + 60.0
     while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
@@ -557,7 +555,7 @@ def publish_burst(topic: str, count: int) -> int:
         publisher.publish(String(data=json.dumps({"burst": index})))
     acked = publisher.wait_for_all_acked(Duration(seconds=60.0))
     print("acked" if acked else "not acked", flush=True)
-    while not stopping:
+    while not stopped():
         time.sleep(0.05)
     node.destroy_node()
     rclpy.shutdown()

@@ -10,10 +10,12 @@ decisions as the episodes' summaries say were made.
 
 from __future__ import annotations
 
+import contextlib
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
-from lit_planner.up import System
+from lit_planner.up import Child, System
 from ros_helpers import reserve_domain
 
 from lit_planner import replay
@@ -21,15 +23,28 @@ from lit_planner import replay
 EPISODES = 4
 
 
-def test_recorder_keeps_every_message_at_peak_rate(tmp_path: Path) -> None:
+@contextlib.contextmanager
+def _recording(bag: Path, run_id: str) -> Iterator[tuple[System, Child, dict[str, int | None]]]:
+    """A real recorder into ``bag`` on a domain of its own, ready; on the way out every process
+    is stopped by its PID and the exit codes go into the dict it yields."""
     domain, lock = reserve_domain()
-    bag = tmp_path / "bag"
-    system = System(domain, tmp_path, echo=None)
+    system = System(domain, bag.parent, echo=None)
+    codes: dict[str, int | None] = {}
     try:
         recorder = system.start(
-            "recorder", "lit_recorder_node", {"bag": str(bag), "run_id": "peak"}
+            "recorder", "lit_recorder_node", {"bag": str(bag), "run_id": run_id}
         )
         system.wait_ready("recorder")
+        yield system, recorder, codes
+    finally:
+        codes.update(system.stop())
+        if lock is not None:
+            lock.close()
+
+
+def test_recorder_keeps_every_message_at_peak_rate(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    with _recording(bag, "peak") as (system, recorder, codes):
         planner = system.start(
             "planner",
             "lit_planner_node",
@@ -46,10 +61,6 @@ def test_recorder_keeps_every_message_at_peak_rate(tmp_path: Path) -> None:
             },
         )
         assert planner.process.wait(300) == 0, "\n".join(planner.lines[-30:])
-    finally:
-        codes = system.stop()
-        if lock is not None:
-            lock.close()
     assert codes["recorder"] == 0, "\n".join(recorder.lines[-30:])
 
     info = replay.bag_info(bag)
@@ -151,7 +162,7 @@ def test_training_run_bag_gives_deterministic_offline_tensors(tmp_path: Path) ->
 
 def test_recorder_writes_what_it_received_before_it_stops(tmp_path: Path) -> None:
     """SIGTERM right after a burst that every subscriber acknowledged: the bag holds all of it.
-    The recorder closed its bag while the executor still held the burst (171 of 2000 messages
+    The recorder closed its bag while the executor still held the burst (851 of 2000 messages
     recorded, a BagError traceback for the rest); `ros2 launch` and compose stop every node at
     once, so the end of a run was lost."""
     import os
@@ -161,14 +172,8 @@ def test_recorder_writes_what_it_received_before_it_stops(tmp_path: Path) -> Non
     import ros_helpers
 
     burst = 2000
-    domain, lock = reserve_domain()
     bag = tmp_path / "bag"
-    system = System(domain, tmp_path, echo=None)
-    try:
-        recorder = system.start(
-            "recorder", "lit_recorder_node", {"bag": str(bag), "run_id": "burst"}
-        )
-        system.wait_ready("recorder")
+    with _recording(bag, "burst") as (system, recorder, codes):
         publisher = system.start(
             "publisher",
             [sys.executable, ros_helpers.__file__, "publish", "/lit/observation", str(burst)],
@@ -181,10 +186,6 @@ def test_recorder_writes_what_it_received_before_it_stops(tmp_path: Path) -> Non
         assert "acked" in publisher.lines, publisher.lines
         os.kill(recorder.process.pid, signal.SIGTERM)  # our own child, by its PID
         assert recorder.process.wait(60) == 0, "\n".join(recorder.lines[-30:])
-    finally:
-        codes = system.stop()
-        if lock is not None:
-            lock.close()
     assert codes["recorder"] == 0
     assert not any("Traceback" in line for line in recorder.lines), recorder.lines[-30:]
     counts = {topic["topic"]: topic["messages"] for topic in replay.bag_info(bag)["topics"]}

@@ -452,9 +452,9 @@ def test_c_final_is_the_cost_at_the_time_budget() -> None:
 
 def test_a_first_solution_after_the_budget_is_no_solution(tmp_path: Any) -> None:
     """Every table, curve and comparison counts such a run as unsolved, as its cost at the budget
-    does: a FIT* run with t_init 16.3 ms on a 15 ms budget counted as solved, so the summary
-    said 9/10 solved with a finite median t_init above the budget and an infinite median
-    c_final. The run's own first time decides, not a smaller rerun timing."""
+    does: a first solution just after the budget counted as solved, so a summary could show a
+    median t_init above the budget next to an infinite median c_final. The run's own first time
+    decides, not a smaller rerun timing."""
     late = {"solved": True, "t_init": 0.11, "c_init": 2.0, "c_final": 2.0, "time_budget": 0.12,
             "improvements": [[0.125, 2.0]]}  # fmt: skip
     assert not report.solved_in_budget(late)
