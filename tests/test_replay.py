@@ -332,16 +332,40 @@ def test_salvage_truncated_and_bit_flipped(tmp_path: Path) -> None:
     assert "damaged chunk" in result.stdout and "complete file" in result.stdout
     assert 200 < _recovered(result.stdout) < 300
 
-    # A damaged length of chunk 3's record: reading stops there.
+    # A damaged length of chunk 3's record: reading stops there; that chunk and the ones after
+    # it are read at the offsets and lengths of the summary's chunk index.
     outer = bytearray(data)
     outer[chunks[2] + 8] ^= 0x01  # high byte of the record length
     (tmp_path / "outer.mcap").write_bytes(bytes(outer))
     result = _replay("salvage", tmp_path / "outer.mcap")
     assert result.returncode == 0, result.stderr
     assert f"stopped at byte {chunks[2]}" in result.stdout
-    before = replay.bag_info(tmp_path / "outer-salvaged")["publishers"][0]
+    assert f"read the chunk at byte {chunks[2]} (" in result.stdout
+    assert result.stdout.count("through the summary's chunk index") == len(chunks) - 2
+    after = replay.bag_info(tmp_path / "outer-salvaged")["publishers"][0]
+    assert (after["first_seq"], after["gaps"], after["count"]) == (0, 0, 300)
+    # Without the summary (the file cut before it), the chunks before the damage are kept.
+    (tmp_path / "outer-cut.mcap").write_bytes(bytes(outer[: chunks[-1]]))
+    result = _replay("salvage", tmp_path / "outer-cut.mcap")
+    assert result.returncode == 0, result.stderr
+    assert "chunk index" not in result.stdout
+    before = replay.bag_info(tmp_path / "outer-cut-salvaged")["publishers"][0]
     assert (before["first_seq"], before["gaps"]) == (0, 0)
     assert 0 < before["count"] < 300
+
+    # A damaged opcode of chunk 2 (mcap's reader skips a record of an unknown type without a
+    # word): said, and the chunk is read through the chunk index.
+    opcode = bytearray(data)
+    opcode[chunks[1]] = 0x7E
+    (tmp_path / "opcode.mcap").write_bytes(bytes(opcode))
+    result = _replay("salvage", tmp_path / "opcode.mcap")
+    assert result.returncode == 0, result.stderr
+    assert f"skipped the record at byte {chunks[1]}" in result.stdout
+    assert "opcode 0x7e is not an MCAP record type" in result.stdout
+    assert f"read the chunk at byte {chunks[1]} (" in result.stdout
+    assert _recovered(result.stdout) == 300
+    custom = replay.bag_info(tmp_path / "opcode-salvaged")["custom_data"]
+    assert "through the summary's chunk index" in custom["lit.salvage"]
 
     # A damaged MCAP footer: the normal readers fail cleanly, salvage gets everything.
     footer = bytearray(data)
@@ -494,6 +518,12 @@ def test_bad_input_is_one_line_exit_2(command: str, bad_inputs: dict[str, Path])
     }
     for case, path in bad_inputs.items():
         result = _replay(command, path)
+        if (command, case) == ("salvage", "bit flip"):
+            # The header's damaged length stops the reading at once; the summary's chunk index
+            # gives every chunk.
+            assert result.returncode == 0, result.stderr
+            assert _recovered(result.stdout) == 50, result.stdout
+            continue
         try:
             _assert_clean_error(result, expected[case])
         except AssertionError as error:

@@ -970,6 +970,9 @@ class SalvageResult:
     bytes that do not deserialize."""
     damaged_chunks: list[str] = field(default_factory=list)
     """Chunks whose inner records broke off (the records before the break are kept)."""
+    notes: list[str] = field(default_factory=list)
+    """Other damage found and what was done about it: records skipped, chunks read through the
+    summary's chunk index."""
 
 
 class _StrictStream:
@@ -1021,7 +1024,9 @@ def salvage(source: str | Path, out: str | Path | None = None) -> tuple[Path, li
     read (a truncation, a damaged record header); a chunk whose inner records break off keeps the
     records before the break and reading goes on with the next chunk; a chunk cut off by the end
     of the file gives its complete inner records (of a zstd chunk, those the compressed bytes
-    present decode to). Every message must belong to a known channel and deserialize as its type.
+    present decode to). Chunks that the summary's chunk index lists and that were not read (after
+    the record that stopped the reading, or behind a damaged record header) are then read at the
+    index's offsets. Every message must belong to a known channel and deserialize as its type.
 
     Returns:
         The new bag and, per file, where reading stopped and the messages recovered per topic.
@@ -1080,20 +1085,52 @@ def _mcap_files(source: Path) -> list[Path]:
     return files
 
 
-def _read_mcap(result: SalvageResult, gathered: _Salvaged) -> None:
-    """Gather every readable record of ``result.file``; note where and why reading stopped."""
-    from mcap.records import Chunk, Footer
+def _salvage_reader(stream: _StrictStream, size: int) -> Any:
+    """A ``StreamReader`` that emits chunks and notes where each chunk record starts and which
+    records it skipped for an unknown opcode (a damaged opcode byte: the stock reader skips such
+    a record without a word, and a chunk's messages went missing from a "complete" file).
+    Overrides the reader's ``_read_record`` (mcap 1.6.0, pinned in requirements.lock)."""
+    from mcap.opcode import Opcode
     from mcap.stream_reader import StreamReader
 
+    known = {int(opcode) for opcode in Opcode}
+
+    class Reader(StreamReader):
+        last_start = 0
+        """Where the record read last starts."""
+        chunk_starts: set[int]
+        """Where the chunks read whole start (the loop adds them)."""
+        skipped: list[tuple[int, int, int]]
+        """(start, opcode, length) of the records skipped for their opcode."""
+
+        def _read_record(self, opcode: int, length: int) -> Any:
+            self.last_start = stream.position - 9  # the opcode and length were just read
+            if opcode not in known:
+                self.skipped.append((self.last_start, opcode, length))
+            return super()._read_record(opcode, length)
+
+    # The size limit keeps a damaged length field from allocating gigabytes.
+    source: Any = stream  # StreamReader only calls read(); its annotation lists file types
+    reader = Reader(source, emit_chunks=True, record_size_limit=max(1, size))
+    reader.chunk_starts, reader.skipped = set(), []
+    return reader
+
+
+def _read_mcap(result: SalvageResult, gathered: _Salvaged) -> None:
+    """Gather every readable record of ``result.file``; note where and why reading stopped.
+    Chunks that the summary's chunk index lists but that were not read (a damaged record header,
+    or reading stopped before them) are read through the index afterwards."""
+    from mcap.records import Chunk, ChunkIndex, Footer
+
     footer = False
+    indexes: list[Any] = []
     with result.file.open("rb") as handle:
         stream = _StrictStream(handle)
-        # The size limit keeps a damaged length field from allocating gigabytes.
-        source: Any = stream  # StreamReader only calls read(); its annotation lists file types
-        reader = StreamReader(source, emit_chunks=True, record_size_limit=max(1, result.size))
+        reader = _salvage_reader(stream, result.size)
         try:
             for record in reader.records:
                 if isinstance(record, Chunk):
+                    reader.chunk_starts.add(reader.last_start)
                     try:
                         for inner in _chunk_records(record):
                             gathered.take(inner, result)
@@ -1103,16 +1140,96 @@ def _read_mcap(result: SalvageResult, gathered: _Salvaged) -> None:
                         )
                 else:
                     gathered.take(record, result)
+                    if isinstance(record, ChunkIndex):
+                        indexes.append(record)
                 result.stopped_at = stream.position
                 footer = footer or isinstance(record, Footer)
         except Exception as error:  # noqa: BLE001 -- truncation, bit flips: anything
             if result.stopped_at == 0 and stream.position >= len(_MCAP_MAGIC):
                 result.stopped_at = _magic_length(result.file)
             result.reason = _stop_reason(error, result, gathered, footer, stream.position)
-            return
-        result.stopped_at = stream.position
-    result.complete = True
-    result.reason = "complete file"
+        else:
+            result.stopped_at = stream.position
+            result.complete = True
+            result.reason = "complete file"
+    for start, opcode, length in reader.skipped:
+        result.notes.append(
+            f"skipped the record at byte {start} ({9 + length} bytes): its opcode 0x{opcode:02x} "
+            "is not an MCAP record type (a damaged byte, or a newer writer's record)"
+        )
+    if not footer:
+        indexes = _summary_chunk_indexes(result, gathered)
+    _read_indexed_chunks(result, gathered, indexes, reader.chunk_starts)
+
+
+def _summary_chunk_indexes(result: SalvageResult, gathered: _Salvaged) -> list[Any]:
+    """The chunk indexes of the summary section that the footer at the end of the file points
+    to, for a file whose reading stopped early; its schema and channel records go to
+    ``gathered``. Empty when the file has no intact footer or summary."""
+    import io
+
+    from mcap.records import ChunkIndex
+    from mcap.stream_reader import StreamReader
+
+    footer_start = result.size - len(_MCAP_MAGIC) - 29  # opcode, length, 8 + 8 + 4 bytes
+    if footer_start <= len(_MCAP_MAGIC):
+        return []
+    with result.file.open("rb") as handle:
+        handle.seek(footer_start)
+        tail = handle.read()
+        if tail[:9] != b"\x02" + (20).to_bytes(8, "little") or tail[29:] != _MCAP_MAGIC:
+            return []
+        summary_start = int.from_bytes(tail[9:17], "little")
+        if not len(_MCAP_MAGIC) < summary_start < footer_start:
+            return []
+        handle.seek(summary_start)
+        summary = handle.read()
+    indexes: list[Any] = []
+    try:
+        for record in StreamReader(io.BytesIO(summary), skip_magic=True).records:
+            if isinstance(record, ChunkIndex):
+                indexes.append(record)
+            else:
+                gathered.take(record, result)
+    except Exception:  # noqa: BLE001, S110 -- a damaged summary: the indexes read so far
+        pass
+    return indexes
+
+
+def _read_indexed_chunks(
+    result: SalvageResult, gathered: _Salvaged, indexes: Sequence[Any], read: set[int]
+) -> None:
+    """Read each chunk that ``indexes`` list and that was not read as a chunk (``read``: the
+    chunk records' starts), at its indexed offset and length."""
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import Chunk, Message
+
+    for index in sorted(indexes, key=lambda i: i.chunk_start_offset):
+        start, length = index.chunk_start_offset, index.chunk_length
+        if start in read or not len(_MCAP_MAGIC) <= start < start + 9 < start + length:
+            continue
+        if start + length > result.size:
+            continue  # beyond a truncation: the chunk is not there
+        read.add(start)
+        with result.file.open("rb") as handle:
+            handle.seek(start + 9)  # the index's length stands in for a damaged header's
+            body = handle.read(length - 9)
+        messages = 0
+        try:
+            chunk = Chunk.read(ReadDataStream(_StrictStream(_Bytes(body))))  # type: ignore[arg-type]
+            for inner in _chunk_records(chunk):
+                gathered.take(inner, result)
+                messages += isinstance(inner, Message)
+        except Exception as error:  # noqa: BLE001 -- the chunk itself is damaged too
+            result.damaged_chunks.append(
+                f"chunk at byte {start} (read through the summary's chunk index): "
+                f"{_error_text(error)}"
+            )
+            continue
+        result.notes.append(
+            f"read the chunk at byte {start} ({messages} messages) through the summary's "
+            "chunk index"
+        )
 
 
 def _stop_reason(
@@ -1352,7 +1469,9 @@ def _write_salvaged(
     custom.setdefault(bag.RUN_ID_KEY, ",".join(sorted(run_ids)) or "unknown")
     custom["lit.salvaged_from"] = str(source)
     custom["lit.salvage"] = "; ".join(
-        f"{r.file.name}: {r.reason}, read {r.stopped_at} of {r.size} bytes" for r in results
+        f"{r.file.name}: {r.reason}, read {r.stopped_at} of {r.size} bytes"
+        + "".join(f"; {note}" for note in r.notes)
+        for r in results
     )
 
     def profiles(channel: Any) -> list[Any]:
@@ -1918,6 +2037,8 @@ def _salvage(args: argparse.Namespace) -> int:
         )
         for damage in result.damaged_chunks:
             print(f"  damaged {damage}")
+        for note in result.notes:
+            print(f"  {note}")
         for topic, count in sorted(result.messages.items()):
             print(f"  {topic}: {count} messages recovered")
             total += count
