@@ -182,6 +182,21 @@ def test_parameters_are_passed_with_the_types_the_nodes_declare() -> None:
     assert up._typed_params(["tensors_dir:="], planner_node.PARAMETERS) == {}  # its default
 
 
+def test_lit_up_keeps_only_the_last_output_lines(tmp_path: Path) -> None:
+    """lit up echoes every line of its children and keeps the last KEEP_LINES for its error
+    messages (it kept them all: a run of days grew without bound)."""
+    from lit_planner import up
+
+    system = up.System(0, tmp_path, echo=None, keep_lines=5)
+    script = "for i in range(23):\n    print(i)"
+    child = system.start("counter", [sys.executable, "-c", script])
+    assert child.process.wait(timeout=60) == 0
+    child.drain()
+    assert 5 <= len(child.lines) <= 10
+    assert child.lines[-5:] == [str(i) for i in range(18, 23)]
+    assert up.System(0, tmp_path, echo=None).keep_lines is None  # bounded runs keep all
+
+
 def test_lit_call_names_a_service_of_another_type() -> None:
     """A service that exists with a type lit call does not speak was reported as not found."""
     import time

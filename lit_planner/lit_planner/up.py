@@ -43,6 +43,9 @@ LEARNER_START = 180.0
 """Seconds `lit up` waits for the learner's ``ready:`` before it starts a training planner (torch
 imports in it). A learner that exits first stops `lit up` without a planner; after this long the
 planner starts all the same and falls back until the learner answers."""
+KEEP_LINES = 200
+"""Output lines `lit up` keeps per process for its error messages (it echoes every line: a run
+of days must not keep them all)."""
 POLL_SECONDS = 0.1
 """How often an interrupted stop looks at its signal count."""
 WHY_WAIT = {
@@ -60,6 +63,8 @@ class Child:
     name: str
     process: subprocess.Popen[str]
     lines: list[str] = field(default_factory=list)
+    """Its output lines: all of them, or the last ``keep_lines`` to ``2 * keep_lines`` of them."""
+    keep_lines: int | None = None
     ready: threading.Event = field(default_factory=threading.Event)
     pump: threading.Thread | None = None
     """The thread that reads the process's output into ``lines``."""
@@ -78,7 +83,11 @@ class System:
         domain_id: int,
         cwd: Path,
         echo: Callable[[str], None] | None = print,
+        keep_lines: int | None = None,
     ) -> None:
+        """``keep_lines``: how many of each child's last output lines to keep (for its error
+        messages); None keeps all (a bounded run that reads them back)."""
+        self.keep_lines = keep_lines
         self.env = dict(os.environ)
         for key, value in LOCALHOST_ENV.items():
             self.env.setdefault(key, value)
@@ -114,7 +123,7 @@ class System:
             # Only a prctl call, bound before the fork (no imports or allocation in the child).
             preexec_fn=_terminate_with_parent,  # noqa: PLW1509
         )
-        child = Child(name, process)
+        child = Child(name, process, keep_lines=self.keep_lines)
         self.children[name] = child
         child.pump = threading.Thread(target=self._pump, args=(child, process.stdout), daemon=True)
         child.pump.start()
@@ -125,6 +134,8 @@ class System:
         for line in stream:
             line = line.rstrip("\n")
             child.lines.append(line)
+            if child.keep_lines is not None and len(child.lines) > 2 * child.keep_lines:
+                del child.lines[: -child.keep_lines]  # a long run's output is echoed, not kept
             if "ready:" in line:
                 child.ready.set()
             if self.echo is not None:
@@ -454,7 +465,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     runs = (Path("runs") / run_id).absolute()  # absolute: the export service answers with it
     runs.mkdir(parents=True, exist_ok=True)
-    system = System(args.domain_id, Path.cwd())
+    system = System(args.domain_id, Path.cwd(), keep_lines=KEEP_LINES)
     stop = threading.Event()
     signal.signal(signal.SIGINT, lambda *_: stop.set())
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
