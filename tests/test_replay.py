@@ -604,6 +604,13 @@ def test_verify_flags_invalid_paths(tmp_path: Path) -> None:
     assert sample.returncode == 0, sample.stdout + sample.stderr
     assert "2 paths checked: 2 valid, 0 invalid" in sample.stdout
 
+    # A bag given with its compacted copy: each path is checked once (it counted 4).
+    assert _replay("compact", SAMPLE, tmp_path / "copy").returncode == 0
+    both = _replay("verify", SAMPLE, tmp_path / "copy")
+    assert both.returncode == 0, both.stdout + both.stderr
+    assert "2 paths checked: 2 valid, 0 invalid" in both.stdout
+    assert "read twice" in both.stdout
+
 
 # --- lit bench: record and replay ----------------------------------------------------------
 

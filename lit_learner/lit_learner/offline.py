@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from lit_planner.replay import BagReader, Envelope, ReplayError, Skipped, decode
+from lit_planner.replay import READ_TWICE, BagReader, Envelope, ReplayError, Skipped, decode
 
 from lit_planner import argtypes
 
@@ -265,7 +265,7 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
                     continue
                 identity = (item.topic, item.source, item.run_id, item.seq)
                 if identity in seen:
-                    skipped.counts["message read twice (a bag and its copy?)"] += 1
+                    skipped.counts[READ_TWICE] += 1
                     continue
                 seen.add(identity)
                 episode_id = item.payload.get("episode_id")

@@ -157,9 +157,13 @@ class Trajectory:
     path: list[list[float]]
 
 
-BENIGN_SKIPS = frozenset({"foreign topic", "unknown schema", "unsupported version"})
-"""Reasons to skip a message that say nothing against the bag: another program's topics, and
-messages of a newer LIT* (counted and shown, as a reader of an older version must)."""
+READ_TWICE = "message read twice (a bag and its copy?)"
+"""Why a message is skipped whose topic, source, run id and seq one of the bags read before held
+(a bag given with its compacted or salvaged copy)."""
+BENIGN_SKIPS = frozenset({"foreign topic", "unknown schema", "unsupported version", READ_TWICE})
+"""Reasons to skip a message that say nothing against the bag: another program's topics,
+messages of a newer LIT* (counted and shown, as a reader of an older version must), and a copy's
+messages read once already."""
 
 
 @dataclass
@@ -762,16 +766,25 @@ class VerifyReport:
     disagreements: list[str] = field(default_factory=list)
     unsolved: int = 0
     unchecked: Skipped = field(default_factory=Skipped)
+    seen: set[tuple[str, str, str, int]] = field(default_factory=set)
+    """(topic, source, run id, seq) of the records checked (a copy's are checked once)."""
 
 
 def verify_bag(path: str | Path, report: VerifyReport) -> Skipped:
-    """Re-check every path of a bag (BenchRun records; episodes with their ``/lit/path``)."""
+    """Re-check every path of a bag (BenchRun records; episodes with their ``/lit/path``); a
+    record that a bag checked before into ``report`` held is skipped as read twice."""
     skipped = Skipped()
     episodes: list[Envelope] = []
     trajectories: list[Trajectory] = []
     with BagReader(path) as reader:
         for message in reader.messages():
             item = decode(message, skipped)
+            if isinstance(item, Envelope):
+                identity = (item.topic, item.source, item.run_id, item.seq)
+                if identity in report.seen:
+                    skipped.counts[READ_TWICE] += 1
+                    continue
+                report.seen.add(identity)
             if isinstance(item, Trajectory):
                 trajectories.append(item)
             elif isinstance(item, Envelope) and item.schema == bag.BENCH_RUN_SCHEMA:
