@@ -322,6 +322,7 @@ def test_salvage_truncated_and_bit_flipped(tmp_path: Path) -> None:
     assert stopped <= len(data) // 2
     info = replay.bag_info(tmp_path / "cut-salvaged")
     assert info["publishers"][0]["last_seq"] == recovered - 1
+    assert info["custom_data"]["lit.chunk_bytes"] == str(bag.DEFAULT_CHUNK_BYTES)  # not 16 KiB
 
     # A damaged length inside chunk 2: that chunk is lost, reading goes on.
     inner = bytearray(data)
@@ -905,6 +906,7 @@ def test_compact_keeps_every_message_and_compresses(mixed_bag: Path, tmp_path: P
     assert chunks and {c.compression for c in chunks} == {"zstd"}
     info = replay.bag_info(out)
     assert info["custom_data"]["lit.compacted_from"] == mixed_bag.name
+    assert info["custom_data"]["lit.chunk_bytes"] == str(bag.MAX_CHUNK_BYTES)  # not the source's
     assert _replay("compact", mixed_bag, out).returncode == 2  # never overwrites
 
 

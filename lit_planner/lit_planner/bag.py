@@ -201,6 +201,8 @@ class ChunkedWriter(Writer):
         if not 1 <= chunk_bytes <= MAX_CHUNK_BYTES:
             raise BagError(f"chunk_bytes must be within 1..{MAX_CHUNK_BYTES}, got {chunk_bytes}")
         super().__init__(path, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
+        self.chunk_bytes = chunk_bytes
+        """The chunk size it writes (before compression)."""
         if compress:
             # zstd inside the MCAP chunks (rosbag2's MCAP storage compression): metadata.yaml
             # still says no compression, every MCAP reader decompresses the chunks itself.

@@ -1521,6 +1521,8 @@ def _write_bag(
     connection), log time, serialized data) — into the unopened ``writer`` with ``custom`` as its
     ``custom_data``, and close it; on a failure the half-written bag folder is removed. Returns the
     number of messages written."""
+    # The source's chunk size would misstate the copy's (compact writes 1 MiB chunks).
+    custom = {**custom, "lit.chunk_bytes": str(writer.chunk_bytes)}
     for key, value in custom.items():
         writer.set_custom_data(key, value)
     existed = Path(writer.path).exists()
