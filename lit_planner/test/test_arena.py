@@ -242,7 +242,9 @@ def test_a_run_counts_as_the_bench_tables_count_it() -> None:
     assert [t for t, _ in arena._progress(on_time, 0.12, 4)] == [0.03, 0.05, 0.06, 0.09, 0.11,
                                                                  0.12]  # fmt: skip
     late = record("np4", "informed_rrtstar", 2, improvements=[[0.125, 2.0]])
+    late["status"] = "exact_solution"
     properties = arena._run_properties(late, 0.12)
     assert properties["solved BOOLEAN"] == "0"
+    assert properties["status ENUM"] == str(arena.STATUS_INDEX["timeout"])  # as solved says
     assert properties["final cost REAL"] == properties["time to first solution REAL"] == "inf"
     assert all(math.isinf(cost) for _, cost in arena._progress(late, 0.12, 4))
