@@ -241,7 +241,8 @@ WRITER = textwrap.dedent(
     import sys, time
     from lit_planner.bag import BagRecorder, envelope
 
-    recorder = BagRecorder(sys.argv[1], run_id="killed")
+    recorder = BagRecorder(sys.argv[1], run_id="killed",
+                           metadata={"lit.decision_interval": "7", "lit.source": "lit_train"})
     recorder.add_topic("/lit/observation", "std_msgs/msg/String")
     seq = 0
     while True:
@@ -279,6 +280,7 @@ def test_salvage_after_sigkill(tmp_path: Path) -> None:
         child.wait(timeout=30)
     assert confirmed >= confirmed_target
     assert not (killed / "metadata.yaml").exists()
+    assert (killed / bag.UNFINISHED_METADATA).is_file()
     _assert_clean_error(_replay("info", killed), "lit replay salvage")
 
     result = _replay("salvage", killed)
@@ -299,6 +301,11 @@ def test_salvage_after_sigkill(tmp_path: Path) -> None:
     assert publisher["gaps"] == 0
     assert info["custom_data"]["lit.run_id"] == "killed"
     assert "lit.salvaged_from" in info["custom_data"]
+    # The run's metadata, which only metadata.yaml held before (lit replay tensors needs the
+    # decision interval of a training run), comes from the file the writer left.
+    assert info["custom_data"]["lit.decision_interval"] == "7"
+    assert info["custom_data"]["lit.command"].endswith(f"writer.py {killed}")
+    assert not (salvaged / bag.UNFINISHED_METADATA).exists()  # closed normally
 
 
 def test_salvage_truncated_and_bit_flipped(tmp_path: Path) -> None:

@@ -131,7 +131,8 @@ def bag_decision_interval(path: Path) -> int | None:
     metadata (``lit.decision_interval``); for older ``lit train`` bags it is the
     ``--decision-interval`` of the recorded command (default 1) unless that run was resumed (a
     resumed run keeps its checkpoint's interval). None when the bag does not say (recorder and
-    bench bags, a bare ``.mcap`` without its ``metadata.yaml``, a salvaged bag).
+    bench bags, a bare ``.mcap`` without its ``metadata.yaml``, a bag salvaged without either
+    ``metadata.yaml`` or the writer's ``lit-unfinished.json``).
 
     Raises:
         ReplayError: the bag's metadata names an interval that is not a whole number of at

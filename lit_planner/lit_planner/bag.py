@@ -15,7 +15,10 @@ rosbags' MCAP storage collects messages in an in-memory chunk and writes the chu
 once it holds more than 1 MiB (a constant in ``McapWriter.write``); ``metadata.yaml`` and the MCAP
 summary and footer are only written by ``close()``. A writer killed with SIGKILL therefore leaves
 an MCAP file without footer and no ``metadata.yaml``; everything up to the last written chunk can be
-recovered (``lit replay salvage``), the open chunk is lost. :class:`ChunkedWriter` makes the chunk
+recovered (``lit replay salvage``), the open chunk is lost. So that such a bag keeps its run
+metadata, :class:`BagRecorder` writes its ``custom_data`` to :data:`UNFINISHED_METADATA` in the
+bag folder when it opens the bag and removes that file once ``metadata.yaml`` is written; salvage
+reads it. :class:`ChunkedWriter` makes the chunk
 size a parameter: its storage closes the chunk as soon as it holds ``chunk_bytes`` bytes (the
 1 MiB threshold of rosbags stays the upper limit) and then flushes Python's file buffer to the
 operating system, so a SIGKILL loses at most the last ``chunk_bytes`` bytes of message records
@@ -37,6 +40,7 @@ import functools
 import json
 import re
 import shlex
+import shutil
 import struct
 import sys
 import threading
@@ -78,6 +82,10 @@ DEFAULT_CHUNK_BYTES = 64 * 1024
 """Default chunk size: the most a SIGKILL can lose."""
 MAX_CHUNK_BYTES = 1 << 20
 """rosbags closes a chunk beyond this size anyway."""
+UNFINISHED_METADATA = "lit-unfinished.json"
+"""File in the folder of a bag being written by :class:`BagRecorder`: its ``custom_data`` as a
+JSON object, for ``lit replay salvage`` when the writer dies before ``metadata.yaml`` is written;
+removed when the bag is closed."""
 DEFAULT_QOS = "reliable-keep-all"
 """Offered QoS of a topic unless given (what LIT*'s publishers use)."""
 INFINITE_DURATION = QosTime(9_223_372_036, 854_775_807)
@@ -271,6 +279,12 @@ class BagRecorder:
             self._writer.open()
         except Exception as error:  # rosbags' WriterError, OSError
             raise BagError(f"bag {self.path}: cannot create it: {error}") from error
+        try:
+            (self.path / UNFINISHED_METADATA).write_text(json.dumps(custom, indent=1) + "\n")
+        except OSError as error:
+            self._writer.abort()
+            shutil.rmtree(self.path, ignore_errors=True)
+            raise BagError(f"bag {self.path}: cannot create it: {error}") from error
 
     @property
     def closed(self) -> bool:
@@ -349,6 +363,7 @@ class BagRecorder:
                 return
             self._closed = True
             self._writer.close()
+            (self.path / UNFINISHED_METADATA).unlink(missing_ok=True)  # metadata.yaml has it
 
     def __enter__(self) -> Self:
         return self

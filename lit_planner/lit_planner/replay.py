@@ -1555,13 +1555,18 @@ def _write_bag(
 
 
 def _salvaged_custom_data(source: Path) -> dict[str, str]:
-    metadata = (source if source.is_dir() else source.parent) / "metadata.yaml"
-    if not metadata.is_file():
-        return {}
+    """The ``custom_data`` of the bag that ``source`` is or belongs to: its ``metadata.yaml``'s,
+    else what its writer left in :data:`bag.UNFINISHED_METADATA` (a writer killed before it
+    wrote ``metadata.yaml``); empty when neither reads."""
+    folder = source if source.is_dir() else source.parent
+    metadata = folder / "metadata.yaml"
     try:
-        custom = load_metadata(metadata).get("custom_data") or {}
+        if metadata.is_file():
+            custom = load_metadata(metadata).get("custom_data") or {}
+        else:
+            custom = json.loads((folder / bag.UNFINISHED_METADATA).read_text())
         return {str(k): str(v) for k, v in custom.items()}
-    except (ReplayError, AttributeError):
+    except (ReplayError, AttributeError, OSError, ValueError):
         return {}
 
 
