@@ -17,6 +17,7 @@ import torch
 import torch.nn.functional as F
 
 from lit_learner.config import AgentConfig
+from lit_learner.errors import LearnerError
 from lit_learner.fuzzy import fuzzify
 from lit_learner.messages import Features
 from lit_learner.networks import Actor, ActorSnapshot, Critic, polyak_update
@@ -169,6 +170,11 @@ class DDPGAgent:
             target = reward + c.gamma * (1.0 - terminated) * next_q
         q = self.critic(state, action)
         critic_loss = (weight * (q - target) ** 2).mean()
+        if not torch.isfinite(critic_loss):  # no step: one would spread it into every weight
+            raise LearnerError(
+                f"the critic loss is {critic_loss.item()} (a network or the replay buffer "
+                "holds a value that is not finite); no update made"
+            )
         self.critic_optimizer.zero_grad()
         critic_loss.backward()
         self.critic_optimizer.step()

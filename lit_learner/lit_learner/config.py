@@ -3,6 +3,7 @@ our choices, not the paper's, and are recorded in every exported tensor's sideca
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -89,6 +90,11 @@ class AgentConfig:
             raise ConfigError(f"{self.name}: priority_eps {self.priority_eps} must be > 0")
         if self.beta_steps < 1:
             raise ConfigError(f"{self.name}: beta_steps {self.beta_steps} must be >= 1")
+        for name in ("alpha", "noise_std", "logit_penalty"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0.0):
+                raise ConfigError(f"{self.name}: {name} {getattr(self, name)} must be >= 0")
+        if not (math.isfinite(self.fuzzy_sigma) and self.fuzzy_sigma > 0.0):
+            raise ConfigError(f"{self.name}: fuzzy_sigma {self.fuzzy_sigma} must be > 0")
 
     @property
     def action_min(self) -> float:
@@ -161,6 +167,15 @@ class RewardConfig:
     """Floor of the normalised step time t_hat = t / T_budget."""
     path_states_scale: float = 50.0
     """K: path states are divided by this before weighting with w_s."""
+
+    def __post_init__(self) -> None:
+        # Divisors and log arguments: 0 gave a ZeroDivisionError at the first reward.
+        for name in ("search_floor", "t_hat_min", "path_states_scale"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0.0):
+                raise ConfigError(f"rewards: {name} {getattr(self, name)} must be > 0")
+        for name in ("w_t", "w_c", "w_u", "w_s", "w_search", "nu", "kappa_offset"):
+            if not math.isfinite(getattr(self, name)):
+                raise ConfigError(f"rewards: {name} {getattr(self, name)} is not a number")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able form."""

@@ -192,7 +192,9 @@ class LearnerCore:
                 continue
             history = []
             while self._pending_updates[name] > 0:
-                history.append(self.update_step(name))
+                step = self.update_step(name)
+                assert step is not None  # a step was pending
+                history.append(step[1])
             if history:
                 for key in ("critic", "actor", "mean_q", "td_abs"):
                     metrics[f"losses/{key}_{name}"] = float(np.mean([h[key] for h in history]))
@@ -255,7 +257,7 @@ class LearnerCore:
 
     def update_step(
         self, agent: str | None = None, lock: AbstractContextManager[Any] | None = None
-    ) -> dict[str, float] | None:
+    ) -> tuple[str, dict[str, float]] | None:
         """One gradient step of ``agent`` (None: the first trained agent with pending steps).
 
         ``lock`` guards what the thread that decides and commits shares with this one (the
@@ -265,8 +267,8 @@ class LearnerCore:
         node holds a lock of its own for them).
 
         Returns:
-            The agent's update record (``critic``, ``actor``, ``mean_q``, ``td_abs``, ``beta``),
-            or None when no step was pending.
+            The agent that stepped and its update record (``critic``, ``actor``, ``mean_q``,
+            ``td_abs``, ``beta``), or None when no step was pending.
         """
         guard = lock if lock is not None else nullcontext()
         names = [agent] if agent is not None else list(self.agents)
@@ -281,7 +283,7 @@ class LearnerCore:
             self._policy_version += 1
             if self._published is not None:  # one assignment: version and snapshots agree
                 self._published = (self._policy_version, {**self._published[1], name: snapshot})
-        return record
+        return name, record
 
     def counters(self) -> dict[str, float]:
         """``charts/updates_<A>``, ``charts/transitions_<A>``, ``charts/warming_up_<A>`` of the

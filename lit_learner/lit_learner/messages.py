@@ -57,12 +57,7 @@ class DecisionRequest:
                 f"episode {self.episode_id!r}: unknown agent {self.agent!r}; "
                 f"expected one of {AGENT_NAMES}"
             )
-        for name, value in zip(("rho_global", "rho_local", "measure"), self.features):
-            if not (math.isfinite(value) and 0.0 <= value <= 1.0):  # as DecideRequest's schema
-                raise MessageError(
-                    f"episode {self.episode_id!r}, agent {self.agent}: {name} = {value} "
-                    "is not a number in [0, 1]"
-                )
+        _validate_features(f"episode {self.episode_id!r}, agent {self.agent}", self.features)
         _validate_progress(
             self.episode_id,
             self.planning_time,
@@ -108,6 +103,18 @@ class EpisodeEnd:
                 f"episode {self.episode_id!r}: unknown fallback agents {sorted(unknown)}; "
                 f"expected some of {AGENT_NAMES}"
             )
+        # Each is an agent's last s' in the replay buffer: a NaN there reached the networks.
+        for agent, features in (self.final_features or {}).items():
+            where = f"episode {self.episode_id!r}, final_features"
+            if agent not in AGENT_NAMES:
+                raise MessageError(f"{where}: unknown agent {agent!r}; expected {AGENT_NAMES}")
+            try:
+                values = tuple(float(value) for value in features)
+            except (TypeError, ValueError):
+                raise MessageError(f"{where}[{agent}]: {features!r} is not 3 numbers") from None
+            if len(values) != 3:
+                raise MessageError(f"{where}[{agent}]: {len(values)} values, not 3")
+            _validate_features(f"{where}[{agent}]", values)  # type: ignore[arg-type]
         _validate_progress(
             self.episode_id,
             self.planning_time,
@@ -117,6 +124,12 @@ class EpisodeEnd:
             self.improvements,
             self.path_states,
         )
+
+
+def _validate_features(where: str, features: Features) -> None:
+    for name, value in zip(("rho_global", "rho_local", "measure"), features, strict=True):
+        if not (math.isfinite(value) and 0.0 <= value <= 1.0):  # as DecideRequest's schema
+            raise MessageError(f"{where}: {name} = {value} is not a number in [0, 1]")
 
 
 def _validate_progress(

@@ -90,7 +90,7 @@ def _cell(value: object) -> str:
     if isinstance(value, bool):
         return str(int(value))
     if isinstance(value, float):
-        return repr(value) if math.isfinite(value) else ""
+        return repr(value)  # nan and inf as such: a diverged loss is not a missing one
     return str(value)
 
 

@@ -530,10 +530,11 @@ class LearnerNode:
                     return
             try:
                 with self._networks:
-                    record = self.core.update_step(lock=self._lock)
-                if record is not None:
-                    with self._lock:
-                        losses = {f"losses/{k}": float(v) for k, v in record.items()}
+                    step = self.core.update_step(lock=self._lock)
+                if step is not None:
+                    name, record = step
+                    with self._lock:  # per agent, as lit train's (the two overwrote each other)
+                        losses = {f"losses/{k}_{name}": float(v) for k, v in record.items()}
                         self._last_metrics.update(losses)
                 else:
                     self._maintain()

@@ -57,16 +57,23 @@ class EpisodeProgress:
     returns: dict[str, float] = field(default_factory=dict)
     """Undiscounted return per agent so far."""
 
-    def check(self, episode_id: str, planning_time: float) -> None:
-        """Raise PairingError when ``planning_time`` is before the previous message's."""
+    def check(self, episode_id: str, planning_time: float, improvements: int) -> None:
+        """Raise PairingError when ``planning_time`` is before the previous message's or
+        ``improvements`` below a count seen before (improvements only add up)."""
         if planning_time < self.last_time:
             raise PairingError(
                 f"episode {episode_id!r}: planning_time {planning_time} is before the previous "
                 f"message's {self.last_time}"
             )
+        seen = max(self.improvement_times)
+        if improvements < seen:
+            raise PairingError(
+                f"episode {episode_id!r}: improvements {improvements} is below the "
+                f"{seen} an earlier message reported"
+            )
 
     def observe(self, episode_id: str, planning_time: float, improvements: int) -> None:
-        self.check(episode_id, planning_time)
+        self.check(episode_id, planning_time, improvements)
         self.last_time = planning_time
         if improvements not in self.improvement_times and improvements > max(
             self.improvement_times
@@ -96,7 +103,7 @@ class Pairing:
         changing anything."""
         episode = self.episodes.get(request.episode_id)
         if episode is not None:
-            episode.check(request.episode_id, request.planning_time)
+            episode.check(request.episode_id, request.planning_time, request.improvements)
 
     def step(self, request: DecisionRequest, action: float | None) -> Transition | None:
         """Close the agent's pending step in this episode (if any) and open a new one. After a

@@ -7,6 +7,7 @@ priority set so far (1 at the start), so each is sampled at least about as often
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -172,7 +173,18 @@ class PrioritizedReplay:
         next_state: tuple[float, float, float],
         terminated: bool,
     ) -> int:
-        """Store one transition at the current maximum priority; returns its index."""
+        """Store one transition at the current maximum priority; returns its index.
+
+        Raises:
+            ReplayError: a value is NaN or infinite (it would reach every network through the
+                targets and priorities); nothing is stored.
+        """
+        values = (*state, action, reward, *next_state)
+        if not all(math.isfinite(value) for value in values):
+            raise ReplayError(
+                f"transition not stored: state {state}, action {action}, reward {reward}, "
+                f"next state {next_state} holds a value that is not finite"
+            )
         i = self.position
         self.state[i] = state
         self.action[i] = action

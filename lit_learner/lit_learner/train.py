@@ -373,7 +373,7 @@ def run_episode(
             improvements=len(result["improvements"]),
             path_states=len(result["path"]) if result["path"] else 0,
             truncated=truncated,
-            final_features=final_features(result),
+            final_features=final_features(result, episode_id),
         )
     )
     finished = time.perf_counter()
@@ -406,15 +406,26 @@ def draw_generator(seed: int) -> np.random.Generator:
     return np.random.default_rng([seed, DRAW_STREAM])
 
 
-def final_features(result: dict[str, Any]) -> dict[str, tuple[float, float, float]] | None:
+def final_features(
+    result: dict[str, Any], episode_id: str = ""
+) -> dict[str, tuple[float, float, float]] | None:
     """Each agent's features at the end of a LIT* query (``lit_core.solve``'s
     ``final_features``), clamped into [0, 1] as every feature sent is: the s' of its last
-    transition."""
+    transition.
+
+    Raises:
+        TrainingError: a feature is NaN or infinite (as in a decision: ``unit`` would make it 0).
+    """
     from lit_planner.episode_messages import unit
 
     final = result.get("final_features")
     if not final:
         return None
+    for agent, values in final.items():
+        if not all(math.isfinite(value) for value in values):
+            raise TrainingError(
+                f"episode {episode_id}: the planner's final features of {agent}: {tuple(values)}"
+            )
     return {
         agent: tuple(unit(v) for v in values)  # type: ignore[misc]
         for agent, values in final.items()
@@ -1442,7 +1453,7 @@ def _row(outcome: EpisodeOutcome, core: Any, ranges: dict[str, tuple[float, floa
         "truncated": outcome.truncated,
         "cost": float(result["cost"]) if result["solved"] else None,
         "minimum_cost": outcome.minimum_cost,
-        "t_init": result.get("t_init"),
+        "t_init": result.get("t_init") if result["solved"] else None,  # not inf
         "improvements": len(result["improvements"]),
         "planner_time": float(result["time"]),
         "wall_time": outcome.wall_time,

@@ -149,3 +149,24 @@ def test_one_update_step_is_the_specified_one() -> None:
         agent.update()
     assert agent.beta == beta_at(5, config.beta_start, config.beta_end, config.beta_steps)
     assert agent.beta > before.beta
+
+
+def test_an_update_with_a_loss_that_is_not_finite_changes_nothing() -> None:
+    from lit_learner.errors import LearnerError
+
+    torch.manual_seed(0)
+    config = AgentConfig.neighbour_agent(batch_size=8, buffer_size=32, warmup=8)
+    agent = DDPGAgent(config, seed=0)
+    rng = np.random.default_rng(2)
+    for _ in range(16):
+        state, next_state = tuple(rng.uniform(0, 1, 3)), tuple(rng.uniform(0, 1, 3))
+        agent.remember(state, float(rng.uniform()), float(rng.normal()), next_state, False)
+    with torch.no_grad():
+        next(agent.critic_target.parameters()).fill_(float("nan"))  # a poisoned target
+    before = [p.detach().clone() for p in (*agent.actor.parameters(), *agent.critic.parameters())]
+    priorities = agent.replay.tree.total
+    with pytest.raises(LearnerError, match="critic loss is nan"):
+        agent.update()
+    after = [*agent.actor.parameters(), *agent.critic.parameters()]
+    assert all(torch.equal(a, b) for a, b in zip(before, after, strict=True))
+    assert agent.replay.tree.total == priorities and agent.updates == 0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import threading
 from dataclasses import replace
 from pathlib import Path
@@ -84,7 +85,7 @@ def test_decisions_are_executed_values() -> None:
 
 def test_metrics_after_warm_up() -> None:
     core = LearnerCore(small_config())
-    outputs = feed(core, script(8))
+    outputs = feed(core, script(8, seed=1))  # its last episode has psi_K terms of every kind
     metrics = [o for o in outputs if isinstance(o, dict)]
     last = metrics[-1]
     for agent in ("B", "psi_K"):
@@ -98,10 +99,10 @@ def test_metrics_after_warm_up() -> None:
             "charts/updates_",
         ):
             assert f"{key}{agent}" in last, f"{key}{agent}"
-        for term in ("time", "cost", "penalty"):
-            assert f"rewards/{agent}_{term}" in last
+        terms = ("time", "cost", "penalty") + (("search",) if agent == "psi_K" else ())
+        assert all(last[f"rewards/{agent}_{term}"] != 0.0 for term in terms), last
         assert last[f"charts/return_{agent}"] == pytest.approx(
-            sum(last[f"rewards/{agent}_{t}"] for t in ("time", "cost", "penalty"))
+            sum(last[f"rewards/{agent}_{term}"] for term in terms)
         )
     # One update per transition from warm-up on: updates = transitions - warmup + 1.
     b, k = core.agents["B"], core.agents["psi_K"]
@@ -133,6 +134,17 @@ def test_bad_messages_are_rejected_with_their_field() -> None:
         core.decide(replace(good, measure=1.5))  # as DecideRequest's schema refuses it
     with pytest.raises(MessageError, match="time_budget 0.0 must be finite and > 0"):
         core.end_episode(EpisodeEnd("e", 1.0, 0.0, None, 1.0, 0, 0))
+    # An episode end's final features become the last s' in the replay buffer: a NaN there
+    # reached every network (the next decision then failed for good).
+    end = EpisodeEnd("e", 1.0, 2.0, None, 1.0, 0, 0)
+    for final, message in (
+        ({"B": (float("nan"), 0.2, 0.3)}, r"final_features\[B\]: rho_global = nan is not"),
+        ({"psi_K": (0.1, 0.2, 1.5)}, r"final_features\[psi_K\]: measure = 1.5 is not"),
+        ({"B": (0.1, 0.2)}, r"final_features\[B\]: 2 values, not 3"),
+        ({"K": (0.1, 0.2, 0.3)}, "final_features: unknown agent 'K'"),
+    ):
+        with pytest.raises(MessageError, match=message):
+            core.end_episode(replace(end, final_features=final))
 
 
 def test_choose_then_commit_is_decide() -> None:
@@ -418,3 +430,32 @@ def test_configs_from_before_the_logit_penalty_and_search_cost_keep_training_wit
     assert old.b.logit_penalty == 0.0 and old.k.logit_penalty == 0.0
     assert old.reward.w_search == 0.0
     assert LearnerConfig.from_dict(LearnerConfig().to_dict()) == LearnerConfig()
+
+
+def test_the_metrics_file_keeps_a_diverged_loss(tmp_path: Path) -> None:
+    """NaN and inf were written as empty cells, as if no update had been made."""
+    from lit_learner.metrics import MetricsLog, read_metrics
+
+    log = MetricsLog(tmp_path / "metrics.csv", ["episode"])
+    log.append({"episode": 0, "losses/critic_B": float("nan"), "losses/actor_B": float("inf")})
+    log.append({"episode": 1, "losses/critic_B": 0.5})
+    text = (tmp_path / "metrics.csv").read_text()
+    assert "nan" in text and "inf" in text
+    columns = read_metrics(tmp_path / "metrics.csv")
+    assert math.isnan(columns["losses/critic_B"][0]) and columns["losses/critic_B"][1] == 0.5
+    assert columns["losses/actor_B"][0] == math.inf
+
+
+def test_configs_that_would_divide_by_zero_or_diverge_are_refused() -> None:
+    from lit_learner.config import RewardConfig
+    from lit_learner.errors import ConfigError
+
+    for bad in ({"t_hat_min": 0.0}, {"search_floor": 0.0}, {"path_states_scale": -1.0},
+                {"w_c": float("nan")}):  # fmt: skip
+        with pytest.raises(ConfigError, match=next(iter(bad))):
+            RewardConfig(**bad)
+    for bad in ({"fuzzy_sigma": 0.0}, {"noise_std": -0.1}, {"alpha": -1.0},
+                {"logit_penalty": float("inf")}):  # fmt: skip
+        with pytest.raises(ConfigError, match=next(iter(bad))):
+            AgentConfig.neighbour_agent(**bad)
+    RewardConfig(w_search=0.0, nu_min=0.0)  # allowed: no search cost, no kappa floor

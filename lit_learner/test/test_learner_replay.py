@@ -163,6 +163,18 @@ def test_sampling_an_empty_buffer_fails() -> None:
         PrioritizedReplay(4, 0.6, 1e-6).sample(2, 0.4, np.random.default_rng(0))
 
 
+@pytest.mark.parametrize("field", ["state", "action", "reward", "next_state"])
+def test_a_transition_with_a_value_that_is_not_finite_is_not_stored(field: str) -> None:
+    replay = PrioritizedReplay(4, 0.6, 1e-6)
+    values = {"state": (0.1, 0.2, 0.3), "action": 0.5, "reward": 1.0,
+              "next_state": (0.1, 0.2, 0.3)}  # fmt: skip
+    values[field] = (0.1, float("nan"), 0.3) if "state" in field else float("inf")
+    with pytest.raises(ReplayError, match="not finite"):
+        replay.add(values["state"], values["action"], values["reward"], values["next_state"],
+                   terminated=False)  # fmt: skip
+    assert len(replay) == 0 and replay.tree.total == 0.0
+
+
 def test_beta_rises_linearly_and_stops_at_the_end() -> None:
     assert beta_at(0, 0.4, 1.0, 100) == 0.4
     assert beta_at(50, 0.4, 1.0, 100) == pytest.approx(0.7)
