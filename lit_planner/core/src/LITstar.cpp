@@ -4,6 +4,7 @@
 
 #include "lit/InformedMeasure.h"
 
+#include <ompl/base/DiscreteMotionValidator.h>
 #include <ompl/base/PlannerData.h>
 #include <ompl/base/goals/GoalSampleableRegion.h>
 #include <ompl/base/objectives/PathLengthOptimizationObjective.h>
@@ -14,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <sstream>
 
 namespace lit
 {
@@ -22,6 +24,15 @@ namespace lit
     {
         constexpr unsigned int fullCheck = std::numeric_limits<unsigned int>::max();
         constexpr double infinity = std::numeric_limits<double>::infinity();
+
+        /** \brief All 17 significant digits (ompl::toString keeps 6: costs differing in the 7th looked equal). */
+        std::string exactText(double value)
+        {
+            std::ostringstream text;
+            text.precision(std::numeric_limits<double>::max_digits10);
+            text << value;
+            return text.str();
+        }
     }  // namespace
 
     LITstar::LITstar(const ompl::base::SpaceInformationPtr &si)
@@ -45,6 +56,16 @@ namespace lit
         declareParam<unsigned int>("max_iterations", this, &LITstar::setMaxIterations, &LITstar::getMaxIterations);
         declareParam<unsigned int>("max_batches", this, &LITstar::setMaxBatches, &LITstar::getMaxBatches);
         declareParam<double>("time_budget", this, &LITstar::setTimeBudget, &LITstar::getTimeBudget);
+
+        // What OMPL's Benchmark samples while the planner runs (its cost-over-time curves).
+        addPlannerProgressProperty("best cost DOUBLE", [this] { return exactText(bestCost_); });
+        addPlannerProgressProperty("iterations INTEGER",
+                                   [this] { return std::to_string(counters_.iterations); });
+        addPlannerProgressProperty("batches INTEGER", [this] { return std::to_string(counters_.batches); });
+        addPlannerProgressProperty("valid samples INTEGER",
+                                   [this] { return std::to_string(counters_.validSamples); });
+        addPlannerProgressProperty("collision checks INTEGER",
+                                   [this] { return std::to_string(counters_.collisionChecks); });
     }
 
     LITstar::~LITstar()
@@ -122,6 +143,7 @@ namespace lit
     void LITstar::setSeed(unsigned int seed)
     {
         seed_ = seed;
+        seedSet_ = true;
     }
     unsigned int LITstar::getSeed() const
     {
@@ -231,7 +253,7 @@ namespace lit
         firstSolutionMeasure_ = 0.0;
     }
 
-    ompl::base::PlannerStatus LITstar::initializeProblem()
+    ompl::base::PlannerStatus LITstar::initializeProblem(const ompl::base::PlannerTerminationCondition &ptc)
     {
         statusMessage_.clear();
         checkObjective();  // a problem set after setup() may have none (setup() is not called again)
@@ -247,6 +269,9 @@ namespace lit
             statusMessage_ = "the start state is missing, out of bounds or in collision";
             return ompl::base::PlannerStatus::INVALID_START;
         }
+        if (pis_.haveMoreStartStates())  // one forward tree, one root: said, not dropped without a word
+            OMPL_WARN("%s: plans from one start state; the problem's %u other start states are not used",
+                      getName().c_str(), pdef_->getStartStateCount() - 1u);
         // A goal state or set is read to its end through PlannerInputStates: nextGoal() answers null (with OMPL's
         // warning, once per state) for a goal out of bounds or in collision. Any other region (OMPL's GoalSpace,
         // whose samples never end) is sampled here: at most MAX_GOAL_SAMPLES valid samples in at most 10 times as
@@ -261,9 +286,14 @@ namespace lit
         };
         if (goal->hasType(ompl::base::GOAL_STATE) || goal->hasType(ompl::base::GOAL_STATES))
         {
-            // As many as the set holds now: a GoalLazySamples (a goal set) grows while its thread samples.
-            const std::size_t members = goal->as<ompl::base::GoalSampleableRegion>()->maxSampleCount();
-            for (std::size_t read = 0u; read < members && pis_.haveMoreGoalStates(); ++read)
+            // As many as the set holds now: a GoalLazySamples (a goal set) grows while its thread samples. One
+            // that holds none yet is waited for (until the termination condition), as OMPL's planners do.
+            const auto *sampleable = goal->as<ompl::base::GoalSampleableRegion>();
+            if (goal->hasType(ompl::base::GOAL_LAZY_SAMPLES) && sampleable->maxSampleCount() == 0u)
+                if (const ompl::base::State *g = pis_.nextGoal(ptc))
+                    keep(g);
+            const std::size_t members = sampleable->maxSampleCount();
+            for (std::size_t read = goals.size(); read < members && pis_.haveMoreGoalStates(); ++read)
                 if (const ompl::base::State *g = pis_.nextGoal())
                     keep(g);
         }
@@ -295,10 +325,20 @@ namespace lit
 
         dimension_ = si_->getStateDimension();
         longestValidSegment_ = si_->getStateSpace()->getLongestValidSegmentLength();
+        segmentCountFactor_ = std::max(1u, si_->getStateSpace()->getValidSegmentCountFactor());
+        const ompl::base::MotionValidator *validator = si_->getMotionValidator().get();
+        customMotionValidator_ =
+            validator != nullptr && dynamic_cast<const ompl::base::DiscreteMotionValidator *>(validator) == nullptr;
         spaceMeasure_ = si_->getSpaceMeasure();
         if (interpolated_ == nullptr)
             interpolated_ = si_->allocState();
         bestPathStates_.clear();  // they belonged to the graph replaced here
+        if (!seedSet_)
+        {
+            if (!seedSource_)
+                seedSource_ = std::make_unique<ompl::RNG>();
+            seed_ = static_cast<unsigned int>(seedSource_->uniformInt(1, std::numeric_limits<int>::max()));
+        }
         graph_ = std::make_unique<litstar::RandomGeometricGraph>(si_, seed_);
         forwardQueue_ = std::make_unique<litstar::ForwardQueue>([this](litstar::Edge &edge) { computeKeys(edge); });
         graph_->setTerminals(start, goals);
@@ -322,9 +362,10 @@ namespace lit
         }
         if (!problemInitialized_)
         {
-            const ompl::base::PlannerStatus status = initializeProblem();
+            const ompl::base::PlannerStatus status = initializeProblem(ptc);
             if (status != ompl::base::PlannerStatus::UNKNOWN)
             {
+                pis_.restart();  // the next solve() reads the start and goals again (the start was taken already)
                 OMPL_ERROR("%s: %s", getName().c_str(), statusMessage_.c_str());
                 return status;
             }
@@ -355,6 +396,8 @@ namespace lit
                 iterate();
             }
         }
+        if (std::isfinite(bestCost_) && !pdef_->hasExactSolution())
+            addBestPathToProblem();  // the caller cleared the solutions since this planner found its best path
         return std::isfinite(bestCost_) ? ompl::base::PlannerStatus::EXACT_SOLUTION :
                                           ompl::base::PlannerStatus::TIMEOUT;
     }
@@ -466,7 +509,8 @@ namespace lit
     unsigned int LITstar::segmentCount(const State *a, const State *b) const
     {
         // As OMPL's StateSpace::validSegmentCount: the same resolution for every planner in a comparison.
-        const double count = std::ceil(graph_->distance(a, b) / longestValidSegment_);
+        const double count =
+            static_cast<double>(segmentCountFactor_) * std::ceil(graph_->distance(a, b) / longestValidSegment_);
         if (!(count < 2147483648.0))  // also NaN: the point indices are unsigned int
             throw ompl::Exception("LITstar: an edge of length " + std::to_string(graph_->distance(a, b)) + " needs " +
                                   std::to_string(count) +
@@ -499,6 +543,12 @@ namespace lit
                 return false;
             if (points == 0u)
             {
+                if (customMotionValidator_)
+                {
+                    ++counters_.collisionChecks;  // one call, however many checks the validator makes
+                    if (!si_->checkMotion(from->raw_, to->raw_))
+                        return false;
+                }
                 done = fullCheck;
                 whitelist(from, to);
                 return true;
@@ -825,14 +875,10 @@ namespace lit
         }
         std::reverse(bestPathStates_.begin(), bestPathStates_.end());
 
-        auto path = std::make_shared<ompl::geometric::PathGeometric>(si_);
+        addBestPathToProblem();
         std::vector<const ompl::base::State *> states;
         for (State *s : bestPathStates_)
-        {
-            path->append(s->raw_);
             states.push_back(s->raw_);
-        }
-        pdef_->addSolutionPath(path, false, 0.0, getName());
         if (const auto &callback = pdef_->getIntermediateSolutionCallback())
             callback(this, states, ompl::base::Cost(bestCost_));
         if (first)
@@ -846,6 +892,14 @@ namespace lit
         event.iteration = counters_.iterations;
         notifyListeners([&event](PlannerListener &listener) { listener.onSolution(event); });
         adaptiveBatchsize();
+    }
+
+    void LITstar::addBestPathToProblem()
+    {
+        auto path = std::make_shared<ompl::geometric::PathGeometric>(si_);
+        for (State *s : bestPathStates_)
+            path->append(s->raw_);
+        pdef_->addSolutionPath(path, false, 0.0, getName());
     }
 
     void LITstar::improveApproximation()
@@ -1046,6 +1100,8 @@ namespace lit
             if (state->forwardParent_ != nullptr)
                 data.addEdge(ompl::base::PlannerDataVertex(state->forwardParent_->raw_,
                                                            static_cast<int>(state->forwardParent_->id_)),
-                             ompl::base::PlannerDataVertex(state->raw_, static_cast<int>(state->id_)));
+                             ompl::base::PlannerDataVertex(state->raw_, static_cast<int>(state->id_)),
+                             ompl::base::PlannerDataEdge(),
+                             ompl::base::Cost(graph_->distance(state->forwardParent_, state.get())));
     }
 }  // namespace lit

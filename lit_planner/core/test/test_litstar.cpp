@@ -3,21 +3,27 @@
 #include "lit/LITstar.h"
 #include "lit/litstar/RandomGeometricGraph.h"
 
+#include <ompl/base/MotionValidator.h>
 #include <ompl/base/OptimizationObjective.h>
+#include <ompl/base/PlannerData.h>
 #include <ompl/base/ScopedState.h>
+#include <ompl/base/goals/GoalLazySamples.h>
 #include <ompl/base/goals/GoalSpace.h>
 #include <ompl/base/goals/GoalStates.h>
 #include <ompl/base/spaces/RealVectorStateSpace.h>
 #include <ompl/base/PlannerTerminationCondition.h>
 #include <ompl/base/ProblemDefinition.h>
+#include <ompl/geometric/PathGeometric.h>
 #include <ompl/util/Console.h>
 #include <ompl/util/Exception.h>
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -28,6 +34,17 @@ using namespace lit;
 
 namespace
 {
+    // Planners without setSeed() draw their seeds from OMPL's RNG: seeded here, the tests are reproducible.
+    struct FixedOmplSeed : ::testing::Environment
+    {
+        void SetUp() override
+        {
+            ompl::RNG::setSeed(20261204u);
+        }
+    };
+    [[maybe_unused]] ::testing::Environment *const fixedOmplSeed =
+        ::testing::AddGlobalTestEnvironment(new FixedOmplSeed);
+
     struct Recorder : PlannerListener
     {
         std::vector<SolutionEvent> solutions;
@@ -411,6 +428,185 @@ TEST(LITstar, EveryGoalOfAGoalSetIsKept)
     EXPECT_DOUBLE_EQ(path.back()[0], -0.3);
     EXPECT_DOUBLE_EQ(path.back()[1], 0.3);
     EXPECT_LT(planner->bestCost(), 0.35);  // about 0.316, the straight line to the near goal
+}
+
+TEST(LITstar, AClusterOfGoalsIsReached)
+{
+    // 100 goal states in a box of side 0.02: each goal's k nearest samples were all goals, the reverse search skips
+    // goals, so it never left the cluster and no search moved (thousands of empty batches, no solution).
+    BoxProblem problem = test::narrowPassage(4, 1e-3);
+    auto goals = std::make_shared<ompl::base::GoalStates>(problem.si);
+    std::mt19937 rng(3u);
+    std::uniform_real_distribution<double> offset(-0.01, 0.01);
+    for (int i = 0; i < 100; ++i)
+    {
+        ompl::base::ScopedState<> goal(problem.si);
+        goal[0] = 0.2 + offset(rng);
+        for (unsigned int d = 1; d < 4u; ++d)
+            goal[d] = offset(rng);
+        goals->addState(goal);
+    }
+    problem.pdef->setGoal(goals);
+    auto planner = std::make_shared<LITstar>(problem.si);
+    planner->setMaxBatches(30u);
+    planner->setProblemDefinition(problem.pdef);
+    ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    EXPECT_EQ(planner->graph().goals().size(), 100u);
+    EXPECT_TRUE(problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>()->check());
+}
+
+TEST(LITstar, AMotionValidatorOfTheUsersOwnIsAsked)
+{
+    // The validator refuses motions across x0 = 0 below x1 = 0.3, whose states are all valid: LIT* checked edges
+    // state by state only and returned the straight line (cost 0.4), which PathGeometric::check() refuses.
+    struct Fence : ompl::base::MotionValidator
+    {
+        using MotionValidator::MotionValidator;
+        static bool crosses(const ompl::base::State *a, const ompl::base::State *b)
+        {
+            const auto *x = a->as<ompl::base::RealVectorStateSpace::StateType>()->values;
+            const auto *y = b->as<ompl::base::RealVectorStateSpace::StateType>()->values;
+            if ((x[0] < 0.0) == (y[0] < 0.0))
+                return false;
+            const double t = x[0] / (x[0] - y[0]);
+            return x[1] + t * (y[1] - x[1]) < 0.3;
+        }
+        bool checkMotion(const ompl::base::State *a, const ompl::base::State *b) const override
+        {
+            return si_->isValid(b) && !crosses(a, b);
+        }
+        bool checkMotion(const ompl::base::State *a, const ompl::base::State *b,
+                         std::pair<ompl::base::State *, double> &) const override
+        {
+            return checkMotion(a, b);
+        }
+    };
+    BoxWorld world;
+    world.lower.assign(2u, -0.5);
+    world.upper.assign(2u, 0.5);
+    BoxProblem problem = makeBoxProblem(world, {-0.2, 0.0}, {0.2, 0.0}, 1e-3);
+    problem.si->setMotionValidator(std::make_shared<Fence>(problem.si.get()));
+    auto planner = std::make_shared<LITstar>(problem.si);
+    planner->setMaxBatches(20u);
+    planner->setProblemDefinition(problem.pdef);
+    ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    EXPECT_TRUE(problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>()->check());
+    EXPECT_GT(planner->bestCost(), 2.0 * std::hypot(0.2, 0.3) - 1e-9);  // around the fence's end
+}
+
+TEST(LITstar, AClearedSolutionIsHandedBackWithTheStatusThatReportsIt)
+{
+    // solve() answered EXACT_SOLUTION with no path in the problem definition after the caller cleared it.
+    BoxProblem problem = test::narrowPassage(2, 1e-3);
+    auto planner = std::make_shared<LITstar>(problem.si);
+    planner->setMaxBatches(3u);
+    planner->setProblemDefinition(problem.pdef);
+    ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    problem.pdef->clearSolutionPaths();
+    ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    ASSERT_TRUE(problem.pdef->hasExactSolution());
+    EXPECT_DOUBLE_EQ(problem.pdef->getSolutionPath()->length(), planner->bestCost());
+}
+
+TEST(LITstar, WithoutASeedEachProblemDrawsOneFromOmpl)
+{
+    // The default seed was 1 for every problem: an OMPL Benchmark's runs were all the same run.
+    BoxProblem problem = test::narrowPassage(2, 1e-3);
+    auto planner = std::make_shared<LITstar>(problem.si);
+    planner->setMaxBatches(2u);
+    planner->setProblemDefinition(problem.pdef);
+    std::vector<unsigned int> seeds;
+    for (int run = 0; run < 3; ++run)
+    {
+        planner->clear();
+        problem.pdef->clearSolutionPaths();
+        planner->solve(ompl::base::plannerNonTerminatingCondition());
+        seeds.push_back(planner->getSeed());
+        EXPECT_NE(seeds.back(), 0u);
+    }
+    EXPECT_NE(seeds[0], seeds[1]);
+    EXPECT_NE(seeds[1], seeds[2]);
+    // OMPL's Benchmark samples these while the planner runs.
+    const auto &progress = planner->getPlannerProgressProperties();
+    for (const char *name : {"best cost DOUBLE", "iterations INTEGER", "batches INTEGER", "valid samples INTEGER",
+                             "collision checks INTEGER"})
+        ASSERT_EQ(progress.count(name), 1u) << name;
+    EXPECT_NEAR(std::stod(progress.at("best cost DOUBLE")()), planner->bestCost(), 1e-12);
+    EXPECT_EQ(progress.at("batches INTEGER")(), "2");
+    // The planner data's edges weigh their lengths (they were all 1).
+    ompl::base::PlannerData data(problem.si);
+    planner->getPlannerData(data);
+    ASSERT_GT(data.numEdges(), 0u);
+    std::vector<unsigned int> children;
+    data.getEdges(0u, children);
+    for (unsigned int v = 0u; v < data.numVertices() && children.empty(); ++v)
+        data.getEdges(v, children);
+    ASSERT_FALSE(children.empty());
+    for (unsigned int v = 0u; v < data.numVertices(); ++v)
+    {
+        std::vector<unsigned int> out;
+        data.getEdges(v, out);
+        for (unsigned int w : out)
+        {
+            ompl::base::Cost weight;
+            ASSERT_TRUE(data.getEdgeWeight(v, w, &weight));
+            EXPECT_NEAR(weight.value(), problem.si->distance(data.getVertex(v).getState(), data.getVertex(w).getState()),
+                        1e-12);
+        }
+    }
+    planner->setSeed(7u);  // a set seed is every problem's
+    for (int run = 0; run < 2; ++run)
+    {
+        planner->clear();
+        planner->solve(ompl::base::plannerNonTerminatingCondition());
+        EXPECT_EQ(planner->getSeed(), 7u);
+    }
+}
+
+TEST(LITstar, ALazyGoalSetIsWaitedForAndAFailedSetupIsReadAgain)
+{
+    // A GoalLazySamples whose thread has no goal yet gave INVALID_GOAL at once (OMPL's planners wait for one), and
+    // the next solve() then answered INVALID_START: the failed setup had taken the start.
+    BoxProblem problem = test::narrowPassage(2, 1e-3);
+    auto calls = std::make_shared<int>(0);
+    auto lazy = std::make_shared<ompl::base::GoalLazySamples>(
+        problem.si,
+        [calls](const ompl::base::GoalLazySamples *, ompl::base::State *state) {
+            if ((*calls)++ > 0)
+                return false;  // one goal (a call that answers false adds nothing)
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+            auto *values = state->as<ompl::base::RealVectorStateSpace::StateType>()->values;
+            values[0] = 0.2;
+            values[1] = 0.0;
+            return true;
+        },
+        false);
+    problem.pdef->setGoal(lazy);
+    auto planner = std::make_shared<LITstar>(problem.si);
+    planner->setMaxBatches(5u);
+    planner->setProblemDefinition(problem.pdef);
+    lazy->startSampling();
+    EXPECT_EQ(planner->solve(ompl::base::timedPlannerTerminationCondition(30.0)),
+              ompl::base::PlannerStatus::EXACT_SOLUTION);
+    lazy->stopSampling();
+
+    BoxProblem blocked = test::narrowPassage(2, 1e-3);
+    auto goals = std::make_shared<ompl::base::GoalStates>(blocked.si);
+    ompl::base::ScopedState<> inWall(blocked.si);
+    inWall[0] = 0.0;
+    inWall[1] = 0.0;
+    goals->addState(inWall);
+    blocked.pdef->setGoal(goals);
+    auto second = std::make_shared<LITstar>(blocked.si);
+    second->setMaxBatches(5u);
+    second->setProblemDefinition(blocked.pdef);
+    EXPECT_EQ(second->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::INVALID_GOAL);
+    ompl::base::ScopedState<> free(blocked.si);
+    free[0] = 0.2;
+    free[1] = 0.0;
+    goals->clear();
+    goals->addState(free);
+    EXPECT_EQ(second->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
 }
 
 TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)

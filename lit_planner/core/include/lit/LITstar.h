@@ -9,6 +9,7 @@
 #include "lit/litstar/RandomGeometricGraph.h"
 
 #include <ompl/base/Planner.h>
+#include <ompl/util/RandomNumbers.h>
 
 #include <chrono>
 #include <cstdint>
@@ -49,8 +50,9 @@ namespace lit
     {
     public:
         /** \brief Goal samples taken at the start of a problem from a goal region other than a goal state or set
-         *  (OMPL's GoalSpace, say; a goal set is read whole). Many goals slow the search down: on NP in R^4 with goals drawn in
-         *  a 0.1-wide box, 30 batches solved with 100 goals and not with 1000. */
+         *  (OMPL's GoalSpace, say; a goal set is read whole). Many goals slow the search down (each batch restarts
+         *  the reverse search at every goal): on NP in R^4 with goals drawn in a 0.1-wide box, 30 batches took about
+         *  11 s with 1000 goals (one-off). */
         static constexpr std::size_t MAX_GOAL_SAMPLES = 100u;
 
         explicit LITstar(const ompl::base::SpaceInformationPtr &si);
@@ -78,7 +80,9 @@ namespace lit
         std::string getPolicyName() const;
         void setPolicy(ParameterPolicyPtr policy);
         const ParameterPolicyPtr &getPolicy() const;
-        /** \brief Seed of the planner's own sampler RNG. */
+        /** \brief Seed of the planner's own sampler RNG for every problem. Without it each problem draws one from
+         *  an ompl::RNG (OMPL's global seed decides); getSeed() gives the seed of the current problem (0 before the
+         *  first one). */
         void setSeed(unsigned int seed);
         unsigned int getSeed() const;
         /** \brief Stop after this many iterations / batches in total (0: no limit). */
@@ -129,7 +133,7 @@ namespace lit
 
     private:
         /** \brief Sets up the problem on the first call of solve; returns a status other than UNKNOWN on failure. */
-        ompl::base::PlannerStatus initializeProblem();
+        ompl::base::PlannerStatus initializeProblem(const ompl::base::PlannerTerminationCondition &ptc);
         void iterate();
         /** \brief Gives the problem the path-length objective if it has none; refuses any other objective. */
         void checkObjective();
@@ -172,6 +176,8 @@ namespace lit
         void propagateCostToCome(litstar::State *state);
         void detachFromForwardTree(litstar::State *state);
         void checkForImprovedSolution();
+        /** \brief Hand the best path to the problem definition. */
+        void addBestPathToProblem();
         void registerSolution(litstar::State *goal);
         /** \brief Neighbours for either search: the k nearest, the samples that have \e state among their k nearest,
          *  and its tree relatives. */
@@ -213,7 +219,13 @@ namespace lit
         unsigned int fixedBatchSize_{100u};
         double rewireFactor_{1.001};
         unsigned int decisionInterval_{1u};
-        unsigned int seed_{1u};
+        unsigned int seed_{0u};
+        /** setSeed() was called: every problem uses seed_. Otherwise each problem draws its seed from seedSource_,
+         *  which OMPL seeds (ompl::RNG::setSeed() makes the runs reproducible, and a benchmark's runs differ). It is
+         *  made at the first draw: an ompl::RNG takes a seed from OMPL's global sequence, which a planner given its
+         *  seed must leave to the planners made after it. */
+        bool seedSet_{false};
+        std::unique_ptr<ompl::RNG> seedSource_;
         unsigned int maxIterations_{0u};
         unsigned int maxBatches_{0u};
         double timeBudget_{0.0};
@@ -245,6 +257,12 @@ namespace lit
         std::string statusMessage_;
         unsigned int dimension_{0u};
         double longestValidSegment_{1.0};
+        /** The state space's valid segment count factor (OMPL's validSegmentCount multiplies by it). */
+        unsigned int segmentCountFactor_{1u};
+        /** The space information's motion validator is not OMPL's DiscreteMotionValidator: an edge that passes the
+         *  state checks of a full check is also given to si->checkMotion() (the validator may refuse motions whose
+         *  states are all valid). */
+        bool customMotionValidator_{false};
         double spaceMeasure_{0.0};
         double bestCost_{std::numeric_limits<double>::infinity()};
         /** A solution was registered since the last prune: the next batch prunes. With the cost unchanged a prune

@@ -268,7 +268,11 @@ namespace lit::litstar
             if (sum > bound)
                 continue;  // farther than the cache's last entry
             State *other = states_[i].get();
-            if (other == state)
+            // A goal's neighbours are the samples that are not goals: no search uses an edge between two goals
+            // (the reverse search starts at every goal with cost 0, the forward search never leaves one), and a goal
+            // among many close ones had only goals as its k nearest, so the reverse search never left the goal set
+            // (100 goal-region samples in a box of side 0.02 left every search idle).
+            if (other == state || (state->isGoal_ && other->isGoal_))
                 continue;
             const double d = std::sqrt(sum);
             if (!full || closer(d, other, worstDistance, worstState))

@@ -91,7 +91,8 @@ namespace lit::litstar
          *  \e beforeRemove runs on each valid state first. Returns the number of samples removed. */
         std::size_t prune(double maxCost, const std::function<void(State *)> &beforeRemove);
 
-        /** \brief The k nearest valid samples of \e state (itself excluded; sorted by distance, ties by id).
+        /** \brief The k nearest valid samples of \e state (itself excluded, and for a goal every goal: no search
+         *  uses an edge between two goals; sorted by distance, ties by id).
          *  Cached per state and updated incrementally with the samples added since; a smaller k than cached is a
          *  prefix of the cache, a larger one rescans, a prune filters the cache. The range stays valid until the
          *  next call for \e state or the next prune. */
