@@ -23,7 +23,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from lit_planner.replay import READ_TWICE, BagReader, Envelope, ReplayError, Skipped, decode
+from lit_planner.replay import (
+    READ_TWICE,
+    BagReader,
+    Envelope,
+    ReplayError,
+    Skipped,
+    decode,
+    message_identity,
+)
 
 from lit_planner import argtypes
 
@@ -257,14 +265,14 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
     skipped = Skipped()
     found: dict[tuple[str, str, str], RecordedEpisode] = {}
     order: list[tuple[str, str, str]] = []
-    seen: set[tuple[str, str, str, int]] = set()
+    seen: set[tuple[str, str, str, int, int]] = set()
     for path in paths:
         with BagReader(path) as reader:
             for message in reader.messages():
                 item = decode(message, skipped)
                 if not isinstance(item, Envelope) or not isinstance(item.payload, dict):
                     continue
-                identity = (item.topic, item.source, item.run_id, item.seq)
+                identity = message_identity(item)
                 if identity in seen:
                     skipped.counts[READ_TWICE] += 1
                     continue

@@ -171,6 +171,16 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path
     assert [int(row["episode"]) for row in rows] == list(range(14))
     seeds = [int(row["seed"]) for row in rows]
     assert len(set(seeds)) == 14  # the generator continued instead of restarting
+    # The resumed session's bag (same run id, seq from 0 again) is not a copy of the first one:
+    # both together give all 14 episodes (its messages were skipped as read twice).
+    (resumed_bag,) = [p for p in tmp_path.iterdir()
+                      if (p / "metadata.yaml").exists() and p not in (bag, tmp_path / "copy")]  # fmt: skip
+    both, skipped = read_episodes([bag, resumed_bag])
+    assert len(both) == 14 and not skipped.counts["message read twice (a bag and its copy?)"]
+    checked = replay.VerifyReport()
+    for path in (bag, resumed_bag):
+        replay.verify_bag(path, checked)
+    assert checked.checked == 14 and checked.valid == 14, checked
 
     # Export: readable by the planner's tensor policy, usable for planning, with provenance.
     record = json.loads((export_dir / train.PROVENANCE_FILE).read_text())

@@ -145,6 +145,13 @@ class Envelope:
         return split_topic(self.topic)[0]
 
 
+def message_identity(item: Envelope) -> tuple[str, str, str, int, int]:
+    """What makes an envelope the same message in another bag: its topic, source, run id, seq and
+    the stamp its publisher gave it. A compacted or salvaged copy keeps all five; a resumed
+    ``lit train`` run records under the same run id with its seq from 0 again, at later stamps."""
+    return (item.topic, item.source, item.run_id, item.seq, item.stamp_ns)
+
+
 @dataclass(frozen=True)
 class Trajectory:
     """A decoded ``/lit/path`` message."""
@@ -158,8 +165,8 @@ class Trajectory:
 
 
 READ_TWICE = "message read twice (a bag and its copy?)"
-"""Why a message is skipped whose topic, source, run id and seq one of the bags read before held
-(a bag given with its compacted or salvaged copy)."""
+"""Why a message is skipped that one of the bags read before held (:func:`message_identity`: a
+bag given with its compacted or salvaged copy)."""
 BENIGN_SKIPS = frozenset({"foreign topic", "unknown schema", "unsupported version", READ_TWICE})
 """Reasons to skip a message that say nothing against the bag: another program's topics,
 messages of a newer LIT* (counted and shown, as a reader of an older version must), and a copy's
@@ -766,8 +773,8 @@ class VerifyReport:
     disagreements: list[str] = field(default_factory=list)
     unsolved: int = 0
     unchecked: Skipped = field(default_factory=Skipped)
-    seen: set[tuple[str, str, str, int]] = field(default_factory=set)
-    """(topic, source, run id, seq) of the records checked (a copy's are checked once)."""
+    seen: set[tuple[str, str, str, int, int]] = field(default_factory=set)
+    """:func:`message_identity` of the records checked (a copy's are checked once)."""
 
 
 def verify_bag(path: str | Path, report: VerifyReport) -> Skipped:
@@ -780,7 +787,7 @@ def verify_bag(path: str | Path, report: VerifyReport) -> Skipped:
         for message in reader.messages():
             item = decode(message, skipped)
             if isinstance(item, Envelope):
-                identity = (item.topic, item.source, item.run_id, item.seq)
+                identity = message_identity(item)
                 if identity in report.seen:
                     skipped.counts[READ_TWICE] += 1
                     continue
