@@ -132,6 +132,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     print(format_table(report))
     if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)  # checked as creatable above
         Path(args.json).write_text(json.dumps(_json_safe(report), indent=1, allow_nan=False))
     return 0 if report["ok"] else 1
 

@@ -89,8 +89,9 @@ def test_verdict_of_an_invalid_path_and_a_disagreement() -> None:
 
 
 def test_short_real_crosscheck_on_np4(tmp_path: Path) -> None:
-    """One run of each planner, short times; a huge tolerance: here only validity is judged."""
-    out = tmp_path / "crosscheck.json"
+    """One run of each planner, short times; a huge tolerance: here only validity is judged. The
+    report goes into a folder that does not exist yet (it ended the run with a traceback)."""
+    out = tmp_path / "new" / "crosscheck.json"
     process = subprocess.run(
         [sys.executable, "-m", "lit_planner.cli", "crosscheck", "--scenarios", "np4",
          "--runs", "1", "--time", "0.5", "--tolerance", "100", "--json", str(out)],
