@@ -47,6 +47,10 @@ import pytest
         (["--learner-param", "run_id:=" + "r" * 200], "is too long"),
         (["--checkpoint", "EXISTING"], "a folder; give the checkpoint file"),
         (["--bag", "EXISTING"], "exists already"),
+        # The recorder and the learner failed after everything had started (the learner only at
+        # its shutdown, losing the run's checkpoint).
+        (["--bag", "/proc/x/bag"], "bag /proc/x/bag: cannot write in /proc"),
+        (["--checkpoint", "/proc/x/y.pt"], "--checkpoint /proc/x: cannot write in /proc"),
         (["--bag", "NEW", "--no-record"], "--bag and --no-record contradict each other"),
         (["--domain-id", "233"], "233 is not a ROS domain id Fast DDS can use (0-232)"),
         (["--domain-id", "x"], "--domain-id: not a whole number: 'x'"),

@@ -380,6 +380,7 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
     from lit_learner import node as learner_node
     from lit_planner import node as planner_node
     from lit_planner import scenarios
+    from lit_planner.bag import write_problem
     from lit_planner.errors import LitPlannerError
 
     if not _RUN_ID.fullmatch(run_id) or run_id.lower() in _YAML_WORDS:
@@ -417,6 +418,16 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
         return f"--scenario {args.scenario}: {error}"
     if bag is not None and bag.exists():
         return f"bag {bag} exists already; choose another --bag or --run-id"
+    # Where the recorder and the learner will write (they failed only after everything started,
+    # the learner not before its shutdown).
+    for what, path in (
+        ("bag", bag),
+        ("--checkpoint", Path(args.checkpoint).parent if args.checkpoint else None),
+        ("the run folder", Path("runs") / run_id),
+    ):
+        problem = write_problem(path) if path is not None else None
+        if problem is not None:
+            return f"{what} {path}: {problem}"
     # The values each node will see (its defaults, what lit up sets, what was given), checked as
     # the node checks them: a bad one ended the node after everything had started.
     planner = {
