@@ -742,6 +742,11 @@ def test_bench_replay_counts_skipped_messages(tmp_path: Path) -> None:
     # Not a bench bag at all.
     plain = _numbered_bag(tmp_path / "plain", 3)
     _assert_clean_error(_replay("bench", plain), "not a lit bench bag")
+    # A bench bag with a ROS run's bag: refused (the bench records were left out without a word
+    # and the ROS run's queries tabulated).
+    mixed = _replay("bench", extended, plain, "--out", tmp_path / "mix")
+    _assert_clean_error(mixed, f"while {extended} is a lit bench bag")
+    assert not (tmp_path / "mix").exists()
 
 
 def test_killed_bench_bag_is_recoverable(tmp_path: Path) -> None:

@@ -2157,6 +2157,13 @@ def episode_table(summaries: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str
     return rows, "\n".join(lines) + "\n"
 
 
+def _has_bench_config(path: str | Path) -> bool:
+    """Whether the bag has a connection on the bench configuration topic (from its metadata and
+    MCAP summaries; no message is read)."""
+    with BagReader(path) as reader:
+        return any(c.topic == bag.BENCH_CONFIG_TOPIC for c in reader._reader.connections)
+
+
 def _bench(args: argparse.Namespace) -> int:
     check_distinct_bags(args.bags)
     first = Path(args.bags[0])
@@ -2186,6 +2193,14 @@ def _bench(args: argparse.Namespace) -> int:
         return 1
     except NotBenchBagError as error:
         # Not a lit bench bag: summarise the planning queries of a ROS run (lit up, lit demo).
+        # A lit bench bag among them would have its records left out without a word.
+        benches = [str(path) for path in args.bags if _has_bench_config(path)]
+        if benches:
+            raise ReplayError(
+                f"{error}, while {', '.join(benches)} is a lit bench bag: replay bench tabulates "
+                "lit bench bags or the planning queries of ROS runs, not both at once; give "
+                "them in separate calls"
+            ) from error
         summaries = read_episode_summaries(args.bags)
         if not summaries:
             raise ReplayError(f"{error}; nor any EpisodeSummary of a ROS run") from error
