@@ -1030,10 +1030,11 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 for name in changed
             )
             raise TrainingError(f"{given}: set when a run starts; --resume keeps the run's")
-        if args.episodes is not None and args.episodes <= state.episode:
+        if args.episodes is not None and args.episodes < state.episode:
             raise TrainingError(
                 f"--episodes {args.episodes} with --resume is the new total, and the checkpoint "
-                f"has {state.episode} episodes already"
+                f"has {state.episode} episodes already (--episodes {state.episode} stops there: "
+                "with --export, it exports an interrupted run without training more)"
             )
         if args.minutes is not None and args.minutes * 60.0 <= state.elapsed:
             raise TrainingError(
@@ -1061,6 +1062,21 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             state.episodes = args.episodes
         if args.minutes is not None:
             state.minutes = args.minutes
+        if not _finished(state):
+            # An interrupted run resumed to its own total trains on: said before it does.
+            totals = [f"{state.episodes} episodes"] if state.episodes is not None else []
+            totals += [f"{state.minutes:g} minutes"] if state.minutes is not None else []
+            print(
+                f"lit train: resuming at episode {state.episode} "
+                f"({state.elapsed / 60.0:.1f} minutes trained) to the run's total of "
+                f"{' or '.join(totals)}, whichever comes first"
+                + (
+                    f" (--episodes {state.episode} would export without training)"
+                    if args.export is not None and args.episodes is None
+                    else ""
+                ),
+                file=sys.stderr,
+            )
         state.resumed_with.append(command)
         if state.phase == PHASE_K and state.schedule != "joint" and not _finished(state):
             print(

@@ -609,7 +609,15 @@ def test_an_error_in_an_episode_saves_the_episodes_before_it(
     assert "episode 2 failed (OSError); the 2 episodes before it are in" in capsys.readouterr().err
     assert train.DriverState.load(train.state_path(final)).episode == 2
     monkeypatch.setattr(LearnerCore, "close_episode", original)
-    train.train(arguments(run_dir, resume=final))  # its open steps were dropped
+    # Exported as it is: --episodes at the checkpoint's count trains nothing (it was refused, and
+    # --resume --export alone trains on to the run's total).
+    as_it_is = tmp_path / "as-it-is"
+    train.train(arguments(run_dir, resume=final, episodes=2, export=as_it_is))
+    assert json.loads((as_it_is / train.PROVENANCE_FILE).read_text())["episodes"] == 2
+    assert train.DriverState.load(train.state_path(final)).episode == 2
+    capsys.readouterr()
+    train.train(arguments(run_dir, resume=final, episodes=6))  # its open steps were dropped
+    assert "resuming at episode 2" in capsys.readouterr().err
     assert train.DriverState.load(train.state_path(final)).episode == 6
     with (run_dir / METRICS_FILE).open(newline="") as handle:
         assert [int(row["episode"]) for row in csv.DictReader(handle)] == list(range(6))
