@@ -726,7 +726,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--bag-dir",
         type=argtypes.path,
         default=None,
-        help="record every episode's messages to BAG_DIR/<run folder name> (default: bags/)",
+        help="record every episode's messages to BAG_DIR/<run folder name> (default: the "
+        "repository's bags/)",
     )
     parser.add_argument("--no-bag", action="store_true", help="do not record a bag")
 

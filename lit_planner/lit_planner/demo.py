@@ -76,7 +76,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--out",
         type=argtypes.path,
         default=None,
-        help="folder for the bag and the learner's files (default: bags/<run> and runs/<run>)",
+        help="folder for the bag and the learner's files (default: <run> in the repository's "
+        "bags/ and runs/<run> under the current folder)",
     )
     parser.add_argument("--local", action="store_true", help="one process, no ROS: plan once")
 

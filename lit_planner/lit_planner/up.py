@@ -337,17 +337,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--run-id",
         default=None,
-        help="the run's name: bag bags/RUN, learner files runs/RUN/learner/ (default: "
-        "up-<date>-<time>)",
+        help="the run's name: bag RUN in the repository's bags/, learner files "
+        "runs/RUN/learner/ under the current folder (default: up-<date>-<time>)",
     )
     parser.add_argument(
         "--checkpoint",
         default=None,
-        help="learner checkpoint, resumed if found (default: runs/RUN/learner/checkpoint.pt)",
+        help="learner checkpoint, resumed if found (default: runs/RUN/learner/checkpoint.pt "
+        "under the current folder)",
     )
     parser.add_argument("--no-record", action="store_true", help="do not record a bag")
     parser.add_argument(
-        "--bag", type=argtypes.path, default=None, help="bag directory (default bags/RUN)"
+        "--bag",
+        type=argtypes.path,
+        default=None,
+        help="bag directory (default: RUN in the repository's bags/)",
     )
     parser.add_argument(
         "--planner-param",
