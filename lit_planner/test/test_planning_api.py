@@ -110,6 +110,22 @@ def test_litstar_named_policies_give_sound_paths(name: str, policy: str) -> None
         assert not [d for d in result["decisions"] if d["kind"] == "psi_K"]
 
 
+def test_a_stop_without_a_solution_says_which_limit_stopped_it() -> None:
+    """OMPL names every stop without a solution a timeout, also one by an iteration limit with
+    no time limit at all."""
+    walled = scenarios.custom([-0.5, -0.5], [0.5, 0.5], [((-0.05, -0.5), (0.05, 0.5))],
+                              (-0.3, 0.0), (0.3, 0.0))  # fmt: skip
+    for problem, limits, words in (
+        ("wg4", {"max_iterations": 3}, "no solution within the iteration limit (3)"),
+        (walled, {"max_batches": 2, "max_iterations": 10**6}, "within the batch limit (2)"),
+        (walled, {"time": 0.01}, "no solution within the time budget"),
+    ):
+        result = plan(problem, "litstar", seed=5, **limits)
+        assert not result["solved"] and result["status"] == "timeout", (limits, result["message"])
+        assert result["message"].endswith(words)
+    assert plan("np4", "litstar", max_iterations=2000)["message"] == ""  # solved
+
+
 def test_shorthand_planner_names() -> None:
     assert resolve_planner("litstar-fit") == ("litstar", "fit")
     assert resolve_planner("litstar") == ("litstar", "fixed")

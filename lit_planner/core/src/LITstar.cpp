@@ -371,6 +371,7 @@ namespace lit
             }
         }
         batchLimitReached_ = false;
+        statusMessage_.clear();
         struct Running  // the termination condition and the clock belong to this call, also if it throws
         {
             LITstar &planner;
@@ -398,6 +399,17 @@ namespace lit
         }
         if (std::isfinite(bestCost_) && !pdef_->hasExactSolution())
             addBestPathToProblem();  // the caller cleared the solutions since this planner found its best path
+        if (!std::isfinite(bestCost_))  // OMPL calls every stop without a solution a timeout: say which it was
+        {
+            if (maxIterations_ != 0u && counters_.iterations >= maxIterations_)
+                statusMessage_ = "no solution within the iteration limit (" + std::to_string(maxIterations_) + ")";
+            else if (batchLimitReached_)
+                statusMessage_ = "no solution within the batch limit (" + std::to_string(maxBatches_) + ")";
+            else if (timeBudget_ > 0.0 && planningTime() >= timeBudget_)
+                statusMessage_ = "no solution within the time budget";
+            else
+                statusMessage_ = "no solution when the termination condition stopped the planner";
+        }
         return std::isfinite(bestCost_) ? ompl::base::PlannerStatus::EXACT_SOLUTION :
                                           ompl::base::PlannerStatus::TIMEOUT;
     }

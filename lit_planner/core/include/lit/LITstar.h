@@ -111,7 +111,8 @@ namespace lit
         std::vector<std::vector<double>> bestPath() const;
         /** \brief Features at \e centre (nullptr: the start) in the current search state. */
         Features computeFeatures(const ompl::base::State *centre = nullptr) const;
-        /** \brief Why the last solve returned what it did (empty when it planned normally). */
+        /** \brief Why the last solve returned what it did: a refused start or goal, or which limit stopped it without
+         *  a solution (empty when it has one). */
         const std::string &statusMessage() const
         {
             return statusMessage_;
