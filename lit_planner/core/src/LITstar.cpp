@@ -16,6 +16,7 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <stdexcept>
 
 namespace lit
 {
@@ -24,6 +25,30 @@ namespace lit
     {
         constexpr unsigned int fullCheck = std::numeric_limits<unsigned int>::max();
         constexpr double infinity = std::numeric_limits<double>::infinity();
+
+        /** \brief Planner::declareParam, except that a value the setter refuses (ompl::Exception) makes setParam()
+         *  answer false with OMPL's warning, as a value that does not parse does (it threw out of setParams()). */
+        template <typename T, typename Setter, typename Getter>
+        void declareRefusing(ompl::base::ParamSet &params, const std::string &name, LITstar *planner, Setter setter,
+                             Getter getter, const std::string &rangeSuggestion = "")
+        {
+            params.declareParam<T>(
+                name,
+                [planner, setter](T value)
+                {
+                    try
+                    {
+                        (planner->*setter)(value);
+                    }
+                    catch (const ompl::Exception &error)
+                    {
+                        throw std::invalid_argument(error.what());  // what ParamSet's setValue catches
+                    }
+                },
+                [planner, getter] { return (planner->*getter)(); });
+            if (!rangeSuggestion.empty())
+                params[name].setRangeSuggestion(rangeSuggestion);
+        }
 
         /** \brief All 17 significant digits (ompl::toString keeps 6: costs differing in the 7th looked equal). */
         std::string exactText(double value)
@@ -46,16 +71,18 @@ namespace lit
         specs_.provingSolutionNonExistence = false;
         specs_.canReportIntermediateSolutions = true;
 
-        declareParam<unsigned int>("batch_size", this, &LITstar::setBatchSize, &LITstar::getBatchSize, "1:1:10000");
-        declareParam<double>("rewire_factor", this, &LITstar::setRewireFactor, &LITstar::getRewireFactor,
-                             "1.0:0.001:3.0");
-        declareParam<unsigned int>("decision_interval", this, &LITstar::setDecisionInterval,
-                                   &LITstar::getDecisionInterval, "1:1:10000");
-        declareParam<std::string>("policy", this, &LITstar::setPolicyName, &LITstar::getPolicyName);
-        declareParam<unsigned int>("seed", this, &LITstar::setSeed, &LITstar::getSeed);
-        declareParam<unsigned int>("max_iterations", this, &LITstar::setMaxIterations, &LITstar::getMaxIterations);
-        declareParam<unsigned int>("max_batches", this, &LITstar::setMaxBatches, &LITstar::getMaxBatches);
-        declareParam<double>("time_budget", this, &LITstar::setTimeBudget, &LITstar::getTimeBudget);
+        declareRefusing<unsigned int>(params(), "batch_size", this, &LITstar::setBatchSize, &LITstar::getBatchSize,
+                                      "1:1:10000");
+        declareRefusing<double>(params(), "rewire_factor", this, &LITstar::setRewireFactor,
+                                &LITstar::getRewireFactor, "1.0:0.001:3.0");
+        declareRefusing<unsigned int>(params(), "decision_interval", this, &LITstar::setDecisionInterval,
+                                      &LITstar::getDecisionInterval, "1:1:10000");
+        declareRefusing<std::string>(params(), "policy", this, &LITstar::setPolicyName, &LITstar::getPolicyName);
+        declareRefusing<unsigned int>(params(), "seed", this, &LITstar::setSeed, &LITstar::getSeed);
+        declareRefusing<unsigned int>(params(), "max_iterations", this, &LITstar::setMaxIterations,
+                                      &LITstar::getMaxIterations);
+        declareRefusing<unsigned int>(params(), "max_batches", this, &LITstar::setMaxBatches, &LITstar::getMaxBatches);
+        declareRefusing<double>(params(), "time_budget", this, &LITstar::setTimeBudget, &LITstar::getTimeBudget);
 
         // What OMPL's Benchmark samples while the planner runs (its cost-over-time curves).
         addPlannerProgressProperty("best cost DOUBLE", [this] { return exactText(bestCost_); });
@@ -167,7 +194,11 @@ namespace lit
     }
     void LITstar::setTimeBudget(double seconds)
     {
-        timeBudget_ = std::max(0.0, seconds);
+        // A negative budget used to become 0, "no limit": the opposite of what a typo meant.
+        if (!(seconds >= 0.0))
+            throw ompl::Exception("LITstar: the time budget must be 0 (no limit) or more seconds, got " +
+                                  std::to_string(seconds));
+        timeBudget_ = seconds;
     }
     double LITstar::getTimeBudget() const
     {

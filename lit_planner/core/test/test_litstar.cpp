@@ -223,7 +223,9 @@ TEST(LITstar, DeclaresEveryTunable)
     EXPECT_EQ(planner.getBatchSize(), 50u);
     EXPECT_TRUE(planner.params().setParam("policy", "fit"));
     EXPECT_EQ(planner.getPolicyName(), "fit");
-    EXPECT_THROW(planner.params().setParam("policy", "tensor"), ompl::Exception);  // objects: setPolicy()
+    EXPECT_FALSE(planner.params().setParam("policy", "tensor"));  // objects: setPolicy()
+    EXPECT_EQ(planner.getPolicyName(), "fit");
+    EXPECT_THROW(planner.setPolicyName("tensor"), ompl::Exception);  // the setter itself throws
 }
 
 TEST(LITstar, PoliciesDecideBatchSizeAndNeighbourFactor)
@@ -669,6 +671,17 @@ TEST(LITstar, ParametersOutsideTheirRangeAreRefused)
         EXPECT_THROW(planner.setRewireFactor(factor), ompl::Exception) << factor;
     planner.setRewireFactor(0.5);
     EXPECT_DOUBLE_EQ(planner.getRewireFactor(), 0.5);
+    for (const double budget : {-1.0, std::numeric_limits<double>::quiet_NaN()})
+        EXPECT_THROW(planner.setTimeBudget(budget), ompl::Exception) << budget;  // -1 was "no limit"
+    // Through OMPL's parameters: false with a warning, nothing changed (the setters' exceptions ended setParams).
+    EXPECT_FALSE(planner.params().setParam("time_budget", "-1"));
+    EXPECT_FALSE(planner.params().setParam("batch_size", "0"));
+    EXPECT_FALSE(planner.params().setParam("rewire_factor", "0"));
+    EXPECT_DOUBLE_EQ(planner.getTimeBudget(), 0.0);
+    EXPECT_DOUBLE_EQ(planner.getRewireFactor(), 0.5);
+    EXPECT_TRUE(planner.params().setParam("time_budget", "2.5"));
+    EXPECT_DOUBLE_EQ(planner.getTimeBudget(), 2.5);
+    EXPECT_THROW(static_cast<void>(planner.graph()), ompl::Exception);  // no problem yet: it crashed
     EXPECT_THROW(FixedPolicy(0), std::invalid_argument);
     EXPECT_THROW(FixedPolicy(-5), std::invalid_argument);
     EXPECT_THROW(FixedPolicy(100, std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);

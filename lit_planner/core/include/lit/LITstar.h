@@ -9,6 +9,7 @@
 #include "lit/litstar/RandomGeometricGraph.h"
 
 #include <ompl/base/Planner.h>
+#include <ompl/util/Exception.h>
 #include <ompl/util/RandomNumbers.h>
 
 #include <chrono>
@@ -126,9 +127,12 @@ namespace lit
         {
             return neighbourFactor_;
         }
-        /** \brief The sample sets (read-only, for tests and introspection). */
+        /** \brief The sample sets (read-only, for tests and introspection); ompl::Exception before a problem is set
+         *  up (before the first solve, after clear() or a failed setup). */
         const litstar::RandomGeometricGraph &graph() const
         {
+            if (!graph_)
+                throw ompl::Exception("LITstar: no problem is set up yet: graph() is there after solve() began one");
             return *graph_;
         }
 
