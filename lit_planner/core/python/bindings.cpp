@@ -273,6 +273,8 @@ namespace
                 const std::string rejected =
                     "planner " + plannerName + " rejected the value '" + value + "' of its parameter '" + key + "'";
                 bool accepted = false;
+                if (litstar)
+                    litstar->noteRefusedParameter("");
                 try
                 {
                     accepted = planner->params().setParam(key, value);
@@ -281,8 +283,10 @@ namespace
                 {
                     throw py::value_error(rejected + ": " + error.what());
                 }
-                if (!accepted)
-                    throw py::value_error(rejected);
+                if (!accepted)  // a LIT* setter's reason (OMPL only logs it)
+                    throw py::value_error(rejected + (litstar && !litstar->refusedParameter().empty() ?
+                                                          ": " + litstar->refusedParameter() :
+                                                          std::string()));
                 // An unsigned parameter takes "-3" as 4294967293, "1.5" as 1; a setter may clamp: a number must read
                 // back as the number given, or the planner would not run with it.
                 const std::string stored = planner->params()[key].getValue();

@@ -42,6 +42,7 @@ namespace lit
                     }
                     catch (const ompl::Exception &error)
                     {
+                        planner->noteRefusedParameter(error.what());
                         throw std::invalid_argument(error.what());  // what ParamSet's setValue catches
                     }
                 },

@@ -127,6 +127,15 @@ namespace lit
         {
             return neighbourFactor_;
         }
+        /** \brief Why the last value refused through params().setParam() was refused (its setter's message). */
+        const std::string &refusedParameter() const
+        {
+            return refusedParameter_;
+        }
+        void noteRefusedParameter(const std::string &why)
+        {
+            refusedParameter_ = why;
+        }
         /** \brief The sample sets (read-only, for tests and introspection); ompl::Exception before a problem is set
          *  up (before the first solve, after clear() or a failed setup). */
         const litstar::RandomGeometricGraph &graph() const
@@ -260,6 +269,7 @@ namespace lit
         /** \brief The termination condition of the running solve() (null outside it). */
         const ompl::base::PlannerTerminationCondition *ptc_{nullptr};
         std::string statusMessage_;
+        std::string refusedParameter_;
         unsigned int dimension_{0u};
         double longestValidSegment_{1.0};
         /** The state space's valid segment count factor (OMPL's validSegmentCount multiplies by it). */
