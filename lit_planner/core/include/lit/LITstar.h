@@ -86,12 +86,14 @@ namespace lit
          *  first one). */
         void setSeed(unsigned int seed);
         unsigned int getSeed() const;
-        /** \brief Stop after this many iterations / batches in total (0: no limit). */
+        /** \brief Stop after this many iterations / batches in total over the solve() calls of a problem, until
+         *  clear() or a new problem (0: no limit). */
         void setMaxIterations(unsigned int iterations);
         unsigned int getMaxIterations() const;
         void setMaxBatches(unsigned int batches);
         unsigned int getMaxBatches() const;
-        /** \brief Stop after this much planner time (s, external-policy time excluded; 0: no limit). */
+        /** \brief Stop after this much planner time in total over the solve() calls of a problem, until clear() or a
+         *  new problem (s, external-policy time excluded; 0: no limit; negative: ompl::Exception). */
         void setTimeBudget(double seconds);
         double getTimeBudget() const;
 
