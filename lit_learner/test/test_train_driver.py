@@ -520,7 +520,7 @@ def test_resume_from_an_earlier_checkpoint_trains_its_episodes_again_once(
 
     final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
     with pytest.raises(train.TrainingError, match="has 5 episodes already"):
-        train.train(arguments(run_dir, episodes=5, resume=final))
+        train.train(arguments(run_dir, episodes=4, resume=final))
     with pytest.raises(train.TrainingError, match="a folder; give a checkpoint file"):
         train.train(arguments(run_dir, episodes=9, resume=run_dir))
     train.state_path(final).write_text("{")

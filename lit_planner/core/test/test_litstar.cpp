@@ -1,6 +1,7 @@
 #include "Worlds.h"
 
 #include "lit/LITstar.h"
+#include "lit/litstar/InformedSampler.h"
 #include "lit/litstar/RandomGeometricGraph.h"
 
 #include <ompl/base/MotionValidator.h>
@@ -609,6 +610,71 @@ TEST(LITstar, ALazyGoalSetIsWaitedForAndAFailedSetupIsReadAgain)
     goals->clear();
     goals->addState(free);
     EXPECT_EQ(second->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+}
+
+TEST(InformedSampler, SeveralGoalsAreSampledUniformlyFromTheUnionOfTheirInformedSets)
+{
+    // Two overlapping hyperspheroids (start (-0.3, 0), goals (0.3, +-0.1), cost 0.75): the draws must match
+    // uniform rejection sampling from the bounds, in the part only one holds and in the part both hold.
+    BoxProblem problem = test::narrowPassage(2, 1e-3);
+    litstar::InformedSampler sampler(problem.si, 11u);
+    const std::vector<double> start{-0.3, 0.0};
+    const std::vector<std::vector<double>> goals{{0.3, 0.1}, {0.3, -0.1}};
+    sampler.setFoci(start, goals);
+    const double cost = 0.75;
+    const auto inside = [&](const double *x, const std::vector<double> &goal) {
+        return std::hypot(x[0] - start[0], x[1] - start[1]) + std::hypot(x[0] - goal[0], x[1] - goal[1]) <= cost;
+    };
+    const int draws = 40000;
+    ompl::base::ScopedState<> state(problem.si);
+    double *x = state->as<ompl::base::RealVectorStateSpace::StateType>()->values;
+    int both = 0, upperOnly = 0;
+    for (int i = 0; i < draws; ++i)
+    {
+        ASSERT_TRUE(sampler.sample(cost, state.get()));
+        ASSERT_LE(sampler.heuristicCost(x), cost * (1.0 + 1e-12));
+        both += inside(x, goals[0]) && inside(x, goals[1]) ? 1 : 0;
+        upperOnly += inside(x, goals[0]) && !inside(x, goals[1]) ? 1 : 0;
+    }
+    std::mt19937 rng(5u);
+    std::uniform_real_distribution<double> coordinate(-0.5, 0.5);
+    int accepted = 0, refBoth = 0, refUpperOnly = 0;
+    while (accepted < draws)
+    {
+        const double y[2] = {coordinate(rng), coordinate(rng)};
+        if (!inside(y, goals[0]) && !inside(y, goals[1]))
+            continue;
+        ++accepted;
+        refBoth += inside(y, goals[0]) && inside(y, goals[1]) ? 1 : 0;
+        refUpperOnly += inside(y, goals[0]) && !inside(y, goals[1]) ? 1 : 0;
+    }
+    EXPECT_NEAR(static_cast<double>(both) / draws, static_cast<double>(refBoth) / draws, 0.015);
+    EXPECT_NEAR(static_cast<double>(upperOnly) / draws, static_cast<double>(refUpperOnly) / draws, 0.015);
+}
+
+TEST(LITstar, SeveralGoalsFillTheirBatches)
+{
+    // With two goals the batches were drawn from the whole space and kept only informed samples: in R^8 after
+    // the first solution a batch ended after 10 x 10000 rejections with about 14 samples of B = 100.
+    BoxProblem problem = test::narrowPassage(8, 1e-3);
+    auto goals = std::make_shared<ompl::base::GoalStates>(problem.si);
+    ompl::base::ScopedState<> near(problem.si), far(problem.si);
+    for (unsigned int d = 0; d < 8u; ++d)
+        near[d] = far[d] = 0.0;
+    near[0] = 0.2;
+    far[0] = -0.45;
+    far[1] = 0.45;
+    goals->addState(near);
+    goals->addState(far);
+    problem.pdef->setGoal(goals);
+    auto planner = std::make_shared<LITstar>(problem.si);
+    planner->setSeed(2u);
+    planner->setMaxBatches(30u);
+    planner->setProblemDefinition(problem.pdef);
+    ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    const auto &counters = planner->counters();
+    EXPECT_EQ(counters.batches, 30u);
+    EXPECT_GE(counters.validSamples, 30u * 100u * 9u / 10u) << counters.validSamples;  // nearly B each
 }
 
 TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
