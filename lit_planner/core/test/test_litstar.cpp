@@ -677,6 +677,37 @@ TEST(LITstar, SeveralGoalsFillTheirBatches)
     EXPECT_GE(counters.validSamples, 30u * 100u * 9u / 10u) << counters.validSamples;  // nearly B each
 }
 
+TEST(LITstar, FurtherStartStatesAreNamedInAWarning)
+{
+    // LIT* grows one forward tree: the other start states were dropped without a word.
+    struct Messages : ompl::msg::OutputHandler
+    {
+        std::vector<std::string> warnings;
+        void log(const std::string &text, ompl::msg::LogLevel level, const char *, int) override
+        {
+            if (level >= ompl::msg::LOG_WARN)
+                warnings.push_back(text);
+        }
+    } messages;
+    ompl::msg::useOutputHandler(&messages);
+    BoxProblem problem = test::narrowPassage(2, 1e-3);
+    ompl::base::ScopedState<> other(problem.si);
+    other[0] = -0.3;
+    other[1] = 0.2;
+    problem.pdef->addStartState(other);
+    problem.pdef->addStartState(other);
+    auto planner = std::make_shared<LITstar>(problem.si);
+    planner->setMaxBatches(3u);
+    planner->setProblemDefinition(problem.pdef);
+    const ompl::base::PlannerStatus status = planner->solve(ompl::base::plannerNonTerminatingCondition());
+    ompl::msg::restorePreviousOutputHandler();
+    EXPECT_EQ(status, ompl::base::PlannerStatus::EXACT_SOLUTION);
+    ASSERT_EQ(messages.warnings.size(), 1u);
+    EXPECT_NE(messages.warnings[0].find("plans from one start state; the problem's 2 other start states are not used"),
+              std::string::npos)
+        << messages.warnings[0];
+}
+
 TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
 {
     // OMPL's GoalSpace never runs out of goal samples: reading them all filled memory before the clock started.
