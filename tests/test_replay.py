@@ -612,6 +612,15 @@ def test_verify_flags_invalid_paths(tmp_path: Path) -> None:
     assert sample.returncode == 0, sample.stdout + sample.stderr
     assert "2 paths checked: 2 valid, 0 invalid" in sample.stdout
 
+    # A ROS run's bag with its compacted copy: the copy's paths were "path without an episode"
+    # (its episodes were skipped as read twice, its paths were not), and verify said incomplete.
+    assert _replay("compact", episode_bag, tmp_path / "episodes-copy").returncode == 0
+    both = _replay("verify", episode_bag, tmp_path / "episodes-copy")
+    assert "2 paths checked: 1 valid, 1 invalid; 1 runs without a path" in both.stdout, both.stdout
+    assert "without an episode" not in both.stdout and "incomplete" not in both.stdout
+    # replay bench's table of a ROS run counts each query once (it counted 6)
+    assert len(replay.read_episode_summaries([episode_bag, tmp_path / "episodes-copy"])) == 3
+
     # A bag given with its compacted copy: each path is checked once (it counted 4).
     assert _replay("compact", SAMPLE, tmp_path / "copy").returncode == 0
     both = _replay("verify", SAMPLE, tmp_path / "copy")
@@ -747,6 +756,15 @@ def test_bench_replay_counts_skipped_messages(tmp_path: Path) -> None:
     mixed = _replay("bench", extended, plain, "--out", tmp_path / "mix")
     _assert_clean_error(mixed, f"while {extended} is a lit bench bag")
     assert not (tmp_path / "mix").exists()
+    # A bag with the config topic and no config message is not called a bench bag by its own
+    # error.
+    with BagRecorder(tmp_path / "config-topic-only", run_id="c") as recorder:
+        recorder.add_topic(bag.BENCH_CONFIG_TOPIC, bag.STRING_TYPE)
+        recorder.add_topic("/lit/observation", bag.STRING_TYPE)
+        recorder.write_string("/lit/observation", _obs(0), 1)
+    alone = _replay("bench", tmp_path / "config-topic-only")
+    _assert_clean_error(alone, "not a lit bench bag")
+    assert "while" not in alone.stderr
 
 
 def test_killed_bench_bag_is_recoverable(tmp_path: Path) -> None:

@@ -176,6 +176,8 @@ class RewardConfig:
         for name in ("w_t", "w_c", "w_u", "w_s", "w_search", "nu", "kappa_offset"):
             if not math.isfinite(getattr(self, name)):
                 raise ConfigError(f"rewards: {name} {getattr(self, name)} is not a number")
+        if not (math.isfinite(self.nu_min) and self.nu_min >= 0.0):  # kappa's floor
+            raise ConfigError(f"rewards: nu_min {self.nu_min} must be a number >= 0")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able form."""

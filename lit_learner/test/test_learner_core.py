@@ -451,7 +451,7 @@ def test_configs_that_would_divide_by_zero_or_diverge_are_refused() -> None:
     from lit_learner.errors import ConfigError
 
     for bad in ({"t_hat_min": 0.0}, {"search_floor": 0.0}, {"path_states_scale": -1.0},
-                {"w_c": float("nan")}):  # fmt: skip
+                {"w_c": float("nan")}, {"nu_min": float("nan")}, {"nu_min": -1.0}):  # fmt: skip
         with pytest.raises(ConfigError, match=next(iter(bad))):
             RewardConfig(**bad)
     for bad in ({"fuzzy_sigma": 0.0}, {"noise_std": -0.1}, {"alpha": -1.0},

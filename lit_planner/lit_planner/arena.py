@@ -478,11 +478,11 @@ def _solved(record: Mapping[str, Any]) -> bool:
 
 
 def _status(record: Mapping[str, Any], solved: bool) -> int:
-    """The run's status as recorded; a solution status of a run that does not count as solved
+    """The run's status as recorded; an exact solution of a run that does not count as solved
     (its first solution came after the budget) is a timeout, as the solved column says."""
     status = record.get("status")
     if isinstance(status, str) and status in STATUS_INDEX:
-        if not solved and status in ("exact_solution", "approximate_solution"):
+        if not solved and status == "exact_solution":
             return STATUS_INDEX["timeout"]
         return STATUS_INDEX[status]
     return STATUS_INDEX["exact_solution" if solved else "timeout"]

@@ -83,6 +83,11 @@ class ReplayError(LitPlannerError, ValueError):
 class NotBenchBagError(ReplayError):
     """A readable bag without the config of a ``lit bench`` run."""
 
+    def __init__(self, message: str, path: str | Path) -> None:
+        super().__init__(message)
+        self.path = Path(path)
+        """The bag."""
+
 
 class EmptyBenchBagError(ReplayError):
     """A ``lit bench`` bag with its config but no run record (interrupted before its first
@@ -145,10 +150,13 @@ class Envelope:
         return split_topic(self.topic)[0]
 
 
-def message_identity(item: Envelope) -> tuple[str, str, str, int, int]:
-    """What makes an envelope the same message in another bag: its topic, source, run id, seq and
-    the stamp its publisher gave it. A compacted or salvaged copy keeps all five; a resumed
-    ``lit train`` run records under the same run id with its seq from 0 again, at later stamps."""
+def message_identity(item: Envelope | Trajectory) -> tuple[str, str, str, int, int]:
+    """What makes a message the same message in another bag. An envelope: its topic, source, run
+    id, seq and the stamp its publisher gave it (a resumed ``lit train`` run records under the same
+    run id with its seq from 0 again, at later stamps). A ``/lit/path``: its topic, frame id (the
+    episode) and log time. A compacted or salvaged copy keeps all of these."""
+    if isinstance(item, Trajectory):
+        return (item.topic, item.frame_id, "", -1, item.log_ns)
     return (item.topic, item.source, item.run_id, item.seq, item.stamp_ns)
 
 
@@ -786,7 +794,7 @@ def verify_bag(path: str | Path, report: VerifyReport) -> Skipped:
     with BagReader(path) as reader:
         for message in reader.messages():
             item = decode(message, skipped)
-            if isinstance(item, Envelope):
+            if isinstance(item, Envelope | Trajectory):
                 identity = message_identity(item)
                 if identity in report.seen:
                     skipped.counts[READ_TWICE] += 1
@@ -1683,7 +1691,7 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
                     bag_runs.append(item)
         if bag_config is None:
             raise NotBenchBagError(
-                f"{path}: no {bag.BENCH_CONFIG_TOPIC} message: not a lit bench bag"
+                f"{path}: no {bag.BENCH_CONFIG_TOPIC} message: not a lit bench bag", path
             )
         if not isinstance(bag_config.payload, dict):
             raise ReplayError(f"{path}: the {bag.BENCH_CONFIG_TOPIC} payload is not an object")
@@ -2077,12 +2085,15 @@ def read_episode_summaries(paths: Sequence[str | Path]) -> list[dict[str, Any]]:
     """Every EpisodeSummary payload in the bags (a ROS run's queries), in recording order."""
     skipped = Skipped()
     summaries = []
+    seen: set[tuple[str, str, str, int, int]] = set()
     for path in paths:
         with BagReader(path) as reader:
             for message in reader.messages():
                 item = decode(message, skipped)
                 if isinstance(item, Envelope) and item.schema == SCHEMA_PREFIX + "EpisodeSummary":
-                    summaries.append(item.payload)
+                    if message_identity(item) not in seen:  # a bag given with its copy: once
+                        seen.add(message_identity(item))
+                        summaries.append(item.payload)
     return summaries
 
 
@@ -2194,7 +2205,11 @@ def _bench(args: argparse.Namespace) -> int:
     except NotBenchBagError as error:
         # Not a lit bench bag: summarise the planning queries of a ROS run (lit up, lit demo).
         # A lit bench bag among them would have its records left out without a word.
-        benches = [str(path) for path in args.bags if _has_bench_config(path)]
+        benches = [
+            str(path)
+            for path in args.bags
+            if Path(path) != error.path and _has_bench_config(path)
+        ]
         if benches:
             raise ReplayError(
                 f"{error}, while {', '.join(benches)} is a lit bench bag: replay bench tabulates "

@@ -246,5 +246,9 @@ def test_a_run_counts_as_the_bench_tables_count_it() -> None:
     properties = arena._run_properties(late, 0.12)
     assert properties["solved BOOLEAN"] == "0"
     assert properties["status ENUM"] == str(arena.STATUS_INDEX["timeout"])  # as solved says
+    approximate = record("np4", "informed_rrtstar", 3, solved=False)
+    approximate["status"] = "approximate_solution"  # never solved: stays what it was
+    status = arena._run_properties(approximate, 0.12)["status ENUM"]
+    assert status == str(arena.STATUS_INDEX["approximate_solution"])
     assert properties["final cost REAL"] == properties["time to first solution REAL"] == "inf"
     assert all(math.isinf(cost) for _, cost in arena._progress(late, 0.12, 4))

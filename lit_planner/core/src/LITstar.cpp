@@ -302,8 +302,8 @@ namespace lit
             return ompl::base::PlannerStatus::INVALID_START;
         }
         if (pis_.haveMoreStartStates())  // one forward tree, one root: said, not dropped without a word
-            OMPL_WARN("%s: plans from one start state; the problem's %u other start states are not used",
-                      getName().c_str(), pdef_->getStartStateCount() - 1u);
+            OMPL_WARN("%s: plans from one start state; the problem's later start states are not used (it has %u)",
+                      getName().c_str(), pdef_->getStartStateCount());
         // A goal state or set is read to its end through PlannerInputStates: nextGoal() answers null (with OMPL's
         // warning, once per state) for a goal out of bounds or in collision. Any other region (OMPL's GoalSpace,
         // whose samples never end) is sampled here: at most MAX_GOAL_SAMPLES valid samples in at most 10 times as
@@ -322,8 +322,22 @@ namespace lit
             // that holds none yet is waited for (until the termination condition), as OMPL's planners do.
             const auto *sampleable = goal->as<ompl::base::GoalSampleableRegion>();
             if (goal->hasType(ompl::base::GOAL_LAZY_SAMPLES) && sampleable->maxSampleCount() == 0u)
-                if (const ompl::base::State *g = pis_.nextGoal(ptc))
+            {
+                // Also no longer than the planner's own time budget allows (the wait is not planning time).
+                const double left = timeBudget_ - planningTime();
+                const ompl::base::PlannerTerminationCondition wait =
+                    timeBudget_ > 0.0 ? ompl::base::plannerOrTerminationCondition(
+                                            ptc, ompl::base::timedPlannerTerminationCondition(std::max(0.0, left))) :
+                                        ptc;
+                if (const ompl::base::State *g = pis_.nextGoal(wait))
                     keep(g);
+                else
+                {
+                    statusMessage_ = "the goal's sampler gave no valid goal state before the termination condition "
+                                     "or the time budget";
+                    return ompl::base::PlannerStatus::INVALID_GOAL;
+                }
+            }
             const std::size_t members = sampleable->maxSampleCount();
             for (std::size_t read = goals.size(); read < members && pis_.haveMoreGoalStates(); ++read)
                 if (const ompl::base::State *g = pis_.nextGoal())

@@ -593,6 +593,23 @@ TEST(LITstar, ALazyGoalSetIsWaitedForAndAFailedSetupIsReadAgain)
               ompl::base::PlannerStatus::EXACT_SOLUTION);
     lazy->stopSampling();
 
+    // A sampler that never gives a goal: the wait ends with the planner's time budget too.
+    BoxProblem idle = test::narrowPassage(2, 1e-3);
+    auto never = std::make_shared<ompl::base::GoalLazySamples>(
+        idle.si,
+        [](const ompl::base::GoalLazySamples *, ompl::base::State *) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(5));
+            return false;
+        },
+        false);
+    idle.pdef->setGoal(never);
+    auto waiting = std::make_shared<LITstar>(idle.si);
+    waiting->setTimeBudget(0.2);
+    waiting->setProblemDefinition(idle.pdef);
+    // (It waited for ever: the non-terminating condition was all it looked at.)
+    EXPECT_EQ(waiting->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::INVALID_GOAL);
+    EXPECT_NE(waiting->statusMessage().find("gave no valid goal state"), std::string::npos);
+
     BoxProblem blocked = test::narrowPassage(2, 1e-3);
     auto goals = std::make_shared<ompl::base::GoalStates>(blocked.si);
     ompl::base::ScopedState<> inWall(blocked.si);
@@ -703,7 +720,8 @@ TEST(LITstar, FurtherStartStatesAreNamedInAWarning)
     ompl::msg::restorePreviousOutputHandler();
     EXPECT_EQ(status, ompl::base::PlannerStatus::EXACT_SOLUTION);
     ASSERT_EQ(messages.warnings.size(), 1u);
-    EXPECT_NE(messages.warnings[0].find("plans from one start state; the problem's 2 other start states are not used"),
+    EXPECT_NE(messages.warnings[0].find("plans from one start state; the problem's later start states are not used "
+                                        "(it has 3)"),
               std::string::npos)
         << messages.warnings[0];
 }
