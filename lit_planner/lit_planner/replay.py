@@ -2090,10 +2090,13 @@ def read_episode_summaries(paths: Sequence[str | Path]) -> list[dict[str, Any]]:
         with BagReader(path) as reader:
             for message in reader.messages():
                 item = decode(message, skipped)
-                if isinstance(item, Envelope) and item.schema == SCHEMA_PREFIX + "EpisodeSummary":
-                    if message_identity(item) not in seen:  # a bag given with its copy: once
-                        seen.add(message_identity(item))
-                        summaries.append(item.payload)
+                if (
+                    isinstance(item, Envelope)
+                    and item.schema == SCHEMA_PREFIX + "EpisodeSummary"
+                    and message_identity(item) not in seen  # a bag given with its copy: once
+                ):
+                    seen.add(message_identity(item))
+                    summaries.append(item.payload)
     return summaries
 
 
@@ -2206,9 +2209,7 @@ def _bench(args: argparse.Namespace) -> int:
         # Not a lit bench bag: summarise the planning queries of a ROS run (lit up, lit demo).
         # A lit bench bag among them would have its records left out without a word.
         benches = [
-            str(path)
-            for path in args.bags
-            if Path(path) != error.path and _has_bench_config(path)
+            str(path) for path in args.bags if Path(path) != error.path and _has_bench_config(path)
         ]
         if benches:
             raise ReplayError(
