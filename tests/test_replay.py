@@ -1217,7 +1217,8 @@ def test_a_killed_writer_loses_no_more_than_its_open_chunk(tmp_path: Path) -> No
 
     from lit_planner import bag_measure
 
-    per_chunk = DEFAULT_CHUNK_BYTES // bag_measure._text_bytes() + 1
+    per_chunk = bag_measure.messages_per_chunk(DEFAULT_CHUNK_BYTES)
+    assert per_chunk == 60  # about 1102-byte records in a 64 KiB chunk, as bag.py says
     for trial, target in enumerate((300, 1100)):
         confirmed, recovered = bag_measure.crash_trial(
             tmp_path / f"kill{trial}", target, DEFAULT_CHUNK_BYTES

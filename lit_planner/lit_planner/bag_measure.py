@@ -2,12 +2,14 @@
 costs.
 
 - **Write rate**: ``--messages`` envelopes of about 1 KiB written with ``write_string`` into a new
-  bag, timed from the first write to the end of ``close()`` (metadata.yaml included).
+  bag, timed from the first write to the end of ``close()`` (metadata.yaml included; opening the
+  bag is not timed).
 - **Crash loss**: ``--kills`` times, a writer process writes envelopes as fast as it can and
   reports each returned ``write_string``; after a random number of confirmed messages
   (200 … 3000) it is killed with SIGKILL while it writes on, the reports it made before it died
   are read to the end (the confirmed count), the bag is salvaged
-  (:func:`lit_planner.replay.salvage`) and the loss is confirmed minus recovered. The bound is one chunk (``--chunk-bytes``).
+  (:func:`lit_planner.replay.salvage`) and the loss is confirmed minus recovered. The bound is one
+  chunk (``--chunk-bytes``; :func:`messages_per_chunk`).
 """
 
 from __future__ import annotations
@@ -56,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
             f"{args.messages / rate:.3f} s = {rate:,.0f} messages/s "
             f"(chunk {args.chunk_bytes} bytes)"
         )
-        per_chunk = args.chunk_bytes // _text_bytes() + 1
+        per_chunk = messages_per_chunk(args.chunk_bytes)
         rng = random.Random(args.seed)
         losses = []
         for trial in range(args.kills):
@@ -89,12 +91,26 @@ def write_rate(path: Path, messages: int, chunk_bytes: int) -> float:
     from lit_planner.bag import BagRecorder
 
     texts = [_text(seq) for seq in range(1000)]  # prepared outside the timing, then cycled
-    started = time.perf_counter()
+    # Opened outside the timing too: the first bag of a process costs about 75 ms of imports and
+    # type registration (a review helper's one-off), which halved the rate of a short run.
     with BagRecorder(path, run_id="measure", chunk_bytes=chunk_bytes) as recorder:
         recorder.add_topic("/lit/observation", "std_msgs/msg/String")
+        started = time.perf_counter()
         for seq in range(messages):
             recorder.write_string("/lit/observation", texts[seq % 1000], time.time_ns())
     return messages / (time.perf_counter() - started)
+
+
+def messages_per_chunk(chunk_bytes: int) -> int:
+    """The most of these messages one chunk holds: a chunk is written once its records reach
+    ``chunk_bytes``, and each record is the serialized message plus MCAP's 31 bytes of message
+    header (the text alone gave 62 for 64 KiB, where chunks hold 60)."""
+    from lit_planner.bag import STRING_TYPE, typestore
+
+    store = typestore()
+    message = store.types[STRING_TYPE](data=_text(0))
+    record = len(store.serialize_cdr(message, STRING_TYPE)) + 31
+    return -(-chunk_bytes // record)
 
 
 def crash_trial(path: Path, target: int, chunk_bytes: int) -> tuple[int, int]:
