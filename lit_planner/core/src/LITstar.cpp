@@ -68,7 +68,7 @@ namespace lit
         specs_.multithreaded = false;
         specs_.approximateSolutions = false;
         specs_.optimizingPaths = true;
-        specs_.directed = true;
+        specs_.directed = false;  // edges are undirected: a motion is checked in one direction for both
         specs_.provingSolutionNonExistence = false;
         specs_.canReportIntermediateSolutions = true;
 
