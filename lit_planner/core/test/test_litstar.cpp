@@ -92,6 +92,15 @@ namespace
         return run;
     }
 
+    /** \brief A LIT* planner on \e problem that stops after \e batches batches. */
+    std::shared_ptr<LITstar> batchLimited(const BoxProblem &problem, unsigned int batches)
+    {
+        auto planner = std::make_shared<LITstar>(problem.si);
+        planner->setMaxBatches(batches);
+        planner->setProblemDefinition(problem.pdef);
+        return planner;
+    }
+
     void expectJoinsStartAndGoal(const std::vector<std::vector<double>> &path, unsigned int n)
     {
         ASSERT_GE(path.size(), 2u);
@@ -176,9 +185,7 @@ TEST(LITstar, StopsAfterIterationsOrBatches)
     EXPECT_EQ(run.planner->counters().iterations, 1234u);
 
     BoxProblem problem = test::narrowPassage(4);
-    auto planner = std::make_shared<LITstar>(problem.si);
-    planner->setMaxBatches(3u);
-    planner->setProblemDefinition(problem.pdef);
+    auto planner = batchLimited(problem, 3u);
     planner->setup();
     planner->solve(ompl::base::plannerNonTerminatingCondition());
     EXPECT_EQ(planner->counters().batches, 3u);
@@ -334,9 +341,7 @@ TEST(LITstar, ANewProblemDefinitionIsSolvedNotTheOldOne)
     // OMPL's Planner::setProblemDefinition keeps a planner's state; ours went on with the old start and goal and
     // filed the old path as the new problem's exact solution.
     BoxProblem first = test::narrowPassage(2, 1e-3);
-    auto planner = std::make_shared<LITstar>(first.si);
-    planner->setMaxBatches(5u);
-    planner->setProblemDefinition(first.pdef);
+    auto planner = batchLimited(first, 5u);
     ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
 
     BoxProblem second = makeBoxProblem(first.world, {-0.3, 0.3}, {-0.3, -0.3}, 1e-3);
@@ -386,9 +391,7 @@ TEST(LITstar, StopsOnceNoBetterSolutionExists)
     BoxWorld world = test::narrowPassage(2).world;
     {
         BoxProblem problem = makeBoxProblem(world, {-0.2, 0.0}, {-0.2, 0.0}, 1e-3);
-        auto planner = std::make_shared<LITstar>(problem.si);
-        planner->setMaxBatches(20u);
-        planner->setProblemDefinition(problem.pdef);
+        auto planner = batchLimited(problem, 20u);
         ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()),
                   ompl::base::PlannerStatus::EXACT_SOLUTION);
         EXPECT_EQ(planner->bestCost(), 0.0);
@@ -423,9 +426,7 @@ TEST(LITstar, EveryGoalOfAGoalSetIsKept)
     goals->addState(near);
     goals->addState(far);
     problem.pdef->setGoal(goals);
-    auto planner = std::make_shared<LITstar>(problem.si);
-    planner->setMaxBatches(5u);
-    planner->setProblemDefinition(problem.pdef);
+    auto planner = batchLimited(problem, 5u);
     ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
     const auto path = planner->bestPath();
     EXPECT_DOUBLE_EQ(path.back()[0], -0.3);
@@ -450,9 +451,7 @@ TEST(LITstar, AClusterOfGoalsIsReached)
         goals->addState(goal);
     }
     problem.pdef->setGoal(goals);
-    auto planner = std::make_shared<LITstar>(problem.si);
-    planner->setMaxBatches(30u);
-    planner->setProblemDefinition(problem.pdef);
+    auto planner = batchLimited(problem, 30u);
     ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
     EXPECT_EQ(planner->graph().goals().size(), 100u);
     EXPECT_TRUE(problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>()->check());
@@ -489,9 +488,7 @@ TEST(LITstar, AMotionValidatorOfTheUsersOwnIsAsked)
     world.upper.assign(2u, 0.5);
     BoxProblem problem = makeBoxProblem(world, {-0.2, 0.0}, {0.2, 0.0}, 1e-3);
     problem.si->setMotionValidator(std::make_shared<Fence>(problem.si.get()));
-    auto planner = std::make_shared<LITstar>(problem.si);
-    planner->setMaxBatches(20u);
-    planner->setProblemDefinition(problem.pdef);
+    auto planner = batchLimited(problem, 20u);
     ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
     EXPECT_TRUE(problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>()->check());
     EXPECT_GT(planner->bestCost(), 2.0 * std::hypot(0.2, 0.3) - 1e-9);  // around the fence's end
@@ -501,9 +498,7 @@ TEST(LITstar, AClearedSolutionIsHandedBackWithTheStatusThatReportsIt)
 {
     // solve() answered EXACT_SOLUTION with no path in the problem definition after the caller cleared it.
     BoxProblem problem = test::narrowPassage(2, 1e-3);
-    auto planner = std::make_shared<LITstar>(problem.si);
-    planner->setMaxBatches(3u);
-    planner->setProblemDefinition(problem.pdef);
+    auto planner = batchLimited(problem, 3u);
     ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
     problem.pdef->clearSolutionPaths();
     ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
@@ -515,9 +510,7 @@ TEST(LITstar, WithoutASeedEachProblemDrawsOneFromOmpl)
 {
     // The default seed was 1 for every problem: an OMPL Benchmark's runs were all the same run.
     BoxProblem problem = test::narrowPassage(2, 1e-3);
-    auto planner = std::make_shared<LITstar>(problem.si);
-    planner->setMaxBatches(2u);
-    planner->setProblemDefinition(problem.pdef);
+    auto planner = batchLimited(problem, 2u);
     std::vector<unsigned int> seeds;
     for (int run = 0; run < 3; ++run)
     {
@@ -585,9 +578,7 @@ TEST(LITstar, ALazyGoalSetIsWaitedForAndAFailedSetupIsReadAgain)
         },
         false);
     problem.pdef->setGoal(lazy);
-    auto planner = std::make_shared<LITstar>(problem.si);
-    planner->setMaxBatches(5u);
-    planner->setProblemDefinition(problem.pdef);
+    auto planner = batchLimited(problem, 5u);
     lazy->startSampling();
     EXPECT_EQ(planner->solve(ompl::base::timedPlannerTerminationCondition(30.0)),
               ompl::base::PlannerStatus::EXACT_SOLUTION);
@@ -617,9 +608,7 @@ TEST(LITstar, ALazyGoalSetIsWaitedForAndAFailedSetupIsReadAgain)
     inWall[1] = 0.0;
     goals->addState(inWall);
     blocked.pdef->setGoal(goals);
-    auto second = std::make_shared<LITstar>(blocked.si);
-    second->setMaxBatches(5u);
-    second->setProblemDefinition(blocked.pdef);
+    auto second = batchLimited(blocked, 5u);
     EXPECT_EQ(second->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::INVALID_GOAL);
     ompl::base::ScopedState<> free(blocked.si);
     free[0] = 0.2;
@@ -713,9 +702,7 @@ TEST(LITstar, FurtherStartStatesAreNamedInAWarning)
     other[1] = 0.2;
     problem.pdef->addStartState(other);
     problem.pdef->addStartState(other);
-    auto planner = std::make_shared<LITstar>(problem.si);
-    planner->setMaxBatches(3u);
-    planner->setProblemDefinition(problem.pdef);
+    auto planner = batchLimited(problem, 3u);
     const ompl::base::PlannerStatus status = planner->solve(ompl::base::plannerNonTerminatingCondition());
     ompl::msg::restorePreviousOutputHandler();
     EXPECT_EQ(status, ompl::base::PlannerStatus::EXACT_SOLUTION);
@@ -752,9 +739,7 @@ TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
     box->setBounds(bounds);
     region->setSpace(box);
     problem.pdef->setGoal(region);
-    auto planner = std::make_shared<LITstar>(problem.si);
-    planner->setMaxBatches(30u);
-    planner->setProblemDefinition(problem.pdef);
+    auto planner = batchLimited(problem, 30u);
     const ompl::base::PlannerStatus status = planner->solve(ompl::base::plannerNonTerminatingCondition());
     ompl::msg::restorePreviousOutputHandler();
     ompl::msg::setLogLevel(level);
@@ -824,8 +809,6 @@ TEST(LITstar, AResolutionTooFineForTheEdgeChecksIsAnError)
     // 1e-12 of the extent: any edge longer than 0.003 needs more checks than the counts hold (and a full
     // check's bisection would need gigabytes). The Python layer refuses such worlds; a C++ user gets this error.
     BoxProblem problem = makeBoxProblem(test::narrowPassage(2).world, {-0.3, 0.3}, {-0.3, -0.3}, 1e-12);
-    auto planner = std::make_shared<LITstar>(problem.si);
-    planner->setMaxBatches(1u);
-    planner->setProblemDefinition(problem.pdef);
+    auto planner = batchLimited(problem, 1u);
     EXPECT_THROW(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::Exception);
 }

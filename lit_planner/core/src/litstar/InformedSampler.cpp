@@ -23,37 +23,26 @@ namespace lit::litstar
     {
         start_ = Eigen::Map<const Eigen::VectorXd>(start.data(), dim_);
         goals_.clear();
+        goalCosts_.clear();
+        goalCentres_.clear();
+        goalRotations_.clear();
+        unionCost_ = -1.0;
         minimumCost_ = std::numeric_limits<double>::infinity();
-        for (const auto &goal : goals)
+        for (const auto &coordinates : goals)
         {
-            goals_.emplace_back(Eigen::Map<const Eigen::VectorXd>(goal.data(), dim_));
-            minimumCost_ = std::min(minimumCost_, (goals_.back() - start_).norm());
-        }
-        const auto reflection = [this](const Eigen::VectorXd &goal, double cost) {
+            const Eigen::VectorXd &goal = goals_.emplace_back(Eigen::Map<const Eigen::VectorXd>(coordinates.data(), dim_));
+            const double cost = (goal - start_).norm();
+            minimumCost_ = std::min(minimumCost_, cost);
+            // The Householder reflection mapping e_1 onto the transverse axis start -> goal.
             Eigen::MatrixXd rotation = Eigen::MatrixXd::Identity(dim_, dim_);
             const Eigen::VectorXd axis = (goal - start_) / std::max(cost, 1e-300);
             Eigen::VectorXd v = Eigen::VectorXd::Unit(dim_, 0) - axis;
             if (v.norm() > 1e-12)
                 rotation -= 2.0 * v * v.transpose() / v.squaredNorm();
-            return rotation;
-        };
-        rotation_ = Eigen::MatrixXd::Identity(dim_, dim_);
-        goalCosts_.clear();
-        goalCentres_.clear();
-        goalRotations_.clear();
-        unionCost_ = -1.0;
-        if (goals_.size() == 1u)
-        {
-            centre_ = 0.5 * (start_ + goals_.front());
-            rotation_ = reflection(goals_.front(), minimumCost_);
+            goalCosts_.push_back(cost);
+            goalCentres_.push_back(0.5 * (start_ + goal));
+            goalRotations_.push_back(std::move(rotation));
         }
-        else
-            for (const auto &goal : goals_)
-            {
-                goalCosts_.push_back((goal - start_).norm());
-                goalCentres_.push_back(0.5 * (start_ + goal));
-                goalRotations_.push_back(reflection(goal, goalCosts_.back()));
-            }
     }
 
     double InformedSampler::heuristicCost(const double *x) const
@@ -72,22 +61,7 @@ namespace lit::litstar
         return true;
     }
 
-    void InformedSampler::sampleEllipsoid(double maxCost, double *x)
-    {
-        Eigen::VectorXd ball(dim_);
-        for (unsigned int i = 0; i < dim_; ++i)
-            ball[i] = rng_.gaussian01();
-        const double radius = std::pow(rng_.uniform01(), 1.0 / static_cast<double>(dim_));
-        ball *= radius / std::max(ball.norm(), 1e-300);
-        const double transverse = 0.5 * maxCost;
-        const double conjugate = 0.5 * std::sqrt(std::max(maxCost * maxCost - minimumCost_ * minimumCost_, 0.0));
-        ball[0] *= transverse;
-        for (unsigned int i = 1; i < dim_; ++i)
-            ball[i] *= conjugate;
-        Eigen::Map<Eigen::VectorXd>(x, dim_) = rotation_ * ball + centre_;
-    }
-
-    void InformedSampler::sampleGoalEllipsoid(std::size_t index, double maxCost, double *x)
+    void InformedSampler::sampleEllipsoid(std::size_t index, double maxCost, double *x)
     {
         Eigen::VectorXd ball(dim_);
         for (unsigned int i = 0; i < dim_; ++i)
@@ -109,7 +83,7 @@ namespace lit::litstar
             std::upper_bound(cumulativeMeasures_.begin(), cumulativeMeasures_.end(), pick) -
             cumulativeMeasures_.begin());
         const std::size_t chosen = std::min(index, goals_.size() - 1u);
-        sampleGoalEllipsoid(chosen, maxCost, x);
+        sampleEllipsoid(chosen, maxCost, x);
         // Kept with probability 1 / (the hyperspheroids holding it): uniform over the union.
         const Eigen::Map<const Eigen::VectorXd> p(x, dim_);
         const double fromStart = (p - start_).norm();
@@ -146,7 +120,7 @@ namespace lit::litstar
         {
             if (useEllipsoid)
             {
-                sampleEllipsoid(maxCost, x);
+                sampleEllipsoid(0u, maxCost, x);
                 if (si_->satisfiesBounds(state))
                     return true;
             }

@@ -40,9 +40,8 @@ namespace lit::litstar
 
     private:
         bool sampleUniform(double *x);
-        void sampleEllipsoid(double maxCost, double *x);
         /** \brief Uniform in the hyperspheroid of goal \e index (foci start and that goal). */
-        void sampleGoalEllipsoid(std::size_t index, double maxCost, double *x);
+        void sampleEllipsoid(std::size_t index, double maxCost, double *x);
         /** \brief A uniform draw from the union of the goals' hyperspheroids of \e maxCost (several goals);
          *  false when the draw is rejected (a point that more hyperspheroids hold is kept less often). */
         bool sampleUnion(double maxCost, double *x);
@@ -53,11 +52,9 @@ namespace lit::litstar
         double spaceMeasure_;
         Eigen::VectorXd start_;
         std::vector<Eigen::VectorXd> goals_;
-        Eigen::VectorXd centre_;
-        /** \brief Householder reflection mapping e_1 onto the transverse axis. */
-        Eigen::MatrixXd rotation_;
         double minimumCost_{0.0};
-        /** \brief Per goal: its distance from the start, centre and reflection (several goals). */
+        /** \brief Per goal: its distance from the start, the centre of its hyperspheroid and the Householder
+         *  reflection mapping e_1 onto its transverse axis. */
         std::vector<double> goalCosts_;
         std::vector<Eigen::VectorXd> goalCentres_;
         std::vector<Eigen::MatrixXd> goalRotations_;
