@@ -457,6 +457,30 @@ TEST(LITstar, AClusterOfGoalsIsReached)
     EXPECT_TRUE(problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>()->check());
 }
 
+TEST(LITstar, AGoalRegionNearerThanAnySampleIsReached)
+{
+    // R^16, a goal box of side 0.02 behind the wall, 0.4 from the start: the goal region's samples are nearer to the
+    // start than any uniform sample (about 1.2 away), so the start's k nearest were all goals, every one of those
+    // edges is blocked, the forward search never had an edge, and LIT* made batch after batch with no search step.
+    const unsigned int n = 16u;
+    BoxProblem problem = test::narrowPassage(n, 1e-3);
+    auto region = std::make_shared<ompl::base::RealVectorStateSpace>(n);
+    ompl::base::RealVectorBounds bounds(n);
+    bounds.setLow(-0.01);
+    bounds.setHigh(0.01);
+    bounds.setLow(0, 0.19);
+    bounds.setHigh(0, 0.21);
+    region->setBounds(bounds);
+    auto goal = std::make_shared<ompl::base::GoalSpace>(problem.si);
+    goal->setSpace(region);
+    problem.pdef->setGoal(goal);
+    auto planner = batchLimited(problem, 100u);
+    planner->setSeed(3u);
+    ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    EXPECT_GT(planner->counters().forwardSteps, 0u);
+    EXPECT_TRUE(problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>()->check());
+}
+
 TEST(LITstar, AMotionValidatorOfTheUsersOwnIsAsked)
 {
     // The validator refuses motions across x0 = 0 below x1 = 0.3, whose states are all valid: LIT* checked edges

@@ -272,7 +272,12 @@ namespace lit::litstar
             // (the reverse search starts at every goal with cost 0, the forward search never leaves one), and a goal
             // among many close ones had only goals as its k nearest, so the reverse search never left the goal set
             // (100 goal-region samples in a box of side 0.02 left every search idle).
-            if (other == state || (state->isGoal_ && other->isGoal_))
+            // The start's neighbours are not goals either: the start-goal lines are checked first of all
+            // (connectTerminals), so such an edge is a solution already or known blocked. In R^16 a goal region 0.4
+            // from the start had all of the start's k nearest in it (uniform samples were 1.2 away), every one of
+            // them behind the wall: the forward search never had an edge, and batches followed each other with no
+            // search step.
+            if (other == state || (other->isGoal_ && (state->isGoal_ || state->isStart_)))
                 continue;
             const double d = std::sqrt(sum);
             if (!full || closer(d, other, worstDistance, worstState))
