@@ -345,6 +345,50 @@ def test_cancel_ends_the_running_query_and_drops_a_queued_one(ros: RosSystem) ->
     _no_traceback(planner)
 
 
+def test_a_cancel_sent_again_after_a_new_plan_with_its_id_cancels_that_plan(
+    ros: RosSystem,
+) -> None:
+    """The same cancel text twice is one cancel (a client's copy sent again gets the first
+    answer) until a new plan request carries the id: then the text cancels the new plan. A
+    client that reused its envelope and ids got the first answer again, "1 running", and the
+    new plan ran to its end."""
+    from lit_msgs_json import Publisher
+
+    recording = ros.recorder(["/lit/solution"])
+    planner = ros.planner()
+    text = Publisher("my_client", "run-1").encode("CancelRequest", {"request_id": "long"})
+
+    def cancel() -> dict[str, Any]:
+        answer = ros.call("raw", "/lit/planner/cancel", text)
+        assert answer.returncode == 0, answer
+        return dict(answer.json()["payload"])
+
+    def solutions() -> int:
+        return sum(u["episode_id"] == "long" for u in recording.payloads("/lit/solution"))
+
+    first = _long_request_running(ros, recording, planner, "300")
+    assert cancel()["running"] == 1
+    assert finish_call(first).json()["status"] == "cancelled"
+    assert cancel()["running"] == 1  # the copy: answered again, nothing cancelled twice
+    before = solutions()
+    second = ros.call_start(
+        "--payload-only", "plan", "--scenario", "np4", "--time", "300", "--request-id", "long"
+    )
+    recording.wait_until(
+        "/lit/solution",
+        lambda _: solutions() > before,
+        timeout=60.0,
+        what="a solution of the second long request",
+        watch=[planner],
+    )
+    answer = cancel()
+    assert (answer["running"], answer["queued"]) == (1, 0), answer
+    stopped = finish_call(second)
+    assert stopped.returncode == 0 and stopped.json()["status"] == "cancelled", stopped
+    assert planner.running()
+    _no_traceback(planner)
+
+
 @pytest.mark.parametrize("how", ["timeout", "sigint", "sigterm"])
 def test_lit_call_plan_cancels_the_query_it_stops_waiting_for(ros: RosSystem, how: str) -> None:
     """``lit call plan`` that stops waiting (its ``--timeout``, Ctrl-C or SIGTERM) cancels its

@@ -50,6 +50,7 @@ same planning time.
 
 from __future__ import annotations
 
+import collections
 import math
 import os
 import queue
@@ -128,6 +129,8 @@ MIN_RESEND = 0.001
 CANCEL_EARLY = 10.0
 """Seconds a CancelRequest naming no known plan request is remembered: a plan request with that
 request_id arriving meanwhile is answered as cancelled, once."""
+ID_GENERATIONS = 4096
+"""request_ids whose count of queued plan requests the node keeps (``_cancel_repeat_key``)."""
 EXECUTOR_THREADS = 8
 """The planner node's executor threads at least; more for a long queue (``PlannerNode.threads``)."""
 SPARE_THREADS = 3
@@ -139,11 +142,16 @@ INVALID_TERMINAL = {"invalid_start": "start", "invalid_goal": "goal"}
 """Core statuses that mean the request gave an unusable start or goal."""
 
 
-def _cancel_repeat_key(request: Any) -> tuple[tuple[str, str], int] | None:
-    """A cancel request's client (the envelope's source and run) and identity (its text): a
-    client's copy sent again is the same text, answered again without cancelling twice (a second
-    cancel of a request just dropped would be remembered, and cancel a new request of that id).
-    None for a text the service rejects (served, and rejected, as new)."""
+def _cancel_repeat_key(
+    request: Any, generations: Mapping[str, int]
+) -> tuple[tuple[str, str], tuple[int, int]] | None:
+    """A cancel request's client (the envelope's source and run) and identity (its text, and how
+    many plan requests with its ``request_id`` the node has queued so far): a client's copy
+    sent again is the same text, answered again without cancelling twice (a second cancel of a
+    request just dropped would be remembered, and cancel a new request of that id). The same
+    text after a new plan request with that id is a new cancel (a client that reuses its
+    envelope and its ids got the first answer again, and the new plan ran on). None for a text
+    the service rejects (served, and rejected, as new)."""
     from lit_msgs_json.envelope import MessageError, decode
 
     text = request.load_namespace
@@ -151,7 +159,8 @@ def _cancel_repeat_key(request: Any) -> tuple[tuple[str, str], int] | None:
         message = decode(text, accept="CancelRequest")
     except MessageError:
         return None
-    return (message.source, message.run_id), hash(text)
+    generation = generations.get(message.payload["request_id"], 0)
+    return (message.source, message.run_id), (hash(text), generation)
 
 
 def parameter_problem(p: Mapping[str, Any]) -> str | None:
@@ -321,6 +330,9 @@ class PlannerNode:
         the node past lit up's grace, which then killed it), and queued ones are not started."""
         self._requests: list[Job] = []
         """Plan requests queued or running, which a CancelRequest may name (under the lock)."""
+        self._id_generations: collections.OrderedDict[str, int] = collections.OrderedDict()
+        """Plan requests queued so far by request_id, for the latest ID_GENERATIONS ids (read
+        by the cancel service's repeat key; written under the lock)."""
         self._cancelled_early: dict[str, float] = {}
         """request_ids a CancelRequest named before any plan request carried them, with when
         (time.monotonic()): a plan request that arrives within CANCEL_EARLY s is answered as
@@ -349,7 +361,8 @@ class PlannerNode:
             AddDiagnostics,
             CANCEL_SERVICE,
             self._serve_cancel,
-            repeat_key=_cancel_repeat_key,  # a copy sent again gets the same answer
+            # a copy sent again gets the same answer
+            repeat_key=lambda request: _cancel_repeat_key(request, self._id_generations),
             attempts=PLAN_SEND_ATTEMPTS,  # a new `lit call cancel` may match late, as for plans
         )
         DuplicateServerWatch(node, PLAN_SERVICE).start()
@@ -456,12 +469,18 @@ class PlannerNode:
                 self._queued += 1
                 if job.request_id is not None:
                     self._requests.append(job)
+                    generations = self._id_generations
+                    generations[job.request_id] = generations.get(job.request_id, 0) + 1
+                    generations.move_to_end(job.request_id)
+                    if len(generations) > ID_GENERATIONS:
+                        generations.popitem(last=False)
                 self._jobs.put(job)  # under the lock: shutdown() cannot slip between check and put
         if cancelled_early:
             self.log.info(f"plan request {job.episode_id} was cancelled before it arrived")
             job.result = _not_started(job)
-            response.success = True
-            response.message = reply.encode("PlanResponse", self._plan_response(job))
+            response.success, response.message = plan_answer_text(
+                reply, self._plan_response(job), message.seq, self.log
+            )
             return response
         job.done.wait()
         if job.error is not None:
@@ -489,8 +508,9 @@ class PlannerNode:
                 response.message = reply.error(job.error)
             return response
         assert job.result is not None
-        response.success = True
-        response.message = reply.encode("PlanResponse", self._plan_response(job))
+        response.success, response.message = plan_answer_text(
+            reply, self._plan_response(job), message.seq, self.log
+        )
         return response
 
     def _serve_cancel(self, request: Any, response: Any) -> Any:
@@ -1139,6 +1159,24 @@ class PlannerNode:
 
 SHUTDOWN_SEND_WAIT = 3.0
 """Seconds the shutdown waits for plan answers still being sent (to a client matching late)."""
+
+
+def plan_answer_text(reply: Any, payload: dict[str, Any], seq: int, log: Any) -> tuple[bool, str]:
+    """``(success, text)`` of a plan request's answer: the PlanResponse, or an Error when it
+    cannot be encoded (longer than the message limit: a very long path or improvement list).
+    An encoding error raised out of the service callback would stop the node's executor."""
+    try:
+        return True, reply.encode("PlanResponse", payload)
+    except MessageError as exc:
+        text = (
+            f"the plan's answer cannot be sent: {exc} ({len(payload['path'])} path states, "
+            f"{len(payload['improvements'])} improvements; status {payload['status']}, "
+            f"cost {payload['cost']})"
+        )
+        log.error(f"plan request {payload['request_id']!r}: {text}")
+        return False, reply.error(
+            exc, message=text[:3000], request_schema="PlanRequest", request_seq=seq
+        )
 
 
 def _not_started(job: Job) -> dict[str, Any]:

@@ -1,0 +1,79 @@
+"""The planner node's answer texts, without a ROS graph."""
+
+from __future__ import annotations
+
+from lit_msgs_json.envelope import MAX_MESSAGE_BYTES, Publisher, decode
+from lit_planner.node import plan_answer_text
+
+
+class _Log:
+    def __init__(self) -> None:
+        self.errors: list[str] = []
+
+    def error(self, text: str) -> None:
+        self.errors.append(text)
+
+
+def _payload(states: int) -> dict:
+    return {
+        "request_id": "big",
+        "status": "exact_solution",
+        "solved": True,
+        "message": "",
+        "scenario": "np16",
+        "dimension": 16,
+        "planner": "litstar",
+        "policy": "fixed",
+        "seed": 1,
+        "cost": 1.5,
+        "t_init": 0.1,
+        "c_init": 2.0,
+        "time": 1.0,
+        "improvements": [[0.1, 2.0], [0.5, 1.5]],
+        "path": [[0.123456789012345] * 16 for _ in range(states)],
+        "counters": {"iterations": 10},
+        "path_valid": True,
+    }
+
+
+def test_an_answer_over_the_message_limit_becomes_an_error_that_says_why() -> None:
+    # Before, the encoder's oversize error left the service callback and stopped the executor,
+    # so the node ended and the client never had an answer.
+    reply, log = Publisher("planner", "run-1"), _Log()
+    states = MAX_MESSAGE_BYTES // (16 * 17) + 100
+    success, text = plan_answer_text(reply, _payload(states), 7, log)
+    assert not success
+    error = decode(text, accept="Error").payload
+    assert error["code"] == "oversize"
+    assert error["request_schema"] == "PlanRequest" and error["request_seq"] == 7
+    assert f"{states} path states" in error["message"] and "cost 1.5" in error["message"]
+    assert len(log.errors) == 1 and "'big'" in log.errors[0]
+
+
+def test_an_answer_within_the_limit_is_the_plan_response() -> None:
+    reply, log = Publisher("planner", "run-1"), _Log()
+    success, text = plan_answer_text(reply, _payload(20), 3, log)
+    assert success and not log.errors
+    message = decode(text, accept="PlanResponse")
+    assert message.payload["request_id"] == "big" and len(message.payload["path"]) == 20
+
+
+def test_a_cancel_copy_is_keyed_by_its_text_and_the_plans_queued_with_its_id() -> None:
+    from types import SimpleNamespace
+
+    from lit_planner.node import _cancel_repeat_key
+
+    publisher = Publisher("my_client", "run-1")
+    text = publisher.encode("CancelRequest", {"request_id": "a"})
+    request = SimpleNamespace(load_namespace=text)
+    generations = {"a": 1, "b": 5}
+    client, identity = _cancel_repeat_key(request, generations)
+    assert client == ("my_client", "run-1")
+    assert _cancel_repeat_key(request, dict(generations)) == (client, identity)
+    generations["b"] += 1  # another id's plan: still the same cancel
+    assert _cancel_repeat_key(request, generations) == (client, identity)
+    generations["a"] += 1  # a new plan with its id: a new cancel
+    assert _cancel_repeat_key(request, generations)[1] != identity
+    other = SimpleNamespace(load_namespace=publisher.encode("CancelRequest", {"request_id": "a"}))
+    assert _cancel_repeat_key(other, generations)[1] != _cancel_repeat_key(request, generations)[1]
+    assert _cancel_repeat_key(SimpleNamespace(load_namespace="not json"), generations) is None
