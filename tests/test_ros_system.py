@@ -13,6 +13,7 @@ import math
 import os
 import re
 import signal
+import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -385,6 +386,33 @@ def test_a_cancel_sent_again_after_a_new_plan_with_its_id_cancels_that_plan(
     assert (answer["running"], answer["queued"]) == (1, 0), answer
     stopped = finish_call(second)
     assert stopped.returncode == 0 and stopped.json()["status"] == "cancelled", stopped
+    assert planner.running()
+    _no_traceback(planner)
+
+
+def test_the_example_client_of_your_own_plans_and_cancels(ros: RosSystem) -> None:
+    """``lit_planner/examples/plan_client.py`` (plain rclpy, the README's "Your own client"):
+    one request answered with its path, and one it gives up on cancelled, answered with what the
+    planner found until then."""
+    example = Path(__file__).resolve().parents[1] / "lit_planner" / "examples" / "plan_client.py"
+    planner = ros.planner()
+    _ready(planner)
+
+    def run(*args: str) -> tuple[int, dict[str, Any], str]:
+        client = ros.start("client", [sys.executable, str(example), *args], separate_stdout=True)
+        code = client.wait(120.0)
+        return code, json.loads(client.output()), client.text()
+
+    code, answer, _ = run("--scenario", "np4", "--time", "0.2")
+    assert code == 0 and answer["status"] == "exact_solution", answer
+    assert answer["path_valid"] is True and len(answer["path"]) >= 2, answer
+    code, answer, log = run("--scenario", "np8", "--time", "300", "--timeout", "3")
+    assert code == 0 and answer["status"] == "cancelled", (answer, log)
+    assert "cancelled by a CancelRequest after" in answer["message"], answer
+    assert "cancel: cancelled the plan request" in log and ": 1 running" in log, log
+    code, answer, _ = run("--scenario", "xx4")  # no such family: the node's Error
+    assert code == 1 and answer["code"] == "invalid-request", answer
+    assert answer["field"] == "$.payload.scenario" or "xx4" in answer["message"], answer
     assert planner.running()
     _no_traceback(planner)
 
