@@ -390,6 +390,39 @@ def test_a_cancel_sent_again_after_a_new_plan_with_its_id_cancels_that_plan(
     _no_traceback(planner)
 
 
+def test_a_plan_request_without_a_request_id_is_cancelled_by_the_id_the_node_logs(
+    ros: RosSystem,
+) -> None:
+    """A request without a ``request_id`` (a client of another make, which then crashed) is
+    ``req-<hex>`` in the node's log and on ``/lit/solution``; a cancel naming that stops it. It
+    could not be stopped before: a 600 s request held the worker for its whole time."""
+    recording = ros.recorder(["/lit/solution"])
+    planner = ros.planner()
+    _ready(planner)
+    recording.wait_for_publishers("/lit/solution")
+    text = Publisher("other_client", "run-1").encode(
+        "PlanRequest", {"scenario": "np4", "time": 300.0}
+    )
+    anonymous = ros.call_start("raw", PLAN, text)
+    logged = planner.wait_for_log(r"has no request_id: it is (req-[0-9a-f]+) here", timeout=60.0)
+    episode_id = logged.group(1)
+    recording.wait_until(
+        "/lit/solution",
+        lambda updates: any(update["episode_id"] == episode_id for update in updates),
+        timeout=60.0,
+        what="a solution of the request without an id",
+        watch=[planner],
+    )
+    answer = ros.call("--payload-only", "cancel", "--request-id", episode_id)
+    assert answer.returncode == 0 and answer.json()["running"] == 1, answer
+    stopped = finish_call(anonymous)
+    assert stopped.returncode == 0, stopped
+    payload = stopped.json()["payload"]
+    assert payload["status"] == "cancelled" and payload["request_id"] is None, payload
+    assert planner.running()
+    _no_traceback(planner)
+
+
 def test_the_example_client_of_your_own_plans_and_cancels(ros: RosSystem) -> None:
     """``lit_planner/examples/plan_client.py`` (plain rclpy, the README's "Your own client"):
     one request answered with its path, and one it gives up on cancelled, answered with what the

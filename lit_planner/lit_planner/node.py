@@ -5,9 +5,10 @@
   worker thread, off the executor, so the node keeps answering while it plans; requests that arrive
   while it is busy wait in a queue of ``queue_limit`` places, and beyond that are refused with a
   ``busy`` Error (never dropped silently).
-- Serves ``lit/planner/cancel`` (same carrier; a CancelRequest naming a ``request_id``): the
-  running plan request that carries it stops within an iteration and is answered with what it
-  found, queued ones are answered without planning (status ``cancelled`` for both).
+- Serves ``lit/planner/cancel`` (same carrier; a CancelRequest naming a ``request_id``, or the
+  ``req-<hex>`` the node logged for a plan request without one): the running plan request that
+  carries it stops within an iteration and is answered with what it found, queued ones are
+  answered without planning (status ``cancelled`` for both).
 - Publishes ``lit/solution`` live, and after every query ``lit/observation`` and ``lit/decision``
   (one per decision point, from the planner's own record, so publishing never runs inside the timed
   loop), ``lit/episode`` (EpisodeSummary) and ``lit/path`` (``trajectory_msgs/JointTrajectory``).
@@ -247,7 +248,8 @@ class Job:
     result: dict[str, Any] | None = None
     error: BaseException | None = None
     cancelled: threading.Event = field(default_factory=threading.Event)
-    """Set by a CancelRequest naming the job's ``request_id`` (plan requests only)."""
+    """Set by a CancelRequest naming the job's ``episode_id`` (its ``request_id``, else the
+    node's ``req-<hex>``; plan requests only)."""
     stop: Any = None
     """The running query's ``lit_core.CancelFlag``: set by a CancelRequest or by shutdown()."""
 
@@ -467,14 +469,21 @@ class PlannerNode:
                 if self._queued:
                     self.log.info(f"plan request {job.episode_id} waits behind {self._queued}")
                 self._queued += 1
-                if job.request_id is not None:
-                    self._requests.append(job)
-                    generations = self._id_generations
-                    generations[job.request_id] = generations.get(job.request_id, 0) + 1
-                    generations.move_to_end(job.request_id)
-                    if len(generations) > ID_GENERATIONS:
-                        generations.popitem(last=False)
+                # Cancels name a request by its episode id: the request_id, or for a request
+                # without one the node's req-<hex>, which the log line below and its /lit/solution
+                # messages show (a 600 s request of a client that crashed could not be stopped).
+                self._requests.append(job)
+                generations = self._id_generations
+                generations[job.episode_id] = generations.get(job.episode_id, 0) + 1
+                generations.move_to_end(job.episode_id)
+                if len(generations) > ID_GENERATIONS:
+                    generations.popitem(last=False)
                 self._jobs.put(job)  # under the lock: shutdown() cannot slip between check and put
+            if job.request_id is None:
+                self.log.info(
+                    f"plan request seq {message.seq} of {message.source} has no request_id: it "
+                    f"is {job.episode_id} here (a CancelRequest naming {job.episode_id} stops it)"
+                )
         if cancelled_early:
             self.log.info(f"plan request {job.episode_id} was cancelled before it arrived")
             job.result = _not_started(job)
@@ -528,7 +537,7 @@ class PlannerNode:
         with self._queue_lock:
             stopping = self._stopping.is_set()  # queued ones are answered unavailable then
             for job in list(self._requests):
-                if job.request_id != request_id:
+                if job.episode_id != request_id:
                     continue
                 job.cancelled.set()
                 if job is self._running:
