@@ -520,9 +520,9 @@ def test_bad_input_is_one_line_exit_2(command: str, bad_inputs: dict[str, Path])
         "missing": "no such file or directory",
         "empty directory": "empty directory",
         "empty file": "empty file",
-        "truncated": "",
-        "bit flip": "",
-        "not a bag": "",
+        "truncated": "truncated",
+        "bit flip": "its HEADER record at byte 8 claims",
+        "not a bag": "not an MCAP file" if command == "salvage" else "is not a bag",
     }
     for case, path in bad_inputs.items():
         result = _replay(command, path)

@@ -512,6 +512,21 @@ def _mcap_damage(path: Path) -> str | None:
             return f"{where}holds only the {size}-byte MCAP magic and no record: truncated"
         if size < 2 * len(_MCAP_MAGIC) or tail != _MCAP_MAGIC:
             return f"{where}does not end with the MCAP magic: truncated (or damaged at its end)"
+        try:
+            first = _record_header(file, len(_MCAP_MAGIC))
+        except OSError:
+            continue
+        if first is None:
+            return f"{where}ends inside its first record's header: truncated"
+        length, name = first
+        if name != "HEADER":
+            return f"{where}its first record is {name}, not the MCAP header: damaged"
+        if len(_MCAP_MAGIC) + 9 + length > size:
+            # mcap's reader asks for that many bytes at once: a MemoryError without a message.
+            return (
+                f"{where}its HEADER record at byte {len(_MCAP_MAGIC)} claims {length} bytes, more "
+                f"than the file's {size}: the record's length is damaged"
+            )
     return None
 
 
@@ -549,6 +564,9 @@ def load_metadata(path: Path) -> dict[str, Any]:
 
 
 def _describe(error: BaseException) -> str:
+    if isinstance(error, MemoryError):
+        # mcap's reader allocates what a record's length field claims.
+        return "a record claims more bytes than memory holds: its length field is damaged"
     text = " ".join(str(error).split()).rstrip(".") or "no details"
     if len(text) > 200:
         text = text[:200] + "…"
