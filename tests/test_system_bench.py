@@ -11,6 +11,7 @@ import subprocess
 import sys
 import time
 
+from lit_planner.testing import descendants
 from ros_helpers import launcher_domain
 
 
@@ -33,24 +34,6 @@ def test_system_bench_prints_all_three_measurements() -> None:
     assert "Decide round trip inside the planner node during this training run" in out
     assert "decisions fell back (no answer within the 50 ms decision timeout)" in out
     assert "kill 1:" in out and "median" in out
-
-
-def _descendants(pid: int) -> set[int]:
-    """PIDs of ``pid``'s children, grandchildren, ... (from /proc)."""
-    parents: dict[int, int] = {}
-    for entry in os.listdir("/proc"):
-        if entry.isdigit():
-            try:
-                with open(f"/proc/{entry}/stat", encoding="utf-8") as stat:
-                    fields = stat.read().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            parents[int(entry)] = int(fields[1])
-    found, frontier = set(), {pid}
-    while frontier:
-        frontier = {child for child, parent in parents.items() if parent in frontier} - found
-        found |= frontier
-    return found
 
 
 def _alive(pid: int) -> bool:
@@ -91,12 +74,12 @@ def test_parts_switched_off_and_ctrl_c_stops_every_child() -> None:
         assert header.startswith("## Decide round trip"), header
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:  # learner, echo and the `lit call` client all up
-            children = _descendants(process.pid)
+            children = descendants(process.pid)
             if len(children) >= 3:
                 break
             time.sleep(0.2)
         time.sleep(1.0)
-        children = _descendants(process.pid)
+        children = descendants(process.pid)
         assert len(children) >= 3, children
         process.send_signal(signal.SIGINT)
         out, err = process.communicate(timeout=120)

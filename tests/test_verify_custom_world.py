@@ -12,6 +12,7 @@ import sys
 import time
 from pathlib import Path
 
+from lit_planner.testing import DescendantWatch
 from ros_helpers import launcher_domain
 
 WORLD = {
@@ -54,6 +55,7 @@ def test_a_custom_world_query_is_verified_from_the_bag(tmp_path: Path) -> None:
              "0", "--bag", str(bag), "--run-id", "world1", "--domain-id", str(domain)],
             cwd=tmp_path, env=env, stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
         )  # fmt: skip
+    watch = DescendantWatch(up.pid)
     try:
         # the recorder hears the planner's topics (volatile: a summary sent before is lost)
         _wait_for(log, "subscribers: 1 on every topic", up, timeout=120.0)
@@ -65,7 +67,9 @@ def test_a_custom_world_query_is_verified_from_the_bag(tmp_path: Path) -> None:
         assert json.loads(answer.stdout)["solved"] is True
         up.send_signal(signal.SIGINT)
         assert up.wait(timeout=120) == 0, log.read_text(encoding="utf-8", errors="replace")
+        assert len(watch.seen) >= 3 and not watch.alive(), watch.alive()  # every node stopped
     finally:
+        watch.kill()  # the nodes: sessions of their own, which killpg of lit up does not reach
         if up.poll() is None:
             os.killpg(up.pid, signal.SIGKILL)
             up.wait()

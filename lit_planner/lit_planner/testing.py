@@ -18,9 +18,11 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -106,6 +108,71 @@ def reserve_ros_domain(
         if claim.held:
             return domain, claim
     return domains[first], None
+
+
+def descendants(pid: int) -> set[int]:
+    """PIDs of ``pid``'s children, grandchildren, ... now (from /proc)."""
+    parents: dict[int, int] = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat", encoding="utf-8") as stat:
+                    fields = stat.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            parents[int(entry)] = int(fields[1])
+    found, frontier = set(), {pid}
+    while frontier:
+        frontier = {child for child, parent in parents.items() if parent in frontier} - found
+        found |= frontier
+    return found
+
+
+class DescendantWatch:
+    """Every process ``pid`` started, directly or not, while it ran (polled from /proc on a
+    thread): the nodes a launcher starts in sessions of their own, which ``os.killpg`` of the
+    launcher's group does not reach. :meth:`alive` names those still running once it ended;
+    :meth:`kill` ends them by PID."""
+
+    def __init__(self, pid: int, interval: float = 0.1) -> None:
+        self.pid, self.seen = pid, set[int]()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._poll, args=(interval,), daemon=True)
+        self._thread.start()
+
+    def _poll(self, interval: float) -> None:
+        while not self._stop.is_set():
+            self.seen |= {(child, _start_time(child)) for child in descendants(self.pid)}
+            self._stop.wait(interval)
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def alive(self) -> list[int]:
+        """Processes seen that still run (the same process: its start time is unchanged)."""
+        self.stop()
+        return sorted(pid for pid, start in self.seen if start and _start_time(pid) == start)
+
+    def kill(self) -> None:
+        for pid in self.alive():
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+
+def _start_time(pid: int) -> int | None:
+    """A process's start time in clock ticks after boot (None when it is gone): tells a PID that
+    was reused from the process seen before."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="utf-8") as stat:
+            fields = stat.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    if fields[0] == "Z":  # a zombie: ended, waiting for its parent
+        return None
+    return int(fields[19])
 
 
 def child_environment(root: Path, domain: int) -> dict[str, str]:

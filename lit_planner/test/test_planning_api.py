@@ -431,8 +431,9 @@ def test_listener_time_is_not_planning_time() -> None:
     wall = clock.perf_counter() - started
     assert slow.batches >= 1 and result["solved"]
     assert wall >= 1.0
-    # The search of np4 takes milliseconds; with the second on the clock both would exceed it.
-    assert result["t_init"] < 1.0 and result["time"] < 1.0
+    # With the listener's second on the planner's clock, the planning time would be the wall
+    # time less only the set-up around the solve.
+    assert result["t_init"] <= result["time"] < wall - 1.0
 
 
 # --------------------------------------------------------------------------- OMPL baselines
