@@ -663,7 +663,7 @@ def test_a_checkpoint_and_driver_state_of_different_writes_are_refused(tmp_path:
 
 
 def test_unknown_scenario_leaves_no_run_folder(tmp_path: Path) -> None:
-    with pytest.raises(train.TrainingError):
+    with pytest.raises(train.TrainingError, match="unknown scenario 'foo4'"):
         train.train(arguments(tmp_path / "run", episodes=2, scenarios="foo4"))
     assert not (tmp_path / "run").exists()
 

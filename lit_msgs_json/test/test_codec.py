@@ -52,7 +52,7 @@ def test_schema_is_packaged_and_loadable() -> None:
 def test_unknown_schema() -> None:
     with pytest.raises(UnknownSchemaError, match=r"Nope: .*no such schema; known: .*TensorSidecar"):
         load_schema("Nope")
-    with pytest.raises(UnknownSchemaError):
+    with pytest.raises(UnknownSchemaError, match=r"\.\./TensorSidecar: .*no such schema"):
         validate("../TensorSidecar", {})
     assert issubclass(UnknownSchemaError, ValueError) and issubclass(
         UnknownSchemaError, LookupError
@@ -190,7 +190,7 @@ def test_prepare_builds_the_validators_ahead_and_names_unknown_schemas() -> None
     codec._fast_envelope_validator.cache_clear()
     prepare(["DecideRequest", "lit_msgs_json/EpisodeEnd"])
     assert codec._fast_envelope_validator.cache_info().currsize == 2
-    with pytest.raises(UnknownSchemaError):
+    with pytest.raises(UnknownSchemaError, match="NoSuchMessage: .*no such schema"):
         prepare(["NoSuchMessage"])
 
 

@@ -1087,7 +1087,7 @@ def test_documents_json_cannot_carry_get_the_reference_answer() -> None:
     plan = {"scenario": "np8", "start": (0.1, 0.1), "goal": [0.9, 0.9]}
     reference = Draft202012Validator(load_schema("PlanRequest"))
     assert not reference.is_valid(plan)
-    with pytest.raises(lit_msgs_json.SchemaError):
+    with pytest.raises(lit_msgs_json.SchemaError, match=r"\$\.start: .* is not of type 'array'"):
         validate("PlanRequest", plan)
 
 
@@ -1132,12 +1132,13 @@ def test_episode_summary_version_3_adds_the_final_features() -> None:
         envelope_text({**payload, "final_features": final}, "EpisodeSummary", version=3)
     )
     assert message.payload["final_features"] == final
-    with pytest.raises(MessageError):  # features are in [0, 1]
+    with pytest.raises(MessageError) as info:  # features are in [0, 1]
         decode(
             envelope_text(
                 {**payload, "final_features": {"B": [0, 0, 2]}}, "EpisodeSummary", version=3
             )
         )
+    assert info.value.code == "payload" and info.value.field == "$.payload.final_features.B[2]"
 
 
 @pytest.mark.parametrize(

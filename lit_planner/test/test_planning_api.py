@@ -543,7 +543,7 @@ def test_cpp_and_python_lookups_agree(tmp_path: Path) -> None:
         got = np.array([lookup(*map(float, point)) for point in points])
         np.testing.assert_allclose(got, expected, rtol=0, atol=1e-4, err_msg=mode)
         for bad in ((math.nan, 0.5, 0.5), (0.5, math.inf, 0.5)):  # both refuse non-finite points
-            with pytest.raises(ValueError):
+            with pytest.raises(ValueError, match="feature points must be finite"):
                 tf.lookup(values, np.array(bad), mode)
             with pytest.raises(ValueError, match="is not finite"):
                 lookup(*bad)

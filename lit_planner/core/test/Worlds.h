@@ -2,7 +2,10 @@
 // Hand-built worlds for the unit tests (the scenario registry proper lives in Python).
 #include "lit/BoxWorld.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
+#include <string>
 #include <vector>
 
 namespace lit::test
@@ -57,5 +60,27 @@ namespace lit::test
             }
         }
         return true;
+    }
+    /** \brief Whether \a call throws an \a E whose message contains \a words: a test of bad input also checks
+     *  which check refused it (one check firing for every case would pass a bare EXPECT_THROW). */
+    template <typename E, typename Call>
+    ::testing::AssertionResult throwsWith(Call &&call, const std::string &words)
+    {
+        try
+        {
+            call();
+        }
+        catch (const E &error)
+        {
+            const std::string message = error.what();
+            if (message.find(words) != std::string::npos)
+                return ::testing::AssertionSuccess();
+            return ::testing::AssertionFailure() << "the message \"" << message << "\" lacks \"" << words << "\"";
+        }
+        catch (const std::exception &error)
+        {
+            return ::testing::AssertionFailure() << "another exception: " << error.what();
+        }
+        return ::testing::AssertionFailure() << "nothing thrown";
     }
 }  // namespace lit::test

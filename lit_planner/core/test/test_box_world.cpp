@@ -34,19 +34,23 @@ TEST(BoxWorld, ClosedBoxesBoundsAndCounting)
 
 TEST(BoxWorld, RejectsInconsistentWorlds)
 {
+    using test::throwsWith;
     BoxWorld world;
     world.lower = {-0.5, -0.5};
     world.upper = {0.5};
-    EXPECT_THROW(world.validatedDimension(), std::invalid_argument);
+    auto dimension = [&world] { static_cast<void>(world.validatedDimension()); };
+    EXPECT_TRUE(throwsWith<std::invalid_argument>(dimension, "lower and upper must be non-empty and of equal length"));
     world.upper = {0.5, -0.6};
-    EXPECT_THROW(world.validatedDimension(), std::invalid_argument);
+    EXPECT_TRUE(throwsWith<std::invalid_argument>(dimension, "world bounds: axis 1 needs finite lower < upper"));
     world.upper = {0.5, 0.5};
     world.boxes.push_back(Box{{0.0}, {0.1}});
-    EXPECT_THROW(world.validatedDimension(), std::invalid_argument);
+    EXPECT_TRUE(throwsWith<std::invalid_argument>(dimension, "box 0: corner dimension differs from the world's"));
     world.boxes = {Box{{0.2, 0.0}, {0.1, 0.1}}};
-    EXPECT_THROW(world.validatedDimension(), std::invalid_argument);
+    EXPECT_TRUE(throwsWith<std::invalid_argument>(dimension, "box 0: axis 0 needs finite lower <= upper"));
     world.boxes = {Box{{0.0, 0.0}, {0.1, 0.1}}};
     EXPECT_EQ(world.validatedDimension(), 2u);
-    EXPECT_THROW(makeBoxProblem(world, {0.0}, {0.0, 0.0}, 1e-3), std::invalid_argument);
-    EXPECT_THROW(makeBoxProblem(world, {0.0, 0.0}, {0.0, 0.0}, 0.0), std::invalid_argument);
+    EXPECT_TRUE(throwsWith<std::invalid_argument>([&] { makeBoxProblem(world, {0.0}, {0.0, 0.0}, 1e-3); },
+                                                  "start and goal must have the world's dimension 2"));
+    EXPECT_TRUE(throwsWith<std::invalid_argument>([&] { makeBoxProblem(world, {0.0, 0.0}, {0.0, 0.0}, 0.0); },
+                                                  "resolution must be in (0, 1)"));
 }

@@ -233,7 +233,8 @@ TEST(LITstar, DeclaresEveryTunable)
     EXPECT_EQ(planner.getPolicyName(), "fit");
     EXPECT_FALSE(planner.params().setParam("policy", "tensor"));  // objects: setPolicy()
     EXPECT_EQ(planner.getPolicyName(), "fit");
-    EXPECT_THROW(planner.setPolicyName("tensor"), ompl::Exception);  // the setter itself throws
+    EXPECT_TRUE(test::throwsWith<ompl::Exception>([&] { planner.setPolicyName("tensor"); },
+                                                  "policy 'tensor' cannot be set by name"));  // the setter throws
 }
 
 TEST(LITstar, PoliciesDecideBatchSizeAndNeighbourFactor)
@@ -792,11 +793,15 @@ TEST(LITstar, ParametersOutsideTheirRangeAreRefused)
     LITstar planner(problem.si);
     for (const double factor : {0.0, -1.0, 1e300, std::numeric_limits<double>::infinity(),
                                 std::numeric_limits<double>::quiet_NaN()})
-        EXPECT_THROW(planner.setRewireFactor(factor), ompl::Exception) << factor;
+        EXPECT_TRUE(test::throwsWith<ompl::Exception>([&] { planner.setRewireFactor(factor); },
+                                                      "the rewire factor must be a number in (0, 1e6]"))
+            << factor;
     planner.setRewireFactor(0.5);
     EXPECT_DOUBLE_EQ(planner.getRewireFactor(), 0.5);
     for (const double budget : {-1.0, std::numeric_limits<double>::quiet_NaN()})
-        EXPECT_THROW(planner.setTimeBudget(budget), ompl::Exception) << budget;  // -1 was "no limit"
+        EXPECT_TRUE(test::throwsWith<ompl::Exception>([&] { planner.setTimeBudget(budget); },
+                                                      "the time budget must be 0 (no limit) or more seconds"))
+            << budget;  // -1 was "no limit"
     // Through OMPL's parameters: false with a warning, nothing changed (the setters' exceptions ended setParams).
     EXPECT_FALSE(planner.params().setParam("time_budget", "-1"));
     EXPECT_FALSE(planner.params().setParam("batch_size", "0"));
@@ -805,11 +810,16 @@ TEST(LITstar, ParametersOutsideTheirRangeAreRefused)
     EXPECT_DOUBLE_EQ(planner.getRewireFactor(), 0.5);
     EXPECT_TRUE(planner.params().setParam("time_budget", "2.5"));
     EXPECT_DOUBLE_EQ(planner.getTimeBudget(), 2.5);
-    EXPECT_THROW(static_cast<void>(planner.graph()), ompl::Exception);  // no problem yet: it crashed
-    EXPECT_THROW(FixedPolicy(0), std::invalid_argument);
-    EXPECT_THROW(FixedPolicy(-5), std::invalid_argument);
-    EXPECT_THROW(FixedPolicy(100, std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);
-    EXPECT_THROW(FixedPolicy(100, 0.0), std::invalid_argument);
+    EXPECT_TRUE(test::throwsWith<ompl::Exception>([&] { static_cast<void>(planner.graph()); },
+                                                  "no problem is set up yet"));  // it crashed
+    for (const int batch : {0, -5})
+        EXPECT_TRUE(test::throwsWith<std::invalid_argument>([&] { FixedPolicy policy(batch); },
+                                                            "the batch size must be at least 1"))
+            << batch;
+    for (const double factor : {std::numeric_limits<double>::quiet_NaN(), 0.0})
+        EXPECT_TRUE(test::throwsWith<std::invalid_argument>([&] { FixedPolicy policy(100, factor); },
+                                                            "the neighbour factor must be a positive number"))
+            << factor;
 }
 
 TEST(LITstar, AFixedPolicysNeighbourFactorIsUsed)
@@ -819,7 +829,8 @@ TEST(LITstar, AFixedPolicysNeighbourFactorIsUsed)
     auto planner = std::make_shared<LITstar>(problem.si);
     planner->setPolicy(std::make_shared<FixedPolicy>(100, 12.0));
     planner->setBatchSize(50u);  // a new fixed policy with this B: it kept psi_K = e
-    EXPECT_THROW(planner->setBatchSize(3000000000u), ompl::Exception);
+    EXPECT_TRUE(test::throwsWith<ompl::Exception>([&] { planner->setBatchSize(3000000000u); },
+                                                  "the batch size must be between 1 and 2^31 - 1"));
     EXPECT_EQ(planner->getBatchSize(), 50u);  // a refused value is not kept
     planner->setMaxBatches(2u);
     planner->setProblemDefinition(problem.pdef);
@@ -834,5 +845,7 @@ TEST(LITstar, AResolutionTooFineForTheEdgeChecksIsAnError)
     // check's bisection would need gigabytes). The Python layer refuses such worlds; a C++ user gets this error.
     BoxProblem problem = makeBoxProblem(test::narrowPassage(2).world, {-0.3, 0.3}, {-0.3, -0.3}, 1e-12);
     auto planner = batchLimited(problem, 1u);
-    EXPECT_THROW(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::Exception);
+    EXPECT_TRUE(test::throwsWith<ompl::Exception>(
+        [&] { planner->solve(ompl::base::plannerNonTerminatingCondition()); },
+        "collision checks at this state validity checking resolution, more than 2^31"));
 }

@@ -1,3 +1,4 @@
+#include "Worlds.h"
 #include "lit/TskActor.h"
 
 #include <gtest/gtest.h>
@@ -40,18 +41,29 @@ TEST(TskActor, ComputesTheTskOutputByHand)
 
 TEST(TskActor, RejectsShapesThatDoNotChain)
 {
+    using test::throwsWith;
     const Eigen::VectorXd consequents = Eigen::VectorXd::Ones(3);
     const TskActor::Layer trunk{Eigen::MatrixXd::Zero(4, 9), Eigen::VectorXd::Zero(4)};
-    EXPECT_THROW(TskActor({0.0, 0.5, 1.0}, 0.2, {Eigen::MatrixXd::Zero(4, 8), Eigen::VectorXd::Zero(4)},
-                          {{Eigen::MatrixXd::Zero(3, 4), Eigen::VectorXd::Zero(3)}}, consequents),
-                 std::invalid_argument);
-    EXPECT_THROW(TskActor({0.0, 0.5, 1.0}, 0.2, trunk, {{Eigen::MatrixXd::Zero(3, 5), Eigen::VectorXd::Zero(3)}},
-                          consequents),
-                 std::invalid_argument);
-    EXPECT_THROW(TskActor({0.0, 0.5, 1.0}, 0.2, trunk, {{Eigen::MatrixXd::Zero(2, 4), Eigen::VectorXd::Zero(2)}},
-                          consequents),
-                 std::invalid_argument);
-    EXPECT_THROW(TskActor({0.0, 0.5, 1.0}, std::nan(""), trunk,
-                          {{Eigen::MatrixXd::Zero(3, 4), Eigen::VectorXd::Zero(3)}}, consequents),
-                 std::invalid_argument);
+    const TskActor::Layer rules{Eigen::MatrixXd::Zero(3, 4), Eigen::VectorXd::Zero(3)};
+    EXPECT_TRUE(throwsWith<std::invalid_argument>(
+        [&] {
+            TskActor({0.0, 0.5, 1.0}, 0.2, {Eigen::MatrixXd::Zero(4, 8), Eigen::VectorXd::Zero(4)}, {rules},
+                     consequents);
+        },
+        "trunk: weight has 8 columns, expected 9 inputs"));
+    EXPECT_TRUE(throwsWith<std::invalid_argument>(
+        [&] {
+            TskActor({0.0, 0.5, 1.0}, 0.2, trunk, {{Eigen::MatrixXd::Zero(3, 5), Eigen::VectorXd::Zero(3)}},
+                     consequents);
+        },
+        "layer 0: weight has 5 columns, expected 4 inputs"));
+    EXPECT_TRUE(throwsWith<std::invalid_argument>(
+        [&] {
+            TskActor({0.0, 0.5, 1.0}, 0.2, trunk, {{Eigen::MatrixXd::Zero(2, 4), Eigen::VectorXd::Zero(2)}},
+                     consequents);
+        },
+        "consequents: 3 entries, expected one per rule output (2)"));
+    EXPECT_TRUE(throwsWith<std::invalid_argument>(
+        [&] { TskActor({0.0, 0.5, 1.0}, std::nan(""), trunk, {rules}, consequents); },
+        "sigma must be finite and positive"));
 }
