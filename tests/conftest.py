@@ -12,6 +12,11 @@ from pathlib import Path
 import pytest
 from ros_helpers import RosSystem
 
+# Discovery stays on this host for every process the system tests start, also under a plain
+# pytest run whose environment says otherwise (lit test exports it too).
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.pop("ROS_LOCALHOST_ONLY", None)
+
 SHM_CLEAN_TIMEOUT = 60.0
 """Seconds Fast DDS's shared-memory cleaner may take."""
 

@@ -23,8 +23,6 @@ from typing import Any
 import pytest
 from lit_msgs_json.envelope import MAX_MESSAGE_BYTES, Publisher
 from ros_helpers import (
-    LEARNER_NODE,
-    PLANNER_NODE,
     RECORDER_NODE,
     Child,
     Recording,
@@ -37,11 +35,6 @@ from ros_helpers import (
 )
 
 from lit_planner import scenarios
-
-pytestmark = pytest.mark.skipif(
-    not (Path(PLANNER_NODE).exists() and Path(LEARNER_NODE).exists()),
-    reason="the node console scripts are not installed in this environment",
-)
 
 NODE_START = 120.0
 """Seconds a node may take to log ``ready:`` (the learner imports torch)."""
@@ -258,21 +251,29 @@ def test_plan_requests_wait_in_the_queue_then_busy(ros: RosSystem) -> None:
     """A request arriving during a long one waits its turn; one beyond ``queue_limit`` is refused.
 
     With ``queue_limit: 1`` one request runs and one waits; of two short requests sent while a long
-    one runs, one is answered after the long one and the other gets ``busy`` at once.
+    one runs, one is answered after the long one and the other gets ``busy`` at once. (The long
+    one runs until it is cancelled, once both are in: a fixed 6 s let a slow machine answer both.)
     """
     recording = ros.recorder(["/lit/solution"])
     planner = ros.planner(queue_limit=1)
-    long = _long_request_running(ros, recording, planner, "6.0")
+    long = _long_request_running(ros, recording, planner, "300")
     shorts = [
         ros.call_start(
             "--payload-only", "plan", "--scenario", "np4", "--time", "0.2", "--request-id", name
         )
         for name in ("short-a", "short-b")
     ]
+    planner.wait_for_log(r"plan request short-[ab] waits behind 1", timeout=60.0)
+    deadline = time.monotonic() + 60.0
+    while all(call.running() for call in shorts):  # the other one's busy answer
+        assert time.monotonic() < deadline, [call.tail() for call in shorts]
+        time.sleep(0.05)
+    cancel = ros.call("--payload-only", "cancel", "--request-id", "long")
+    assert cancel.returncode == 0 and cancel.json()["running"] == 1, cancel
     results = [finish_call(call) for call in (long, *shorts)]
 
     assert results[0].returncode == 0, results[0]
-    assert results[0].json()["solved"] is True
+    assert results[0].json()["solved"] is True and results[0].json()["status"] == "cancelled"
     assert results[0].json()["request_id"] == "long"
     codes = sorted(result.returncode for result in results[1:])
     assert codes == [0, 1], "\n\n".join(map(str, results))

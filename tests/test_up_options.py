@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from ros_helpers import launcher_domain
 
 
 @pytest.mark.parametrize(
@@ -61,7 +62,9 @@ def test_bad_options_start_nothing(tmp_path: Path, options: list[str], message: 
     named = {"EXISTING": tmp_path / "bag", "NEW": tmp_path / "new-bag"}
     options = [str(named[o]) if o in named else o for o in options]
     process = subprocess.run(
-        [sys.executable, "-m", "lit_planner.cli", "up", "--domain-id", "1", *options],
+        # A free domain: should a regression start lit up, it starts on a domain of its own.
+        [sys.executable, "-m", "lit_planner.cli", "up", "--domain-id", str(launcher_domain()),
+         *options],
         cwd=tmp_path,
         env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
         capture_output=True, text=True, timeout=120, check=False,
@@ -106,7 +109,9 @@ def test_demo_and_call_refuse_bad_options_before_starting(
     process = subprocess.run(
         [sys.executable, "-m", "lit_planner.cli", *command],
         cwd=tmp_path,
-        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID="1"),
+        env=dict(
+            os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(launcher_domain())
+        ),
         capture_output=True, text=True, timeout=120, check=False,
     )  # fmt: skip
     assert process.returncode == 2, process.stdout + process.stderr

@@ -13,9 +13,6 @@ import dataclasses
 from pathlib import Path
 
 import pytest
-
-pytest.importorskip("torch")
-
 from lit_learner.core import LearnerCore
 
 from lit_learner import toy, train

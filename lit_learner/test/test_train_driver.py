@@ -15,9 +15,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-
-pytest.importorskip("torch")
-
 from lit_learner.config import AgentConfig, LearnerConfig
 from lit_learner.metrics import CURVES_FILE, METRICS_FILE, histogram_column
 

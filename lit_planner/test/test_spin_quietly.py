@@ -7,8 +7,7 @@ executors through the same function.
 from __future__ import annotations
 
 import pytest
-
-rclpy = pytest.importorskip("rclpy")
+import rclpy
 from lit_planner.rosutil import spin_quietly
 from rclpy._rclpy_pybind11 import InvalidHandle, RCLError
 
