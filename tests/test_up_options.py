@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from lit_planner.testing import handles_signal
 from ros_helpers import launcher_domain
 
 
@@ -161,7 +162,12 @@ def test_sigterm_stops_lit_call_without_a_traceback() -> None:
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     try:
-        time.sleep(3.0)  # waiting for a service nobody serves on this domain
+        # Waiting for a service nobody serves on this domain once rclpy's handler is in.
+        deadline = time.monotonic() + 60.0
+        while not handles_signal(process.pid, signal.SIGTERM):
+            assert process.poll() is None and time.monotonic() < deadline, process.communicate()
+            time.sleep(0.05)
+        time.sleep(0.5)
         process.send_signal(signal.SIGTERM)
         _, err = process.communicate(timeout=60)
         assert process.returncode == 130, err

@@ -175,6 +175,19 @@ def _start_time(pid: int) -> int | None:
     return int(fields[19])
 
 
+def handles_signal(pid: int, signum: int) -> bool:
+    """Whether process ``pid`` has a handler of its own for ``signum`` now (``SigCgt`` in
+    ``/proc/PID/status``): a test that signals a child waits for this rather than a fixed time."""
+    try:
+        with open(f"/proc/{pid}/status", encoding="utf-8") as status:
+            for line in status:
+                if line.startswith("SigCgt:"):
+                    return bool(int(line.split()[1], 16) >> (signum - 1) & 1)
+    except OSError:
+        pass
+    return False
+
+
 def child_environment(root: Path, domain: int) -> dict[str, str]:
     env = dict(os.environ)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
