@@ -446,7 +446,7 @@ def test_the_example_client_of_your_own_plans_and_cancels(ros: RosSystem) -> Non
     assert "cancel: cancelled the plan request" in log and ": 1 running" in log, log
     code, answer, _ = run("--scenario", "xx4")  # no such family: the node's Error
     assert code == 1 and answer["code"] == "invalid-request", answer
-    assert answer["field"] == "$.payload.scenario" or "xx4" in answer["message"], answer
+    assert "unknown scenario 'xx4'" in answer["message"], answer
     assert planner.running()
     _no_traceback(planner)
 
@@ -1297,25 +1297,3 @@ def test_sigterm_shuts_both_nodes_down_cleanly(ros: RosSystem) -> None:
     assert "checkpoint" in learner.text()
     assert any((ros.workdir / "learner" / "tensors").iterdir())  # trained: exported on shutdown
     _no_traceback(planner, learner)
-
-
-def test_a_count_limited_request_without_time_plans_for_at_most_the_longest_time() -> None:
-    """A plan request with max_iterations or max_batches and no `time` gets the schema's longest
-    time (it had no limit: a large count kept the worker busy for good); one with a `time` keeps
-    it, and one with neither gets the scenario's budget. The request-to-job rule alone, without a
-    running node (planning 600 s to see the limit would not fit in a test)."""
-    from types import SimpleNamespace
-
-    from lit_planner import node
-
-    fake: Any = SimpleNamespace(params={"policy": "fixed", "seed": 7})
-    fake._problem_from_request = lambda payload: node.PlannerNode._problem_from_request(
-        fake, payload
-    )
-    make = node.PlannerNode._job_from_request
-    for limit in ({"max_iterations": 10**9}, {"max_batches": 10**6}):
-        job = make(fake, {"scenario": "np4", **limit})
-        assert job.time == node.MAX_REQUEST_TIME == 600.0
-    assert make(fake, {"scenario": "np4", "max_iterations": 5, "time": 2.5}).time == 2.5
-    assert make(fake, {"scenario": "np4"}).time is None  # the scenario's budget
-    assert make(fake, {"scenario": "np4"}).seed == 7

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import typing
+
 from lit_msgs_json.envelope import MAX_MESSAGE_BYTES, Publisher, decode
 from lit_planner.node import plan_answer_text
 
@@ -77,3 +79,25 @@ def test_a_cancel_copy_is_keyed_by_its_text_and_the_plans_queued_with_its_id() -
     other = SimpleNamespace(load_namespace=publisher.encode("CancelRequest", {"request_id": "a"}))
     assert _cancel_repeat_key(other, generations)[1] != _cancel_repeat_key(request, generations)[1]
     assert _cancel_repeat_key(SimpleNamespace(load_namespace="not json"), generations) is None
+
+
+def test_a_count_limited_request_without_time_plans_for_at_most_the_longest_time() -> None:
+    """A plan request with max_iterations or max_batches and no `time` gets the schema's longest
+    time (it had no limit: a large count kept the worker busy for good); one with a `time` keeps
+    it, and one with neither gets the scenario's budget. The request-to-job rule alone, without a
+    running node (planning 600 s to see the limit would not fit in a test)."""
+    from types import SimpleNamespace
+
+    from lit_planner import node
+
+    fake: typing.Any = SimpleNamespace(params={"policy": "fixed", "seed": 7})
+    fake._problem_from_request = lambda payload: node.PlannerNode._problem_from_request(
+        fake, payload
+    )
+    make = node.PlannerNode._job_from_request
+    for limit in ({"max_iterations": 10**9}, {"max_batches": 10**6}):
+        job = make(fake, {"scenario": "np4", **limit})
+        assert job.time == node.MAX_REQUEST_TIME == 600.0
+    assert make(fake, {"scenario": "np4", "max_iterations": 5, "time": 2.5}).time == 2.5
+    assert make(fake, {"scenario": "np4"}).time is None  # the scenario's budget
+    assert make(fake, {"scenario": "np4"}).seed == 7
