@@ -295,15 +295,16 @@ namespace lit
             statusMessage_ = "the goal is missing or not a sampleable goal region";
             return ompl::base::PlannerStatus::UNRECOGNIZED_GOAL_TYPE;
         }
-        const ompl::base::State *start = pis_.nextStart();
-        if (start == nullptr)
+        // Every valid start state is a root of the forward tree (nextStart() skips, with OMPL's warning, those
+        // out of bounds or in collision).
+        std::vector<const ompl::base::State *> starts;
+        while (const ompl::base::State *start = pis_.nextStart())
+            starts.push_back(start);
+        if (starts.empty())
         {
             statusMessage_ = "the start state is missing, out of bounds or in collision";
             return ompl::base::PlannerStatus::INVALID_START;
         }
-        if (pis_.haveMoreStartStates())  // one forward tree, one root: said, not dropped without a word
-            OMPL_WARN("%s: plans from one start state; the problem's later start states are not used (it has %u)",
-                      getName().c_str(), pdef_->getStartStateCount());
         // A goal state or set is read to its end through PlannerInputStates: nextGoal() answers null (with OMPL's
         // warning, once per state) for a goal out of bounds or in collision. Any other region (OMPL's GoalSpace,
         // whose samples never end) is sampled here: at most MAX_GOAL_SAMPLES valid samples in at most 10 times as
@@ -387,8 +388,9 @@ namespace lit
         }
         graph_ = std::make_unique<litstar::RandomGeometricGraph>(si_, seed_);
         forwardQueue_ = std::make_unique<litstar::ForwardQueue>([this](litstar::Edge &edge) { computeKeys(edge); });
-        graph_->setTerminals(start, goals);
-        graph_->start()->costToCome_ = 0.0;
+        graph_->setTerminals(starts, goals);
+        for (State *start : graph_->starts())
+            start->costToCome_ = 0.0;
         firstSolutionMeasure_ = 0.0;
         batchSize_ = static_cast<unsigned int>(std::max(1, policy_->initialBatchSize()));
         neighbourFactor_ = policy_->initialNeighbourFactor();
@@ -876,12 +878,15 @@ namespace lit
         // In an empty R^16 world the start was never among the goal's k nearest: LIT* stayed 28 % above the straight
         // line for its whole budget while BIT* and AIT* returned it at once. A blocked line usually fails at its
         // first checks (bisection order: the midpoint first). Nearest goal first: the first free line is the best.
-        State *start = graph_->start();
-        std::vector<State *> goals = graph_->goals();
-        std::stable_sort(goals.begin(), goals.end(), [&](const State *a, const State *b) {
-            return graph_->distance(start, a) < graph_->distance(start, b);
+        // With several starts, every start-goal line, nearest pair first.
+        std::vector<std::pair<State *, State *>> pairs;
+        for (State *start : graph_->starts())
+            for (State *goal : graph_->goals())
+                pairs.emplace_back(start, goal);
+        std::stable_sort(pairs.begin(), pairs.end(), [&](const auto &a, const auto &b) {
+            return graph_->distance(a.first, a.second) < graph_->distance(b.first, b.second);
         });
-        for (State *goal : goals)
+        for (const auto &[start, goal] : pairs)
         {
             const double cost = graph_->distance(start, goal);
             if (cost >= bestCost_ || shouldStop())
@@ -983,7 +988,8 @@ namespace lit
         if (policy_->needsFeatures() && !bestPathStates_.empty())
             rhoLocalB_ = pathLocalRatio();
         restartReverseSearch();
-        expandForward(graph_->start());
+        for (State *start : graph_->starts())
+            expandForward(start);
 
         BatchEvent event;
         event.batch = counters_.batches;
@@ -1151,7 +1157,8 @@ namespace lit
         Planner::getPlannerData(data);
         if (!graph_)
             return;
-        data.addStartVertex(ompl::base::PlannerDataVertex(graph_->start()->raw_, static_cast<int>(graph_->start()->id_)));
+        for (const State *start : graph_->starts())
+            data.addStartVertex(ompl::base::PlannerDataVertex(start->raw_, static_cast<int>(start->id_)));
         for (const State *goal : graph_->goals())
             data.addGoalVertex(ompl::base::PlannerDataVertex(goal->raw_, static_cast<int>(goal->id_)));
         for (const auto &state : graph_->states())

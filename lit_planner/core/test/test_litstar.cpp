@@ -708,34 +708,63 @@ TEST(LITstar, SeveralGoalsFillTheirBatches)
     EXPECT_GE(counters.validSamples, 30u * 100u * 9u / 10u) << counters.validSamples;  // nearly B each
 }
 
-TEST(LITstar, FurtherStartStatesAreNamedInAWarning)
+TEST(LITstar, EveryStartStateIsARootOfTheForwardTree)
 {
-    // LIT* grows one forward tree: the other start states were dropped without a word.
-    struct Messages : ompl::msg::OutputHandler
+    // LIT* planned from the first start state only (with a warning naming the others).
     {
-        std::vector<std::string> warnings;
-        void log(const std::string &text, ompl::msg::LogLevel level, const char *, int) override
+        // A later start with a free line to the goal: that line is the solution, found before any batch.
+        BoxProblem problem = test::narrowPassage(2, 1e-3);
+        ompl::base::ScopedState<> near(problem.si);
+        near[0] = 0.15;
+        near[1] = 0.3;
+        problem.pdef->addStartState(near);
+        auto planner = batchLimited(problem, 5u);
+        planner->setSeed(3u);
+        ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+        const auto *path = problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>();
+        ASSERT_EQ(path->getStateCount(), 2u);
+        EXPECT_DOUBLE_EQ(path->getState(0)->as<ompl::base::RealVectorStateSpace::StateType>()->values[0], 0.15);
+        EXPECT_DOUBLE_EQ(planner->bestCost(), std::hypot(0.05, 0.3));
+        EXPECT_EQ(planner->counters().batches, 0u);  // the straight line cannot be improved
+    }
+    {
+        // Two starts behind the wall and one inside it (skipped, with OMPL's warning): the forward search grows
+        // from both roots, and the best path leaves from the second (0.416 at best, against the first's 0.4236;
+        // the first's edges then cannot improve it, and leave the forward tree).
+        struct Messages : ompl::msg::OutputHandler
         {
-            if (level >= ompl::msg::LOG_WARN)
-                warnings.push_back(text);
-        }
-    } messages;
-    ompl::msg::useOutputHandler(&messages);
-    BoxProblem problem = test::narrowPassage(2, 1e-3);
-    ompl::base::ScopedState<> other(problem.si);
-    other[0] = -0.3;
-    other[1] = 0.2;
-    problem.pdef->addStartState(other);
-    problem.pdef->addStartState(other);
-    auto planner = batchLimited(problem, 3u);
-    const ompl::base::PlannerStatus status = planner->solve(ompl::base::plannerNonTerminatingCondition());
-    ompl::msg::restorePreviousOutputHandler();
-    EXPECT_EQ(status, ompl::base::PlannerStatus::EXACT_SOLUTION);
-    ASSERT_EQ(messages.warnings.size(), 1u);
-    EXPECT_NE(messages.warnings[0].find("plans from one start state; the problem's later start states are not used "
-                                        "(it has 3)"),
-              std::string::npos)
-        << messages.warnings[0];
+            std::vector<std::string> warnings;
+            void log(const std::string &text, ompl::msg::LogLevel level, const char *, int) override
+            {
+                if (level >= ompl::msg::LOG_WARN)
+                    warnings.push_back(text);
+            }
+        } messages;
+        BoxProblem problem = test::narrowPassage(2, 1e-3);
+        ompl::base::ScopedState<> second(problem.si), inWall(problem.si);
+        second[0] = -0.2;  // in front of the passage: its paths are the shorter ones
+        second[1] = 0.1;
+        inWall[0] = 0.0;
+        inWall[1] = -0.3;
+        problem.pdef->addStartState(inWall);
+        problem.pdef->addStartState(second);
+        auto planner = batchLimited(problem, 10u);
+        planner->setSeed(3u);
+        ompl::msg::useOutputHandler(&messages);
+        const ompl::base::PlannerStatus status = planner->solve(ompl::base::plannerNonTerminatingCondition());
+        ompl::msg::restorePreviousOutputHandler();
+        ASSERT_EQ(status, ompl::base::PlannerStatus::EXACT_SOLUTION);
+        EXPECT_TRUE(problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>()->check());
+        ASSERT_EQ(messages.warnings.size(), 1u);
+        EXPECT_NE(messages.warnings[0].find("Skipping invalid start state"), std::string::npos) << messages.warnings[0];
+        ASSERT_EQ(planner->graph().starts().size(), 2u);
+        const auto *path = problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>();
+        EXPECT_DOUBLE_EQ(path->getState(0)->as<ompl::base::RealVectorStateSpace::StateType>()->values[1], 0.1);
+        EXPECT_LT(planner->bestCost(), test::narrowPassageOptimum()) << planner->bestCost();
+        ompl::base::PlannerData data(problem.si);
+        planner->getPlannerData(data);
+        EXPECT_EQ(data.numStartVertices(), 2u);
+    }
 }
 
 TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)

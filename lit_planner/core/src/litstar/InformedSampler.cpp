@@ -19,39 +19,52 @@ namespace lit::litstar
         spaceMeasure_ = si->getSpaceMeasure();
     }
 
-    void InformedSampler::setFoci(const std::vector<double> &start, const std::vector<std::vector<double>> &goals)
+    void InformedSampler::setFoci(const std::vector<std::vector<double>> &starts,
+                                  const std::vector<std::vector<double>> &goals)
     {
-        start_ = Eigen::Map<const Eigen::VectorXd>(start.data(), dim_);
+        starts_.clear();
         goals_.clear();
-        goalCosts_.clear();
-        goalCentres_.clear();
-        goalRotations_.clear();
+        for (const auto &coordinates : starts)
+            starts_.emplace_back(Eigen::Map<const Eigen::VectorXd>(coordinates.data(), dim_));
+        for (const auto &coordinates : goals)
+            goals_.emplace_back(Eigen::Map<const Eigen::VectorXd>(coordinates.data(), dim_));
+        pairStarts_.clear();
+        pairGoals_.clear();
+        pairCosts_.clear();
+        pairCentres_.clear();
+        pairRotations_.clear();
         unionCost_ = -1.0;
         minimumCost_ = std::numeric_limits<double>::infinity();
-        for (const auto &coordinates : goals)
-        {
-            const Eigen::VectorXd &goal = goals_.emplace_back(Eigen::Map<const Eigen::VectorXd>(coordinates.data(), dim_));
-            const double cost = (goal - start_).norm();
-            minimumCost_ = std::min(minimumCost_, cost);
-            // The Householder reflection mapping e_1 onto the transverse axis start -> goal.
-            Eigen::MatrixXd rotation = Eigen::MatrixXd::Identity(dim_, dim_);
-            const Eigen::VectorXd axis = (goal - start_) / std::max(cost, 1e-300);
-            Eigen::VectorXd v = Eigen::VectorXd::Unit(dim_, 0) - axis;
-            if (v.norm() > 1e-12)
-                rotation -= 2.0 * v * v.transpose() / v.squaredNorm();
-            goalCosts_.push_back(cost);
-            goalCentres_.push_back(0.5 * (start_ + goal));
-            goalRotations_.push_back(std::move(rotation));
-        }
+        for (std::size_t s = 0; s < starts_.size(); ++s)
+            for (std::size_t g = 0; g < goals_.size(); ++g)
+            {
+                const Eigen::VectorXd &start = starts_[s], &goal = goals_[g];
+                const double cost = (goal - start).norm();
+                minimumCost_ = std::min(minimumCost_, cost);
+                // The Householder reflection mapping e_1 onto the transverse axis start -> goal.
+                Eigen::MatrixXd rotation = Eigen::MatrixXd::Identity(dim_, dim_);
+                const Eigen::VectorXd axis = (goal - start) / std::max(cost, 1e-300);
+                Eigen::VectorXd v = Eigen::VectorXd::Unit(dim_, 0) - axis;
+                if (v.norm() > 1e-12)
+                    rotation -= 2.0 * v * v.transpose() / v.squaredNorm();
+                pairStarts_.push_back(s);
+                pairGoals_.push_back(g);
+                pairCosts_.push_back(cost);
+                pairCentres_.push_back(0.5 * (start + goal));
+                pairRotations_.push_back(std::move(rotation));
+            }
     }
 
     double InformedSampler::heuristicCost(const double *x) const
     {
         const Eigen::Map<const Eigen::VectorXd> p(x, dim_);
+        double fromStart = std::numeric_limits<double>::infinity();
+        for (const auto &start : starts_)
+            fromStart = std::min(fromStart, (p - start).norm());
         double toGoal = std::numeric_limits<double>::infinity();
         for (const auto &goal : goals_)
             toGoal = std::min(toGoal, (goal - p).norm());
-        return (p - start_).norm() + toGoal;
+        return fromStart + toGoal;
     }
 
     bool InformedSampler::sampleUniform(double *x)
@@ -68,12 +81,12 @@ namespace lit::litstar
             ball[i] = rng_.gaussian01();
         const double radius = std::pow(rng_.uniform01(), 1.0 / static_cast<double>(dim_));
         ball *= radius / std::max(ball.norm(), 1e-300);
-        const double cost = goalCosts_[index];
+        const double cost = pairCosts_[index];
         ball[0] *= 0.5 * maxCost;
         const double conjugate = 0.5 * std::sqrt(std::max(maxCost * maxCost - cost * cost, 0.0));
         for (unsigned int i = 1; i < dim_; ++i)
             ball[i] *= conjugate;
-        Eigen::Map<Eigen::VectorXd>(x, dim_) = goalRotations_[index] * ball + goalCentres_[index];
+        Eigen::Map<Eigen::VectorXd>(x, dim_) = pairRotations_[index] * ball + pairCentres_[index];
     }
 
     bool InformedSampler::sampleUnion(double maxCost, double *x)
@@ -82,14 +95,13 @@ namespace lit::litstar
         const std::size_t index = static_cast<std::size_t>(
             std::upper_bound(cumulativeMeasures_.begin(), cumulativeMeasures_.end(), pick) -
             cumulativeMeasures_.begin());
-        const std::size_t chosen = std::min(index, goals_.size() - 1u);
+        const std::size_t chosen = std::min(index, pairCosts_.size() - 1u);
         sampleEllipsoid(chosen, maxCost, x);
         // Kept with probability 1 / (the hyperspheroids holding it): uniform over the union.
         const Eigen::Map<const Eigen::VectorXd> p(x, dim_);
-        const double fromStart = (p - start_).norm();
         std::size_t holding = 1u;  // the chosen one, also where rounding puts x just outside it
-        for (std::size_t j = 0; j < goals_.size(); ++j)
-            if (j != chosen && fromStart + (goals_[j] - p).norm() <= maxCost)
+        for (std::size_t j = 0; j < pairCosts_.size(); ++j)
+            if (j != chosen && (p - starts_[pairStarts_[j]]).norm() + (goals_[pairGoals_[j]] - p).norm() <= maxCost)
                 ++holding;
         return holding == 1u || rng_.uniform01() * static_cast<double>(holding) < 1.0;
     }
@@ -97,10 +109,10 @@ namespace lit::litstar
     bool InformedSampler::sample(double maxCost, ompl::base::State *state, unsigned int maxAttempts)
     {
         double *x = state->as<ompl::base::RealVectorStateSpace::StateType>()->values;
-        const bool useEllipsoid = goals_.size() == 1u && std::isfinite(maxCost) &&
+        const bool useEllipsoid = pairCosts_.size() == 1u && std::isfinite(maxCost) &&
                                   informedMeasure(dim_, maxCost, minimumCost_, spaceMeasure_) < spaceMeasure_;
         bool useUnion = false;
-        if (goals_.size() > 1u && std::isfinite(maxCost))
+        if (pairCosts_.size() > 1u && std::isfinite(maxCost))
         {
             if (maxCost != unionCost_)
             {
@@ -108,7 +120,7 @@ namespace lit::litstar
                 unionCost_ = maxCost;
                 cumulativeMeasures_.clear();
                 double total = 0.0;
-                for (const double cost : goalCosts_)
+                for (const double cost : pairCosts_)
                     cumulativeMeasures_.push_back(total += informedMeasure(dim_, maxCost, cost, spaceMeasure_));
             }
             // Their sum bounds the union's measure: below the space's, drawing from them wastes less than

@@ -48,7 +48,7 @@ namespace lit::litstar
         states_.clear();
         packed_.clear();
         packedInvalid_.clear();
-        start_ = nullptr;
+        starts_.clear();
         goals_.clear();
         invalidDraws_ = validDraws_ = 0u;
         ++cacheEpoch_;
@@ -70,18 +70,27 @@ namespace lit::litstar
 
     void RandomGeometricGraph::computeLowerBounds(State *state) const
     {
-        state->costToComeLowerBound_ = distance(start_, state);
+        double fromStart = std::numeric_limits<double>::infinity();
+        for (const State *start : starts_)
+            fromStart = std::min(fromStart, distance(start, state));
+        state->costToComeLowerBound_ = fromStart;
         double toGoal = std::numeric_limits<double>::infinity();
         for (const State *goal : goals_)
             toGoal = std::min(toGoal, distance(state, goal));
         state->costToGoLowerBound_ = toGoal;
     }
 
-    void RandomGeometricGraph::setTerminals(const ompl::base::State *start,
+    void RandomGeometricGraph::setTerminals(const std::vector<const ompl::base::State *> &starts,
                                             const std::vector<const ompl::base::State *> &goals)
     {
-        start_ = createState(si_->cloneState(start));
-        start_->isStart_ = true;
+        std::vector<std::vector<double>> startCoordinates;
+        for (const auto *start : starts)
+        {
+            State *state = createState(si_->cloneState(start));
+            state->isStart_ = true;
+            starts_.push_back(state);
+            startCoordinates.push_back(coordinates(start, dim_));
+        }
         std::vector<std::vector<double>> goalCoordinates;
         for (const auto *goal : goals)
         {
@@ -90,7 +99,7 @@ namespace lit::litstar
             goals_.push_back(state);
             goalCoordinates.push_back(coordinates(goal, dim_));
         }
-        sampler_.setFoci(coordinates(start, dim_), goalCoordinates);
+        sampler_.setFoci(startCoordinates, goalCoordinates);
         for (auto &state : states_)
             computeLowerBounds(state.get());
         ++version_;
@@ -138,7 +147,7 @@ namespace lit::litstar
         ompl::base::State *raw = si_->allocState();
         si_->getStateSpace()->copyFromReals(raw, x);
         State *state = createState(raw);
-        if (start_ != nullptr)
+        if (!starts_.empty())
             computeLowerBounds(state);
         ++version_;
         return state;
@@ -276,8 +285,10 @@ namespace lit::litstar
             // (connectTerminals), so such an edge is a solution already or known blocked. In R^16 a goal region 0.4
             // from the start had all of the start's k nearest in it (uniform samples were 1.2 away), every one of
             // them behind the wall: the forward search never had an edge, and batches followed each other with no
-            // search step.
-            if (other == state || (other->isGoal_ && (state->isGoal_ || state->isStart_)))
+            // search step. Nor are other starts (with several): the forward search never enters a start, and
+            // the reverse search ends at one.
+            if (other == state || (other->isGoal_ && (state->isGoal_ || state->isStart_)) ||
+                (other->isStart_ && state->isStart_))
                 continue;
             const double d = std::sqrt(sum);
             if (!full || closer(d, other, worstDistance, worstState))

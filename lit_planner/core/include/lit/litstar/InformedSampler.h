@@ -1,9 +1,9 @@
 #pragma once
 /** \file litstar/InformedSampler.h
  *  \brief Seeded direct informed sampling for path length in R^n: uniform in the bounds intersected with the
- *  prolate hyperspheroid {x : |x - start| + |x - goal| <= c}; with several goals, uniform in the union of their
- *  hyperspheroids (one picked in proportion to its measure, a draw kept with probability 1 / the number of them
- *  that hold it). Owning its RNG makes LIT* deterministic per seed even when several planners run in one process
+ *  prolate hyperspheroid {x : |x - start| + |x - goal| <= c}; with several starts or goals, uniform in the union of
+ *  the hyperspheroids of every start-goal pair (one picked in proportion to its measure, a draw kept with
+ *  probability 1 / the number of them that hold it). Owning its RNG makes LIT* deterministic per seed even when several planners run in one process
  *  (OMPL's global seed can be set only once). */
 
 #include <ompl/base/SpaceInformation.h>
@@ -22,17 +22,22 @@ namespace lit::litstar
         /** \brief Sampler over \e si's R^n bounds with its own RNG seeded by \e seed. */
         InformedSampler(const ompl::base::SpaceInformationPtr &si, std::uint_fast32_t seed);
 
+        /** \brief Sets the foci: one or more starts and one or more goals. */
+        void setFoci(const std::vector<std::vector<double>> &starts, const std::vector<std::vector<double>> &goals);
         /** \brief Sets the foci: one start and one or more goals. */
-        void setFoci(const std::vector<double> &start, const std::vector<std::vector<double>> &goals);
+        void setFoci(const std::vector<double> &start, const std::vector<std::vector<double>> &goals)
+        {
+            setFoci(std::vector<std::vector<double>>{start}, goals);
+        }
 
         /** \brief Draws a state uniformly from the informed set of \e maxCost (the whole space when infinite).
          *  Returns false after \e maxAttempts rejections. */
         bool sample(double maxCost, ompl::base::State *state, unsigned int maxAttempts = 10000u);
 
-        /** \brief Straight-line heuristic |x - start| + min_g |x - g|. */
+        /** \brief Straight-line heuristic min_s |x - s| + min_g |x - g|. */
         double heuristicCost(const double *x) const;
 
-        /** \brief Minimum possible cost (straight line start to nearest goal). */
+        /** \brief Minimum possible cost (the straight line of the nearest start-goal pair). */
         double minimumCost() const
         {
             return minimumCost_;
@@ -40,9 +45,9 @@ namespace lit::litstar
 
     private:
         bool sampleUniform(double *x);
-        /** \brief Uniform in the hyperspheroid of goal \e index (foci start and that goal). */
+        /** \brief Uniform in the hyperspheroid of start-goal pair \e index. */
         void sampleEllipsoid(std::size_t index, double maxCost, double *x);
-        /** \brief A uniform draw from the union of the goals' hyperspheroids of \e maxCost (several goals);
+        /** \brief A uniform draw from the union of the pairs' hyperspheroids of \e maxCost (several pairs);
          *  false when the draw is rejected (a point that more hyperspheroids hold is kept less often). */
         bool sampleUnion(double maxCost, double *x);
 
@@ -50,15 +55,16 @@ namespace lit::litstar
         unsigned int dim_;
         std::vector<double> lower_, upper_;
         double spaceMeasure_;
-        Eigen::VectorXd start_;
+        std::vector<Eigen::VectorXd> starts_;
         std::vector<Eigen::VectorXd> goals_;
         double minimumCost_{0.0};
-        /** \brief Per goal: its distance from the start, the centre of its hyperspheroid and the Householder
-         *  reflection mapping e_1 onto its transverse axis. */
-        std::vector<double> goalCosts_;
-        std::vector<Eigen::VectorXd> goalCentres_;
-        std::vector<Eigen::MatrixXd> goalRotations_;
-        /** \brief The per-goal measures of the last union draw's cost, cumulated (several goals). */
+        /** \brief Per start-goal pair (start-major): its foci, their distance, the centre of its hyperspheroid
+         *  and the Householder reflection mapping e_1 onto its transverse axis. */
+        std::vector<std::size_t> pairStarts_, pairGoals_;
+        std::vector<double> pairCosts_;
+        std::vector<Eigen::VectorXd> pairCentres_;
+        std::vector<Eigen::MatrixXd> pairRotations_;
+        /** \brief The per-pair measures of the last union draw's cost, cumulated (several pairs). */
         double unionCost_{-1.0};
         std::vector<double> cumulativeMeasures_;
         ompl::RNG rng_;

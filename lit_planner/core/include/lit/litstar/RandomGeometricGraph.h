@@ -71,8 +71,14 @@ namespace lit::litstar
         /** \brief Removes every sample. */
         void clear();
 
+        /** \brief Adds the starts and the goals (valid states, copied) and sets the sampler's foci. */
+        void setTerminals(const std::vector<const ompl::base::State *> &starts,
+                          const std::vector<const ompl::base::State *> &goals);
         /** \brief Adds the start and the goals (valid states, copied) and sets the sampler's foci. */
-        void setTerminals(const ompl::base::State *start, const std::vector<const ompl::base::State *> &goals);
+        void setTerminals(const ompl::base::State *start, const std::vector<const ompl::base::State *> &goals)
+        {
+            setTerminals(std::vector<const ompl::base::State *>{start}, goals);
+        }
 
         /** \brief Draws samples from the informed set of \e maxCost until \e batchSize valid ones were added;
          *  invalid draws are kept in X_invalid. \e stop (if given) is asked every STOP_CHECK_INTERVAL draws and
@@ -157,9 +163,14 @@ namespace lit::litstar
         {
             return version_;
         }
+        /** \brief The first start state (null before setTerminals()): the features' reference. */
         State *start() const
         {
-            return start_;
+            return starts_.empty() ? nullptr : starts_.front();
+        }
+        const std::vector<State *> &starts() const
+        {
+            return starts_;
         }
         const std::vector<State *> &goals() const
         {
@@ -204,7 +215,7 @@ namespace lit::litstar
         /** \brief Incremented by every prune that removes samples, which clears the incoming lists: a state
          *  registers its prefix in them again when next asked. */
         std::size_t incomingEpoch_{0u};
-        State *start_{nullptr};
+        std::vector<State *> starts_;
         std::vector<State *> goals_;
         std::size_t nextId_{0u};
         std::size_t version_{0u};
