@@ -83,22 +83,21 @@ namespace lit::litstar
     void RandomGeometricGraph::setTerminals(const std::vector<const ompl::base::State *> &starts,
                                             const std::vector<const ompl::base::State *> &goals)
     {
-        std::vector<std::vector<double>> startCoordinates;
-        for (const auto *start : starts)
-        {
-            State *state = createState(si_->cloneState(start));
-            state->isStart_ = true;
-            starts_.push_back(state);
-            startCoordinates.push_back(coordinates(start, dim_));
-        }
-        std::vector<std::vector<double>> goalCoordinates;
-        for (const auto *goal : goals)
-        {
-            State *state = createState(si_->cloneState(goal));
-            state->isGoal_ = true;
-            goals_.push_back(state);
-            goalCoordinates.push_back(coordinates(goal, dim_));
-        }
+        // The starts first (ids 0, 1, ...), then the goals: the order the searches' ties break by.
+        const auto add = [this](const std::vector<const ompl::base::State *> &raws, bool isStart,
+                                std::vector<State *> &into) {
+            std::vector<std::vector<double>> foci;
+            for (const auto *raw : raws)
+            {
+                State *state = createState(si_->cloneState(raw));
+                (isStart ? state->isStart_ : state->isGoal_) = true;
+                into.push_back(state);
+                foci.push_back(coordinates(raw, dim_));
+            }
+            return foci;
+        };
+        const std::vector<std::vector<double>> startCoordinates = add(starts, true, starts_);
+        const std::vector<std::vector<double>> goalCoordinates = add(goals, false, goals_);
         sampler_.setFoci(startCoordinates, goalCoordinates);
         for (auto &state : states_)
             computeLowerBounds(state.get());
