@@ -85,8 +85,11 @@ def main(argv: list[str] | None = None) -> int:
         AddDiagnostics, f"{prefix}/lit/planner/cancel", qos_profile=SERVICE_QOS
     )
     try:
-        if not plan.wait_for_service(timeout_sec=15.0):
-            print("no planner node serves the plan service", file=sys.stderr)
+        # Both: the node serves cancel from a node of its own, which a client matches on its own.
+        if not (
+            plan.wait_for_service(timeout_sec=15.0) and cancel.wait_for_service(timeout_sec=15.0)
+        ):
+            print("no planner node serves the plan and cancel services", file=sys.stderr)
             return 2
         envelopes = Envelopes("my_robot")
         request_id = str(uuid.uuid4())  # a fresh id per request: cancels name it

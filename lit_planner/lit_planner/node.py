@@ -488,7 +488,7 @@ class PlannerNode:
             self.log.info(f"plan request {job.episode_id} was cancelled before it arrived")
             job.result = _not_started(job)
             response.success, response.message = plan_answer_text(
-                reply, self._plan_response(job), message.seq, self.log
+                reply, self._plan_response(job), message.seq, self.log, job.episode_id
             )
             return response
         job.done.wait()
@@ -518,7 +518,7 @@ class PlannerNode:
             return response
         assert job.result is not None
         response.success, response.message = plan_answer_text(
-            reply, self._plan_response(job), message.seq, self.log
+            reply, self._plan_response(job), message.seq, self.log, job.episode_id
         )
         return response
 
@@ -1170,7 +1170,9 @@ SHUTDOWN_SEND_WAIT = 3.0
 """Seconds the shutdown waits for plan answers still being sent (to a client matching late)."""
 
 
-def plan_answer_text(reply: Any, payload: dict[str, Any], seq: int, log: Any) -> tuple[bool, str]:
+def plan_answer_text(
+    reply: Any, payload: dict[str, Any], seq: int, log: Any, episode_id: str | None = None
+) -> tuple[bool, str]:
     """``(success, text)`` of a plan request's answer: the PlanResponse, or an Error when it
     cannot be encoded (longer than the message limit: a very long path or improvement list).
     An encoding error raised out of the service callback would stop the node's executor."""
@@ -1182,7 +1184,7 @@ def plan_answer_text(reply: Any, payload: dict[str, Any], seq: int, log: Any) ->
             f"{len(payload['improvements'])} improvements; status {payload['status']}, "
             f"cost {payload['cost']})"
         )
-        log.error(f"plan request {payload['request_id']!r}: {text}")
+        log.error(f"plan request {episode_id or payload['request_id']!r}: {text}")
         return False, reply.error(
             exc, message=text[:3000], request_schema="PlanRequest", request_seq=seq
         )

@@ -50,6 +50,8 @@ def test_an_answer_over_the_message_limit_becomes_an_error_that_says_why() -> No
     assert error["request_schema"] == "PlanRequest" and error["request_seq"] == 7
     assert f"{states} path states" in error["message"] and "cost 1.5" in error["message"]
     assert len(log.errors) == 1 and "'big'" in log.errors[0]
+    plan_answer_text(reply, {**_payload(states), "request_id": None}, 8, log, "req-1a2b")
+    assert "plan request 'req-1a2b'" in log.errors[1]  # the id a request without one has here
 
 
 def test_an_answer_within_the_limit_is_the_plan_response() -> None:

@@ -418,6 +418,16 @@ namespace lit
                 return status;
             }
         }
+        else if (pis_.haveMoreStartStates())
+        {
+            // Read once, when the problem is first solved (as the goals are): a start added later is not a root.
+            OMPL_WARN("%s: start states added after the problem was read are not used; clear() the planner to plan "
+                      "from them",
+                      getName().c_str());
+            while (pis_.nextStart() != nullptr)
+            {
+            }
+        }
         batchLimitReached_ = false;
         statusMessage_.clear();
         struct Running  // the termination condition and the clock belong to this call, also if it throws
@@ -989,7 +999,8 @@ namespace lit
             rhoLocalB_ = pathLocalRatio();
         restartReverseSearch();
         for (State *start : graph_->starts())
-            expandForward(start);
+            if (start->costToGoLowerBound_ < bestCost_)  // a start farther from every goal cannot improve it
+                expandForward(start);
 
         BatchEvent event;
         event.batch = counters_.batches;

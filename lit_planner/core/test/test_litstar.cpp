@@ -767,6 +767,42 @@ TEST(LITstar, EveryStartStateIsARootOfTheForwardTree)
     }
 }
 
+TEST(LITstar, AStartAddedAfterTheProblemWasReadIsNamedInAWarning)
+{
+    // Starts are read when the problem is first solved; one added later was ignored without a word.
+    struct Messages : ompl::msg::OutputHandler
+    {
+        std::vector<std::string> warnings;
+        void log(const std::string &text, ompl::msg::LogLevel level, const char *, int) override
+        {
+            if (level >= ompl::msg::LOG_WARN)
+                warnings.push_back(text);
+        }
+    } messages;
+    BoxProblem problem = test::narrowPassage(2, 1e-3);
+    auto planner = batchLimited(problem, 2u);
+    planner->setSeed(3u);
+    planner->solve(ompl::base::plannerNonTerminatingCondition());
+    ompl::base::ScopedState<> later(problem.si);
+    later[0] = 0.15;
+    later[1] = 0.3;
+    problem.pdef->addStartState(later);
+    planner->setMaxBatches(4u);
+    ompl::msg::useOutputHandler(&messages);
+    planner->solve(ompl::base::plannerNonTerminatingCondition());
+    planner->solve(ompl::base::plannerNonTerminatingCondition());  // said once
+    ompl::msg::restorePreviousOutputHandler();
+    ASSERT_EQ(messages.warnings.size(), 1u);
+    EXPECT_NE(messages.warnings[0].find("start states added after the problem was read are not used"),
+              std::string::npos)
+        << messages.warnings[0];
+    EXPECT_EQ(planner->graph().starts().size(), 1u);
+    planner->clear();  // read again: the later start's free line
+    planner->solve(ompl::base::plannerNonTerminatingCondition());
+    EXPECT_EQ(planner->graph().starts().size(), 2u);
+    EXPECT_DOUBLE_EQ(planner->bestCost(), std::hypot(0.05, 0.3));
+}
+
 TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
 {
     // OMPL's GoalSpace never runs out of goal samples: reading them all filled memory before the clock started.
