@@ -92,6 +92,28 @@ namespace
         return run;
     }
 
+    /** \brief OMPL's warnings and errors while it lives (it installs itself as OMPL's output handler and puts the
+     *  previous one back when it goes). */
+    struct CapturedWarnings : ompl::msg::OutputHandler
+    {
+        std::vector<std::string> warnings;
+        CapturedWarnings()
+        {
+            ompl::msg::useOutputHandler(this);
+        }
+        ~CapturedWarnings() override
+        {
+            ompl::msg::restorePreviousOutputHandler();
+        }
+        CapturedWarnings(const CapturedWarnings &) = delete;
+        CapturedWarnings &operator=(const CapturedWarnings &) = delete;
+        void log(const std::string &text, ompl::msg::LogLevel level, const char *, int) override
+        {
+            if (level >= ompl::msg::LOG_WARN)
+                warnings.push_back(text);
+        }
+    };
+
     /** \brief A LIT* planner on \e problem that stops after \e batches batches. */
     std::shared_ptr<LITstar> batchLimited(const BoxProblem &problem, unsigned int batches)
     {
@@ -731,15 +753,6 @@ TEST(LITstar, EveryStartStateIsARootOfTheForwardTree)
         // Two starts behind the wall and one inside it (skipped, with OMPL's warning): the forward search grows
         // from both roots, and the best path leaves from the second (0.416 at best, against the first's 0.4236;
         // the first's edges then cannot improve it, and leave the forward tree).
-        struct Messages : ompl::msg::OutputHandler
-        {
-            std::vector<std::string> warnings;
-            void log(const std::string &text, ompl::msg::LogLevel level, const char *, int) override
-            {
-                if (level >= ompl::msg::LOG_WARN)
-                    warnings.push_back(text);
-            }
-        } messages;
         BoxProblem problem = test::narrowPassage(2, 1e-3);
         ompl::base::ScopedState<> second(problem.si), inWall(problem.si);
         second[0] = -0.2;  // in front of the passage: its paths are the shorter ones
@@ -750,13 +763,16 @@ TEST(LITstar, EveryStartStateIsARootOfTheForwardTree)
         problem.pdef->addStartState(second);
         auto planner = batchLimited(problem, 10u);
         planner->setSeed(3u);
-        ompl::msg::useOutputHandler(&messages);
-        const ompl::base::PlannerStatus status = planner->solve(ompl::base::plannerNonTerminatingCondition());
-        ompl::msg::restorePreviousOutputHandler();
-        ASSERT_EQ(status, ompl::base::PlannerStatus::EXACT_SOLUTION);
+        std::vector<std::string> warnings;
+        {
+            const CapturedWarnings messages;
+            ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()),
+                      ompl::base::PlannerStatus::EXACT_SOLUTION);
+            warnings = messages.warnings;
+        }
         EXPECT_TRUE(problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>()->check());
-        ASSERT_EQ(messages.warnings.size(), 1u);
-        EXPECT_NE(messages.warnings[0].find("Skipping invalid start state"), std::string::npos) << messages.warnings[0];
+        ASSERT_EQ(warnings.size(), 1u);
+        EXPECT_NE(warnings[0].find("Skipping invalid start state"), std::string::npos) << warnings[0];
         ASSERT_EQ(planner->graph().starts().size(), 2u);
         const auto *path = problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>();
         EXPECT_DOUBLE_EQ(path->getState(0)->as<ompl::base::RealVectorStateSpace::StateType>()->values[1], 0.1);
@@ -770,15 +786,6 @@ TEST(LITstar, EveryStartStateIsARootOfTheForwardTree)
 TEST(LITstar, AStartAddedAfterTheProblemWasReadIsNamedInAWarning)
 {
     // Starts are read when the problem is first solved; one added later was ignored without a word.
-    struct Messages : ompl::msg::OutputHandler
-    {
-        std::vector<std::string> warnings;
-        void log(const std::string &text, ompl::msg::LogLevel level, const char *, int) override
-        {
-            if (level >= ompl::msg::LOG_WARN)
-                warnings.push_back(text);
-        }
-    } messages;
     BoxProblem problem = test::narrowPassage(2, 1e-3);
     auto planner = batchLimited(problem, 2u);
     planner->setSeed(3u);
@@ -788,14 +795,16 @@ TEST(LITstar, AStartAddedAfterTheProblemWasReadIsNamedInAWarning)
     later[1] = 0.3;
     problem.pdef->addStartState(later);
     planner->setMaxBatches(4u);
-    ompl::msg::useOutputHandler(&messages);
-    planner->solve(ompl::base::plannerNonTerminatingCondition());
-    planner->solve(ompl::base::plannerNonTerminatingCondition());  // said once
-    ompl::msg::restorePreviousOutputHandler();
-    ASSERT_EQ(messages.warnings.size(), 1u);
-    EXPECT_NE(messages.warnings[0].find("start states added after the problem was read are not used"),
-              std::string::npos)
-        << messages.warnings[0];
+    std::vector<std::string> warnings;
+    {
+        const CapturedWarnings messages;
+        planner->solve(ompl::base::plannerNonTerminatingCondition());
+        planner->solve(ompl::base::plannerNonTerminatingCondition());  // said once
+        warnings = messages.warnings;
+    }
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_NE(warnings[0].find("start states added after the problem was read are not used"), std::string::npos)
+        << warnings[0];
     EXPECT_EQ(planner->graph().starts().size(), 1u);
     planner->clear();  // read again: the later start's free line
     planner->solve(ompl::base::plannerNonTerminatingCondition());
