@@ -665,44 +665,65 @@ TEST(LITstar, ALazyGoalSetIsWaitedForAndAFailedSetupIsReadAgain)
     EXPECT_EQ(second->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
 }
 
+namespace
+{
+    /** \brief Draws of the sampler with two start-goal pairs whose hyperspheroids of \e cost overlap match uniform
+     *  rejection sampling from the bounds, in the part only the first holds and in the part both hold. */
+    void expectUniformOverTwoPairs(const std::vector<std::vector<double>> &starts,
+                                   const std::vector<std::vector<double>> &goals, double cost)
+    {
+        BoxProblem problem = test::narrowPassage(2, 1e-3);
+        litstar::InformedSampler sampler(problem.si, 11u);
+        sampler.setFoci(starts, goals);
+        std::vector<std::pair<std::vector<double>, std::vector<double>>> pairs;
+        for (const auto &start : starts)
+            for (const auto &goal : goals)
+                pairs.emplace_back(start, goal);
+        ASSERT_EQ(pairs.size(), 2u);
+        const auto inside = [&](const double *x, std::size_t pair) {
+            const auto &[start, goal] = pairs[pair];
+            return std::hypot(x[0] - start[0], x[1] - start[1]) + std::hypot(x[0] - goal[0], x[1] - goal[1]) <= cost;
+        };
+        const int draws = 40000;
+        ompl::base::ScopedState<> state(problem.si);
+        double *x = state->as<ompl::base::RealVectorStateSpace::StateType>()->values;
+        int both = 0, firstOnly = 0;
+        for (int i = 0; i < draws; ++i)
+        {
+            ASSERT_TRUE(sampler.sample(cost, state.get()));
+            ASSERT_LE(sampler.heuristicCost(x), cost * (1.0 + 1e-12));
+            both += inside(x, 0) && inside(x, 1) ? 1 : 0;
+            firstOnly += inside(x, 0) && !inside(x, 1) ? 1 : 0;
+        }
+        std::mt19937 rng(5u);
+        std::uniform_real_distribution<double> coordinate(-0.5, 0.5);
+        int accepted = 0, refBoth = 0, refFirstOnly = 0;
+        while (accepted < draws)
+        {
+            const double y[2] = {coordinate(rng), coordinate(rng)};
+            if (!inside(y, 0) && !inside(y, 1))
+                continue;
+            ++accepted;
+            refBoth += inside(y, 0) && inside(y, 1) ? 1 : 0;
+            refFirstOnly += inside(y, 0) && !inside(y, 1) ? 1 : 0;
+        }
+        EXPECT_GT(refBoth, draws / 10);  // the parts are both large: the comparison means something
+        EXPECT_GT(refFirstOnly, draws / 10);
+        EXPECT_NEAR(static_cast<double>(both) / draws, static_cast<double>(refBoth) / draws, 0.015);
+        EXPECT_NEAR(static_cast<double>(firstOnly) / draws, static_cast<double>(refFirstOnly) / draws, 0.015);
+    }
+}  // namespace
+
 TEST(InformedSampler, SeveralGoalsAreSampledUniformlyFromTheUnionOfTheirInformedSets)
 {
-    // Two overlapping hyperspheroids (start (-0.3, 0), goals (0.3, +-0.1), cost 0.75): the draws must match
-    // uniform rejection sampling from the bounds, in the part only one holds and in the part both hold.
-    BoxProblem problem = test::narrowPassage(2, 1e-3);
-    litstar::InformedSampler sampler(problem.si, 11u);
-    const std::vector<double> start{-0.3, 0.0};
-    const std::vector<std::vector<double>> goals{{0.3, 0.1}, {0.3, -0.1}};
-    sampler.setFoci(start, goals);
-    const double cost = 0.75;
-    const auto inside = [&](const double *x, const std::vector<double> &goal) {
-        return std::hypot(x[0] - start[0], x[1] - start[1]) + std::hypot(x[0] - goal[0], x[1] - goal[1]) <= cost;
-    };
-    const int draws = 40000;
-    ompl::base::ScopedState<> state(problem.si);
-    double *x = state->as<ompl::base::RealVectorStateSpace::StateType>()->values;
-    int both = 0, upperOnly = 0;
-    for (int i = 0; i < draws; ++i)
-    {
-        ASSERT_TRUE(sampler.sample(cost, state.get()));
-        ASSERT_LE(sampler.heuristicCost(x), cost * (1.0 + 1e-12));
-        both += inside(x, goals[0]) && inside(x, goals[1]) ? 1 : 0;
-        upperOnly += inside(x, goals[0]) && !inside(x, goals[1]) ? 1 : 0;
-    }
-    std::mt19937 rng(5u);
-    std::uniform_real_distribution<double> coordinate(-0.5, 0.5);
-    int accepted = 0, refBoth = 0, refUpperOnly = 0;
-    while (accepted < draws)
-    {
-        const double y[2] = {coordinate(rng), coordinate(rng)};
-        if (!inside(y, goals[0]) && !inside(y, goals[1]))
-            continue;
-        ++accepted;
-        refBoth += inside(y, goals[0]) && inside(y, goals[1]) ? 1 : 0;
-        refUpperOnly += inside(y, goals[0]) && !inside(y, goals[1]) ? 1 : 0;
-    }
-    EXPECT_NEAR(static_cast<double>(both) / draws, static_cast<double>(refBoth) / draws, 0.015);
-    EXPECT_NEAR(static_cast<double>(upperOnly) / draws, static_cast<double>(refUpperOnly) / draws, 0.015);
+    // Start (-0.3, 0), goals (0.3, +-0.1), cost 0.75.
+    expectUniformOverTwoPairs({{-0.3, 0.0}}, {{0.3, 0.1}, {0.3, -0.1}}, 0.75);
+}
+
+TEST(InformedSampler, SeveralStartsAreSampledUniformlyFromTheUnionOfTheirInformedSets)
+{
+    // Starts (-0.3, +-0.1), goal (0.3, 0), cost 0.75: the pairs are the goals' case mirrored.
+    expectUniformOverTwoPairs({{-0.3, 0.1}, {-0.3, -0.1}}, {{0.3, 0.0}}, 0.75);
 }
 
 TEST(LITstar, SeveralGoalsFillTheirBatches)
