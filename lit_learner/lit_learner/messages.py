@@ -132,6 +132,11 @@ def _validate_features(where: str, features: Features) -> None:
             raise MessageError(f"{where}: {name} = {value} is not a number in [0, 1]")
 
 
+COST_TOLERANCE = 1e-9
+"""Relative rounding a solution cost may fall below ``minimum_cost`` by (the planners compute the
+two through different code)."""
+
+
 def _validate_progress(
     episode_id: str,
     planning_time: float,
@@ -150,6 +155,13 @@ def _validate_progress(
         raise MessageError(f"{where}: cost {cost} must be > 0 or None")
     if not (math.isfinite(minimum_cost) and minimum_cost >= 0.0):
         raise MessageError(f"{where}: minimum_cost {minimum_cost} must be finite and >= 0")
+    if cost is not None and cost < minimum_cost * (1.0 - COST_TOLERANCE):
+        # No path is shorter than the straight line: such a cost made c_min / c as large as 1e300,
+        # and its reward failed every gradient step that sampled it.
+        raise MessageError(
+            f"{where}: cost {cost} is below minimum_cost {minimum_cost}, the straight line's "
+            "length: no path is that short"
+        )
     if improvements < 0 or path_states < 0:
         raise MessageError(
             f"{where}: improvements {improvements} and path_states {path_states} must be >= 0"

@@ -646,7 +646,11 @@ class LearnerNode:
                 "metrics": {
                     k: float(v) for k, v in self._last_metrics.items() if _finite_number(v)
                 },
-                "checkpoint": self.params["checkpoint"],
+                # Null until a checkpoint is written or loaded (the parameter alone named a file
+                # that did not exist yet).
+                "checkpoint": (
+                    self.params["checkpoint"] if Path(self.params["checkpoint"]).is_file() else None
+                ),
                 "uptime": time.monotonic() - self._started,
             }
         message = self._string()

@@ -16,6 +16,9 @@ from numpy.typing import NDArray
 
 from lit_learner.errors import ReplayError
 
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+"""The largest value the buffer's float32 arrays hold."""
+
 
 class SumTree:
     """Binary tree of float64 sums over ``capacity`` leaves, vectorised update and search."""
@@ -180,10 +183,12 @@ class PrioritizedReplay:
                 targets and priorities); nothing is stored.
         """
         values = (*state, action, reward, *next_state)
-        if not all(math.isfinite(value) for value in values):
+        # Checked as stored (float32): a reward of 1e300 is finite here and inf there, and it failed
+        # every gradient step whose batch held it, for as long as it stayed in the buffer.
+        if not all(math.isfinite(value) and abs(value) <= FLOAT32_MAX for value in values):
             raise ReplayError(
                 f"transition not stored: state {state}, action {action}, reward {reward}, "
-                f"next state {next_state} holds a value that is not finite"
+                f"next state {next_state} holds a value that is not finite in float32"
             )
         i = self.position
         self.state[i] = state

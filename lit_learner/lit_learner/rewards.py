@@ -47,10 +47,11 @@ def t_hat(step_time: float, time_budget: float, config: RewardConfig) -> float:
 
 
 def cost_ratio(cost: float | None, minimum_cost: float) -> float:
-    """c_min / c in [0, 1]; 0 without a (finite) solution."""
+    """c_min / c in [0, 1]; 0 without a (finite) solution. A cost below c_min (rounding; the
+    messages refuse more) counts as c_min."""
     if cost is None or not math.isfinite(cost) or cost <= 0.0:
         return 0.0
-    return minimum_cost / cost
+    return min(1.0, minimum_cost / cost)
 
 
 def batch_size_reward(

@@ -134,6 +134,12 @@ def test_bad_messages_are_rejected_with_their_field() -> None:
         core.decide(replace(good, measure=1.5))  # as DecideRequest's schema refuses it
     with pytest.raises(MessageError, match="time_budget 0.0 must be finite and > 0"):
         core.end_episode(EpisodeEnd("e", 1.0, 0.0, None, 1.0, 0, 0))
+    # A cost below the straight line's (1e-300 against 1) made c_min / c = 1e300: a reward that
+    # is inf in the float32 buffer failed every gradient step that sampled it.
+    for below in (replace(good, cost=1e-300), replace(good, cost=0.999)):
+        with pytest.raises(MessageError, match="is below minimum_cost 1.0, the straight line's"):
+            core.decide(below)
+    core.decide(replace(good, cost=1.0 - 1e-12))  # rounding: accepted
     # An episode end's final features become the last s' in the replay buffer: a NaN there
     # reached every network (the next decision then failed for good).
     end = EpisodeEnd("e", 1.0, 2.0, None, 1.0, 0, 0)

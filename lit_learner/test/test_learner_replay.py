@@ -172,6 +172,10 @@ def test_a_transition_with_a_value_that_is_not_finite_is_not_stored(field: str) 
     with pytest.raises(ReplayError, match="not finite"):
         replay.add(values["state"], values["action"], values["reward"], values["next_state"],
                    terminated=False)  # fmt: skip
+    values[field] = (0.1, 1e300, 0.3) if "state" in field else -1e300  # inf in float32
+    with pytest.raises(ReplayError, match="not finite in float32"):
+        replay.add(values["state"], values["action"], values["reward"], values["next_state"],
+                   terminated=False)  # fmt: skip
     assert len(replay) == 0 and replay.tree.total == 0.0
 
 

@@ -35,6 +35,7 @@ def test_t_hat_and_cost_ratio() -> None:
     assert cost_ratio(None, 3.0) == 0.0
     assert cost_ratio(math.inf, 3.0) == 0.0
     assert cost_ratio(4.0, 3.0) == 0.75
+    assert cost_ratio(3.0 - 1e-12, 3.0) == 1.0  # rounding below c_min: at most 1
 
 
 def test_batch_size_reward_with_and_without_improvement() -> None:
