@@ -217,11 +217,13 @@ class LearnerCore:
         terms = self._episode_terms.pop(episode_id, None)
         return self.pairing.abandon(episode_id) or bool(owed) or terms is not None
 
-    def close_episode(self, end: EpisodeEnd) -> dict[str, float]:
+    def close_episode(self, end: EpisodeEnd, count_unknown: bool = True) -> dict[str, float]:
         """Close the episode's pending steps and store their transitions, without training.
 
         An episode the core never saw (for example one that began before a learner restart)
-        closes with no transitions. The gradient steps the new transitions call for are left
+        closes with no transitions, and counts as an episode only with ``count_unknown`` (the
+        learner node's clients could inflate the count, and with it the checkpoint and export
+        schedule, with ends of episodes that never were, or with the same end sent again). The gradient steps the new transitions call for are left
         pending for :meth:`update_step` (the learner node runs them in a background thread so
         that decisions keep being answered).
 
@@ -231,12 +233,14 @@ class LearnerCore:
             stepped in it.
         """
         end.validate()
+        known = end.episode_id in self.open_episodes()
         closed, _ = self.pairing.end(end)
         for transition in closed:
             self._store(transition)
         for name, owed in self._owed_updates.pop(end.episode_id, {}).items():
             self._pending_updates[name] += owed
-        self.episodes += 1
+        if known or count_unknown:
+            self.episodes += 1
         metrics: dict[str, float] = {}
         for name, (time, cost, penalty, search, steps) in self._episode_terms.pop(
             end.episode_id, {}

@@ -398,7 +398,8 @@ class LearnerNode:
                 self._apply_commits_locked()  # the episode's decisions, in order, first
                 self._latest_time.pop(episode, None)
                 before = sum(agent.transitions for agent in self.core.agents.values())
-                metrics = self.core.close_episode(end)
+                known = episode in self.core.open_episodes()
+                metrics = self.core.close_episode(end, count_unknown=False)
                 if self._open_episode.get(message.source) == episode:  # closed: not abandonable
                     del self._open_episode[message.source]
                 stored = sum(agent.transitions for agent in self.core.agents.values()) - before
@@ -412,6 +413,11 @@ class LearnerNode:
                     "episodes": int(self.core.episodes),
                 }
                 self._work.notify_all()
+            if not known:
+                self.log.info(
+                    f"end of episode {episode}, which this learner has no open steps of (never "
+                    "seen, already ended, or begun before a restart): nothing stored or counted"
+                )
             if payload.get("fallback_decisions"):
                 self.log.info(
                     f"episode {episode} ended with {payload['fallback_decisions']} fallback "

@@ -465,3 +465,20 @@ def test_configs_that_would_divide_by_zero_or_diverge_are_refused() -> None:
         with pytest.raises(ConfigError, match=next(iter(bad))):
             AgentConfig.neighbour_agent(**bad)
     RewardConfig(w_search=0.0, nu_min=0.0)  # allowed: no search cost, no kappa floor
+
+
+def test_an_end_of_an_episode_without_open_steps_is_counted_only_when_asked() -> None:
+    """The learner node's clients could send ends of episodes that never were, or one end twice:
+    each counted as an episode, and brought its checkpoints and the end-of-training export
+    forward. ``lit train`` keeps counting them (its episodes are all real)."""
+    core = LearnerCore(small_config())
+    request = DecisionRequest("B", "e", 0.1, 0.2, 0.3, 0.0, 1.0, None, 1.0, 0, 0)
+    core.decide(request)
+    end = EpisodeEnd("e", 0.5, 1.0, None, 1.0, 0, 0)
+    core.close_episode(end, count_unknown=False)
+    assert core.episodes == 1 and core.agents["B"].transitions == 1
+    core.close_episode(end, count_unknown=False)  # the same end again
+    core.close_episode(replace(end, episode_id="never"), count_unknown=False)
+    assert core.episodes == 1 and core.agents["B"].transitions == 1
+    core.close_episode(replace(end, episode_id="never"))
+    assert core.episodes == 2
