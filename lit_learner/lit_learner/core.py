@@ -202,6 +202,14 @@ class LearnerCore:
         metrics.update(self.counters())
         return metrics
 
+    def is_open(self, episode_id: str) -> bool:
+        """Whether the episode has begun and not ended (nor been abandoned)."""
+        return (
+            episode_id in self.pairing.episodes
+            or episode_id in self._owed_updates
+            or episode_id in self._episode_terms
+        )
+
     def open_episodes(self) -> set[str]:
         """Episodes begun and not ended (or abandoned)."""
         return set(self.pairing.episodes) | set(self._owed_updates) | set(self._episode_terms)
@@ -233,7 +241,7 @@ class LearnerCore:
             stepped in it.
         """
         end.validate()
-        known = end.episode_id in self.open_episodes()
+        known = self.is_open(end.episode_id)
         closed, _ = self.pairing.end(end)
         for transition in closed:
             self._store(transition)

@@ -53,7 +53,7 @@ from lit_planner.rosutil import (
 )
 
 from lit_learner.errors import MessageError as CoreMessageError
-from lit_learner.errors import PairingError
+from lit_learner.errors import PairingError, ReplayError
 from lit_learner.messages import DecisionRequest, EpisodeEnd
 
 NODE_NAME = "lit_learner"
@@ -398,7 +398,7 @@ class LearnerNode:
                 self._apply_commits_locked()  # the episode's decisions, in order, first
                 self._latest_time.pop(episode, None)
                 before = sum(agent.transitions for agent in self.core.agents.values())
-                known = episode in self.core.open_episodes()
+                known = self.core.is_open(episode)
                 metrics = self.core.close_episode(end, count_unknown=False)
                 if self._open_episode.get(message.source) == episode:  # closed: not abandonable
                     del self._open_episode[message.source]
@@ -416,7 +416,8 @@ class LearnerNode:
             if not known:
                 self.log.info(
                     f"end of episode {episode}, which this learner has no open steps of (never "
-                    "seen, already ended, or begun before a restart): nothing stored or counted"
+                    "seen, already ended or abandoned, or begun before a restart): nothing stored "
+                    "or counted"
                 )
             if payload.get("fallback_decisions"):
                 self.log.info(
@@ -426,7 +427,7 @@ class LearnerNode:
             response.success = True
             response.message = self.reply.encode("EpisodeEndResponse", body)
             return response
-        except (CoreMessageError, PairingError, ValueError) as exc:
+        except (CoreMessageError, PairingError, ReplayError, ValueError) as exc:
             response.success = False
             response.message = self.reply.error(
                 MessageError(
