@@ -520,6 +520,7 @@ def test_training_episodes_reach_the_learner(ros: RosSystem) -> None:
     )
     assert "/lit_planner" in stats[-1]["planners"]
     assert stats[-1]["decisions"] >= sum(s["learner_calls"] for s in summaries)
+    assert stats[0]["checkpoint"] is None  # a fresh learner: nothing loaded or written yet
     assert "use the fallback policy" not in planner.text()
     _no_traceback(planner, learner)
 
@@ -554,6 +555,8 @@ def test_a_failing_checkpoint_leaves_the_trainer_running_and_probes_train_nothin
         timeout=60.0, what="two failed checkpoints counted", watch=[learner],
     )  # fmt: skip
     assert "is tried again in 5 s" in learner.text()
+    # No checkpoint was ever written: the stats name none (they named the parameter's path).
+    assert all(p["checkpoint"] is None for p in recording.payloads(STATS))
     answer = ros.call("--payload-only", "decide")  # still serving
     assert answer.returncode == 0, answer
     # The shutdown's own checkpoint fails too: logged, the export is still written, and the

@@ -175,6 +175,8 @@ class LearnerNode:
         self.params = p
         self.run_id = p["run_id"] or time.strftime("learner-%Y%m%d-%H%M%S")
         self.source = node.get_fully_qualified_name()
+        self._checkpoint_done: str | None = None
+        """The checkpoint file last loaded or written (LearnerStats' ``checkpoint``)."""
         self.core = self._load_core()
         self.core.publish()  # the actor snapshots that decisions read without the lock
         self._warm_up()
@@ -302,6 +304,7 @@ class LearnerNode:
         path = Path(p["checkpoint"])
         if path.exists() and not p["fresh"]:
             core = LearnerCore.load_checkpoint(path)
+            self._checkpoint_done = str(path)
             self.log.info(f"resumed from {path}: {core.episodes} episodes")
             # Episodes open when the checkpoint was written: their planners fell back while this
             # learner was down (those steps are not the agents'), and their gradient steps are
@@ -601,6 +604,7 @@ class LearnerNode:
                 episodes = self.core.episodes
             self.core.write_checkpoint(state, self.params["checkpoint"])
             self._episodes_at_checkpoint = episodes
+            self._checkpoint_done = str(self.params["checkpoint"])
         self._last_checkpoint = time.monotonic()
         self.log.info(
             f"checkpoint {self.params['checkpoint']} ({self._episodes_at_checkpoint} episodes)"
@@ -654,10 +658,8 @@ class LearnerNode:
                     k: float(v) for k, v in self._last_metrics.items() if _finite_number(v)
                 },
                 # Null until a checkpoint is written or loaded (the parameter alone named a file
-                # that did not exist yet).
-                "checkpoint": (
-                    self.params["checkpoint"] if Path(self.params["checkpoint"]).is_file() else None
-                ),
+                # that did not exist yet, or an old one that `fresh` did not load).
+                "checkpoint": self._checkpoint_done,
                 "uptime": time.monotonic() - self._started,
             }
         message = self._string()
