@@ -114,12 +114,8 @@ def descendants(pid: int) -> set[int]:
     """PIDs of ``pid``'s children, grandchildren, ... now (from /proc)."""
     parents: dict[int, int] = {}
     for entry in os.listdir("/proc"):
-        if entry.isdigit():
-            try:
-                with open(f"/proc/{entry}/stat", encoding="utf-8") as stat:
-                    fields = stat.read().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
+        fields = _stat_fields(int(entry)) if entry.isdigit() else None
+        if fields is not None:
             parents[int(entry)] = int(fields[1])
     found, frontier = set(), {pid}
     while frontier:
@@ -135,7 +131,9 @@ class DescendantWatch:
     :meth:`kill` ends them by PID."""
 
     def __init__(self, pid: int, interval: float = 0.1) -> None:
-        self.pid, self.seen = pid, set[int]()
+        self.pid = pid
+        self.seen: set[tuple[int, int | None]] = set()
+        """(PID, start time) of every descendant seen."""
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._poll, args=(interval,), daemon=True)
         self._thread.start()
@@ -165,14 +163,20 @@ class DescendantWatch:
 def _start_time(pid: int) -> int | None:
     """A process's start time in clock ticks after boot (None when it is gone): tells a PID that
     was reused from the process seen before."""
-    try:
-        with open(f"/proc/{pid}/stat", encoding="utf-8") as stat:
-            fields = stat.read().rsplit(")", 1)[1].split()
-    except OSError:
-        return None
-    if fields[0] == "Z":  # a zombie: ended, waiting for its parent
+    fields = _stat_fields(pid)
+    if fields is None or fields[0] == "Z":  # gone, or a zombie: ended, waiting for its parent
         return None
     return int(fields[19])
+
+
+def _stat_fields(pid: int) -> list[str] | None:
+    """The fields of ``/proc/PID/stat`` after the command name (state, ppid, ...); None when
+    the process is gone. The name may hold spaces and parentheses: split after the last ')'."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="utf-8") as stat:
+            return stat.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
 
 
 def handles_signal(pid: int, signum: int) -> bool:
