@@ -233,11 +233,14 @@ class RosSystem:
         """Start ``lit_planner_node`` with ROS parameters (and a namespace)."""
         return self.start(name, [PLANNER_NODE, *ros_arguments(params, namespace)])
 
-    def learner(self, name: str = "learner", **params: object) -> Child:
-        """Start ``lit_learner_node``; checkpoint and export go into the working directory."""
+    def learner(
+        self, name: str = "learner", *, ros_namespace: str | None = None, **params: object
+    ) -> Child:
+        """Start ``lit_learner_node`` (in the namespace ``ros_namespace``, when given); checkpoint and export go
+        into the working directory."""
         params.setdefault("checkpoint", str(self.workdir / "learner" / "checkpoint.pt"))
         params.setdefault("export_dir", str(self.workdir / "learner" / "tensors"))
-        return self.start(name, [LEARNER_NODE, *ros_arguments(params, None)])
+        return self.start(name, [LEARNER_NODE, *ros_arguments(params, ros_namespace)])
 
     def recorder(self, topics: Iterable[str], name: str = "recorder") -> Recording:
         """Start the topic recorder (this module as a script) and wait until it is subscribed."""

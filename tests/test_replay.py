@@ -1284,3 +1284,15 @@ def test_salvage_keeps_each_files_channels_apart(tmp_path: Path) -> None:
             text = bag.typestore().deserialize_cdr(message.data, bag.STRING_TYPE).data
             assert text == message.topic, (message.topic, text)
     assert sorted(seen) == ["/lit/first", "/lit/first", "/lit/second", "/lit/second"]
+
+
+def test_the_demo_names_the_publishers_with_missing_messages(
+    mixed_bag: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from lit_planner import demo
+
+    demo._print_bag(mixed_bag)
+    out = capsys.readouterr().out
+    assert "messages missing" in out and "0 messages missing" not in out, out
+    line = r"^    /lit/observation from \S+: 0 before seq 0, 1 in 1 gaps$"
+    assert re.search(line, out, re.MULTILINE), out

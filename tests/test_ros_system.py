@@ -1247,6 +1247,40 @@ def test_a_training_episode_cut_short_goes_to_the_learner_and_is_not_published(
     _no_traceback(planner, learner)
 
 
+def test_learner_stats_wait_for_their_subscribers(ros: RosSystem) -> None:
+    """With ``wait_for_subscribers: 1`` the first stats a late subscriber (a recorder) hears are
+    seq 0: ticks before it matched are not published (a demo's bag counted one as missing when
+    the recorder matched the learner after its first tick). The other learner, without it, had
+    published ticks by then: the test tells the two apart."""
+    waiting = ros.learner(stats_period=0.05, wait_for_subscribers=1)
+    eager = ros.learner(
+        "eager",
+        stats_period=0.05,
+        service="/eager/decide",
+        checkpoint=str(ros.workdir / "eager" / "checkpoint.pt"),
+        export_dir=str(ros.workdir / "eager" / "tensors"),
+        ros_namespace="/eager",
+    )
+    _ready(waiting, eager)
+    time.sleep(1.0)  # ticks of both, before anyone listens
+    recording = ros.recorder([STATS])
+    sources = {"/lit_learner", "/eager/lit_learner"}
+    recording.wait_until(
+        STATS,
+        lambda _: {m["source"] for m in recording.messages(STATS)} == sources,
+        timeout=60.0,
+        what="stats of both learners",
+        watch=[waiting, eager],
+    )
+    first: dict[str, int] = {}
+    for message in recording.messages(STATS):
+        first.setdefault(message["source"], message["seq"])
+    assert first["/lit_learner"] == 0, first
+    assert first["/eager/lit_learner"] > 0, first
+    assert "stats: 1 subscribers on /lit/learner/stats; publishing" in waiting.text()
+    _no_traceback(waiting, eager)
+
+
 def test_a_learner_shutting_down_answers_unavailable(ros: RosSystem) -> None:
     """Requests that reach the learner while it shuts down (checkpoint, export) are answered with
     an unavailable Error: they went unanswered, and a `lit call decide --repeat` waited out its

@@ -13,7 +13,10 @@
   call for run on a background thread, one at a time. A step holds the networks' lock throughout
   (checkpoints and exports take it too) and the core's lock only for its bookkeeping and the
   replay's sample and priority update, so neither decisions nor episode ends wait for a step.
-- Publishes ``/lit/learner/stats`` (LearnerStats) every ``stats_period`` s.
+- Publishes ``/lit/learner/stats`` (LearnerStats) every ``stats_period`` s; with
+  ``wait_for_subscribers: N`` from the first tick at which the topic has N matched subscriptions
+  (a recorder: the topic is volatile, and a tick published before a recorder matched it was
+  counted as missing from the bag). Ticks before that are not published and take no ``seq``.
 - Checkpoints every ``checkpoint_every`` episodes and ``checkpoint_period`` s, and on shutdown;
   resumes from ``checkpoint`` when the file exists (``fresh: true`` starts over).
 - Exports the B and K lookup tensors to ``export_dir`` on ``/lit/learner/export``
@@ -75,6 +78,7 @@ PARAMETERS: dict[str, Any] = {
     "export_dir": "runs/learner/tensors",
     "max_episodes": 0,
     "stats_period": 1.0,
+    "wait_for_subscribers": 0,
     "run_id": "",
     "service": DECIDE_SERVICE,
     "trainer_nice": TRAINER_NICE,
@@ -98,7 +102,7 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
     they are usable. The node exits with it at start; ``lit up`` asks before it starts anything."""
     if p["train"] not in ("both", "B", "psi_K"):
         return f"train must be both, B or psi_K, not {p['train']!r}"
-    for name in ("checkpoint_every", "max_episodes", "seed"):
+    for name in ("checkpoint_every", "max_episodes", "seed", "wait_for_subscribers"):
         if p[name] < 0:
             return f"{name} must be 0 or more, got {p[name]}"
     if not p["checkpoint_period"] >= 0:  # also NaN
@@ -265,6 +269,9 @@ class LearnerNode:
             repeat_key=self._decoder.repeat_key,
         )
         self._repeats_logged = 0
+        self._stats_heard = p["wait_for_subscribers"] == 0
+        """Whether stats ticks are published: from the first with ``wait_for_subscribers`` matched
+        subscriptions on (timer thread)."""
         self.log.info(
             f"ready: {p['service']}, {self.core.episodes} episodes and policy version "
             f"{self.core.policy_version} so far, checkpoint {p['checkpoint']}"
@@ -636,7 +643,9 @@ class LearnerNode:
         with self._networks, self._lock:
             yield
 
-    def _publish_stats(self) -> None:
+    def _publish_stats(self, final: bool = False) -> None:
+        """Publish the stats now: a timer tick (held back until ``wait_for_subscribers`` matched),
+        or the ``final`` ones at shutdown (always)."""
         repeats = self._decide.repeats
         if repeats > self._repeats_logged:
             self.log.info(
@@ -644,6 +653,12 @@ class LearnerNode:
                 f"({repeats} so far; a planner sent them again when an answer was slow or lost)"
             )
             self._repeats_logged = repeats
+        if not (self._stats_heard or final):
+            wanted = self.params["wait_for_subscribers"]
+            if self.stats_publisher.get_subscription_count() < wanted:
+                return  # no seq taken: the first published tick is seq 0 for the recorder too
+            self._stats_heard = True
+            self.log.info(f"stats: {wanted} subscribers on {STATS_TOPIC}; publishing")
         with self._lock:
             payload = {
                 "episodes": int(self.core.episodes),
@@ -688,7 +703,7 @@ class LearnerNode:
             except Exception as exc:  # noqa: BLE001 - collected, raised below
                 self.log.error(f"shutdown: {type(exc).__name__}: {exc}")
                 failures.append(exc)
-        self._publish_stats()  # the final state, then wait until the recorder has it
+        self._publish_stats(final=True)  # the final state, then wait until the recorder has it
         flush_publishers([self.stats_publisher])
         self._export_stopping = True
         self._export_executor.shutdown(timeout_sec=2.0)

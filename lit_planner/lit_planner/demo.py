@@ -213,6 +213,7 @@ def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
                     "checkpoint": str(runs / "learner" / "checkpoint.pt"),
                     "export_dir": str(runs / "learner" / "tensors"),
                     "run_id": run_id,
+                    "wait_for_subscribers": 1,  # its stats from the first the recorder hears
                 },
             )
             system.wait_ready("planner")
@@ -454,6 +455,12 @@ def _print_bag(bag: Path) -> None:
     # Leading: numbers before the first recorded one (a recording that started late).
     missing = sum(int(p["missing"]) + int(p["leading"]) for p in publishers)
     print(f"  seq accounting over {len(publishers)} publishers: {missing} messages missing")
+    for p in publishers:  # which ones, and where: before the first recorded one or in gaps
+        if p["missing"] or p["leading"]:
+            print(
+                f"    {p['topic']} from {p['source']}: {p['leading']} before seq {p['first_seq']}, "
+                f"{p['missing']} in {p['gaps']} gaps"
+            )
 
 
 def _ms(value: float | None) -> str:

@@ -497,6 +497,8 @@ def run(args: argparse.Namespace) -> int:
             "checkpoint": args.checkpoint or str(runs / "learner" / "checkpoint.pt"),
             "export_dir": str(runs / "learner" / "tensors"),
             "run_id": run_id,
+            # Its stats from the first tick the recorder hears (the topic is volatile).
+            "wait_for_subscribers": 0 if bag is None else 1,
             **_typed_params(args.learner_param, learner_node.PARAMETERS),
         }
         system.start("learner", "lit_learner_node", learner)
