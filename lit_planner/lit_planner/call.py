@@ -27,6 +27,8 @@ a whole PlanRequest payload.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import faulthandler
 import json
 import math
 import os
@@ -55,6 +57,9 @@ DEFAULT_TIMEOUT = 60.0
 """Seconds to wait for an answer (a plan's own time budget is added)."""
 DEFAULT_WAIT = 15.0
 """Seconds to wait for the service to appear."""
+TEARDOWN_GRACE = 15.0
+"""Seconds the ROS teardown and the interpreter's exit may take once the answer is printed (well
+under 1 s as a rule) before the process exits without them: :func:`_exit_if_stuck`."""
 CANCEL_WAIT = 5.0
 """Seconds a plan call that gave up waits for the cancel service to appear, and then for its
 answer."""
@@ -218,7 +223,6 @@ def run(args: argparse.Namespace) -> int:
     native_output_to_stderr()
     localhost_environment()
     import rclpy
-    from rclpy.exceptions import InvalidServiceNameException
     from rclpy.executors import SingleThreadedExecutor
 
     rclpy.init()
@@ -228,12 +232,37 @@ def run(args: argparse.Namespace) -> int:
     # rclpy's SIGTERM handler shuts the context down under the spin: quiet then (see below).
     spinner = threading.Thread(target=spin_quietly, args=(executor, lambda: False), daemon=True)
     spinner.start()
-    caller: ServiceCaller | None = None
+    callers: list[ServiceCaller] = []
+    code = 1  # what an exception leaves with, should the teardown hang
+    try:
+        code = _call(node, args, name, text, callers)
+        return code
+    finally:
+        _exit_if_stuck(code)
+        for caller in callers:
+            caller.destroy()
+        # Stop the spinning thread before tearing down (a joinable C++ thread at exit aborts).
+        executor.shutdown(timeout_sec=1.0)
+        if rclpy.ok():
+            rclpy.shutdown()
+        spinner.join(timeout=2.0)
+        node.destroy_node()
+
+
+def _call(
+    node: Any, args: argparse.Namespace, name: str, text: str, callers: list[ServiceCaller]
+) -> int:
+    """Find the service, call it and print the answer; the exit code. A caller made is added to
+    ``callers`` (:func:`run` destroys it)."""
+    import rclpy
+    from rclpy.exceptions import InvalidServiceNameException
+
     try:
         if args.service == "export":
             return _call_export(node, args)
         try:
             caller = ServiceCaller(node, name, private=True)
+            callers.append(caller)
         except InvalidServiceNameException as exc:  # --namespace "bad ns!", a raw NAME
             reason = str(exc).splitlines()[0].rstrip(":")  # rclpy adds the name and a caret
             print(f"lit call: error: service name {name!r}: {reason}", file=sys.stderr)
@@ -307,15 +336,31 @@ def run(args: argparse.Namespace) -> int:
                 pass
             _cancel_plan_in_new_context(args)
         return 130
-    finally:
-        if caller is not None:
-            caller.destroy()
-        # Stop the spinning thread before tearing down (a joinable C++ thread at exit aborts).
-        executor.shutdown(timeout_sec=1.0)
-        if rclpy.ok():
-            rclpy.shutdown()
-        spinner.join(timeout=2.0)
-        node.destroy_node()
+
+
+def _exit_if_stuck(code: int) -> None:
+    """Exit with ``code`` if the process has not ended :data:`TEARDOWN_GRACE` s from now.
+
+    Called once the answer is printed, before the ROS teardown: once in CI a ``lit call`` whose
+    planner node was shutting down meanwhile printed its answer and then did not exit (a test
+    waited 60 s for it). The thread stacks go to standard error first, to say where it hung.
+    """
+
+    def stuck() -> None:
+        print(
+            f"lit call: the ROS teardown did not end within {TEARDOWN_GRACE:g} s after the "
+            f"answer; exiting with {code} without it. Where each thread was:",
+            file=sys.stderr,
+            flush=True,
+        )
+        faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
+        with contextlib.suppress(OSError, ValueError):
+            sys.stdout.flush()
+        os._exit(code)
+
+    timer = threading.Timer(TEARDOWN_GRACE, stuck)
+    timer.daemon = True  # it does not hold the exit up; it ends the process if that hangs
+    timer.start()
 
 
 def _service_name(namespace: str, service: str) -> str:

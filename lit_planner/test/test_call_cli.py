@@ -203,3 +203,25 @@ def test_a_plan_answer_whose_path_failed_the_recheck_is_flagged() -> None:
     assert not call._path_failed_recheck(answer(True))
     assert not call._path_failed_recheck(answer(None))  # not checked (no path)
     assert not call._path_failed_recheck("not JSON")
+
+
+def test_a_teardown_that_hangs_ends_with_the_answers_exit_code_and_says_where() -> None:
+    """Once the answer is printed, a hanging ROS teardown (once in CI) no longer keeps ``lit call``
+    alive: the process exits with the answer's code and prints where each thread was."""
+    script = (
+        "import threading, time\n"
+        "from lit_planner import call\n"
+        "call.TEARDOWN_GRACE = 0.5\n"
+        "print('answer', flush=True)\n"
+        "call._exit_if_stuck(3)\n"
+        "threading.Event().wait()  # a teardown that never ends\n"
+    )
+    process = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=False
+    )
+    assert process.returncode == 3, process
+    assert process.stdout == "answer\n"
+    assert "the ROS teardown did not end within 0.5 s after the answer; exiting with 3" in (
+        process.stderr
+    )
+    assert 'File "<string>", line 6' in process.stderr, process.stderr  # the hanging wait
