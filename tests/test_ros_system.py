@@ -1194,8 +1194,9 @@ def test_domains_are_isolated(ros: RosSystem) -> None:
 
 def test_sigterm_cuts_a_long_query_short_and_answers_the_waiting_ones(ros: RosSystem) -> None:
     """A node asked to plan for 600 s used to finish that query before stopping, so lit up's grace
-    ran out and it was killed. Now the running query ends at once and it and the queued one are
-    answered ``unavailable``; the node exits 0."""
+    ran out and it was killed. Now the running query ends at once and is answered with the best
+    path found until then (status cancelled; it was an unavailable Error that threw the path
+    away), and the queued one ``unavailable``; the node exits 0."""
     recording = ros.recorder(["/lit/solution"])
     planner = ros.planner()
     _ready(planner)
@@ -1211,14 +1212,49 @@ def test_sigterm_cuts_a_long_query_short_and_answers_the_waiting_ones(ros: RosSy
                             "--time", "600", "--request-id", "queued")  # fmt: skip
     planner.wait_for_log(r"plan request queued waits behind 1", timeout=120.0)
     assert ros.stop(planner, signal.SIGTERM, timeout=60.0) == 0, planner.tail()
-    answers = {}
-    for name, call in (("running", running), ("queued", queued)):
-        result = finish_call(call, timeout=60.0)
-        assert result.returncode == 1, f"{name}: {result}"
-        answers[name] = result.json()
-        assert answers[name]["code"] == "unavailable", answers
-    assert "cut short after" in answers["running"]["message"], answers
-    assert "the query was not started" in answers["queued"]["message"], answers
+    result = finish_call(running, timeout=60.0)  # not the 600 s
+    assert result.returncode == 0, result
+    response = result.json()
+    assert response["status"] == "cancelled", response
+    assert response["message"].startswith("cut short by the planner node's shutdown after"), (
+        response
+    )
+    assert "the best path found until then" in response["message"], response
+    assert response["solved"] is True and response["path_valid"] is True, response
+    assert response["time"] < 600.0 and len(response["path"]) >= 2, response
+    assert response["cost"] <= response["c_init"], response
+    result = finish_call(queued, timeout=60.0)
+    assert result.returncode == 1, result
+    error = result.json()
+    assert error["code"] == "unavailable", error
+    assert "the query was not started" in error["message"], error
+    _no_traceback(planner)
+
+
+def test_sigterm_answers_a_running_query_without_a_path_unavailable(
+    ros: RosSystem, tmp_path: Path
+) -> None:
+    """A query cut short by the shutdown before it found any path (a wall across the world:
+    there is none) is answered with an unavailable Error that says so."""
+    planner = ros.planner()
+    _ready(planner)
+    walled = {"lower": [0, 0], "upper": [1, 1], "boxes": [{"lower": [0.45, 0], "upper": [0.55, 1]}],
+              "start": [0.1, 0.5], "goal": [0.9, 0.5]}  # fmt: skip
+    world_file = tmp_path / "walled.json"
+    world_file.write_text(json.dumps(walled), encoding="utf-8")
+    running = ros.call_start("--wait", "60", "--payload-only", "plan", "--world", str(world_file),
+                             "--time", "600", "--request-id", "walled")  # fmt: skip
+    planner.wait_for_log(r"plan request walled started", timeout=120.0)
+    assert ros.stop(planner, signal.SIGTERM, timeout=60.0) == 0, planner.tail()
+    result = finish_call(running, timeout=60.0)
+    assert result.returncode == 1, result
+    error = result.json()
+    assert error["code"] == "unavailable", error
+    assert re.search(
+        r"\(unavailable\): the planner node is stopping; the query was cut short after \S+ s of "
+        r"planning, before any path was found$",
+        error["message"],
+    ), error
     _no_traceback(planner)
 
 

@@ -9,6 +9,9 @@
   ``req-<hex>`` the node logged for a plan request without one): the running plan request that
   carries it stops within an iteration and is answered with what it found, queued ones are
   answered without planning (status ``cancelled`` for both).
+- On shutdown (SIGTERM, Ctrl-C) the running plan request stops within an iteration: answered
+  with the best path found until then (status ``cancelled``), or, without one, with an
+  ``unavailable`` Error, as the queued requests are.
 - Publishes ``lit/solution`` live, and after every query ``lit/observation`` and ``lit/decision``
   (one per decision point, from the planner's own record, so publishing never runs inside the timed
   loop), ``lit/episode`` (EpisodeSummary) and ``lit/path`` (``trajectory_msgs/JointTrajectory``).
@@ -828,6 +831,8 @@ class PlannerNode:
                 # Read once and again only when the files change, not before every query.
                 policy = self._tensor_policies.get(self.params["tensors_dir"] or None)
         planning.quiet_ompl(job.planner)
+        if job.kind == "service":
+            self.log.info(f"plan request {job.episode_id} started")
         result = planning.plan(
             job.scenario,
             planner=job.planner,
@@ -856,9 +861,22 @@ class PlannerNode:
             result["status"] = "cancelled"
             self.log.info(f"plan request {job.episode_id}: {result['message']}")
         if cut_short and job.kind == "service":
-            job.error = _stopping_error(
-                job.request_seq, f"the query was cut short after {result['time']:.3g} s of planning"
-            )
+            if result["solved"] and result["status"] not in INVALID_TERMINAL:
+                # As a cancel does: the best path found until then (a 600 s anytime query cut
+                # short after a solution came threw it away with an unavailable Error).
+                result["message"] = (
+                    f"cut short by the planner node's shutdown after {result['time']:.3g} s of "
+                    f"planning (status then: {result['status']}); the best path found until then"
+                )
+                result["status"] = "cancelled"
+                job.result = result
+                self.log.info(f"plan request {job.episode_id}: {result['message']}")
+            else:
+                job.error = _stopping_error(
+                    job.request_seq,
+                    f"the query was cut short after {result['time']:.3g} s of planning, before "
+                    "any path was found",
+                )
             return
         if result["status"] in INVALID_TERMINAL:
             # The core's own start/goal check (bounds, obstacles): the request's fault.
