@@ -1148,6 +1148,51 @@ def test_bad_input_is_answered_with_errors(ros: RosSystem) -> None:
     _no_traceback(planner, learner)
 
 
+def test_a_learner_leaves_out_old_transitions_not_finite_and_refuses_networks_not_finite(
+    ros: RosSystem,
+) -> None:
+    """A checkpoint of a learner from before the check at storing: its transitions with values
+    that are not finite are left out with a warning, and the learner serves. One whose network
+    is not finite would answer NaN: the node exits 2 with one line naming it."""
+    import numpy as np
+    import torch
+    from lit_learner.config import LearnerConfig
+    from lit_learner.core import LearnerCore
+
+    core = LearnerCore(LearnerConfig(seed=0))
+    for i in range(20):
+        core.agents["B"].replay.add((0.1, 0.2, 0.3), 0.5, -0.01 * i, (0.2, 0.3, 0.4), False)
+    state = core.state_dict()
+    state["agents"]["B"]["replay"]["reward"][3] = np.nan
+    old = ros.workdir / "old.pt"
+    torch.save(state, old)
+    learner = ros.learner(checkpoint=str(old))
+    learner.wait_for_log(
+        r"old\.pt: left out replay transitions holding values that are not finite \(B 1; ",
+        timeout=NODE_START,
+    )
+    _ready(learner)
+    result = ros.call("--payload-only", "decide", "--agent", "B")
+    assert result.returncode == 0, result
+    assert math.isfinite(result.json()["value"]), result
+    assert ros.stop(learner, timeout=60.0) == 0, learner.tail()
+    _no_traceback(learner)
+
+    network = state["agents"]["psi_K"]["actor"]
+    name = next(iter(network))
+    network[name] = torch.full_like(network[name], float("inf"))
+    broken = ros.workdir / "broken.pt"
+    torch.save(state, broken)
+    refused = ros.learner("refused", checkpoint=str(broken))
+    assert refused.wait(timeout=NODE_START) == 2, refused.tail()
+    assert re.search(
+        rf"lit_learner_node: error: \S*broken\.pt: agent psi_K: the actor holds weights that are "
+        rf"not finite: {re.escape(name)}; restore the file, or start anew",
+        refused.text(),
+    ), refused.tail()
+    _no_traceback(refused)
+
+
 # ---------------------------------------------------------------------- 6. domains
 
 

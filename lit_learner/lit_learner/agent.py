@@ -17,7 +17,7 @@ import torch
 import torch.nn.functional as F
 
 from lit_learner.config import AgentConfig
-from lit_learner.errors import LearnerError
+from lit_learner.errors import LearnerError, NonFiniteWeights
 from lit_learner.fuzzy import fuzzify
 from lit_learner.messages import Features
 from lit_learner.networks import Actor, ActorSnapshot, Critic, polyak_update
@@ -219,14 +219,30 @@ class DDPGAgent:
             "transitions": self.transitions,
         }
 
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.actor.load_state_dict(state["actor"])
-        self.critic.load_state_dict(state["critic"])
-        self.actor_target.load_state_dict(state["actor_target"])
-        self.critic_target.load_state_dict(state["critic_target"])
+    def load_state_dict(self, state: dict[str, Any]) -> int:
+        """The state :meth:`state_dict` saved; how many replay transitions were left out (see
+        :meth:`PrioritizedReplay.load_state_dict`).
+
+        Raises:
+            NonFiniteWeights: a network holds a weight that is not finite (it would answer NaN).
+        """
+        networks = {
+            "actor": self.actor,
+            "critic": self.critic,
+            "actor_target": self.actor_target,
+            "critic_target": self.critic_target,
+        }
+        for name, network in networks.items():
+            network.load_state_dict(state[name])
+            bad = [k for k, v in network.state_dict().items() if not torch.isfinite(v).all()]
+            if bad:
+                raise NonFiniteWeights(
+                    f"the {name} holds weights that are not finite: {', '.join(bad)}"
+                )
         self.actor_optimizer.load_state_dict(state["actor_optimizer"])
         self.critic_optimizer.load_state_dict(state["critic_optimizer"])
-        self.replay.load_state_dict(state["replay"])
+        dropped = self.replay.load_state_dict(state["replay"])
         self.rng.bit_generator.state = state["rng"]
         self.updates = state["updates"]
         self.transitions = state["transitions"]
+        return dropped

@@ -24,7 +24,7 @@ import torch
 
 from lit_learner.agent import DDPGAgent
 from lit_learner.config import AGENT_NAMES, LearnerConfig
-from lit_learner.errors import CheckpointError, ConfigError
+from lit_learner.errors import CheckpointError, ConfigError, NonFiniteWeights
 from lit_learner.export import CHECKPOINT_FILE, TENSOR_FILES, policy_grid
 from lit_learner.messages import DecisionRequest, EpisodeEnd
 from lit_learner.networks import ActorSnapshot
@@ -72,6 +72,8 @@ class LearnerCore:
         self._episode_terms: dict[str, dict[str, list[float]]] = {}
         """Per episode and agent: summed reward terms [time, cost, penalty, search] and the step
         count."""
+        self.dropped_at_load: dict[str, int] = dict.fromkeys(AGENT_NAMES, 0)
+        """Per agent: replay transitions :meth:`load_checkpoint` left out (values not finite)."""
 
     @property
     def policy_version(self) -> int:
@@ -402,6 +404,8 @@ class LearnerCore:
             raise CheckpointError(f"{path}: bad config in checkpoint: {exc}") from exc
         try:
             core._restore(state)
+        except CheckpointError as exc:
+            raise CheckpointError(f"{path}: {exc}") from exc
         except (KeyError, TypeError, ValueError, IndexError, RuntimeError) as exc:
             # Parts missing or of the wrong shape (written by something else, or edited): one
             # line, not a traceback; torch reports shape mismatches as RuntimeError.
@@ -414,7 +418,10 @@ class LearnerCore:
         """The saved state of :meth:`load_checkpoint` into this fresh core."""
         core = self
         for name, agent in core.agents.items():
-            agent.load_state_dict(state["agents"][name])
+            try:
+                core.dropped_at_load[name] = agent.load_state_dict(state["agents"][name])
+            except NonFiniteWeights as exc:
+                raise CheckpointError(f"agent {name}: {exc}") from exc
         core.pairing.load_state_dict(state["pairing"])
         core.episodes = state["episodes"]
         core._policy_version = state["policy_version"]

@@ -25,3 +25,7 @@ class ReplayError(LearnerError):
 
 class CheckpointError(LearnerError):
     """A checkpoint is missing, unreadable, or of an incompatible version."""
+
+
+class NonFiniteWeights(LearnerError, ValueError):
+    """A network loaded from a checkpoint holds weights that are NaN or infinite."""

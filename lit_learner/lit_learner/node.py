@@ -313,6 +313,14 @@ class LearnerNode:
             core = LearnerCore.load_checkpoint(path)
             self._checkpoint_done = str(path)
             self.log.info(f"resumed from {path}: {core.episodes} episodes")
+            dropped = {name: n for name, n in core.dropped_at_load.items() if n}
+            if dropped:
+                self.log.warning(
+                    f"{path}: left out replay transitions holding values that are not finite "
+                    f"({', '.join(f'{name} {n}' for name, n in dropped.items())}; a learner "
+                    "older than the check at storing kept them, and they failed its gradient "
+                    "steps)"
+                )
             # Episodes open when the checkpoint was written: their planners fell back while this
             # learner was down (those steps are not the agents'), and their gradient steps are
             # due; an episode that goes on starts a new pairing here.

@@ -265,7 +265,15 @@ class PrioritizedReplay:
             "max_priority": self.max_priority,
         }
 
-    def load_state_dict(self, state: dict[str, Any]) -> None:
+    def load_state_dict(self, state: dict[str, Any]) -> int:
+        """The buffer :meth:`state_dict` saved, without the transitions that hold a value that is
+        not finite, or a priority that is not positive and finite (learners before :meth:`add`
+        checked its values stored them, and each one failed every gradient step whose batch held
+        it). The rest keep their order and priorities.
+
+        Returns:
+            How many transitions were left out.
+        """
         self.tree.load_state_dict(state["tree"])
         n = state["size"]
         for name in ("state", "action", "reward", "next_state", "terminated"):
@@ -273,6 +281,31 @@ class PrioritizedReplay:
         self.size = n
         self.position = state["position"]
         self.max_priority = state["max_priority"]
+        leaves = self.tree.get(np.arange(n))
+        good = (
+            np.isfinite(self.state[:n]).all(axis=1)
+            & np.isfinite(self.next_state[:n]).all(axis=1)
+            & np.isfinite(self.action[:n])
+            & np.isfinite(self.reward[:n])
+            & np.isfinite(self.terminated[:n])
+            & np.isfinite(leaves)
+            & (leaves > 0.0)
+        )
+        dropped = int(n - np.count_nonzero(good))
+        if dropped:
+            kept = np.flatnonzero(good)
+            for name in ("state", "action", "reward", "next_state", "terminated"):
+                array = getattr(self, name)
+                array[: kept.size] = array[kept]
+                array[kept.size : n] = 0.0
+            self.tree.load_state_dict({"capacity": self.capacity, "leaves": leaves[kept]})
+            self.size = int(kept.size)
+            self.position = self.size % self.capacity
+        if not (math.isfinite(self.max_priority) and self.max_priority > 0.0):
+            # Raw priority from the stored p^alpha; 1.0 (the fresh buffer's) when none is left.
+            stored = self.tree.get(np.arange(self.size))
+            self.max_priority = float(stored.max() ** (1.0 / self.alpha)) if self.size else 1.0
+        return dropped
 
 
 def beta_at(update: int, start: float, end: float, steps: int) -> float:

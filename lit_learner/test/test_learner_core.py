@@ -482,3 +482,52 @@ def test_an_end_of_an_episode_without_open_steps_is_counted_only_when_asked() ->
     assert core.episodes == 1 and core.agents["B"].transitions == 1
     core.close_episode(replace(end, episode_id="never"))
     assert core.episodes == 2
+
+
+def test_replay_transitions_not_finite_are_left_out_when_a_checkpoint_loads(
+    tmp_path: Path,
+) -> None:
+    """Learners before the check at storing kept transitions with values that are not finite
+    (and priorities computed from them), and each failed every gradient step whose batch held
+    it: loading leaves them out and keeps the rest in order, with their priorities."""
+    core = LearnerCore(small_config())
+    feed(core, script(6, seed=2))
+    state = core.state_dict()
+    replay = state["agents"]["psi_K"]["replay"]
+    n = replay["size"]
+    assert n >= 10 and replay["position"] == n  # not full: the ring has not wrapped
+    replay["reward"][2] = np.nan
+    replay["next_state"][5, 1] = np.inf
+    replay["tree"]["leaves"][7] = np.nan
+    replay["max_priority"] = float("nan")
+    kept = [i for i in range(n) if i not in (2, 5, 7)]
+    rewards, leaves = replay["reward"][kept].copy(), replay["tree"]["leaves"][kept].copy()
+    torch.save(state, tmp_path / "old.pt")
+
+    loaded = LearnerCore.load_checkpoint(tmp_path / "old.pt")
+    assert loaded.dropped_at_load == {"B": 0, "psi_K": 3}
+    buffer = loaded.agents["psi_K"].replay
+    assert (buffer.size, buffer.position) == (n - 3, n - 3)
+    np.testing.assert_array_equal(buffer.reward[: n - 3], rewards)
+    np.testing.assert_array_equal(buffer.tree.get(np.arange(n - 3)), leaves)
+    assert buffer.tree.total == pytest.approx(float(leaves.sum()), rel=1e-12)
+    assert buffer.max_priority == pytest.approx(float(leaves.max()) ** (1.0 / buffer.alpha))
+    batch = buffer.sample(64, 0.4, np.random.default_rng(0))
+    assert np.isfinite(batch.reward).all() and np.isfinite(batch.weight).all()
+    assert loaded.agents["B"].replay.size == core.agents["B"].replay.size
+
+
+def test_a_checkpoint_whose_network_is_not_finite_is_refused(tmp_path: Path) -> None:
+    """A network with NaN weights would answer NaN to every decision: the checkpoint is refused
+    with the agent and the tensors named."""
+    path = tmp_path / "nan.pt"
+    state = LearnerCore(LearnerConfig(seed=0)).state_dict()
+    network = state["agents"]["B"]["critic_target"]
+    name = next(iter(network))
+    network[name] = torch.full_like(network[name], float("nan"))
+    torch.save(state, path)
+    with pytest.raises(
+        CheckpointError,
+        match=rf"nan\.pt: agent B: the critic_target holds weights that are not finite: {name}$",
+    ):
+        LearnerCore.load_checkpoint(path)
