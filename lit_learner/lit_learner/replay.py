@@ -269,7 +269,7 @@ class PrioritizedReplay:
         """The buffer :meth:`state_dict` saved, without the transitions that hold a value that is
         not finite, or a priority that is not positive and finite (learners before :meth:`add`
         checked its values stored them, and each one failed every gradient step whose batch held
-        it). The rest keep their order and priorities.
+        it). The rest keep their priorities and their order of age.
 
         Returns:
             How many transitions were left out.
@@ -293,7 +293,10 @@ class PrioritizedReplay:
         )
         dropped = int(n - np.count_nonzero(good))
         if dropped:
-            kept = np.flatnonzero(good)
+            # Oldest first: a full ring's oldest item is at ``position``; the new ring is not
+            # full, and fills and then overwrites from the oldest on, as before.
+            age = np.arange(n) if n < self.capacity else (self.position + np.arange(n)) % n
+            kept = age[good[age]]
             for name in ("state", "action", "reward", "next_state", "terminated"):
                 array = getattr(self, name)
                 array[: kept.size] = array[kept]

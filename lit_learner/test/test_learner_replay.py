@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 from lit_learner.errors import ReplayError
@@ -196,3 +198,22 @@ def test_single_leaf_updates_equal_vectorised_ones_bit_for_bit() -> None:
     np.testing.assert_array_equal(one.nodes, many.nodes)
     with pytest.raises(ReplayError, match=r"outside \[0, 777\)"):
         one.set(-1, 1.0)
+
+
+def test_a_full_ring_loaded_without_its_bad_items_keeps_their_age_order() -> None:
+    """Items left out at load (a value that is not finite) close up oldest first, so that once
+    the buffer is full again the oldest item is the next one overwritten."""
+    replay = PrioritizedReplay(capacity=5, alpha=0.6, priority_eps=1e-3)
+    for i in range(7):  # slots hold 5, 6, 2, 3, 4; the oldest (2) is at position 2
+        replay.add((0.1, 0.2, 0.3), 0.5, float(i), (0.2, 0.3, 0.4), False)
+    assert replay.position == 2
+    state = copy.deepcopy(replay.state_dict())
+    state["reward"][3] = np.nan  # the item of reward 3
+    loaded = PrioritizedReplay(capacity=5, alpha=0.6, priority_eps=1e-3)
+    assert loaded.load_state_dict(state) == 1
+    assert (loaded.size, loaded.position) == (4, 4)
+    assert list(loaded.reward[:4]) == [2.0, 4.0, 5.0, 6.0]
+    loaded.add((0.1, 0.2, 0.3), 0.5, 7.0, (0.2, 0.3, 0.4), False)
+    loaded.add((0.1, 0.2, 0.3), 0.5, 8.0, (0.2, 0.3, 0.4), False)  # overwrites the oldest, 2
+    assert list(loaded.reward) == [8.0, 4.0, 5.0, 6.0, 7.0]
+    assert loaded.tree.total == pytest.approx(float(loaded.tree.get(np.arange(5)).sum()))
