@@ -1240,7 +1240,7 @@ def test_domains_are_isolated(ros: RosSystem) -> None:
 def test_sigterm_cuts_a_long_query_short_and_answers_the_waiting_ones(ros: RosSystem) -> None:
     """A node asked to plan for 600 s used to finish that query before stopping, so lit up's grace
     ran out and it was killed. Now the running query ends at once and is answered with the best
-    path found until then (status cancelled; it was an unavailable Error that threw the path
+    path found until then (status shutdown; it was an unavailable Error that threw the path
     away), and the queued one ``unavailable``; the node exits 0."""
     recording = ros.recorder(["/lit/solution"])
     planner = ros.planner()
@@ -1260,7 +1260,7 @@ def test_sigterm_cuts_a_long_query_short_and_answers_the_waiting_ones(ros: RosSy
     result = finish_call(running, timeout=60.0)  # not the 600 s
     assert result.returncode == 0, result
     response = result.json()
-    assert response["status"] == "cancelled", response
+    assert response["status"] == "shutdown", response
     assert response["message"].startswith("cut short by the planner node's shutdown after"), (
         response
     )

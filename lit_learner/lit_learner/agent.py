@@ -224,7 +224,8 @@ class DDPGAgent:
         :meth:`PrioritizedReplay.load_state_dict`).
 
         Raises:
-            NonFiniteWeights: a network holds a weight that is not finite (it would answer NaN).
+            NonFiniteWeights: a network holds a weight, or an optimiser a moment, that is not
+                finite (it would answer NaN, or make the weights NaN at its first step).
         """
         networks = {
             "actor": self.actor,
@@ -239,8 +240,22 @@ class DDPGAgent:
                 raise NonFiniteWeights(
                     f"the {name} holds weights that are not finite: {', '.join(bad)}"
                 )
-        self.actor_optimizer.load_state_dict(state["actor_optimizer"])
-        self.critic_optimizer.load_state_dict(state["critic_optimizer"])
+        optimizers = {
+            "actor_optimizer": self.actor_optimizer,
+            "critic_optimizer": self.critic_optimizer,
+        }
+        for name, optimizer in optimizers.items():
+            optimizer.load_state_dict(state[name])
+            bad = [
+                f"{index}.{key}"
+                for index, slots in optimizer.state_dict()["state"].items()
+                for key, value in slots.items()
+                if isinstance(value, torch.Tensor) and not torch.isfinite(value).all()
+            ]
+            if bad:  # its first step would make the weights NaN
+                raise NonFiniteWeights(
+                    f"the {name} holds moments that are not finite: {', '.join(bad)}"
+                )
         dropped = self.replay.load_state_dict(state["replay"])
         self.rng.bit_generator.state = state["rng"]
         self.updates = state["updates"]

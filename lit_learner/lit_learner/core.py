@@ -75,6 +75,17 @@ class LearnerCore:
         self.dropped_at_load: dict[str, int] = dict.fromkeys(AGENT_NAMES, 0)
         """Per agent: replay transitions :meth:`load_checkpoint` left out (values not finite)."""
 
+    def load_warning(self) -> str | None:
+        """What :meth:`load_checkpoint` left out, to be said where it was loaded (None: nothing)."""
+        dropped = {name: n for name, n in self.dropped_at_load.items() if n}
+        if not dropped:
+            return None
+        return (
+            "left out replay transitions holding values that are not finite "
+            f"({', '.join(f'{name} {n}' for name, n in dropped.items())}; a learner older than "
+            "the check at storing kept them, and they failed its gradient steps)"
+        )
+
     @property
     def policy_version(self) -> int:
         """Gradient steps taken by both agents together; 0 before the first one."""
@@ -377,7 +388,8 @@ class LearnerCore:
 
     @classmethod
     def load_checkpoint(cls, path: str | Path) -> LearnerCore:
-        """A core that continues exactly where the saved one stopped.
+        """A core that continues exactly where the saved one stopped (less any replay transitions
+        with values that are not finite: :meth:`load_warning`).
 
         Raises:
             CheckpointError: missing, unreadable or incompatible checkpoint.

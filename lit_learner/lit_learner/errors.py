@@ -28,4 +28,5 @@ class CheckpointError(LearnerError):
 
 
 class NonFiniteWeights(LearnerError, ValueError):
-    """A network loaded from a checkpoint holds weights that are NaN or infinite."""
+    """A network (or its optimiser) loaded from a checkpoint holds values that are NaN or
+    infinite."""

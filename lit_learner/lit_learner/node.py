@@ -269,6 +269,11 @@ class LearnerNode:
             repeat_key=self._decoder.repeat_key,
         )
         self._repeats_logged = 0
+        self._stats_final = False
+        """Set by the final stats at shutdown: no tick publishes after them."""
+        self._stats_lock = threading.Lock()
+        """Held while stats are published (the executor's timer, and the final ones from
+        :meth:`shutdown`)."""
         self._stats_heard = p["wait_for_subscribers"] == 0
         """Whether stats ticks are published: from the first with ``wait_for_subscribers`` matched
         subscriptions on (timer thread)."""
@@ -313,14 +318,9 @@ class LearnerNode:
             core = LearnerCore.load_checkpoint(path)
             self._checkpoint_done = str(path)
             self.log.info(f"resumed from {path}: {core.episodes} episodes")
-            dropped = {name: n for name, n in core.dropped_at_load.items() if n}
-            if dropped:
-                self.log.warning(
-                    f"{path}: left out replay transitions holding values that are not finite "
-                    f"({', '.join(f'{name} {n}' for name, n in dropped.items())}; a learner "
-                    "older than the check at storing kept them, and they failed its gradient "
-                    "steps)"
-                )
+            warning = core.load_warning()
+            if warning:
+                self.log.warning(f"{path}: {warning}")
             # Episodes open when the checkpoint was written: their planners fell back while this
             # learner was down (those steps are not the agents'), and their gradient steps are
             # due; an episode that goes on starts a new pairing here.
@@ -661,12 +661,19 @@ class LearnerNode:
                 f"({repeats} so far; a planner sent them again when an answer was slow or lost)"
             )
             self._repeats_logged = repeats
+        with self._stats_lock:  # a tick and the final stats: one after the other, in order
+            self._publish_stats_locked(final)
+
+    def _publish_stats_locked(self, final: bool) -> None:
+        if self._stats_final:
+            return  # a tick after the final stats (the executor spins until the node is gone)
         if not (self._stats_heard or final):
             wanted = self.params["wait_for_subscribers"]
             if self.stats_publisher.get_subscription_count() < wanted:
                 return  # no seq taken: the first published tick is seq 0 for the recorder too
             self._stats_heard = True
             self.log.info(f"stats: {wanted} subscribers on {STATS_TOPIC}; publishing")
+        self._stats_final = final
         with self._lock:
             payload = {
                 "episodes": int(self.core.episodes),

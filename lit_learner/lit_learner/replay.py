@@ -305,9 +305,13 @@ class PrioritizedReplay:
             self.size = int(kept.size)
             self.position = self.size % self.capacity
         if not (math.isfinite(self.max_priority) and self.max_priority > 0.0):
-            # Raw priority from the stored p^alpha; 1.0 (the fresh buffer's) when none is left.
+            # Raw priority from the stored p^alpha; 1.0 (the fresh buffer's) when none is left,
+            # or when alpha = 0 made every stored leaf 1.
             stored = self.tree.get(np.arange(self.size))
-            self.max_priority = float(stored.max() ** (1.0 / self.alpha)) if self.size else 1.0
+            if self.size and self.alpha > 0.0:
+                self.max_priority = float(stored.max() ** (1.0 / self.alpha))
+            else:
+                self.max_priority = 1.0
         return dropped
 
 

@@ -1053,6 +1053,9 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 "cannot carry; resume it with --no-bag"
             )
         core = LearnerCore.load_checkpoint(checkpoint)
+        warning = core.load_warning()
+        if warning:
+            print(f"lit train: warning: {checkpoint}: {warning}", file=sys.stderr, flush=True)
         if core.episodes != state.episode:  # a kill between writing the two files
             raise TrainingError(
                 f"--resume {checkpoint}: the checkpoint holds {core.episodes} episodes and its "

@@ -531,3 +531,20 @@ def test_a_checkpoint_whose_network_is_not_finite_is_refused(tmp_path: Path) -> 
         match=rf"nan\.pt: agent B: the critic_target holds weights that are not finite: {name}$",
     ):
         LearnerCore.load_checkpoint(path)
+
+
+def test_a_checkpoint_whose_optimiser_moments_are_not_finite_is_refused(tmp_path: Path) -> None:
+    """An Adam moment that is not finite would make the weights NaN at the first step."""
+    core = LearnerCore(small_config())
+    feed(core, script(6, seed=2))  # past warm-up: the optimisers have state
+    state = core.state_dict()
+    slots = state["agents"]["B"]["actor_optimizer"]["state"]
+    assert slots, "the B actor's optimiser has taken no step"
+    index = next(iter(slots))
+    slots[index]["exp_avg_sq"] = torch.full_like(slots[index]["exp_avg_sq"], float("nan"))
+    torch.save(state, tmp_path / "moments.pt")
+    with pytest.raises(
+        CheckpointError,
+        match=rf"agent B: the actor_optimizer holds moments that are not finite: {index}\.exp_avg_sq$",
+    ):
+        LearnerCore.load_checkpoint(tmp_path / "moments.pt")

@@ -217,3 +217,16 @@ def test_a_full_ring_loaded_without_its_bad_items_keeps_their_age_order() -> Non
     loaded.add((0.1, 0.2, 0.3), 0.5, 8.0, (0.2, 0.3, 0.4), False)  # overwrites the oldest, 2
     assert list(loaded.reward) == [8.0, 4.0, 5.0, 6.0, 7.0]
     assert loaded.tree.total == pytest.approx(float(loaded.tree.get(np.arange(5)).sum()))
+
+
+def test_a_buffer_with_alpha_zero_loads_a_priority_that_is_not_finite() -> None:
+    """alpha = 0 stores every leaf as 1: the maximum priority cannot be recovered from them (it
+    divided by zero), and 1 is what a fresh buffer starts with."""
+    replay = PrioritizedReplay(capacity=8, alpha=0.0, priority_eps=1e-3)
+    for i in range(4):
+        replay.add((0.1, 0.2, 0.3), 0.5, float(i), (0.2, 0.3, 0.4), False)
+    state = copy.deepcopy(replay.state_dict())
+    state["max_priority"] = float("inf")
+    loaded = PrioritizedReplay(capacity=8, alpha=0.0, priority_eps=1e-3)
+    assert loaded.load_state_dict(state) == 0
+    assert loaded.max_priority == 1.0 and loaded.size == 4

@@ -36,6 +36,7 @@ import sys
 import threading
 import time
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -58,8 +59,8 @@ DEFAULT_TIMEOUT = 60.0
 DEFAULT_WAIT = 15.0
 """Seconds to wait for the service to appear."""
 TEARDOWN_GRACE = 15.0
-"""Seconds the ROS teardown and the interpreter's exit may take once the answer is printed (well
-under 1 s as a rule) before the process exits without them: :func:`_exit_if_stuck`."""
+"""Seconds the ROS teardown may take once the call is over (well under 1 s as a rule, at most
+about 3 s by its own timeouts) before the process exits without it: :func:`_exit_if_stuck`."""
 CANCEL_WAIT = 5.0
 """Seconds a plan call that gave up waits for the cancel service to appear, and then for its
 answer."""
@@ -238,7 +239,7 @@ def run(args: argparse.Namespace) -> int:
         code = _call(node, args, name, text, callers)
         return code
     finally:
-        _exit_if_stuck(code)
+        disarm = _exit_if_stuck(code)
         for caller in callers:
             caller.destroy()
         # Stop the spinning thread before tearing down (a joinable C++ thread at exit aborts).
@@ -247,6 +248,7 @@ def run(args: argparse.Namespace) -> int:
             rclpy.shutdown()
         spinner.join(timeout=2.0)
         node.destroy_node()
+        disarm()
 
 
 def _call(
@@ -338,18 +340,22 @@ def _call(
         return 130
 
 
-def _exit_if_stuck(code: int) -> None:
-    """Exit with ``code`` if the process has not ended :data:`TEARDOWN_GRACE` s from now.
+def _exit_if_stuck(code: int) -> Callable[[], None]:
+    """Exit if the ROS teardown has not ended :data:`TEARDOWN_GRACE` s from now; the function
+    that disarms it (:func:`run` calls it once the teardown is done).
 
-    Called once the answer is printed, before the ROS teardown: once in CI a ``lit call`` whose
-    planner node was shutting down meanwhile printed its answer and then did not exit (a test
-    waited 60 s for it). The thread stacks go to standard error first, to say where it hung.
+    Armed once the call is over, before the teardown: once in CI a ``lit call`` whose planner
+    node was shutting down meanwhile printed its answer and then did not exit (a test waited
+    60 s for it). A timer exits with ``code`` after printing where each thread was; rclpy's
+    teardown calls into DDS with the GIL held, though, and a hang there would hold that timer up
+    too, so :mod:`faulthandler`'s C thread ends the process (exit 1, the stacks first) twice as
+    late. A hang in the interpreter's exit after :func:`run` returned is not covered.
     """
 
     def stuck() -> None:
         print(
-            f"lit call: the ROS teardown did not end within {TEARDOWN_GRACE:g} s after the "
-            f"answer; exiting with {code} without it. Where each thread was:",
+            f"lit call: the ROS teardown did not end within {TEARDOWN_GRACE:g} s; exiting with "
+            f"{code} without it. Where each thread was:",
             file=sys.stderr,
             flush=True,
         )
@@ -359,8 +365,15 @@ def _exit_if_stuck(code: int) -> None:
         os._exit(code)
 
     timer = threading.Timer(TEARDOWN_GRACE, stuck)
-    timer.daemon = True  # it does not hold the exit up; it ends the process if that hangs
+    timer.daemon = True
     timer.start()
+    faulthandler.dump_traceback_later(2 * TEARDOWN_GRACE, exit=True, file=sys.stderr)
+
+    def disarm() -> None:
+        timer.cancel()
+        faulthandler.cancel_dump_traceback_later()
+
+    return disarm
 
 
 def _service_name(namespace: str, service: str) -> str:

@@ -10,8 +10,8 @@
   carries it stops within an iteration and is answered with what it found, queued ones are
   answered without planning (status ``cancelled`` for both).
 - On shutdown (SIGTERM, Ctrl-C) the running plan request stops within an iteration: answered
-  with the best path found until then (status ``cancelled``), or, without one, with an
-  ``unavailable`` Error, as the queued requests are.
+  with the best path found until then (status ``shutdown``; nothing of it is published), or,
+  without one, with an ``unavailable`` Error, as the queued requests are.
 - Publishes ``lit/solution`` live, and after every query ``lit/observation`` and ``lit/decision``
   (one per decision point, from the planner's own record, so publishing never runs inside the timed
   loop), ``lit/episode`` (EpisodeSummary) and ``lit/path`` (``trajectory_msgs/JointTrajectory``).
@@ -868,7 +868,7 @@ class PlannerNode:
                     f"cut short by the planner node's shutdown after {result['time']:.3g} s of "
                     f"planning (status then: {result['status']}); the best path found until then"
                 )
-                result["status"] = "cancelled"
+                result["status"] = "shutdown"
                 job.result = result
                 self.log.info(f"plan request {job.episode_id}: {result['message']}")
             else:

@@ -205,23 +205,46 @@ def test_a_plan_answer_whose_path_failed_the_recheck_is_flagged() -> None:
     assert not call._path_failed_recheck("not JSON")
 
 
-def test_a_teardown_that_hangs_ends_with_the_answers_exit_code_and_says_where() -> None:
-    """Once the answer is printed, a hanging ROS teardown (once in CI) no longer keeps ``lit call``
-    alive: the process exits with the answer's code and prints where each thread was."""
+def _teardown(hang: str) -> subprocess.CompletedProcess[str]:
+    """A process that arms ``lit call``'s teardown watchdog (grace 0.5 s, code 3) and then runs
+    ``hang`` as its teardown."""
     script = (
-        "import threading, time\n"
+        "import re, threading, time\n"
         "from lit_planner import call\n"
         "call.TEARDOWN_GRACE = 0.5\n"
         "print('answer', flush=True)\n"
-        "call._exit_if_stuck(3)\n"
-        "threading.Event().wait()  # a teardown that never ends\n"
+        "disarm = call._exit_if_stuck(3)\n"
+        f"{hang}\n"
     )
-    process = subprocess.run(
+    return subprocess.run(
         [sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=False
     )
+
+
+def test_a_teardown_that_hangs_ends_with_the_answers_exit_code_and_says_where() -> None:
+    """Once the call is over, a hanging ROS teardown (once in CI) no longer keeps ``lit call``
+    alive: the process exits with the answer's code and prints where each thread was."""
+    process = _teardown("threading.Event().wait()  # a teardown that never ends")
     assert process.returncode == 3, process
     assert process.stdout == "answer\n"
-    assert "the ROS teardown did not end within 0.5 s after the answer; exiting with 3" in (
-        process.stderr
-    )
+    assert "the ROS teardown did not end within 0.5 s; exiting with 3" in process.stderr
     assert 'File "<string>", line 6' in process.stderr, process.stderr  # the hanging wait
+
+
+def test_a_teardown_that_hangs_holding_the_gil_still_ends() -> None:
+    """rclpy's teardown calls into DDS with the GIL held: the timer thread cannot run then, and
+    faulthandler's C thread ends the process (exit 1) with the stacks."""
+    # Catastrophic backtracking: one C call that holds the GIL for hours.
+    process = _teardown("re.match(r'(a+)+$', 'a' * 64 + 'b')")
+    assert process.returncode == 1, process
+    assert process.stdout == "answer\n"
+    assert "Timeout (0:00:01)!" in process.stderr, process.stderr
+    assert 'File "<string>", line 6' in process.stderr, process.stderr
+
+
+def test_a_teardown_that_ends_disarms_the_watchdog() -> None:
+    """Disarmed, it leaves a process that goes on alone (an in-process caller of ``run``)."""
+    process = _teardown("disarm(); time.sleep(1.5); print('still here', flush=True)")
+    assert process.returncode == 0, process
+    assert process.stdout == "answer\nstill here\n"
+    assert process.stderr == ""
