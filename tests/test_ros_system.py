@@ -1148,6 +1148,23 @@ def test_bad_input_is_answered_with_errors(ros: RosSystem) -> None:
     _no_traceback(planner, learner)
 
 
+def test_an_episode_without_decisions_for_episode_timeout_is_abandoned(ros: RosSystem) -> None:
+    """A planner that died mid-episode left its episode in the learner's memory and checkpoints
+    for good; after ``episode_timeout`` s without a decision it is abandoned with a warning."""
+    learner = ros.learner(episode_timeout=1.0, stats_period=0.2)
+    _ready(learner)
+    result = ros.call("--payload-only", "decide", "--no-probe", "--episode-id", "idle-1")
+    assert result.returncode == 0, result
+    learner.wait_for_log(
+        r"episode \S*idle-1 never ended \(no decision for 1 s\): its open steps are dropped",
+        timeout=60.0,
+    )
+    result = ros.call("--payload-only", "decide", "--no-probe", "--episode-id", "idle-2")
+    assert result.returncode == 0, result
+    assert "rejected:" not in learner.text(), learner.tail()
+    _no_traceback(learner)
+
+
 def test_a_learner_leaves_out_old_transitions_not_finite_and_refuses_networks_not_finite(
     ros: RosSystem,
 ) -> None:

@@ -43,6 +43,7 @@ from ros_helpers import launcher_domain
         (["--learner-param", "train:=everything"], "--learner-param: train must be both"),
         (["--learner-param", "stats_period:=-1"], "stats_period must be a positive"),
         (["--learner-param", "wait_for_subscribers:=-1"], "wait_for_subscribers must be 0 or"),
+        (["--learner-param", "episode_timeout:=-1.0"], "episode_timeout must be 0 (never) or"),
         # Names and run ids the node could not use (they crashed it with a traceback).
         (["--planner-param", "learner_service:=bad-name"], "is not a ROS service name"),
         (["--learner-param", "service:=/lit/x~y"], "is not a ROS service name"),

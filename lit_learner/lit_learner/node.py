@@ -17,6 +17,9 @@
   ``wait_for_subscribers: N`` from the first tick at which the topic has N matched subscriptions
   (a recorder: the topic is volatile, and a tick published before a recorder matched it was
   counted as missing from the bag). Ticks before that are not published and take no ``seq``.
+- An episode without a decision for ``episode_timeout`` s (its planner died, or lost its end)
+  is abandoned, as when its planner starts another: its open steps are dropped, its stored
+  transitions' gradient steps become due, and it no longer stays in memory and checkpoints.
 - Checkpoints every ``checkpoint_every`` episodes and ``checkpoint_period`` s, and on shutdown;
   resumes from ``checkpoint`` when the file exists (``fresh: true`` starts over).
 - Exports the B and K lookup tensors to ``export_dir`` on ``/lit/learner/export``
@@ -79,6 +82,7 @@ PARAMETERS: dict[str, Any] = {
     "max_episodes": 0,
     "stats_period": 1.0,
     "wait_for_subscribers": 0,
+    "episode_timeout": 3600.0,
     "run_id": "",
     "service": DECIDE_SERVICE,
     "trainer_nice": TRAINER_NICE,
@@ -107,6 +111,8 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
             return f"{name} must be 0 or more, got {p[name]}"
     if not p["checkpoint_period"] >= 0:  # also NaN
         return f"checkpoint_period must be 0 or more seconds, got {p['checkpoint_period']}"
+    if not (math.isfinite(p["episode_timeout"]) and p["episode_timeout"] >= 0):
+        return f"episode_timeout must be 0 (never) or more seconds, got {p['episode_timeout']}"
     if not (math.isfinite(p["stats_period"]) and p["stats_period"] > 0):
         return f"stats_period must be a positive number of seconds, got {p['stats_period']}"
     if not p["checkpoint"]:
@@ -201,7 +207,7 @@ class LearnerNode:
         self._decisions = 0
         self._probes = 0
         """Probe requests answered (``probe``: nothing recorded), counted in the stats' decisions."""
-        self._unapplied: collections.deque[tuple[Any, float | None, str, str | None]] = (
+        self._unapplied: collections.deque[tuple[Any, float | None, str | None, str | None]] = (
             collections.deque()
         )
         """Answered decisions not recorded yet (the lock was taken); applied in order."""
@@ -209,6 +215,9 @@ class LearnerNode:
         """Guards ``_unapplied`` (held for an append or a pop only)."""
         self._latest_time: dict[str, float] = {}
         """Planning time of each open episode's latest answered decision (serving thread)."""
+        self._last_seen: dict[str, float] = {}
+        """Monotonic time of each open episode's latest decision (written by the serving thread,
+        swept by the stats timer: ``episode_timeout``)."""
         self._open_episode: dict[str, str] = {}
         """Each planner's (source's) episode in progress (serving thread). A planner plans one
         episode at a time: its first request of another episode abandons an older one whose end
@@ -249,7 +258,7 @@ class LearnerNode:
             daemon=True,
         )
         self._export_thread.start()
-        node.create_timer(p["stats_period"], self._publish_stats)
+        node.create_timer(p["stats_period"], self._on_stats_timer)
         DuplicateServerWatch(node, p["service"]).start()
         self._trainer = threading.Thread(target=self._train, name="trainer", daemon=True)
         self._trainer.start()
@@ -387,6 +396,7 @@ class LearnerNode:
                         self._probes += 1
                     return response
                 self._latest_time[episode] = decision.planning_time
+                self._last_seen[episode] = time.monotonic()
                 abandoned = self._open_episode.get(message.source)
                 if abandoned == episode:
                     abandoned = None
@@ -394,6 +404,7 @@ class LearnerNode:
                     self._open_episode[message.source] = episode
                     if abandoned is not None:
                         self._latest_time.pop(abandoned, None)
+                        self._last_seen.pop(abandoned, None)
                 # The pairing and the replay insert happen after the answer is on its way.
                 self._decide.defer(
                     lambda: self._queue_commit(decision, a_norm, message.source, abandoned)
@@ -415,6 +426,7 @@ class LearnerNode:
             with self._lock:
                 self._apply_commits_locked()  # the episode's decisions, in order, first
                 self._latest_time.pop(episode, None)
+                self._last_seen.pop(episode, None)
                 before = sum(agent.transitions for agent in self.core.agents.values())
                 known = self.core.is_open(episode)
                 metrics = self.core.close_episode(end, count_unknown=False)
@@ -499,10 +511,17 @@ class LearnerNode:
                 decision, a_norm, source, abandoned = self._unapplied.popleft()
             if abandoned is not None and self.core.abandon_episode(abandoned):
                 self._work.notify_all()  # its stored transitions' gradient steps are due
-                self.log.warning(
-                    f"episode {abandoned} never ended (its planner started another one): its "
-                    "open steps are dropped, the gradient steps of its stored transitions are due"
+                why = (
+                    "its planner started another one"
+                    if decision is not None
+                    else f"no decision for {self.params['episode_timeout']:g} s"
                 )
+                self.log.warning(
+                    f"episode {abandoned} never ended ({why}): its open steps are dropped, the "
+                    "gradient steps of its stored transitions are due"
+                )
+            if decision is None:  # an abandonment alone (_sweep_idle_episodes)
+                continue
             try:
                 self.core.commit(decision, a_norm)
             except Exception as exc:  # noqa: BLE001 - the others still count
@@ -650,6 +669,31 @@ class LearnerNode:
         """Both locks: nothing in the core changes meanwhile."""
         with self._networks, self._lock:
             yield
+
+    def _on_stats_timer(self) -> None:
+        self._sweep_idle_episodes()
+        self._publish_stats()
+
+    def _sweep_idle_episodes(self) -> None:
+        """Queue the abandonment of every episode without a decision for ``episode_timeout`` s
+        (applied in order with the decisions, under the core's lock)."""
+        timeout = self.params["episode_timeout"]
+        if timeout <= 0:
+            return
+        now = time.monotonic()
+        idle = [e for e, seen in list(self._last_seen.items()) if now - seen > timeout]
+        queued = False
+        for episode in idle:
+            # The serving thread may have seen it again meanwhile: only if still that old.
+            seen = self._last_seen.get(episode)
+            if seen is not None and now - seen > timeout:
+                self._last_seen.pop(episode, None)
+                self._latest_time.pop(episode, None)  # should it go on, it starts anew
+                with self._queue_lock:
+                    self._unapplied.append((None, None, None, episode))
+                queued = True
+        if queued:
+            self.apply_commits(block=False)
 
     def _publish_stats(self, final: bool = False) -> None:
         """Publish the stats now: a timer tick (held back until ``wait_for_subscribers`` matched),
