@@ -78,6 +78,32 @@ SCRIPT = textwrap.dedent(
     out["e3_open"] = "planner/test|run-1|e3" in learner.core.pairing.episodes
     out["open_episodes"] = sorted(learner.core.open_episodes())
     out["open_by_source"] = dict(learner._open_episode)
+    # e3 idle past episode_timeout (10 s; its budget of 1 s doubled is shorter): abandoned.
+    e3 = "planner/test|run-1|e3"
+    learner.params["episode_timeout"] = 10.0
+    seen, budget, source = learner._last_seen[e3]
+    learner._last_seen[e3] = (seen - 9.0, budget, source)
+    learner._sweep_idle_episodes()
+    learner.apply_commits()  # what the sweep queued (it applies only if the lock is free)
+    out["e3_after_9s"] = e3 in learner.core.open_episodes()
+    learner._last_seen[e3] = (seen - 11.0, budget, source)
+    learner._sweep_idle_episodes()
+    learner.apply_commits()
+    out["e3_after_11s"] = [e3 in learner.core.open_episodes(), e3 in learner._last_seen,
+                           dict(learner._open_episode)]
+    episodes = learner.core.episodes
+    ok, payload = call("EpisodeEnd", {
+        "episode_id": "e3", "planning_time": 0.3, "time_budget": 1.0, "cost": None,
+        "minimum_cost": 1.0, "improvements": 0, "path_states": 0, "truncated": False,
+        "fallback_decisions": 0})
+    out["late_end"] = [ok, payload.get("transitions_stored"), learner.core.episodes - episodes]
+    call("DecideRequest", dict(decide("psi_K", 0.05), episode_id="e4"))
+    learner.params["episode_timeout"] = 0.5  # but its budget is 1 s: twice that is the limit
+    seen, budget, source = learner._last_seen["planner/test|run-1|e4"]
+    learner._last_seen["planner/test|run-1|e4"] = (seen - 1.5, budget, source)
+    learner._sweep_idle_episodes()
+    learner.apply_commits()
+    out["e4_within_budget"] = "planner/test|run-1|e4" in learner.core.open_episodes()
     learner.shutdown()
     learner.node.destroy_node()
     rclpy.shutdown()
@@ -117,3 +143,10 @@ def test_decisions_answered_while_the_lock_is_taken_are_recorded_after_in_order(
     # Nothing of e2 is kept anywhere (pairing, owed steps, reward terms); the ended e1 is not open.
     assert out["open_episodes"] == ["planner/test|run-1|e3"]
     assert list(out["open_by_source"].values()) == ["planner/test|run-1|e3"]
+    # An episode without decisions for episode_timeout s is abandoned (not before), and forgotten
+    # by its planner's entry too; its end, coming later, stores and counts nothing.
+    assert out["e3_after_9s"] is True
+    assert out["e3_after_11s"] == [False, False, {}]
+    assert out["late_end"] == [True, 0, 0]
+    # The limit is twice the episode's time budget when that is longer.
+    assert out["e4_within_budget"] is True

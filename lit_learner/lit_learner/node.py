@@ -17,8 +17,8 @@
   ``wait_for_subscribers: N`` from the first tick at which the topic has N matched subscriptions
   (a recorder: the topic is volatile, and a tick published before a recorder matched it was
   counted as missing from the bag). Ticks before that are not published and take no ``seq``.
-- An episode without a decision for ``episode_timeout`` s (its planner died, or lost its end)
-  is abandoned, as when its planner starts another: its open steps are dropped, its stored
+- An episode without a decision for ``episode_timeout`` s, or twice its time budget if that is
+  longer (its planner died, or lost its end), is abandoned, as when its planner starts another: its open steps are dropped, its stored
   transitions' gradient steps become due, and it no longer stays in memory and checkpoints.
 - Checkpoints every ``checkpoint_every`` episodes and ``checkpoint_period`` s, and on shutdown;
   resumes from ``checkpoint`` when the file exists (``fresh: true`` starts over).
@@ -212,12 +212,15 @@ class LearnerNode:
         )
         """Answered decisions not recorded yet (the lock was taken); applied in order."""
         self._queue_lock = threading.Lock()
-        """Guards ``_unapplied`` (held for an append or a pop only)."""
+        """Guards ``_unapplied`` (held for an append or a pop only), and the open episodes'
+        bookkeeping that the idle sweep changes (``_latest_time``, ``_last_seen``,
+        ``_open_episode``). Taken after ``_lock`` where both are held."""
         self._latest_time: dict[str, float] = {}
         """Planning time of each open episode's latest answered decision (serving thread)."""
-        self._last_seen: dict[str, float] = {}
-        """Monotonic time of each open episode's latest decision (written by the serving thread,
-        swept by the stats timer: ``episode_timeout``)."""
+        self._last_seen: dict[str, tuple[float, float, str]] = {}
+        """Each open episode's latest decision: monotonic time, the episode's time budget and
+        its planner (written by the serving thread, swept by the stats timer, both under
+        ``_queue_lock``: ``episode_timeout``)."""
         self._open_episode: dict[str, str] = {}
         """Each planner's (source's) episode in progress (serving thread). A planner plans one
         episode at a time: its first request of another episode abandons an older one whose end
@@ -395,16 +398,21 @@ class LearnerNode:
                     with self._queue_lock:
                         self._probes += 1
                     return response
-                self._latest_time[episode] = decision.planning_time
-                self._last_seen[episode] = time.monotonic()
-                abandoned = self._open_episode.get(message.source)
-                if abandoned == episode:
-                    abandoned = None
-                else:
-                    self._open_episode[message.source] = episode
-                    if abandoned is not None:
-                        self._latest_time.pop(abandoned, None)
-                        self._last_seen.pop(abandoned, None)
+                with self._queue_lock:  # the idle sweep sees all three or none
+                    self._latest_time[episode] = decision.planning_time
+                    self._last_seen[episode] = (
+                        time.monotonic(),
+                        decision.time_budget,
+                        message.source,
+                    )
+                    abandoned = self._open_episode.get(message.source)
+                    if abandoned == episode:
+                        abandoned = None
+                    else:
+                        self._open_episode[message.source] = episode
+                        if abandoned is not None:
+                            self._latest_time.pop(abandoned, None)
+                            self._last_seen.pop(abandoned, None)
                 # The pairing and the replay insert happen after the answer is on its way.
                 self._decide.defer(
                     lambda: self._queue_commit(decision, a_norm, message.source, abandoned)
@@ -425,13 +433,14 @@ class LearnerNode:
             )
             with self._lock:
                 self._apply_commits_locked()  # the episode's decisions, in order, first
-                self._latest_time.pop(episode, None)
-                self._last_seen.pop(episode, None)
+                with self._queue_lock:  # the idle sweep's bookkeeping too
+                    self._latest_time.pop(episode, None)
+                    self._last_seen.pop(episode, None)
+                    if self._open_episode.get(message.source) == episode:  # closed
+                        del self._open_episode[message.source]
                 before = sum(agent.transitions for agent in self.core.agents.values())
                 known = self.core.is_open(episode)
                 metrics = self.core.close_episode(end, count_unknown=False)
-                if self._open_episode.get(message.source) == episode:  # closed: not abandonable
-                    del self._open_episode[message.source]
                 stored = sum(agent.transitions for agent in self.core.agents.values()) - before
                 self._last_metrics.update(metrics)
                 self._planners.add(message.source)
@@ -675,25 +684,29 @@ class LearnerNode:
         self._publish_stats()
 
     def _sweep_idle_episodes(self) -> None:
-        """Queue the abandonment of every episode without a decision for ``episode_timeout`` s
-        (applied in order with the decisions, under the core's lock)."""
+        """Queue the abandonment of every episode without a decision for ``episode_timeout`` s,
+        or twice its time budget if that is longer (applied in order with the decisions, under
+        the core's lock). Quiet once the node is stopping: the final checkpoint keeps what is
+        open then, and the next start abandons it."""
         timeout = self.params["episode_timeout"]
-        if timeout <= 0:
+        if timeout <= 0 or self._stopping:
             return
-        now = time.monotonic()
-        idle = [e for e, seen in list(self._last_seen.items()) if now - seen > timeout]
-        queued = False
-        for episode in idle:
-            # The serving thread may have seen it again meanwhile: only if still that old.
-            seen = self._last_seen.get(episode)
-            if seen is not None and now - seen > timeout:
-                self._last_seen.pop(episode, None)
-                self._latest_time.pop(episode, None)  # should it go on, it starts anew
-                with self._queue_lock:
-                    self._unapplied.append((None, None, None, episode))
-                queued = True
-        if queued:
-            self.apply_commits(block=False)
+        try:
+            now = time.monotonic()
+            idle = []
+            with self._queue_lock:  # no decision of these lands between the look and the pop
+                for episode, (seen, budget, source) in list(self._last_seen.items()):
+                    if now - seen > max(timeout, 2.0 * budget):
+                        del self._last_seen[episode]
+                        self._latest_time.pop(episode, None)  # should it go on: anew
+                        if self._open_episode.get(source) == episode:
+                            del self._open_episode[source]
+                        self._unapplied.append((None, None, None, episode))
+                        idle.append(episode)
+            if idle:
+                self.apply_commits(block=False)
+        except Exception as exc:  # noqa: BLE001 - the timer's error would stop the node
+            self.log.error(f"idle episode sweep failed: {exc!r}")
 
     def _publish_stats(self, final: bool = False) -> None:
         """Publish the stats now: a timer tick (held back until ``wait_for_subscribers`` matched),
