@@ -32,7 +32,7 @@ namespace lit::litstar
         pairGoals_.clear();
         pairCosts_.clear();
         pairCentres_.clear();
-        pairRotations_.clear();
+        pairReflections_.clear();
         unionCost_ = -1.0;
         minimumCost_ = std::numeric_limits<double>::infinity();
         for (std::size_t s = 0; s < starts_.size(); ++s)
@@ -42,17 +42,31 @@ namespace lit::litstar
                 const double cost = (goal - start).norm();
                 minimumCost_ = std::min(minimumCost_, cost);
                 // The Householder reflection mapping e_1 onto the transverse axis start -> goal.
-                Eigen::MatrixXd rotation = Eigen::MatrixXd::Identity(dim_, dim_);
                 const Eigen::VectorXd axis = (goal - start) / std::max(cost, 1e-300);
                 Eigen::VectorXd v = Eigen::VectorXd::Unit(dim_, 0) - axis;
                 if (v.norm() > 1e-12)
-                    rotation -= 2.0 * v * v.transpose() / v.squaredNorm();
+                {
+                    if (starts_.size() * goals_.size() == 1u)
+                    {
+                        singleRotation_ = Eigen::MatrixXd::Identity(dim_, dim_);
+                        singleRotation_ -= 2.0 * v * v.transpose() / v.squaredNorm();
+                    }
+                    v *= std::sqrt(2.0) / v.norm();
+                }
+                else
+                {
+                    if (starts_.size() * goals_.size() == 1u)
+                        singleRotation_ = Eigen::MatrixXd::Identity(dim_, dim_);
+                    v.setZero();
+                }
                 pairStarts_.push_back(s);
                 pairGoals_.push_back(g);
                 pairCosts_.push_back(cost);
                 pairCentres_.push_back(0.5 * (start + goal));
-                pairRotations_.push_back(std::move(rotation));
+                pairReflections_.push_back(std::move(v));
             }
+        toStarts_.assign(starts_.size(), 0.0);
+        toGoals_.assign(goals_.size(), 0.0);
     }
 
     double InformedSampler::heuristicCost(const double *x) const
@@ -86,7 +100,13 @@ namespace lit::litstar
         const double conjugate = 0.5 * std::sqrt(std::max(maxCost * maxCost - cost * cost, 0.0));
         for (unsigned int i = 1; i < dim_; ++i)
             ball[i] *= conjugate;
-        Eigen::Map<Eigen::VectorXd>(x, dim_) = pairRotations_[index] * ball + pairCentres_[index];
+        if (pairCosts_.size() == 1u)
+            Eigen::Map<Eigen::VectorXd>(x, dim_) = singleRotation_ * ball + pairCentres_[index];
+        else
+        {
+            const Eigen::VectorXd &u = pairReflections_[index];
+            Eigen::Map<Eigen::VectorXd>(x, dim_) = ball - u * u.dot(ball) + pairCentres_[index];
+        }
     }
 
     bool InformedSampler::sampleUnion(double maxCost, double *x)
@@ -98,10 +118,15 @@ namespace lit::litstar
         const std::size_t chosen = std::min(index, pairCosts_.size() - 1u);
         sampleEllipsoid(chosen, maxCost, x);
         // Kept with probability 1 / (the hyperspheroids holding it): uniform over the union.
+        // Each distance once: O((starts + goals) n + pairs), not O(pairs n).
         const Eigen::Map<const Eigen::VectorXd> p(x, dim_);
+        for (std::size_t i = 0; i < starts_.size(); ++i)
+            toStarts_[i] = (p - starts_[i]).norm();
+        for (std::size_t i = 0; i < goals_.size(); ++i)
+            toGoals_[i] = (goals_[i] - p).norm();
         std::size_t holding = 1u;  // the chosen one, also where rounding puts x just outside it
         for (std::size_t j = 0; j < pairCosts_.size(); ++j)
-            if (j != chosen && (p - starts_[pairStarts_[j]]).norm() + (goals_[pairGoals_[j]] - p).norm() <= maxCost)
+            if (j != chosen && toStarts_[pairStarts_[j]] + toGoals_[pairGoals_[j]] <= maxCost)
                 ++holding;
         return holding == 1u || rng_.uniform01() * static_cast<double>(holding) < 1.0;
     }
