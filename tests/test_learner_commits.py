@@ -104,6 +104,11 @@ SCRIPT = textwrap.dedent(
     learner._sweep_idle_episodes()
     learner.apply_commits()
     out["e4_within_budget"] = "planner/test|run-1|e4" in learner.core.open_episodes()
+    learner._last_seen["planner/test|run-1|e4"] = (seen - 2.5, budget, source)
+    learner._sweep_idle_episodes()
+    learner.apply_commits()
+    out["e4_after_budget"] = "planner/test|run-1|e4" in learner.core.open_episodes()
+    out["idle_limits"] = dict(learner._idle_limits)
     learner.shutdown()
     learner.node.destroy_node()
     rclpy.shutdown()
@@ -149,4 +154,5 @@ def test_decisions_answered_while_the_lock_is_taken_are_recorded_after_in_order(
     assert out["e3_after_11s"] == [False, False, {}]
     assert out["late_end"] == [True, 0, 0]
     # The limit is twice the episode's time budget when that is longer.
-    assert out["e4_within_budget"] is True
+    assert out["e4_within_budget"] is True and out["e4_after_budget"] is False
+    assert out["idle_limits"] == {}  # each limit went with its warning

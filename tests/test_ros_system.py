@@ -1153,7 +1153,9 @@ def test_an_episode_without_decisions_for_episode_timeout_is_abandoned(ros: RosS
     for good; after ``episode_timeout`` s without a decision it is abandoned with a warning."""
     learner = ros.learner(episode_timeout=1.0, stats_period=0.2)
     _ready(learner)
-    result = ros.call("--payload-only", "decide", "--no-probe", "--episode-id", "idle-1")
+    # Its time budget (0.2 s) doubled is shorter than episode_timeout: that is the limit.
+    result = ros.call("--payload-only", "decide", "--no-probe", "--episode-id", "idle-1",
+                      "--time-budget", "0.2")  # fmt: skip
     assert result.returncode == 0, result
     learner.wait_for_log(
         r"episode \S*idle-1 never ended \(no decision for 1 s\): its open steps are dropped",

@@ -221,6 +221,8 @@ class LearnerNode:
         """Each open episode's latest decision: monotonic time, the episode's time budget and
         its planner (written by the serving thread, swept by the stats timer, both under
         ``_queue_lock``: ``episode_timeout``)."""
+        self._idle_limits: dict[str, float] = {}
+        """The limit each episode queued by the idle sweep exceeded, for its warning."""
         self._open_episode: dict[str, str] = {}
         """Each planner's (source's) episode in progress (serving thread). A planner plans one
         episode at a time: its first request of another episode abandons an older one whose end
@@ -518,12 +520,14 @@ class LearnerNode:
                 if not self._unapplied:
                     return
                 decision, a_norm, source, abandoned = self._unapplied.popleft()
+            # The idle sweep queues an abandonment alone, without a decision.
+            limit = self._idle_limits.pop(abandoned, None) if decision is None else None
             if abandoned is not None and self.core.abandon_episode(abandoned):
                 self._work.notify_all()  # its stored transitions' gradient steps are due
                 why = (
                     "its planner started another one"
-                    if decision is not None
-                    else f"no decision for {self.params['episode_timeout']:g} s"
+                    if limit is None
+                    else f"no decision for {limit:g} s"
                 )
                 self.log.warning(
                     f"episode {abandoned} never ended ({why}): its open steps are dropped, the "
@@ -696,11 +700,13 @@ class LearnerNode:
             idle = []
             with self._queue_lock:  # no decision of these lands between the look and the pop
                 for episode, (seen, budget, source) in list(self._last_seen.items()):
-                    if now - seen > max(timeout, 2.0 * budget):
+                    limit = max(timeout, 2.0 * budget)
+                    if now - seen > limit:
                         del self._last_seen[episode]
                         self._latest_time.pop(episode, None)  # should it go on: anew
                         if self._open_episode.get(source) == episode:
                             del self._open_episode[source]
+                        self._idle_limits[episode] = limit
                         self._unapplied.append((None, None, None, episode))
                         idle.append(episode)
             if idle:
