@@ -109,6 +109,22 @@ SCRIPT = textwrap.dedent(
     learner.apply_commits()
     out["e4_after_budget"] = "planner/test|run-1|e4" in learner.core.open_episodes()
     out["idle_limits"] = dict(learner._idle_limits)
+    # An end the core refuses (earlier than the episode's last decision) leaves it open and
+    # tracked: the idle sweep still abandons it.
+    e5 = "planner/test|run-1|e5"
+    call("DecideRequest", dict(decide("psi_K", 0.5), episode_id="e5"))
+    ok, payload = call("EpisodeEnd", {
+        "episode_id": "e5", "planning_time": 0.1, "time_budget": 1.0, "cost": None,
+        "minimum_cost": 1.0, "improvements": 0, "path_states": 0, "truncated": False,
+        "fallback_decisions": 0})
+    out["refused_end"] = [ok, payload.get("code"), e5 in learner.core.open_episodes(),
+                          e5 in learner._last_seen, learner._open_episode.get("planner/test")]
+    seen, budget, source = learner._last_seen[e5]
+    learner._last_seen[e5] = (seen - 11.0, budget, source)
+    learner.params["episode_timeout"] = 10.0
+    learner._sweep_idle_episodes()
+    learner.apply_commits()
+    out["refused_end_swept"] = e5 in learner.core.open_episodes()
     learner.shutdown()
     learner.node.destroy_node()
     rclpy.shutdown()
@@ -156,3 +172,6 @@ def test_decisions_answered_while_the_lock_is_taken_are_recorded_after_in_order(
     # The limit is twice the episode's time budget when that is longer.
     assert out["e4_within_budget"] is True and out["e4_after_budget"] is False
     assert out["idle_limits"] == {}  # each limit went with its warning
+    # A refused end leaves the episode open and tracked, so the sweep can still abandon it.
+    assert out["refused_end"] == [False, "invalid-request", True, True, "planner/test|run-1|e5"]
+    assert out["refused_end_swept"] is False

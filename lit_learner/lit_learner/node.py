@@ -435,14 +435,16 @@ class LearnerNode:
             )
             with self._lock:
                 self._apply_commits_locked()  # the episode's decisions, in order, first
-                with self._queue_lock:  # the idle sweep's bookkeeping too
-                    self._latest_time.pop(episode, None)
-                    self._last_seen.pop(episode, None)
-                    if self._open_episode.get(message.source) == episode:  # closed
-                        del self._open_episode[message.source]
                 before = sum(agent.transitions for agent in self.core.agents.values())
                 known = self.core.is_open(episode)
                 metrics = self.core.close_episode(end, count_unknown=False)
+                # Closed: forgotten only now (an end refused above leaves the episode open, to be
+                # abandoned by the planner's next episode or the idle sweep).
+                with self._queue_lock:  # the idle sweep's bookkeeping too
+                    self._latest_time.pop(episode, None)
+                    self._last_seen.pop(episode, None)
+                    if self._open_episode.get(message.source) == episode:
+                        del self._open_episode[message.source]
                 stored = sum(agent.transitions for agent in self.core.agents.values()) - before
                 self._last_metrics.update(metrics)
                 self._planners.add(message.source)
