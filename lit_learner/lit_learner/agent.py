@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Iterable
 from contextlib import AbstractContextManager, nullcontext
 from typing import Any
 
@@ -227,37 +228,30 @@ class DDPGAgent:
             NonFiniteWeights: a network holds a weight, or an optimiser a moment, that is not
                 finite (it would answer NaN, or make the weights NaN at its first step).
         """
-        networks = {
-            "actor": self.actor,
-            "critic": self.critic,
-            "actor_target": self.actor_target,
-            "critic_target": self.critic_target,
-        }
-        for name, network in networks.items():
-            network.load_state_dict(state[name])
-            bad = [k for k, v in network.state_dict().items() if not torch.isfinite(v).all()]
-            if bad:
-                raise NonFiniteWeights(
-                    f"the {name} holds weights that are not finite: {', '.join(bad)}"
-                )
-        optimizers = {
-            "actor_optimizer": self.actor_optimizer,
-            "critic_optimizer": self.critic_optimizer,
-        }
-        for name, optimizer in optimizers.items():
+        networks = ("actor", "critic", "actor_target", "critic_target")
+        for name in networks:
+            getattr(self, name).load_state_dict(state[name])
+            _refuse_non_finite(name, "weights", getattr(self, name).state_dict().items())
+        for name in ("actor_optimizer", "critic_optimizer"):
+            optimizer = getattr(self, name)
             optimizer.load_state_dict(state[name])
-            bad = [
-                f"{index}.{key}"
-                for index, slots in optimizer.state_dict()["state"].items()
-                for key, value in slots.items()
-                if isinstance(value, torch.Tensor) and not torch.isfinite(value).all()
-            ]
-            if bad:  # its first step would make the weights NaN
-                raise NonFiniteWeights(
-                    f"the {name} holds moments that are not finite: {', '.join(bad)}"
-                )
+            slots = optimizer.state_dict()["state"].items()  # its first step would make NaN
+            _refuse_non_finite(
+                name, "moments", ((f"{i}.{k}", v) for i, d in slots for k, v in d.items())
+            )
         dropped = self.replay.load_state_dict(state["replay"])
         self.rng.bit_generator.state = state["rng"]
         self.updates = state["updates"]
         self.transitions = state["transitions"]
         return dropped
+
+
+def _refuse_non_finite(owner: str, what: str, tensors: Iterable[tuple[str, Any]]) -> None:
+    """Raise :class:`NonFiniteWeights` naming the tensors of ``owner`` that are not finite."""
+    bad = [
+        name
+        for name, value in tensors
+        if isinstance(value, torch.Tensor) and not torch.isfinite(value).all()
+    ]
+    if bad:
+        raise NonFiniteWeights(f"the {owner} holds {what} that are not finite: {', '.join(bad)}")

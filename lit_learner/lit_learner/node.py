@@ -207,10 +207,12 @@ class LearnerNode:
         self._decisions = 0
         self._probes = 0
         """Probe requests answered (``probe``: nothing recorded), counted in the stats' decisions."""
-        self._unapplied: collections.deque[tuple[Any, float | None, str | None, str | None]] = (
-            collections.deque()
-        )
-        """Answered decisions not recorded yet (the lock was taken); applied in order."""
+        self._unapplied: collections.deque[
+            tuple[Any, float | None, str | None, tuple[str, str] | None]
+        ] = collections.deque()
+        """Answered decisions not recorded yet (the lock was taken), each with the episode it
+        abandons first and why; the idle sweep queues abandonments alone (no decision). Applied
+        in order."""
         self._queue_lock = threading.Lock()
         """Guards ``_unapplied`` (held for an append or a pop only), and the open episodes'
         bookkeeping that the idle sweep changes (``_latest_time``, ``_last_seen``,
@@ -221,8 +223,6 @@ class LearnerNode:
         """Each open episode's latest decision: monotonic time, the episode's time budget and
         its planner (written by the serving thread, swept by the stats timer, both under
         ``_queue_lock``: ``episode_timeout``)."""
-        self._idle_limits: dict[str, float] = {}
-        """The limit each episode queued by the idle sweep exceeded, for its warning."""
         self._open_episode: dict[str, str] = {}
         """Each planner's (source's) episode in progress (serving thread). A planner plans one
         episode at a time: its first request of another episode abandons an older one whose end
@@ -503,8 +503,9 @@ class LearnerNode:
         of ms; the serving thread used to wait for it before taking the next request, and the
         planner's 50 ms decision deadline ran out. ``abandoned``: the same planner's previous
         episode, whose end never came, is abandoned first."""
+        first = None if abandoned is None else (abandoned, "its planner started another one")
         with self._queue_lock:
-            self._unapplied.append((decision, a_norm, source, abandoned))
+            self._unapplied.append((decision, a_norm, source, first))
         self.apply_commits(block=False)
 
     def apply_commits(self, block: bool = True) -> None:
@@ -522,17 +523,11 @@ class LearnerNode:
                 if not self._unapplied:
                     return
                 decision, a_norm, source, abandoned = self._unapplied.popleft()
-            # The idle sweep queues an abandonment alone, without a decision.
-            limit = self._idle_limits.pop(abandoned, None) if decision is None else None
-            if abandoned is not None and self.core.abandon_episode(abandoned):
+            if abandoned is not None and self.core.abandon_episode(abandoned[0]):
                 self._work.notify_all()  # its stored transitions' gradient steps are due
-                why = (
-                    "its planner started another one"
-                    if limit is None
-                    else f"no decision for {limit:g} s"
-                )
+                episode, why = abandoned
                 self.log.warning(
-                    f"episode {abandoned} never ended ({why}): its open steps are dropped, the "
+                    f"episode {episode} never ended ({why}): its open steps are dropped, the "
                     "gradient steps of its stored transitions are due"
                 )
             if decision is None:  # an abandonment alone (_sweep_idle_episodes)
@@ -708,8 +703,8 @@ class LearnerNode:
                         self._latest_time.pop(episode, None)  # should it go on: anew
                         if self._open_episode.get(source) == episode:
                             del self._open_episode[source]
-                        self._idle_limits[episode] = limit
-                        self._unapplied.append((None, None, None, episode))
+                        why = f"no decision for {limit:g} s"
+                        self._unapplied.append((None, None, None, (episode, why)))
                         idle.append(episode)
             if idle:
                 self.apply_commits(block=False)

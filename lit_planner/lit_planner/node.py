@@ -853,24 +853,15 @@ class PlannerNode:
             cancelled = job.cancelled.is_set()
         cut_short = job.stop.is_set() and self._stopping.is_set()  # shutdown()
         if cancelled and not cut_short and result["status"] not in INVALID_TERMINAL:
-            found = "the best path found until then" if result["solved"] else "no path found"
-            result["message"] = (
-                f"cancelled by a CancelRequest after {result['time']:.3g} s of planning "
-                f"(status then: {result['status']}); {found}"
-            )
-            result["status"] = "cancelled"
-            self.log.info(f"plan request {job.episode_id}: {result['message']}")
+            self._stopped_early(job, result, "cancelled", "cancelled by a CancelRequest")
         if cut_short and job.kind == "service":
             if result["solved"] and result["status"] not in INVALID_TERMINAL:
                 # As a cancel does: the best path found until then (a 600 s anytime query cut
                 # short after a solution came threw it away with an unavailable Error).
-                result["message"] = (
-                    f"cut short by the planner node's shutdown after {result['time']:.3g} s of "
-                    f"planning (status then: {result['status']}); the best path found until then"
+                self._stopped_early(
+                    job, result, "shutdown", "cut short by the planner node's shutdown"
                 )
-                result["status"] = "shutdown"
                 job.result = result
-                self.log.info(f"plan request {job.episode_id}: {result['message']}")
             else:
                 job.error = _stopping_error(
                     job.request_seq,
@@ -906,6 +897,17 @@ class PlannerNode:
             self.log.info(f"{job.kind} episode {job.episode_id} cut short by the shutdown{told}")
             return
         self._publish_episode(job, episode, listener, result)
+
+    def _stopped_early(self, job: Job, result: dict[str, Any], status: str, why: str) -> None:
+        """Relabel ``result`` of a query stopped before its limits (by a cancel or the shutdown)
+        with ``status``; its message keeps the planner's own status and says what was found."""
+        found = "the best path found until then" if result["solved"] else "no path found"
+        result["message"] = (
+            f"{why} after {result['time']:.3g} s of planning (status then: {result['status']}); "
+            f"{found}"
+        )
+        result["status"] = status
+        self.log.info(f"plan request {job.episode_id}: {result['message']}")
 
     # ------------------------------------------------------------------ learner calls
 
