@@ -32,6 +32,8 @@ from lit_planner.up import DomainBusy, DomainClaim, claim_domain
 
 PYTHON_TEST_DIRS = ("tests", "lit_planner/test", "lit_learner/test", "lit_msgs_json/test")
 """Python test directories, relative to the checkout root; missing ones are skipped."""
+PYTEST_HANG_DUMP_S = 600
+"""Seconds after which a still-running pytest test has its threads' stacks printed."""
 CTEST_GLOB = "lit_planner/core/build/*/CTestTestfile.cmake"
 """Where the core's scikit-build-core build tree registers its GoogleTest binaries."""
 ROS_DOMAIN_IDS = range(1, 101)
@@ -272,7 +274,17 @@ def run_pytest(
     # Default (prepend) import mode: test module basenames must be unique across the test
     # directories. importlib mode would lift that, but it registers `lit_planner`, `lit_msgs_json`
     # as parents of the test modules and so hides the real packages.
-    command = [sys.executable, "-m", "pytest", "-q", f"--junitxml={report}"]
+    # A test still running after PYTEST_HANG_DUMP_S has every thread's stack printed (pytest's own
+    # faulthandler plugin; it does not stop the test), so a hung run shows where it hangs.
+    command = [
+        sys.executable,
+        "-m",
+        "pytest",
+        "-q",
+        f"--junitxml={report}",
+        "-o",
+        f"faulthandler_timeout={PYTEST_HANG_DUMP_S}",
+    ]
     if keyword:
         command += ["-k", keyword]
     command += targets + extra
