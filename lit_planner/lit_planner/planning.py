@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import os
 import re
 import threading
@@ -87,7 +88,7 @@ def default_tensors_dir() -> Path:
 
 _CORE_ARGUMENT_ERROR = re.compile(
     r"planner \S+ (has no parameter|rejected the value)|policies apply to|\S+ stops on time only"
-    r"|solve needs a positive time|unknown planner"
+    r"|solve needs a (positive|finite) time|unknown planner"
 )
 """The messages of ``lit_core.solve``'s own argument checks (python/bindings.cpp)."""
 
@@ -454,8 +455,10 @@ def plan(
     # A psi_K tensor is used as it was trained: one decision every that many expansions.
     params = {**policy_params(policy_object), **(params or {})}
     for label, value in (("max_iterations", max_iterations), ("max_batches", max_batches)):
-        if not 0 <= value <= MAX_SEED:
-            raise PlannerError(f"{label} must be between 0 (no limit) and {MAX_SEED}, got {value}")
+        if not _is_whole(value) or not 0 <= value <= MAX_SEED:
+            raise PlannerError(
+                f"{label} must be a whole number between 0 (no limit) and {MAX_SEED}, got {value!r}"
+            )
     check_seed(seed)
     stops_on_count = bool(max_iterations or max_batches)
     if core_planner != LITSTAR and stops_on_count:
@@ -464,8 +467,8 @@ def plan(
         )
     if time is None:
         time = 0.0 if stops_on_count else problem.time_budget
-    elif not (math.isfinite(time) and time > 0):
-        raise PlannerError(f"time must be a positive number of seconds, got {time}")
+    elif not (_is_real(time) and math.isfinite(time) and time > 0):
+        raise PlannerError(f"time must be a positive number of seconds, got {time!r}")
     elif time > MAX_TIME:
         raise PlannerError(f"time must be at most {MAX_TIME:g} s, got {time:g}")
 
@@ -505,10 +508,21 @@ def plan(
     return result
 
 
+def _is_whole(value: object) -> bool:
+    """An integer (numpy's too), not a bool: the core's arguments would refuse anything else."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def _is_real(value: object) -> bool:
+    """A real number (numpy's too), not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
 def check_seed(seed: int) -> None:
-    """Raise :class:`PlannerError` unless ``seed`` fits the core's unsigned 32-bit seeds."""
-    if not 0 <= seed <= MAX_SEED:
-        raise PlannerError(f"seed must be between 0 and {MAX_SEED}, got {seed}")
+    """Raise :class:`PlannerError` unless ``seed`` is a whole number that fits the core's unsigned
+    32-bit seeds."""
+    if not _is_whole(seed) or not 0 <= seed <= MAX_SEED:
+        raise PlannerError(f"seed must be a whole number between 0 and {MAX_SEED}, got {seed!r}")
 
 
 def quiet_ompl(planner: str) -> None:

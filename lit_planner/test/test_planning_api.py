@@ -749,3 +749,37 @@ def test_arguments_are_not_overridden_by_params_and_times_are_bounded() -> None:
             plan("np4", max_iterations=10, params={name: 5})
     with pytest.raises(PlannerError, match="time must be at most"):
         plan("np4", planner="rrtconnect", time=1e10)
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        ({"max_iterations": 1.5}, "max_iterations must be a whole number"),
+        ({"max_batches": "3"}, "max_batches must be a whole number"),
+        ({"seed": 3.0, "max_iterations": 10}, "seed must be a whole number"),
+        ({"seed": True, "max_iterations": 10}, "seed must be a whole number"),
+        ({"time": "1"}, "time must be a positive number of seconds, got '1'"),
+    ],
+)
+def test_arguments_that_are_not_numbers_of_their_kind_are_planner_errors(
+    arguments: dict, message: str
+) -> None:
+    """They reached pybind11 and came back as a bare TypeError ("incompatible function
+    arguments") instead of the PlannerError naming the argument."""
+    with pytest.raises(PlannerError, match=message):
+        plan("np4", **arguments)
+
+
+def test_numpy_integers_are_whole_numbers() -> None:
+    result = plan("np4", seed=np.uint32(3001), max_iterations=np.int64(50))
+    assert result["seed"] == 3001
+
+
+def test_the_core_refuses_a_time_that_is_not_finite() -> None:
+    """time=inf ended OMPL's planners at once as a timeout and gave LIT* no limit."""
+    from lit_planner import planning
+
+    for planner in ("bitstar", "litstar"):
+        for budget in (math.inf, math.nan, -1.0):
+            with pytest.raises(ValueError, match="solve needs a finite time >= 0 in seconds"):
+                lit_core.solve(planning.query_for("np4"), planner, time=budget, max_iterations=10)

@@ -283,6 +283,7 @@ namespace lit
         clockRunning_ = false;
         statusMessage_.clear();
         firstSolutionMeasure_ = 0.0;
+        warnedUnusableDecision_ = false;
     }
 
     ompl::base::PlannerStatus LITstar::initializeProblem(const ompl::base::PlannerTerminationCondition &ptc)
@@ -811,7 +812,10 @@ namespace lit
         }
         const double edgeCost = graph_->distance(source, target);
         const double costToCome = source->costToCome_ + edgeCost;
-        if (costToCome >= target->costToCome_ || costToCome + target->costToGoLowerBound_ >= bestCost_)
+        // An edge queued before the reverse search's sparse check found it invalid: checking it again only
+        // counted it twice (it is never a reverse-tree edge: the reverse search skips blacklisted edges).
+        if (costToCome >= target->costToCome_ || costToCome + target->costToGoLowerBound_ >= bestCost_ ||
+            isBlacklisted(source, target))
             return;
         if (!isWhitelisted(source, target))
         {
@@ -1094,6 +1098,15 @@ namespace lit
         return value;
     }
 
+    void LITstar::warnUnusableDecision(const char *parameter, double value)
+    {
+        if (!warnedUnusableDecision_)
+            OMPL_WARN("%s: the %s policy answered %g for %s; the value in use is kept (further unusable answers "
+                      "of this problem are not reported)",
+                      getName().c_str(), policy_->name().c_str(), value, parameter);
+        warnedUnusableDecision_ = true;
+    }
+
     void LITstar::adaptiveBatchsize()
     {
         DecisionContext context = makeContext(DecisionKind::BatchSize);
@@ -1110,7 +1123,13 @@ namespace lit
             context.features.rhoLocalB = rhoLocalB_;
         }
         const double value = decide(context);
-        batchSize_ = static_cast<unsigned int>(std::max(1L, std::lround(value)));
+        // Any ParameterPolicy can be plugged in: a whole number of at least 1 and at most INT_MAX (a cast of
+        // 5e9 wrapped to 705032704), and an answer that is not a number keeps the batch size in use.
+        if (std::isfinite(value))
+            batchSize_ = static_cast<unsigned int>(
+                std::clamp(std::round(value), 1.0, static_cast<double>(std::numeric_limits<int>::max())));
+        else
+            warnUnusableDecision("B", value);
         ++counters_.batchDecisions;
         DecisionEvent event;
         event.kind = DecisionKind::BatchSize;
@@ -1133,7 +1152,11 @@ namespace lit
                 const double ratio = graph_->localRatio(centre->raw_, graph_->radius(rewireFactor_, informed));
                 context.features.rhoLocalK = ratio >= 0.0 ? ratio : context.features.rhoGlobal;
             }
-            neighbourFactor_ = decide(context);
+            const double value = decide(context);
+            if (std::isfinite(value) && value > 0.0)
+                neighbourFactor_ = value;
+            else
+                warnUnusableDecision("psi_K", value);  // keeps the factor in use
             ++counters_.neighbourDecisions;
             const std::size_t k = neighbourCount(neighbourFactor_);
             DecisionEvent event;

@@ -312,6 +312,75 @@ TEST(LITstar, PoliciesDecideBatchSizeAndNeighbourFactor)
         }
 }
 
+namespace
+{
+    // A policy of someone else's, which does not keep its answers in range itself.
+    class ScriptedPolicy : public ParameterPolicy
+    {
+    public:
+        ScriptedPolicy(std::vector<double> batchSizes, std::vector<double> factors)
+          : batchSizes_(std::move(batchSizes)), factors_(std::move(factors))
+        {
+        }
+        std::string name() const override
+        {
+            return "scripted";
+        }
+        bool needsFeatures() const override
+        {
+            return false;
+        }
+        double decide(const DecisionContext &context) override
+        {
+            const bool batch = context.kind == DecisionKind::BatchSize;
+            const std::vector<double> &values = batch ? batchSizes_ : factors_;
+            std::size_t &next = batch ? nextBatchSize_ : nextFactor_;
+            return values[std::min(next++, values.size() - 1u)];
+        }
+
+    private:
+        std::vector<double> batchSizes_, factors_;
+        std::size_t nextBatchSize_{0u}, nextFactor_{0u};
+    };
+}  // namespace
+
+TEST(LITstar, UsesOnlyUsablePolicyAnswers)
+{
+    // B: at least 1, a whole number, at most INT_MAX (5e9 wrapped to 705032704), and NaN keeps the one in use;
+    // psi_K: NaN and answers <= 0 keep the factor in use.
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    auto policy = std::make_shared<ScriptedPolicy>(std::vector<double>{-3.0, nan, 37.4, 5e9},
+                                                   std::vector<double>{nan, -1.0, 0.0, 4.0});
+    BoxProblem problem = test::narrowPassage(4);
+    auto planner = std::make_shared<LITstar>(problem.si);
+    auto recorder = std::make_shared<Recorder>();
+    planner->setPolicy(policy);
+    planner->setSeed(3007u);
+    planner->addListener(recorder);
+    planner->setProblemDefinition(problem.pdef);
+    planner->setup();
+    const auto batchDecisions = [&recorder] {
+        std::vector<double> values;
+        for (const auto &d : recorder->decisions)
+            if (d.kind == DecisionKind::BatchSize)
+                values.push_back(d.value);
+        return values;
+    };
+    // Ends once the fourth B is decided: a batch of INT_MAX samples would not end otherwise.
+    planner->solve(ompl::base::PlannerTerminationCondition([&] { return planner->counters().batchDecisions >= 4u; }));
+    EXPECT_EQ(batchDecisions(), (std::vector<double>{1.0, 1.0, 37.0, static_cast<double>(std::numeric_limits<int>::max())}));
+    std::vector<double> factors;
+    for (const auto &d : recorder->decisions)
+        if (d.kind == DecisionKind::NeighbourFactor)
+            factors.push_back(d.value);
+    ASSERT_GE(factors.size(), 4u);
+    EXPECT_EQ(std::vector<double>(factors.begin(), factors.begin() + 4),
+              (std::vector<double>{M_E, M_E, M_E, 4.0}));
+    for (const auto &d : recorder->decisions)
+        if (d.kind == DecisionKind::NeighbourFactor)
+            EXPECT_GE(d.neighbours, 1u);
+}
+
 TEST(LITstar, OnePolicyServesPlannersSolvingAtTheSameTime)
 {
     // FIT*'s reference measure (the informed set's at the first solution) comes with each decision from the planner
