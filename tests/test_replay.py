@@ -1031,6 +1031,27 @@ def test_compact_of_damaged_bag_gives_salvage_hint(tmp_path: Path) -> None:
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("command", ["info", "verify", "compact"])
+def test_messages_a_damaged_summary_hides_are_an_error(command: str, tmp_path: Path) -> None:
+    """One changed byte of a channel's message encoding in the MCAP summary ("cdr" -> "cdv") made
+    rosbags leave out that channel's messages without an error: info counted 0, verify checked
+    none and compact wrote a bag without them, all with exit 0."""
+    path = _numbered_bag(tmp_path / "hidden", 20)
+    data = bytearray(_mcap(path).read_bytes())
+    at = data.rfind(b"cdr")  # the summary section repeats the channel records at the end
+    assert at > len(data) // 2
+    data[at + 2] = ord("v")
+    _mcap(path).write_bytes(bytes(data))
+    out = tmp_path / "out"
+    result = _replay(command, path, *([out] if command == "compact" else []))
+    _assert_clean_error(result, "0 of the 20 messages of /lit/observation it lists could be read")
+    assert f"lit replay salvage {path}" in result.stderr
+    assert not out.exists()
+    salvaged = _replay("salvage", path, "-o", tmp_path / "salvaged")
+    assert salvaged.returncode == 0, salvaged.stderr
+    assert _recovered(salvaged.stdout) == 20
+
+
 def test_salvage_of_a_cut_first_chunk_recovers_its_complete_records(tmp_path: Path) -> None:
     data = (LITSTAR_SAMPLE / "out.mcap").read_bytes()
     for size in (100, 1000):  # inside the first chunk: nothing but schema and channels

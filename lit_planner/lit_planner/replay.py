@@ -323,11 +323,13 @@ class BagReader:
             ReplayError: the data cannot be read on (names how many messages were read).
         """
         read = 0
+        per_topic: dict[str, int] = {}
         iterator = self._reader.messages()
         while True:
             try:
                 item = next(iterator)
             except StopIteration:
+                self._check_all_read(per_topic)
                 return
             except Exception as error:  # noqa: BLE001 -- damaged files raise anything
                 raise ReplayError(
@@ -335,7 +337,22 @@ class BagReader:
                     f"recover it with `lit replay salvage {self.path}`"
                 ) from None
             read += 1
+            per_topic[item[0].topic] = per_topic.get(item[0].topic, 0) + 1
             yield item
+
+    def _check_all_read(self, per_topic: Mapping[str, int]) -> None:
+        """Raise :class:`ReplayError` when fewer messages of a topic were read than the bag
+        lists: a damaged byte in an MCAP file's summary (a channel's encoding, a schema's or a
+        chunk index's opcode) makes the reader leave out messages without an error."""
+        for topic in self.facts.topics:
+            got = per_topic.get(topic.topic, 0)
+            if got < topic.messages:
+                raise ReplayError(
+                    f"bag {self.path}: {got} of the {topic.messages} messages of "
+                    f"{topic.topic} it lists could be read (a damaged index or summary in its "
+                    f"MCAP file hides the others); recover them with `lit replay salvage "
+                    f"{self.path}`"
+                )
 
     def _facts(self, summaries: Sequence[Any]) -> BagFacts:
         reader = self._reader
