@@ -163,7 +163,9 @@ def export_arena(
 
     Args:
         results_dir: the run folder; logs go to ``<results_dir>/arena/<scenario>.log`` and the
-            database to ``<results_dir>/<database>`` (replaced if present).
+            database to ``<results_dir>/<database>`` (an earlier database there is replaced;
+            any other file is refused). Logs of an earlier export that these records do not
+            make are removed.
         records: the per-run records; None reads ``<results_dir>/runs.jsonl``.
         database: file name of the database inside ``results_dir``.
         progress_points: evenly spaced progress samples per run (see the module docstring).
@@ -171,13 +173,16 @@ def export_arena(
 
     Raises:
         ArenaError: no records, a malformed runs file or record, a database name that is not
-            a plain file name.
+            a plain file name or names a file of the run that is not a database.
         lit_planner.ompl2.Ompl2Error: the converter process failed.
     """
     problem = database_name_problem(database)
     if problem is not None:
         raise ArenaError(f"database {database!r}: {problem}")
     folder = Path(results_dir)
+    taken = _taken_name_problem(folder / database)
+    if taken is not None:
+        raise ArenaError(f"database {database!r}: {taken}")
     runs_path = folder / RUNS_FILE
     if records is None:
         records = read_runs(runs_path)
@@ -205,6 +210,30 @@ def database_name_problem(name: str) -> str | None:
     separators = "/" + os.sep + (os.altsep or "")
     if name in ("", ".", "..") or any(sep in name for sep in separators):
         return "expected a file name inside RESULTS_DIR, without a path separator or '..'"
+    return None
+
+
+SQLITE_HEADER = b"SQLite format 3\x00"
+"""The first 16 bytes of every SQLite database file."""
+
+
+def _taken_name_problem(path: Path) -> str | None:
+    """Why the database may not be written to ``path`` (it is the run's own file or folder:
+    ``--database runs.jsonl`` replaced the run's records with the database), or None."""
+    if path.name == LOG_DIR or path.is_dir():
+        return f"{path.name} is a folder of the run; choose another name"
+    if not path.exists():
+        return None
+    try:
+        with path.open("rb") as handle:
+            is_database = handle.read(len(SQLITE_HEADER)) == SQLITE_HEADER
+    except OSError as error:
+        return f"{path} cannot be read: {error.strerror or error}"
+    if not is_database:
+        return (
+            f"{path.name} in the run folder is not an SQLite database (only an earlier "
+            f"database is replaced); choose another name"
+        )
     return None
 
 
@@ -290,6 +319,10 @@ def write_logs(
         path.write_text(benchmark_log(scenario, group, date=date, host=host,
                                       progress_points=progress_points))  # fmt: skip
         paths.append(path)
+    # An earlier export's log of a scenario these records no longer have would stay beside
+    # the new ones and out of the database.
+    for stale in set(log_dir.glob("*.log")) - set(paths):
+        stale.unlink()
     return paths
 
 

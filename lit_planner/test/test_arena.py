@@ -193,6 +193,37 @@ def test_database_must_be_a_file_name_in_the_run_folder(bench_dir: Path, name: s
     assert sorted(p.relative_to(bench_dir.parent) for p in bench_dir.parent.rglob("*")) == before
 
 
+@pytest.mark.parametrize("name", [arena.RUNS_FILE, "summary.md", arena.LOG_DIR])
+def test_the_database_never_replaces_a_file_of_the_run(bench_dir: Path, name: str) -> None:
+    """``--database runs.jsonl`` replaced the run's records with the database, exit 0."""
+    (bench_dir / "summary.md").write_text("# the run's summary\n")
+    (bench_dir / arena.LOG_DIR).mkdir()
+    before = {p: p.read_bytes() for p in bench_dir.rglob("*") if p.is_file()}
+    process = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "arena", str(bench_dir), "--database", name],
+        capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert process.returncode == 2, process.stdout + process.stderr
+    assert process.stderr.startswith(f"lit arena: database {name!r}: ")
+    assert "choose another name" in process.stderr
+    assert {p: p.read_bytes() for p in bench_dir.rglob("*") if p.is_file()} == before
+
+
+def test_an_earlier_export_is_replaced(bench_dir: Path) -> None:
+    """Its database is written anew, and the log of a scenario the runs no longer have goes."""
+    arena.export_arena(bench_dir, database="arena.db")
+    assert sorted(p.name for p in (bench_dir / arena.LOG_DIR).iterdir()) == [
+        "np4.log",
+        "rrd8.log",
+    ]
+    np4_only = [r for r in RECORDS if r["scenario"] == "np4"]
+    (bench_dir / arena.RUNS_FILE).write_text("".join(json.dumps(r) + "\n" for r in np4_only))
+    export = arena.export_arena(bench_dir, database="arena.db")
+    assert sorted(p.name for p in (bench_dir / arena.LOG_DIR).iterdir()) == ["np4.log"]
+    assert export.runs == len(np4_only)
+    assert query(bench_dir / "arena.db", "SELECT COUNT(*) FROM runs") == [(len(np4_only),)]
+
+
 def test_missing_and_malformed_runs_files(tmp_path: Path) -> None:
     with pytest.raises(arena.ArenaError, match="run `lit bench` first"):
         arena.export_arena(tmp_path)
