@@ -508,3 +508,32 @@ def test_time_axis_labels_are_few_and_plain(low: float, high: float, expected: l
     finally:
         plt.close(figure)
     assert sorted(labels, key=float) == expected
+
+
+def test_the_note_says_what_made_the_tensors_it_played(tmp_path) -> None:
+    """The summary called every tensor folder "trained lookup tensors", the constant baselines
+    of `lit tensors constant` too, and named no folder."""
+    import subprocess
+    import sys
+
+    from lit_planner.bench.runner import planner_setup
+
+    folder = tmp_path / "constant"
+    subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "tensors", "constant", "--b", "120",
+         "--psi-k", "4.5", "--out", str(folder)],
+        check=True, capture_output=True, timeout=120,
+    )  # fmt: skip
+    tensors = planner_setup("litstar-tensor", folder).to_dict()["tensors"]
+    assert tensors["origins"] == {"B": "constant 120", "psi_K": "constant 4.5"}
+    assert report.tensors_note(tensors) == (
+        f"constant lookup tensors in {folder}: B constant 120; ψ_K constant 4.5"
+    )
+    trained = {**tensors, "psi_K": None, "origins": {"B": "trained, policy version 7"}}
+    assert (
+        report.tensors_note(trained) == f"lookup tensors in {folder}: B trained, policy version 7"
+    )
+    # Recorded before the setups named the origin: the folder alone.
+    assert report.tensors_note({"folder": "/x", "B": "ab", "psi_K": None}) == (
+        "the lookup tensors in /x"
+    )

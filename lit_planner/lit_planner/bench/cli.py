@@ -272,6 +272,7 @@ def write_outputs(
             paths = plots.plot_scenario(name, summaries[name], planner_curves, out / PLOTS_DIR)
             plot_files[name] = [str(path.relative_to(out)) for path in paths]
     facts = environment_facts if environment_facts is not None else _environment_facts()
+    setups = recorded["planners"] if recorded else planners or planner_setups(config)
     summary = {
         "schema": report.SUMMARY_SCHEMA,
         "version": report.SUMMARY_SCHEMA_VERSION,
@@ -291,10 +292,14 @@ def write_outputs(
         ],
         "machine": (recorded or facts)["machine"],
         "versions": (recorded or facts)["versions"],
-        "planners": (recorded["planners"] if recorded else planners or planner_setups(config)),
+        "planners": setups,
         "scenarios": summaries,
         "comparisons": report.comparisons(
-            summaries, config.planners, [s.planner for s in config.skipped], records
+            summaries,
+            config.planners,
+            [s.planner for s in config.skipped],
+            records,
+            (setups.get(runner.TENSOR_PLANNER) or {}).get("tensors"),
         ),
         "statistics": {
             "interval_rule": report.CI_RULE,

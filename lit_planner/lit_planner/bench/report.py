@@ -9,7 +9,7 @@ convention of ``lit plan --json``: ``null`` times and costs for a run without a 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -223,17 +223,36 @@ def _as_float(value: float | str | None) -> float:
     return math.inf if value is None else float(value)
 
 
+def tensors_note(tensors: Mapping[str, Any] | None) -> str:
+    """What ``litstar-tensor`` played, from its planner setup's ``tensors``: the folder and what
+    made each tensor (runs recorded before the setups named it say only the folder)."""
+    if not tensors:
+        return "lookup tensors"
+    folder = tensors.get("folder", "?")
+    origins = tensors.get("origins")
+    if origins is None:
+        return f"the lookup tensors in {folder}"
+    names = {"B": "B", "psi_K": "ψ_K"}
+    present = [o for o in names if tensors.get(o)]
+    made = "; ".join(f"{names[o]} {origins.get(o) or 'of unknown origin'}" for o in present)
+    if present and all((origins.get(o) or "").startswith("constant ") for o in present):
+        return f"constant lookup tensors in {folder}: {made}"
+    return f"lookup tensors in {folder}: {made or 'none'}"
+
+
 def comparisons(
     summaries: dict[str, Any],
     planners: Sequence[str],
     skipped: Sequence[str],
     records: Sequence[Record] = (),
+    tensors: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Table I (LIT* against FIT*) and LIT* against the best OMPL planner, per scenario; with the
-    run ``records``, each row also compares the two query by query (:func:`paired`)."""
+    run ``records``, each row also compares the two query by query (:func:`paired`).
+    ``tensors``: the ``litstar-tensor`` setup's ``tensors`` (:func:`tensors_note`)."""
     lit = next((p for p in LIT_CANDIDATES if p in planners), None)
     if lit == TENSOR_PLANNER:
-        note = "LIT* is litstar-tensor (trained lookup tensors)"
+        note = f"LIT* is litstar-tensor ({tensors_note(tensors)})"
     elif lit is not None and TENSOR_PLANNER in skipped:
         note = f"LIT* is {lit}: litstar-tensor was skipped (no trained tensors)"
     elif lit is not None:

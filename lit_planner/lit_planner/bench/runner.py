@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Any
 from tqdm import tqdm
 
 from lit_planner import planning, scenarios
-from lit_planner.errors import MissingTensorsError, PlannerError
+from lit_planner.errors import MissingTensorsError, PlannerError, TensorFileError
 
 if TYPE_CHECKING:
     import lit_core
@@ -246,10 +246,28 @@ def planner_setup(
     if policy == "tensor":
         folder = planning.default_tensors_dir() if tensors_dir is None else Path(tensors_dir)
         tensors = {"folder": str(folder)}
+        origins: dict[str, str | None] = {}
         for output, file_name in planning.TENSOR_FILES.items():
             path = folder / file_name
             tensors[output] = _sha256(path) if path.exists() else None
+            origins[output] = tensor_origin(path) if path.exists() else None
+        tensors["origins"] = origins
     return PlannerSetup(name, core, policy, planning.policy_params(policy_object), tensors)
+
+
+def tensor_origin(path: Path) -> str | None:
+    """What made the tensor at ``path``, from its sidecar: ``constant <value>`` (``lit tensors
+    constant``) or ``trained, policy version <n>``; None when the sidecar does not read."""
+    from lit_planner import tensor_files
+
+    try:
+        sidecar = tensor_files.read_sidecar(path)
+    except (TensorFileError, OSError):
+        return None
+    constant = sidecar.provenance.get("constant")
+    if isinstance(constant, int | float) and not isinstance(constant, bool):
+        return f"constant {constant:g}"
+    return f"trained, policy version {sidecar.policy_version}"
 
 
 def planning_estimate(
