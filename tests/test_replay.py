@@ -1317,3 +1317,22 @@ def test_the_demo_names_the_publishers_with_missing_messages(
     assert "messages missing" in out and "0 messages missing" not in out, out
     line = r"^    /lit/observation from \S+: 0 before seq 0, 1 in 1 gaps$"
     assert re.search(line, out, re.MULTILINE), out
+
+
+def test_salvage_and_compact_of_the_current_folder_name_it(tmp_path: Path) -> None:
+    """`lit replay salvage .` inside a bag folder failed with "PosixPath('.') has an empty name";
+    `compact . OUT` recorded an empty lit.compacted_from."""
+    path = _numbered_bag(tmp_path / "here", 3)
+
+    def replay_in(folder: Path, *args: str | Path) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [sys.executable, "-m", "lit_planner.cli", "replay", *map(str, args)],
+            cwd=folder, env=ENV, capture_output=True, text=True, timeout=120, check=False,
+        )  # fmt: skip
+
+    salvaged = replay_in(path, "salvage", ".")
+    assert salvaged.returncode == 0, salvaged.stderr
+    assert (tmp_path / f"here{replay.SALVAGED_SUFFIX}" / "metadata.yaml").is_file()
+    compacted = replay_in(path, "compact", ".", tmp_path / "small")
+    assert compacted.returncode == 0, compacted.stderr
+    assert replay.bag_info(tmp_path / "small")["custom_data"]["lit.compacted_from"] == "here"

@@ -1097,7 +1097,7 @@ def salvage(source: str | Path, out: str | Path | None = None) -> tuple[Path, li
     Raises:
         ReplayError: no bag there, the output exists, or nothing could be recovered.
     """
-    source = Path(source)
+    source = _named(Path(source))
     files = _mcap_files(source)
     if out is not None:
         target = Path(out)
@@ -1127,6 +1127,13 @@ def salvage(source: str | Path, out: str | Path | None = None) -> tuple[Path, li
         raise ReplayError(f"nothing to salvage from {source} ({where})")
     _write_salvaged(target, source, kept, results)
     return target, results
+
+
+def _named(path: Path) -> Path:
+    """``path`` resolved when it has no name of its own (``.``, ``..``): the salvaged copy is
+    named after the bag's folder (``salvage .`` failed with "PosixPath('.') has an empty name",
+    and ``compact . OUT`` recorded an empty ``lit.compacted_from``)."""
+    return path.resolve() if path.name in ("", "..") else path
 
 
 def _mcap_files(source: Path) -> list[Path]:
@@ -1631,7 +1638,7 @@ def compact(source: str | Path, out: str | Path) -> dict[str, Any]:
     Returns:
         ``messages``, ``bytes_before`` and ``bytes_after``.
     """
-    source, target = Path(source), Path(out)
+    source, target = _named(Path(source)), Path(out)
     _check_readable(source)
     if target.exists():
         raise ReplayError(f"{target} exists; choose a new folder")

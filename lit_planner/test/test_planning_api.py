@@ -576,8 +576,8 @@ def corrupt(path: Path, defect: str) -> None:
         ("bad magic", "bad magic"),
         ("wrong dtype", "dtype is '<f8', expected '<f4'"),
         ("wrong shape", r"shape \(101, 101, 100\) does not match the sidecar's \(101, 101, 101\)"),
-        ("NaN", "value 31012 is not finite"),
-        ("out of range", r"value 10406 = 500\.0+ is out of range \[20\.0+, 200\.0+\]"),
+        ("NaN", r"value nan at index \(3, 4, 5\) is not finite"),
+        ("out of range", r"value 500\.0+ at index \(1, 2, 3\) is out of range \[20\.0+, 200\.0+\]"),
         ("stale sidecar", "SHA-256"),
     ],
 )

@@ -102,12 +102,17 @@ namespace lit
 
         std::vector<float> values(count);
         std::memcpy(values.data(), bytes.data() + dataOffset, count * sizeof(float));  // x86-64: little-endian
+        // The value and its grid index (i, j, k), as `lit tensors info` names them (the flat index read as a value).
+        const auto where = [&shape](std::size_t flat) {
+            return "(" + std::to_string(flat / (shape[1] * shape[2])) + ", " +
+                   std::to_string(flat / shape[2] % shape[1]) + ", " + std::to_string(flat % shape[2]) + ")";
+        };
         for (std::size_t i = 0; i < count; ++i)
         {
             if (!std::isfinite(values[i]))
-                fail(path, "value " + std::to_string(i) + " is not finite (NaN or inf)");
+                fail(path, "value " + std::to_string(values[i]) + " at index " + where(i) + " is not finite");
             if (values[i] < spec.minValue - 1e-4 || values[i] > spec.maxValue + 1e-4)
-                fail(path, "value " + std::to_string(i) + " = " + std::to_string(values[i]) + " is out of range [" +
+                fail(path, "value " + std::to_string(values[i]) + " at index " + where(i) + " is out of range [" +
                                std::to_string(spec.minValue) + ", " + std::to_string(spec.maxValue) + "]");
         }
         return LookupTensor({shape[0], shape[1], shape[2]}, std::move(values));

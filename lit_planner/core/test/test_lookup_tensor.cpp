@@ -102,13 +102,14 @@ TEST(LookupTensor, RejectsEachDefectWithItsOwnMessage)
               std::string::npos);
     auto withNan = good;
     withNan[12345] = NAN;
-    EXPECT_NE(loadError(writeNpy("nan.npy", goodDict, payload(withNan))).find("value 12345 is not finite"), std::string::npos);
+    EXPECT_NE(loadError(writeNpy("nan.npy", goodDict, payload(withNan))).find("value nan at index (1, 21, 23) is not finite"), std::string::npos);
     auto withInf = good;
     withInf[7] = INFINITY;
-    EXPECT_NE(loadError(writeNpy("inf.npy", goodDict, payload(withInf))).find("value 7 is not finite"), std::string::npos);
+    EXPECT_NE(loadError(writeNpy("inf.npy", goodDict, payload(withInf))).find("value inf at index (0, 0, 7) is not finite"), std::string::npos);
     auto outOfRange = good;
     outOfRange[99] = 250.0f;
-    EXPECT_NE(loadError(writeNpy("range.npy", goodDict, payload(outOfRange))).find("out of range"), std::string::npos);
+    EXPECT_NE(loadError(writeNpy("range.npy", goodDict, payload(outOfRange))).find("value 250.000000 at index (0, 0, 99) is out of range"),
+              std::string::npos);
 }
 
 TEST(TensorPolicy, LooksUpRawFeaturesAndClamps)
