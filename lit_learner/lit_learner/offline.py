@@ -258,8 +258,8 @@ def _bag_custom_data(path: Path) -> dict[str, Any]:
 
 
 def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
-    """Complete training episodes (summary, and as many observations as decisions), in the
-    order their summaries were recorded. A message read twice (a bag given with its compacted
+    """Complete training episodes (summary, and as many observations and decisions as the
+    summary counts decisions), in the order their summaries were recorded. A message read twice (a bag given with its compacted
     or salvaged copy: the same topic, publisher, run and seq) counts once; it was paired twice,
     and the pairing failed on the second copy's earlier times."""
     skipped = Skipped()
@@ -297,7 +297,14 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
         summary = episode.summary
         if summary is None or summary.get("mode") != "training":
             continue
-        if len(episode.observations) != len(episode.decisions) or not episode.decisions:
+        # Its summary counts the decisions made: a lost observation and decision pair (a gap
+        # in the recording) left an episode that looked complete by the pairing alone.
+        made = summary.get("decisions") or {}
+        if (
+            len(episode.observations) != len(episode.decisions)
+            or not episode.decisions
+            or len(episode.decisions) != sum(made.values())
+        ):
             skipped.counts["incomplete training episode"] += 1
             continue
         complete.append(episode)

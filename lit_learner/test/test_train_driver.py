@@ -855,3 +855,44 @@ def test_empty_scenarios_are_refused_not_the_default_mix(
     """``--scenarios ""`` (an empty shell variable) is not "not given"."""
     assert train.run(arguments(tmp_path / "run", scenarios="", episodes=1)) == 2
     assert "no training scenarios" in capsys.readouterr().err
+
+
+def test_an_episode_that_lost_a_pair_of_messages_is_not_trained_on(tmp_path: Path) -> None:
+    """One observation and one decision of an episode lost (a recording gap) left as many of
+    each: `lit replay tensors` trained on the episode as if it were complete."""
+    from lit_learner.offline import read_episodes
+
+    from lit_planner import bag, replay
+
+    source = Path(__file__).resolve().parents[2] / "bags" / "demo-20261204-193935"
+    complete, _ = read_episodes([source])
+    assert len(complete) == 4
+    victim = complete[0].key
+    dropped = {"lit_msgs_json/Observation": 0, "lit_msgs_json/Decision": 0}
+    skipped = replay.Skipped()
+    with (
+        replay.BagReader(source) as reader,
+        bag.BagRecorder(tmp_path / "gap", run_id="gap") as recorder,
+    ):
+        topics: set[str] = set()
+        for message in reader.messages():
+            if message.msgtype != bag.STRING_TYPE:
+                continue
+            item = replay.decode(message, skipped)
+            if (
+                isinstance(item, replay.Envelope)
+                and item.schema in dropped
+                and not dropped[item.schema]
+                and (item.source, item.run_id, str(item.payload.get("episode_id"))) == victim
+            ):
+                dropped[item.schema] += 1
+                continue
+            if message.topic not in topics:
+                recorder.add_topic(message.topic, bag.STRING_TYPE)
+                topics.add(message.topic)
+            text = bag.typestore().deserialize_cdr(message.data, bag.STRING_TYPE).data
+            recorder.write_string(message.topic, text, message.log_ns)
+    assert dropped == {"lit_msgs_json/Observation": 1, "lit_msgs_json/Decision": 1}
+    episodes, counts = read_episodes([tmp_path / "gap"])
+    assert [e.key for e in episodes] == [e.key for e in complete[1:]]
+    assert counts.counts["incomplete training episode"] == 1
