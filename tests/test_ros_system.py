@@ -950,6 +950,34 @@ BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
     ),
     ("plan: oversize", ["raw", PLAN, "-"], OVERSIZE, "oversize", "$", "more than the limit"),
     (
+        # Valid JSON (json.dumps escapes it) whose string is not Unicode text: the planner's
+        # logger raised on it and its worker thread ended; no plan request was answered again.
+        "plan: a lone surrogate in request_id",
+        [
+            "raw",
+            PLAN,
+            json.dumps(
+                _envelope("PlanRequest", {"scenario": "np4", "time": 0.1, "request_id": "\ud800"})
+            ),
+        ],
+        None,
+        "json",
+        "$.payload.request_id",
+        "lone UTF-16 surrogate",
+    ),
+    (
+        "decide: a lone surrogate in episode_id",
+        [
+            "raw",
+            DECIDE,
+            json.dumps(_envelope("DecideRequest", _decide_payload(episode_id="x\udfff"))),
+        ],
+        None,
+        "json",
+        "$.payload.episode_id",
+        "lone UTF-16 surrogate",
+    ),
+    (
         "plan: payload violates the schema",
         ["raw", PLAN, _bad_payload("PlanRequest", {"scenario": "np4"}, time="soon")],
         None,

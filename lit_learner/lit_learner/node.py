@@ -48,6 +48,7 @@ from lit_planner.rosutil import (
     STATS_TOPIC,
     DirectService,
     DuplicateServerWatch,
+    SafeLogger,
     flush_publishers,
     json_qos,
     retry_lost_answers,
@@ -174,7 +175,7 @@ class LearnerNode:
         from std_srvs.srv import Trigger
 
         self.node = node = Node(NODE_NAME)
-        self.log = node.get_logger()
+        self.log = SafeLogger(node.get_logger())
         p = {}
         for name, default in PARAMETERS.items():
             node.declare_parameter(name, default)

@@ -459,6 +459,23 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
             ) from None
         except ValueError as exc:  # JSONDecodeError
             raise MessageError("json", f"not valid JSON: {exc}", field="$", rule="json") from None
+    # A \u escape of a lone UTF-16 surrogate parses to a str that is not Unicode text: I-JSON
+    # (RFC 7493) refuses it, and the nodes' loggers could not take it (a request_id of
+    # "\ud800" stopped the planner node's worker thread, and its executor when it was busy).
+    if b"\\u" in data and _SURROGATE_ESCAPE.search(data):
+        found = _lone_surrogate(obj, "$")
+        if found is not None:
+            where, what = found
+            claimed, seq = _claimed(obj)
+            raise MessageError(
+                "json",
+                f"{what} holds a \\u escape of a lone UTF-16 surrogate (D800-DFFF without its "
+                "pair), which is not Unicode text",
+                field=_clip(where, 1024),
+                rule="json",
+                request_schema=claimed,
+                request_seq=seq,
+            )
     # The usual case, a valid message: one compiled check of the whole document. Anything else
     # takes the steps below, which find the first problem in the documented order.
     if not overflowed and brackets <= MAX_NESTING:
@@ -533,6 +550,32 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
         run_id=obj["run_id"],
         payload=obj["payload"],
     )
+
+
+_SURROGATE_ESCAPE = re.compile(rb"\\u[dD][89a-fA-F]")
+"""A backslash-u escape of a UTF-16 surrogate (paired or not; :func:`_lone_surrogate` tells)."""
+
+
+def _lone_surrogate(obj: object, path: str) -> tuple[str, str] | None:
+    """Where in ``obj`` a string or object key holds a lone surrogate: its JSON path (the
+    object's, for a key) and "the string" or "a key"; None when nothing does."""
+    stack = [(obj, path)]
+    while stack:
+        value, where = stack.pop()
+        if isinstance(value, str):
+            if not value.isascii() and _SURROGATES.search(value):
+                return where, "the string"
+        elif isinstance(value, dict):
+            for key, item in value.items():
+                if not key.isascii() and _SURROGATES.search(key):
+                    return where, "a key of the object"
+                stack.append((item, f"{where}.{key}"))
+        elif isinstance(value, list):
+            stack.extend((item, f"{where}[{index}]") for index, item in enumerate(value))
+    return None
+
+
+_SURROGATES = re.compile("[\ud800-\udfff]")
 
 
 def _long_digits(data: bytes) -> bool:

@@ -512,13 +512,19 @@ def test_encode_writes_numbers_and_strings_exactly(monkeypatch: pytest.MonkeyPat
         if math.isfinite(x):
             values.append(x)
     path = [values[i : i + 2] for i in range(0, len(values), 2)]
-    for message in ('ψ-é\n"', "lone \ud800 surrogate"):
-        payload = with_("PlanResponse", path=path, message=message)
-        decoded = decode(publisher.encode("PlanResponse", payload)).payload
-        assert typed(decoded) == typed(payload)
-        assert [
-            struct.pack("<d", v) for row in decoded["path"] for v in row if type(v) is float
-        ] == [struct.pack("<d", v) for v in values if type(v) is float]
+    payload = with_("PlanResponse", path=path, message='ψ-é\n" \U0001f600')
+    decoded = decode(publisher.encode("PlanResponse", payload)).payload
+    assert typed(decoded) == typed(payload)
+    assert [struct.pack("<d", v) for row in decoded["path"] for v in row if type(v) is float] == [
+        struct.pack("<d", v) for v in values if type(v) is float
+    ]
+    # A lone surrogate is written (escaped), but no receiver takes it: it is not Unicode text
+    # (I-JSON), and it stopped the planner node's worker thread in its logger.
+    text = publisher.encode("PlanResponse", with_("PlanResponse", message="lone \ud800 surrogate"))
+    assert "\\ud800" in text
+    with pytest.raises(MessageError, match="lone UTF-16 surrogate") as caught:
+        decode(text)
+    assert (caught.value.code, caught.value.field) == ("json", "$.payload.message")
     # the limit is on UTF-8 bytes: each 'ψ' is two
     payload = with_("PlanResponse", message="ψ" * 100)
     text = publisher.encode("PlanResponse", payload)
@@ -694,6 +700,16 @@ DECODE_FAILURES: list[DecodeCase] = [
     ("empty", "", "json", "$", "json", None, None),
     ("not-utf8", GOOD.encode().replace(b"B", b"\xff"), "json", "$", "json", None, None),
     ("surrogate", GOOD.replace("np8", "\ud800"), "json", "$", "json", None, None),
+    (
+        "surrogate-escape",
+        GOOD.replace("np8", "\\udfff"),
+        "json",
+        "$.payload.episode_id",
+        "json",
+        DR,
+        3,
+    ),
+    ("surrogate-key", GOOD.replace('"explore"', '"\\ud801x"'), "json", "$.payload", "json", DR, 3),
     ("nan", GOOD.replace("0.42", "NaN"), "json", "$", "json", None, None),
     ("infinity", GOOD.replace("0.42", "-Infinity"), "json", "$", "json", None, None),
     ("deep", deep(100), "json", "$", "max-depth", None, None),

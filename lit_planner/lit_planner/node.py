@@ -87,6 +87,7 @@ from lit_planner.rosutil import (
     TOPICS,
     DirectService,
     DuplicateServerWatch,
+    SafeLogger,
     ServiceCaller,
     flush_publishers,
     json_qos,
@@ -270,7 +271,7 @@ class PlannerNode:
         from lit_msgs_json import MESSAGE_VERSIONS, prepare
 
         self.node = node = Node(NODE_NAME)
-        self.log = node.get_logger()
+        self.log = SafeLogger(node.get_logger())
         p = self._declare(**PARAMETERS)
         self.params = p
         problem = parameter_problem(p)

@@ -44,6 +44,46 @@ STATS_TOPIC = "/lit/learner/stats"
 """The learner's training-progress topic."""
 
 
+class SafeLogger:
+    """An rclpy logger that logs any text: rclpy raises for a str that is not Unicode text (a lone
+    surrogate), and a log call in a worker thread's ``except`` clause then ended the thread (the
+    planner node answered no more plan requests). Such characters are logged escaped
+    (``\\ud800``); other attributes are the logger's own."""
+
+    def __init__(self, logger: Any) -> None:
+        self._logger = logger
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._logger, name)
+
+    @staticmethod
+    def text(message: object) -> str:
+        """``message`` as text that encodes to UTF-8."""
+        text = str(message)
+        try:
+            text.encode("utf-8")
+        except UnicodeEncodeError:
+            text = text.encode("utf-8", "backslashreplace").decode("utf-8")
+        return text
+
+    def debug(self, message: object, **kwargs: Any) -> Any:
+        return self._logger.debug(self.text(message), **kwargs)
+
+    def info(self, message: object, **kwargs: Any) -> Any:
+        return self._logger.info(self.text(message), **kwargs)
+
+    def warning(self, message: object, **kwargs: Any) -> Any:
+        return self._logger.warning(self.text(message), **kwargs)
+
+    warn = warning
+
+    def error(self, message: object, **kwargs: Any) -> Any:
+        return self._logger.error(self.text(message), **kwargs)
+
+    def fatal(self, message: object, **kwargs: Any) -> Any:
+        return self._logger.fatal(self.text(message), **kwargs)
+
+
 def localhost_environment() -> None:
     """Keep DDS discovery on this host unless the user set a range; set a domain id if unset."""
     for key, value in LOCALHOST_ENV.items():

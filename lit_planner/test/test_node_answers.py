@@ -103,3 +103,40 @@ def test_a_count_limited_request_without_time_plans_for_at_most_the_longest_time
     assert make(fake, {"scenario": "np4", "max_iterations": 5, "time": 2.5}).time == 2.5
     assert make(fake, {"scenario": "np4"}).time is None  # the scenario's budget
     assert make(fake, {"scenario": "np4"}).seed == 7
+
+
+def test_the_nodes_logger_logs_text_that_is_not_unicode() -> None:
+    """rclpy's logger raises for a lone surrogate; in the planner node's worker thread that ended
+    the thread. The nodes' SafeLogger logs it escaped and passes other text through as is."""
+    from lit_planner.rosutil import SafeLogger
+
+    class StrictLogger:  # as rclpy's: the message must encode to UTF-8
+        def __init__(self) -> None:
+            self.lines: list[tuple[str, str]] = []
+            self.name = "strict"
+
+        def _log(self, level: str, message: str) -> bool:
+            message.encode("utf-8")
+            self.lines.append((level, message))
+            return True
+
+        def info(self, message: str) -> bool:
+            return self._log("info", message)
+
+        def warning(self, message: str) -> bool:
+            return self._log("warning", message)
+
+        def error(self, message: str) -> bool:
+            return self._log("error", message)
+
+    strict = StrictLogger()
+    log = SafeLogger(strict)
+    log.info("plan request \ud800 started")
+    log.warning("ψ_K é")
+    log.error(ValueError("x\udfff"))
+    assert strict.lines == [
+        ("info", "plan request \\ud800 started"),
+        ("warning", "ψ_K é"),
+        ("error", "x\\udfff"),
+    ]
+    assert log.name == "strict"
