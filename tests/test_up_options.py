@@ -20,6 +20,9 @@ from ros_helpers import launcher_domain
         (["--scenario", "zz8"], "--scenario zz8: "),
         (["--time-budget", "-1"], "--time-budget must be 0"),
         (["--time-budget", "nan"], "--time-budget must be 0"),
+        # Beyond 3600 s every training decision failed its schema; beyond 1e9 every query.
+        (["--time-budget", "3601"], "up to 3600, got 3601.0"),
+        (["--planner-param", "time_budget:=1e12"], "time_budget must be 0 (the scenario's) or at"),
         (["--episodes", "-1"], "--episodes must be 0"),
         (["--run-id", "../escape"], "--run-id '../escape': a folder name"),
         (["--run-id", "42"], "starts with a letter"),  # ROS would read -p run_id:=42 as a number

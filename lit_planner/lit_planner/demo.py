@@ -28,14 +28,13 @@ from typing import Any, Self
 
 from lit_planner import argtypes, plan_cli, planning, scenarios
 from lit_planner.errors import LitPlannerError
-from lit_planner.rosutil import add_domain_option, resolve_domain_id
+from lit_planner.rosutil import MAX_EPISODE_BUDGET, add_domain_option, resolve_domain_id
 from lit_planner.scenarios import Scenario
 
 DEMO_PLANNER = planning.LITSTAR
 """The planner the demo runs."""
 DEMO_DOMAIN_ID = 91
 """Default ROS domain of the demo (its own, so it does not meet a running ``lit up``)."""
-MAX_TRAINING_BUDGET = 3600.0
 """Largest ``--training-budget`` (the messages' limit on a time budget)."""
 DISTRIBUTED_DEFAULTS = {"training_episodes": 4, "training_budget": 0.3, "plans": 3}
 """Defaults of the options of the ROS demo alone (``--local`` refuses them)."""
@@ -108,10 +107,10 @@ def run(args: argparse.Namespace) -> int:
                 f"and {args.training_episodes}"
             )
         budget = args.training_budget
-        if not args.local and not (math.isfinite(budget) and 0 < budget <= MAX_TRAINING_BUDGET):
+        if not args.local and not (math.isfinite(budget) and 0 < budget <= MAX_EPISODE_BUDGET):
             raise LitPlannerError(
                 f"--training-budget must be a positive number of seconds up to "
-                f"{MAX_TRAINING_BUDGET:g}, got {budget}"
+                f"{MAX_EPISODE_BUDGET:g}, got {budget}"
             )
         if not args.local:
             try:

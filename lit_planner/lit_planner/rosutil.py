@@ -27,6 +27,9 @@ DECIDE_SERVICE = "/lit/learner/decide"
 """The learner's decision service (absolute: one learner serves planners in any namespace)."""
 EXPORT_SERVICE = "/lit/learner/export"
 """The learner's export service (``std_srvs/srv/Trigger``)."""
+MAX_EPISODE_BUDGET = 3600.0
+"""Most seconds of a node episode's time budget: the maximum of ``time_budget`` in the
+DecideRequest and EpisodeEnd schemas."""
 PLAN_SERVICE = "lit/planner/plan"
 """The planner's plan service, relative to the planner node's namespace."""
 CANCEL_SERVICE = "lit/planner/cancel"

@@ -31,6 +31,7 @@ from lit_planner import argtypes
 from lit_planner.rosutil import (
     DEFAULT_DOMAIN_ID,
     LOCALHOST_ENV,
+    MAX_EPISODE_BUDGET,
     add_domain_option,
     set_domain_id,
 )
@@ -409,9 +410,10 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
         return "--bag and --no-record contradict each other; give one of them"
     if args.episodes < 0:
         return f"--episodes must be 0 (serve only) or more, got {args.episodes}"
-    if not (math.isfinite(args.time_budget) and args.time_budget >= 0):
+    if not (0 <= args.time_budget <= MAX_EPISODE_BUDGET):  # NaN too
         return (
-            f"--time-budget must be 0 (the scenario's) or a positive number, got {args.time_budget}"
+            f"--time-budget must be 0 (the scenario's) or a positive number of seconds up to "
+            f"{MAX_EPISODE_BUDGET:g}, got {args.time_budget}"
         )
     try:
         if args.policy == "training" and args.scenario is not None:
