@@ -629,6 +629,24 @@ def test_verify_flags_invalid_paths(tmp_path: Path) -> None:
     assert "read twice" in both.stdout
 
 
+def test_verify_counts_a_returned_path_the_node_found_invalid(tmp_path: Path) -> None:
+    """The planner node does not publish a path its own check finds invalid; verify called such
+    an episode "not checkable" (exit 1 as incomplete) and hid the invalid path it returned."""
+    path = tmp_path / "flagged"
+    with BagRecorder(path, run_id="f") as recorder:
+        recorder.add_topic("/lit/episode", bag.STRING_TYPE)
+        for seq, flagged in enumerate((False, True)):
+            payload = {"episode_id": f"f/{seq}", "scenario": "np4", "instance": 0,
+                       "solved": True, **({"path_valid": False} if flagged else {})}  # fmt: skip
+            text = envelope(replay.EPISODE_SCHEMA, seq, "planner", "f", payload, stamp_ns=seq)
+            recorder.write_string("/lit/episode", text, 10 + seq)
+    result = _replay("verify", path)
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "1 paths checked: 0 valid, 1 invalid" in result.stdout, result.stdout
+    assert "/lit/episode seq 1: the planner node's own check found the path" in result.stdout
+    assert "1 solved episode without a recorded path" in result.stdout, result.stdout
+
+
 # --- lit bench: record and replay ----------------------------------------------------------
 
 # Fields of summary.json that legitimately differ between the live run and its replay: the

@@ -930,6 +930,14 @@ def _pair_episodes(
             yield episode, None
         elif match is not None and match.path:
             yield episode, match.path
+        elif payload.get("solved") and payload.get("path_valid") is False:
+            # The planner node does not publish a path its own check (the one done here) finds
+            # invalid, but it returned it: an invalid path, not one that cannot be checked.
+            report.checked += 1
+            report.invalid.append(
+                f"{where}: the planner node's own check found the path it returned invalid "
+                f"(such a path is not published on {PATH_TOPIC})"
+            )
         elif payload.get("solved"):
             report.unchecked.add("solved episode without a recorded path", where)
         else:
