@@ -208,6 +208,12 @@ def run(args: argparse.Namespace) -> int:
                 raise ValueError(f"{label} must be a positive number of seconds, got {value}")
         if getattr(args, "repeat", 1) < 1:
             raise ValueError(f"--repeat must be 1 or more, got {args.repeat}")
+        for option, value in vars(args).items():
+            # Bytes that are not UTF-8 arrive as lone surrogates: rclpy.init() failed on them
+            # with a traceback and exit 1 (answered with an Error).
+            if isinstance(value, str) and not _is_utf8(value):
+                label = option.upper() if option in ("name", "text") else f"--{option}"
+                raise ValueError(f"{label.replace('_', '-')}: not valid UTF-8 text: {value!r}")
         text = os.environ.get("ROS_DOMAIN_ID", "").strip()
         if text:  # rclpy's traceback, or Fast DDS's port errors and exit 1, otherwise
             try:
@@ -226,7 +232,7 @@ def run(args: argparse.Namespace) -> int:
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
-    rclpy.init()
+    rclpy.init(args=[])  # not sys.argv: lit call's own options are no ROS arguments
     node = rclpy.create_node(f"lit_call_{uuid.uuid4().hex[:8]}")
     executor = SingleThreadedExecutor()
     executor.add_node(node)
@@ -425,7 +431,7 @@ def _cancel_plan_in_new_context(args: argparse.Namespace) -> None:
 
     context = rclpy.Context()
     try:
-        rclpy.init(context=context)
+        rclpy.init(args=[], context=context)
         node = rclpy.create_node(f"lit_call_{uuid.uuid4().hex[:8]}", context=context)
         try:
             _cancel_plan(node, args)
@@ -525,13 +531,18 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
     if args.service == "export":
         return EXPORT_SERVICE, ""
     text = sys.stdin.read() if args.text == "-" else args.text
+    if not _is_utf8(text):  # bytes read as surrogates: rclpy failed with a traceback
+        raise ValueError("the request is not valid UTF-8 (a ROS string carries UTF-8 text)")
+    return args.name, text
+
+
+def _is_utf8(text: str) -> bool:
+    """Whether ``text`` encodes to UTF-8 (no lone surrogates, as undecodable bytes become)."""
     try:
         text.encode("utf-8")
-    except UnicodeEncodeError:  # bytes read as surrogates: rclpy failed with a traceback
-        raise ValueError(
-            "the request is not valid UTF-8 (a ROS string carries UTF-8 text)"
-        ) from None
-    return args.name, text
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def _read_world(path: Path) -> bytes:

@@ -193,6 +193,22 @@ def test_a_bad_namespace_or_non_utf8_raw_text_is_one_line(tmp_path: Path) -> Non
     )
 
 
+@pytest.mark.parametrize("command", ["plan", "cancel"])
+def test_an_argument_that_is_not_utf8_is_one_line(tmp_path: Path, command: str) -> None:
+    """rclpy.init() read sys.argv and failed on it with a UnicodeEncodeError traceback, exit 1
+    (which says "answered with an Error")."""
+    process = subprocess.run(
+        [sys.executable.encode(), b"-m", b"lit_planner.cli", b"call", command.encode(),
+         *([b"--scenario", b"np4"] if command == "plan" else []), b"--request-id", b"caf\xe9"],
+        cwd=tmp_path, capture_output=True, timeout=120,
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"), check=False,
+    )  # fmt: skip
+    assert process.returncode == 2, process.stderr
+    assert process.stderr.decode().strip() == (
+        "lit call: error: --request-id: not valid UTF-8 text: 'caf\\udce9'"
+    )
+
+
 def test_a_plan_answer_whose_path_failed_the_recheck_is_flagged() -> None:
     def answer(valid: object) -> str:
         return json.dumps(
