@@ -1164,6 +1164,7 @@ def test_bad_input_is_answered_with_errors(ros: RosSystem) -> None:
     assert result.returncode == 1, result
     error = result.json()
     assert error["code"] == "invalid-request", error
+    assert error["field"] == "$.payload.planning_time", error
     assert "before the previous message's 0.5" in error["message"], error
 
     result = ros.call("--payload-only", "plan", "--scenario", "np4", "--time", "0.2")

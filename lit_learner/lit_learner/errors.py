@@ -4,7 +4,12 @@ from __future__ import annotations
 
 
 class LearnerError(Exception):
-    """Base class of every learner error."""
+    """Base class of every learner error. ``field``: the message field it is about (a JSON
+    path below the payload, such as ``cost`` or ``final_features.B``), when it is about one."""
+
+    def __init__(self, *args: object, field: str | None = None) -> None:
+        super().__init__(*args)
+        self.field = field
 
 
 class ConfigError(LearnerError, ValueError):

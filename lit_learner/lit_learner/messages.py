@@ -55,9 +55,10 @@ class DecisionRequest:
         if self.agent not in AGENT_NAMES:
             raise MessageError(
                 f"episode {self.episode_id!r}: unknown agent {self.agent!r}; "
-                f"expected one of {AGENT_NAMES}"
+                f"expected one of {AGENT_NAMES}",
+                field="agent",
             )
-        _validate_features(f"episode {self.episode_id!r}, agent {self.agent}", self.features)
+        _validate_features(f"episode {self.episode_id!r}, agent {self.agent}", self.features, "")
         _validate_progress(
             self.episode_id,
             self.planning_time,
@@ -101,20 +102,30 @@ class EpisodeEnd:
         if unknown:
             raise MessageError(
                 f"episode {self.episode_id!r}: unknown fallback agents {sorted(unknown)}; "
-                f"expected some of {AGENT_NAMES}"
+                f"expected some of {AGENT_NAMES}",
+                field="fallback_agents",
             )
         # Each is an agent's last s' in the replay buffer: a NaN there reached the networks.
         for agent, features in (self.final_features or {}).items():
             where = f"episode {self.episode_id!r}, final_features"
             if agent not in AGENT_NAMES:
-                raise MessageError(f"{where}: unknown agent {agent!r}; expected {AGENT_NAMES}")
+                raise MessageError(
+                    f"{where}: unknown agent {agent!r}; expected {AGENT_NAMES}",
+                    field="final_features",
+                )
             try:
                 values = tuple(float(value) for value in features)
             except (TypeError, ValueError):
-                raise MessageError(f"{where}[{agent}]: {features!r} is not 3 numbers") from None
+                raise MessageError(
+                    f"{where}[{agent}]: {features!r} is not 3 numbers",
+                    field=f"final_features.{agent}",
+                ) from None
             if len(values) != 3:
-                raise MessageError(f"{where}[{agent}]: {len(values)} values, not 3")
-            _validate_features(f"{where}[{agent}]", values)  # type: ignore[arg-type]
+                raise MessageError(
+                    f"{where}[{agent}]: {len(values)} values, not 3",
+                    field=f"final_features.{agent}",
+                )
+            _validate_features(f"{where}[{agent}]", values, f"final_features.{agent}")  # type: ignore[arg-type]
         _validate_progress(
             self.episode_id,
             self.planning_time,
@@ -126,10 +137,16 @@ class EpisodeEnd:
         )
 
 
-def _validate_features(where: str, features: Features) -> None:
-    for name, value in zip(("rho_global", "rho_local", "measure"), features, strict=True):
+def _validate_features(where: str, features: Features, field: str) -> None:
+    """``field``: where the three features are in the payload ("" for its top level)."""
+    for index, (name, value) in enumerate(
+        zip(("rho_global", "rho_local", "measure"), features, strict=True)
+    ):
         if not (math.isfinite(value) and 0.0 <= value <= 1.0):  # as DecideRequest's schema
-            raise MessageError(f"{where}: {name} = {value} is not a number in [0, 1]")
+            raise MessageError(
+                f"{where}: {name} = {value} is not a number in [0, 1]",
+                field=f"{field}[{index}]" if field else name,
+            )
 
 
 COST_TOLERANCE = 1e-9
@@ -148,21 +165,29 @@ def _validate_progress(
 ) -> None:
     where = f"episode {episode_id!r}"
     if not (math.isfinite(planning_time) and planning_time >= 0.0):
-        raise MessageError(f"{where}: planning_time {planning_time} must be finite and >= 0")
+        raise MessageError(
+            f"{where}: planning_time {planning_time} must be finite and >= 0", field="planning_time"
+        )
     if not (math.isfinite(time_budget) and time_budget > 0.0):
-        raise MessageError(f"{where}: time_budget {time_budget} must be finite and > 0")
+        raise MessageError(
+            f"{where}: time_budget {time_budget} must be finite and > 0", field="time_budget"
+        )
     if cost is not None and not cost > 0.0:
-        raise MessageError(f"{where}: cost {cost} must be > 0 or None")
+        raise MessageError(f"{where}: cost {cost} must be > 0 or None", field="cost")
     if not (math.isfinite(minimum_cost) and minimum_cost >= 0.0):
-        raise MessageError(f"{where}: minimum_cost {minimum_cost} must be finite and >= 0")
+        raise MessageError(
+            f"{where}: minimum_cost {minimum_cost} must be finite and >= 0", field="minimum_cost"
+        )
     if cost is not None and cost < minimum_cost * (1.0 - COST_TOLERANCE):
         # No path is shorter than the straight line: such a cost made c_min / c as large as 1e300,
         # and its reward failed every gradient step that sampled it.
         raise MessageError(
             f"{where}: cost {cost} is below minimum_cost {minimum_cost}, the straight line's "
-            "length: no path is that short"
+            "length: no path is that short",
+            field="cost",
         )
     if improvements < 0 or path_states < 0:
         raise MessageError(
-            f"{where}: improvements {improvements} and path_states {path_states} must be >= 0"
+            f"{where}: improvements {improvements} and path_states {path_states} must be >= 0",
+            field="improvements" if improvements < 0 else "path_states",
         )

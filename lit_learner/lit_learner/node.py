@@ -477,6 +477,7 @@ class LearnerNode:
                 MessageError(
                     "invalid-request",
                     str(exc),
+                    field=_payload_field(exc),
                     request_schema=message.name,
                     request_seq=message.seq,
                 )
@@ -492,7 +493,8 @@ class LearnerNode:
         if latest is not None and decision.planning_time < latest:
             raise PairingError(
                 f"episode {decision.episode_id!r}: planning_time {decision.planning_time} is "
-                f"before the previous message's {latest}"
+                f"before the previous message's {latest}",
+                field="planning_time",
             )
 
     def _queue_commit(
@@ -808,6 +810,12 @@ class LearnerNode:
         )
         response.success, response.message = False, self.reply.error(error)
         return response
+
+
+def _payload_field(error: BaseException) -> str | None:
+    """The Error's ``field`` for a learner error about a payload field (``$.payload.cost``)."""
+    field = getattr(error, "field", None)
+    return f"$.payload.{field}" if isinstance(field, str) and field else None
 
 
 def _finite_number(value: object) -> bool:

@@ -63,13 +63,15 @@ class EpisodeProgress:
         if planning_time < self.last_time:
             raise PairingError(
                 f"episode {episode_id!r}: planning_time {planning_time} is before the previous "
-                f"message's {self.last_time}"
+                f"message's {self.last_time}",
+                field="planning_time",
             )
         seen = max(self.improvement_times)
         if improvements < seen:
             raise PairingError(
                 f"episode {episode_id!r}: improvements {improvements} is below the "
-                f"{seen} an earlier message reported"
+                f"{seen} an earlier message reported",
+                field="improvements",
             )
 
     def observe(self, episode_id: str, planning_time: float, improvements: int) -> None:

@@ -126,10 +126,14 @@ def test_untrained_agent_acts_noise_free_and_stores_nothing() -> None:
 def test_bad_messages_are_rejected_with_their_field() -> None:
     core = LearnerCore(small_config())
     good = DecisionRequest("B", "e", 0.1, 0.2, 0.3, 0.0, 1.0, None, 1.0, 0, 0)
-    with pytest.raises(MessageError, match="unknown agent 'K'"):
+    with pytest.raises(MessageError, match="unknown agent 'K'") as caught:
         core.decide(replace(good, agent="K"))
-    with pytest.raises(MessageError, match=r"rho_local = nan is not a number in \[0, 1\]"):
+    assert caught.value.field == "agent"
+    with pytest.raises(
+        MessageError, match=r"rho_local = nan is not a number in \[0, 1\]"
+    ) as caught:
         core.decide(replace(good, rho_local=float("nan")))
+    assert caught.value.field == "rho_local"
     with pytest.raises(MessageError, match=r"measure = 1.5 is not a number in \[0, 1\]"):
         core.decide(replace(good, measure=1.5))  # as DecideRequest's schema refuses it
     with pytest.raises(MessageError, match="time_budget 0.0 must be finite and > 0"):
@@ -137,8 +141,11 @@ def test_bad_messages_are_rejected_with_their_field() -> None:
     # A cost below the straight line's (1e-300 against 1) made c_min / c = 1e300: a reward that
     # is inf in the float32 buffer failed every gradient step that sampled it.
     for below in (replace(good, cost=1e-300), replace(good, cost=0.999)):
-        with pytest.raises(MessageError, match="is below minimum_cost 1.0, the straight line's"):
+        with pytest.raises(
+            MessageError, match="is below minimum_cost 1.0, the straight line's"
+        ) as caught:
             core.decide(below)
+        assert caught.value.field == "cost"  # the learner node's Error names $.payload.cost
     core.decide(replace(good, cost=1.0 - 1e-12))  # rounding: accepted
     # An episode end's final features become the last s' in the replay buffer: a NaN there
     # reached every network (the next decision then failed for good).

@@ -191,8 +191,9 @@ def test_an_improvement_count_that_goes_down_is_an_error_that_changes_nothing() 
     forgotten (its pending steps lost), which the learner node did not catch."""
     pairing = Pairing(REWARD)
     pairing.step(request("B", "e", 1.0, 0.1, improvements=3, cost=3.0, path_states=4), 0.1)
-    with pytest.raises(PairingError, match=r"episode 'e': improvements 2 is below the 3"):
+    with pytest.raises(PairingError, match=r"episode 'e': improvements 2 is below the 3") as caught:
         pairing.step(request("B", "e", 2.0, 0.1, improvements=2, cost=3.0, path_states=4), 0.1)
+    assert caught.value.field == "improvements"
     with pytest.raises(PairingError, match=r"improvements 2 is below the 3"):
         pairing.end(EpisodeEnd("e", 3.0, 10.0, 3.0, 2.0, 2, 4))
     assert set(pairing.episodes["e"].pending) == {"B"}  # still open, its step kept
