@@ -1354,3 +1354,21 @@ def test_salvage_and_compact_of_the_current_folder_name_it(tmp_path: Path) -> No
     compacted = replay_in(path, "compact", ".", tmp_path / "small")
     assert compacted.returncode == 0, compacted.stderr
     assert replay.bag_info(tmp_path / "small")["custom_data"]["lit.compacted_from"] == "here"
+
+
+def test_another_programs_topic_under_lit_is_foreign(tmp_path: Path) -> None:
+    """Messages of another program on /lit/foo counted as damaged LIT* messages: verify failed."""
+    path = tmp_path / "neighbour"
+    with BagRecorder(path, run_id="n") as recorder:
+        recorder.add_topic("/lit/observation", bag.STRING_TYPE)
+        recorder.add_topic("/lit/foo", bag.STRING_TYPE)
+        recorder.add_topic("/robot1/lit/foo/episode", bag.STRING_TYPE)
+        recorder.write_string("/lit/observation", _obs(0), 1)
+        for stamp in range(2, 5):
+            recorder.write_string("/lit/foo", "garbage", stamp)
+            recorder.write_string("/robot1/lit/foo/episode", "garbage", stamp)
+    result = _replay("verify", path)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "damaged" not in result.stdout, result.stdout
+    info = replay.bag_info(path)
+    assert info["skipped"]["reasons"] == {"foreign topic": 6}, info["skipped"]

@@ -50,7 +50,7 @@ from typing import Any, Self
 
 import numpy as np
 
-from lit_planner import argtypes, bag, scenarios
+from lit_planner import argtypes, bag, rosutil, scenarios
 from lit_planner.errors import LitPlannerError
 
 PROG = "lit replay"
@@ -72,7 +72,15 @@ SALVAGED_SUFFIX = "-salvaged"
 """Default output of ``salvage``: the bag's path with this suffix."""
 REPLAY_DIR = "replay"
 """Default output folder of ``bench``, inside the (first) bag."""
-_LIT_TOPIC = re.compile(r"(?P<namespace>(?:/[^/]+)*?)(?P<base>/lit(?:/[^/]+)+)")
+LIT_TOPIC_BASES = (
+    *(f"/{name}" for name in rosutil.TOPICS.values()),
+    rosutil.STATS_TOPIC,
+    bag.BENCH_RUN_TOPIC,
+    bag.BENCH_CONFIG_TOPIC,
+)
+"""The system's topics (any namespace may precede them); another program's topic under
+``/lit/`` is foreign: its messages used to count as damaged LIT* messages and failed verify."""
+_NAMESPACE = re.compile(r"(?:/[^/]+)*")
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 
@@ -211,11 +219,12 @@ class Skipped:
 
 
 def split_topic(topic: str) -> tuple[str, str] | tuple[None, None]:
-    """(namespace, ``/lit/...`` base) of a LIT* topic; (None, None) for any other topic."""
-    match = _LIT_TOPIC.fullmatch(topic)
-    if match is None:
-        return None, None
-    return match["namespace"], match["base"]
+    """(namespace, ``/lit/...`` base) of a LIT* topic (:data:`LIT_TOPIC_BASES`); (None, None)
+    for any other topic."""
+    for base in LIT_TOPIC_BASES:
+        if topic.endswith(base) and _NAMESPACE.fullmatch(topic[: -len(base)]):
+            return topic[: -len(base)], base
+    return None, None
 
 
 def known_schema(name: str) -> bool:
