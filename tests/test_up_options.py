@@ -202,6 +202,28 @@ def test_parameters_are_passed_with_the_types_the_nodes_declare() -> None:
     assert up._typed_params(["tensors_dir:="], planner_node.PARAMETERS) == {}  # its default
 
 
+@pytest.mark.parametrize(
+    ("program", "parameter", "default"),
+    [("lit_planner_node", "time_budget", "0.0"), ("lit_learner_node", "stats_period", "1.0")],
+)
+def test_a_node_started_by_hand_names_a_parameter_of_the_wrong_type(
+    tmp_path: Path, program: str, parameter: str, default: str
+) -> None:
+    """`ros2 run` users write -p time_budget:=1: rclpy's InvalidParameterTypeException traceback."""
+    process = subprocess.run(
+        [str(Path(sys.executable).parent / program), "--ros-args", "-p", f"{parameter}:=1"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=120, check=False,
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+                 ROS_DOMAIN_ID=str(launcher_domain())),
+    )  # fmt: skip
+    assert process.returncode == 1, process.stdout + process.stderr
+    assert "Traceback" not in process.stderr, process.stderr
+    assert (
+        f"{program}: parameter {parameter} takes a number with a decimal point, as its default "
+        f"{default} does" in process.stderr
+    ), process.stderr
+
+
 def test_lit_up_keeps_only_the_last_output_lines(tmp_path: Path) -> None:
     """lit up echoes every line of its children and keeps the last KEEP_LINES for its error
     messages (it kept them all: a run of days grew without bound)."""

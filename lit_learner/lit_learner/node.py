@@ -49,6 +49,7 @@ from lit_planner.rosutil import (
     DirectService,
     DuplicateServerWatch,
     SafeLogger,
+    declare_parameters,
     flush_publishers,
     json_qos,
     retry_lost_answers,
@@ -176,10 +177,7 @@ class LearnerNode:
 
         self.node = node = Node(NODE_NAME)
         self.log = SafeLogger(node.get_logger())
-        p = {}
-        for name, default in PARAMETERS.items():
-            node.declare_parameter(name, default)
-            p[name] = node.get_parameter(name).value
+        p = declare_parameters(node, PARAMETERS, "lit_learner_node")
         problem = parameter_problem(p)
         if problem is not None:
             raise SystemExit(f"lit_learner_node: {problem}")

@@ -90,6 +90,7 @@ from lit_planner.rosutil import (
     DuplicateServerWatch,
     SafeLogger,
     ServiceCaller,
+    declare_parameters,
     flush_publishers,
     json_qos,
     retry_lost_answers,
@@ -391,11 +392,7 @@ class PlannerNode:
     # ------------------------------------------------------------------ parameters
 
     def _declare(self, **defaults: Any) -> dict[str, Any]:
-        values = {}
-        for name, default in defaults.items():
-            self.node.declare_parameter(name, default)
-            values[name] = self.node.get_parameter(name).value
-        return values
+        return declare_parameters(self.node, defaults, "lit_planner_node")
 
     def _fallback_values(self) -> dict[str, Any]:
         """Lookups answering decisions the learner could not, each in the mode its sidecar

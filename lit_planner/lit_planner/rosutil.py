@@ -16,7 +16,7 @@ import sys
 import threading
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 LOCALHOST_ENV = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
@@ -85,6 +85,26 @@ class SafeLogger:
 
     def fatal(self, message: object, **kwargs: Any) -> Any:
         return self._logger.fatal(self.text(message), **kwargs)
+
+
+def declare_parameters(node: Any, defaults: Mapping[str, Any], program: str) -> dict[str, Any]:
+    """Declare ``defaults`` on ``node``; their values. A value of another type than its default
+    (``-p time_budget:=1`` for a float) ends the program with one line (SystemExit) instead of
+    rclpy's InvalidParameterTypeException traceback."""
+    from rclpy.exceptions import InvalidParameterTypeException
+
+    values = {}
+    for name, default in defaults.items():
+        try:
+            node.declare_parameter(name, default)
+        except InvalidParameterTypeException as exc:
+            kind = {bool: "true or false", int: "a whole number", float: "a number with a "
+                    "decimal point", str: "text"}.get(type(default), type(default).__name__)  # fmt: skip
+            raise SystemExit(
+                f"{program}: parameter {name} takes {kind}, as its default {default!r} does ({exc})"
+            ) from None
+        values[name] = node.get_parameter(name).value
+    return values
 
 
 def localhost_environment() -> None:
