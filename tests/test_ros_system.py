@@ -1368,6 +1368,7 @@ def test_a_training_episode_cut_short_goes_to_the_learner_and_is_not_published(
         r"truncated|its end was sent to the learner as truncated, without an answer)",
         planner.text(),
     ), planner.tail()
+    assert "episodes done" not in planner.text(), planner.tail()  # it said "1 ... done"
     assert ros.stop(learner, signal.SIGTERM, timeout=60.0) == 0, learner.tail()
     final = recording.payloads(STATS)[-1]  # published and flushed at the learner's shutdown
     assert final["episodes"] == 1, final

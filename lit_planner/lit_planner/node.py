@@ -265,6 +265,8 @@ class Job:
     node's ``req-<hex>``; plan requests only)."""
     stop: Any = None
     """The running query's ``lit_core.CancelFlag``: set by a CancelRequest or by shutdown()."""
+    cut_short: bool = False
+    """The query was cut short by shutdown() (an episode so ended is not done)."""
 
 
 class PlannerNode:
@@ -749,9 +751,11 @@ class PlannerNode:
                 self._queued += 1
                 self._jobs.put(job)
             job.done.wait()
-            if job.error is not None and self._stopping.is_set():
-                # Ctrl-C or SIGTERM: not a failure, and the episodes are not done.
-                self.log.info(f"episode {job.episode_id} not finished: {job.error}")
+            if job.cut_short or (job.error is not None and self._stopping.is_set()):
+                # Ctrl-C or SIGTERM: not a failure, and the episodes are not done (an episode
+                # cut short says so itself; it was counted among the episodes done).
+                if job.error is not None:
+                    self.log.info(f"episode {job.episode_id} not finished: {job.error}")
                 return
             if job.error is not None:
                 failed += 1
@@ -858,6 +862,7 @@ class PlannerNode:
                 self._requests.remove(job)
             cancelled = job.cancelled.is_set()
         cut_short = job.stop.is_set() and self._stopping.is_set()  # shutdown()
+        job.cut_short = cut_short
         if cancelled and not cut_short and result["status"] not in INVALID_TERMINAL:
             self._stopped_early(job, result, "cancelled", "cancelled by a CancelRequest")
         if cut_short and job.kind == "service":
