@@ -190,3 +190,28 @@ def test_recorder_writes_what_it_received_before_it_stops(tmp_path: Path) -> Non
     assert not any("Traceback" in line for line in recorder.lines), recorder.lines[-30:]
     counts = {topic["topic"]: topic["messages"] for topic in replay.bag_info(bag)["topics"]}
     assert counts["/lit/observation"] == burst
+
+
+def test_a_lit_topic_of_a_type_the_recorder_does_not_take_is_named(tmp_path: Path) -> None:
+    """An Int32 publisher on /lit/episode went unrecorded without a word."""
+    import sys
+
+    script = (
+        "import rclpy, time\n"
+        "from std_msgs.msg import Int32\n"
+        "rclpy.init()\n"
+        "node = rclpy.create_node('int_publisher')\n"
+        "publisher = node.create_publisher(Int32, '/lit/episode', 10)\n"
+        "for i in range(600):\n"
+        "    publisher.publish(Int32(data=i))\n"
+        "    time.sleep(0.1)\n"
+    )
+    warning = "/lit/episode has a publisher of std_msgs/msg/Int32, a type the recorder does not"
+    with _recording(tmp_path / "bag", "foreign") as (system, recorder, _):
+        publisher = system.start("int-publisher", [sys.executable, "-c", script])
+        deadline = time.monotonic() + 60.0
+        while not any(warning in line for line in recorder.lines):
+            assert publisher.process.poll() is None, "\n".join(publisher.lines[-30:])
+            assert time.monotonic() < deadline, "\n".join(recorder.lines[-30:])
+            time.sleep(0.1)
+    assert sum(warning in line for line in recorder.lines) == 1  # once, not every scan

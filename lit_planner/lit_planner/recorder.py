@@ -69,6 +69,8 @@ class Recorder:
         self.counts: dict[str, int] = {}
         self.dropped = 0
         """Messages that arrived after the bag was closed (after the drain: not recorded)."""
+        self._foreign: set[tuple[str, str]] = set()
+        """(topic, type) pairs under /lit/ of a type not recorded (warned of once)."""
         for name in TOPICS.values():
             topic = "/" + name
             self._subscribe(topic, _topic_type(name))
@@ -94,6 +96,13 @@ class Recorder:
                 for msgtype in types:
                     if msgtype in TYPES:
                         self._subscribe(topic, msgtype)
+                    elif (topic, msgtype) not in self._foreign:
+                        # An Int32 publisher on /lit/episode went unrecorded without a word.
+                        self._foreign.add((topic, msgtype))
+                        self.log.warning(
+                            f"{topic} has a publisher of {msgtype}, a type the recorder does not "
+                            f"take ({', '.join(TYPES)}): its messages are not recorded"
+                        )
 
     def _write(self, topic: str, data: bytes) -> None:
         from lit_planner.bag import BagError
