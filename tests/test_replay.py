@@ -635,16 +635,18 @@ def test_verify_counts_a_returned_path_the_node_found_invalid(tmp_path: Path) ->
     path = tmp_path / "flagged"
     with BagRecorder(path, run_id="f") as recorder:
         recorder.add_topic("/lit/episode", bag.STRING_TYPE)
-        for seq, flagged in enumerate((False, True)):
-            payload = {"episode_id": f"f/{seq}", "scenario": "np4", "instance": 0,
-                       "solved": True, **({"path_valid": False} if flagged else {})}  # fmt: skip
-            text = envelope(replay.EPISODE_SCHEMA, seq, "planner", "f", payload, stamp_ns=seq)
-            recorder.write_string("/lit/episode", text, 10 + seq)
+        recorder.add_topic("/lit/path", bag.TRAJECTORY_TYPE)
+        payload = {"episode_id": "f/0", "scenario": "np4", "instance": 0, "solved": True,
+                   "path_valid": False}  # fmt: skip
+        text = envelope(replay.EPISODE_SCHEMA, 0, "planner", "f", payload, stamp_ns=1)
+        recorder.write_string("/lit/episode", text, 10)
+        # A path of no episode (no frame id) recorded next to it: not its path.
+        recorder.write_trajectory("/lit/path", [[0.0] * 4, [0.1] * 4], 11)
     result = _replay("verify", path)
     assert result.returncode == 1, result.stdout + result.stderr
     assert "1 paths checked: 0 valid, 1 invalid" in result.stdout, result.stdout
-    assert "/lit/episode seq 1: the planner node's own check found the path" in result.stdout
-    assert "1 solved episode without a recorded path" in result.stdout, result.stdout
+    assert "/lit/episode seq 0: the planner node's own check found the path" in result.stdout
+    assert "1 path without an episode" in result.stdout, result.stdout
 
 
 # --- lit bench: record and replay ----------------------------------------------------------

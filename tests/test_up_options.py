@@ -21,7 +21,8 @@ from ros_helpers import launcher_domain
         (["--time-budget", "-1"], "--time-budget must be 0"),
         (["--time-budget", "nan"], "--time-budget must be 0"),
         # Beyond 3600 s every training decision failed its schema; beyond 1e9 every query.
-        (["--time-budget", "3601"], "up to 3600, got 3601.0"),
+        (["--time-budget", "3601"], "up to 3600 with --policy training, got 3601.0"),
+        (["--policy", "tensor", "--time-budget", "86401"], "up to 86400 with --policy tensor"),
         (["--planner-param", "time_budget:=1e12"], "time_budget must be 0 (the scenario's) or at"),
         (["--episodes", "-1"], "--episodes must be 0"),
         (["--run-id", "../escape"], "--run-id '../escape': a folder name"),

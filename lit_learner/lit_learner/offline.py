@@ -299,11 +299,17 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
             continue
         # Its summary counts the decisions made: a lost observation and decision pair (a gap
         # in the recording) left an episode that looked complete by the pairing alone.
-        made = summary.get("decisions") or {}
+        made = summary.get("decisions")
+        counted = (
+            sum(made.values())
+            if isinstance(made, dict)
+            and all(isinstance(n, int) and not isinstance(n, bool) for n in made.values())
+            else None
+        )
         if (
             len(episode.observations) != len(episode.decisions)
             or not episode.decisions
-            or len(episode.decisions) != sum(made.values())
+            or len(episode.decisions) != counted
         ):
             skipped.counts["incomplete training episode"] += 1
             continue

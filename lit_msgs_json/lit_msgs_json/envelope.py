@@ -332,6 +332,11 @@ class Publisher:
                 "request_seq": None,
             }
         payload.update(overrides)
+        # An exception's text may hold a lone surrogate (a file name that is not UTF-8, as
+        # os.fsdecode gives it): escaped, or every receiver would refuse the Error.
+        for key in ("message", "field"):
+            if isinstance(payload.get(key), str):
+                payload[key] = _unicode_text(payload[key])
         return self.encode("Error", payload)
 
     def _check(self, name: str, payload: object, stamp_ns: int | None) -> tuple[str, int, bool]:
@@ -439,7 +444,8 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
             obj = orjson.loads(data)
         except orjson.JSONDecodeError:
             pass
-    if obj is _UNPARSED:
+    by_standard_parser = obj is _UNPARSED
+    if by_standard_parser:
 
         def parse_float(spelling: str) -> float:
             value = float(spelling)
@@ -462,8 +468,14 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
     # A \u escape of a lone UTF-16 surrogate parses to a str that is not Unicode text: I-JSON
     # (RFC 7493) refuses it, and the nodes' loggers could not take it (a request_id of
     # "\ud800" stopped the planner node's worker thread, and its executor when it was busy).
-    if b"\\u" in data and _SURROGATE_ESCAPE.search(data):
-        found = _lone_surrogate(obj, "$")
+    # orjson refuses such escapes: only the standard parser's documents can hold one, and
+    # orjson's encoder (C) tells whether one does before the walk names it.
+    if by_standard_parser and b"\\u" in data and _SURROGATE_ESCAPE.search(data):
+        try:
+            orjson.dumps(obj)
+            found = None
+        except orjson.JSONEncodeError:  # a lone surrogate, or an integer beyond 64 bits
+            found = _lone_surrogate(obj, "$")
         if found is not None:
             where, what = found
             claimed, seq = _claimed(obj)
@@ -565,13 +577,15 @@ def _lone_surrogate(obj: object, path: str) -> tuple[str, str] | None:
         if isinstance(value, str):
             if not value.isascii() and _SURROGATES.search(value):
                 return where, "the string"
-        elif isinstance(value, dict):
-            for key, item in value.items():
+        elif isinstance(value, dict):  # children pushed last first: the first is found first
+            for key in value:
                 if not key.isascii() and _SURROGATES.search(key):
                     return where, "a key of the object"
-                stack.append((item, f"{where}.{key}"))
+            stack.extend((value[key], f"{where}.{key}") for key in reversed(value))
         elif isinstance(value, list):
-            stack.extend((item, f"{where}[{index}]") for index, item in enumerate(value))
+            stack.extend(
+                (value[index], f"{where}[{index}]") for index in reversed(range(len(value)))
+            )
     return None
 
 
@@ -760,6 +774,13 @@ def _shorten(text: str, limit: int) -> str:
     marker = " ... "
     keep = (limit - len(marker)) // 2
     return text[:keep] + marker + text[len(text) - keep :]
+
+
+def _unicode_text(text: str) -> str:
+    """``text`` with lone surrogates written as backslash escapes (it encodes to UTF-8 then)."""
+    if text.isascii() or not _SURROGATES.search(text):
+        return text
+    return text.encode("utf-8", "backslashreplace").decode("utf-8")
 
 
 def _clip(text: str, limit: int) -> str:

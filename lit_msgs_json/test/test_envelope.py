@@ -525,6 +525,15 @@ def test_encode_writes_numbers_and_strings_exactly(monkeypatch: pytest.MonkeyPat
     with pytest.raises(MessageError, match="lone UTF-16 surrogate") as caught:
         decode(text)
     assert (caught.value.code, caught.value.field) == ("json", "$.payload.message")
+    # The first such string in document order is named.
+    two = with_("PlanResponse", message="\udc00", path=[[0.0, 1.0], [2.0, "\ud800"]])
+    with pytest.raises(MessageError) as caught:
+        decode(envelope_text(two, "PlanResponse"))
+    assert caught.value.field == "$.payload.message"
+    # An Error made from an exception whose text holds one (a file name that is not UTF-8, as
+    # os.fsdecode gives it) is escaped: its receivers would refuse it.
+    answer = decode(publisher.error(OSError("cannot open caf\udce9.pt")))
+    assert answer.payload["message"] == "OSError: cannot open caf\\udce9.pt"
     # the limit is on UTF-8 bytes: each 'ψ' is two
     payload = with_("PlanResponse", message="ψ" * 100)
     text = publisher.encode("PlanResponse", payload)

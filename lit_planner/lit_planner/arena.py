@@ -222,8 +222,8 @@ def _taken_name_problem(path: Path) -> str | None:
     ``--database runs.jsonl`` replaced the run's records with the database), or None."""
     if path.name == LOG_DIR or path.is_dir():
         return f"{path.name} is a folder of the run; choose another name"
-    if not path.exists():
-        return None
+    if not path.exists() or (path.is_file() and path.stat().st_size == 0):
+        return None  # an empty file is an empty SQLite database (connect() creates one)
     try:
         with path.open("rb") as handle:
             is_database = handle.read(len(SQLITE_HEADER)) == SQLITE_HEADER

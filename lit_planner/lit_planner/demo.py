@@ -35,7 +35,6 @@ DEMO_PLANNER = planning.LITSTAR
 """The planner the demo runs."""
 DEMO_DOMAIN_ID = 91
 """Default ROS domain of the demo (its own, so it does not meet a running ``lit up``)."""
-"""Largest ``--training-budget`` (the messages' limit on a time budget)."""
 DISTRIBUTED_DEFAULTS = {"training_episodes": 4, "training_budget": 0.3, "plans": 3}
 """Defaults of the options of the ROS demo alone (``--local`` refuses them)."""
 

@@ -82,7 +82,6 @@ from lit_planner.errors import PlannerError, ScenarioError, TensorFileError
 from lit_planner.rosutil import (
     CANCEL_SERVICE,
     DECIDE_SERVICE,
-    MAX_EPISODE_BUDGET,
     PLAN_SEND_ATTEMPTS,
     PLAN_SERVICE,
     TOPICS,
@@ -91,6 +90,7 @@ from lit_planner.rosutil import (
     SafeLogger,
     ServiceCaller,
     declare_parameters,
+    episode_budget_limit,
     flush_publishers,
     json_qos,
     retry_lost_answers,
@@ -189,12 +189,13 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
     for name in ("time_budget", "episodes", "queue_limit", "wait_for_subscribers"):
         if not p[name] >= 0:  # also NaN
             return f"{name} must be 0 or more, got {p[name]}"
-    if not p["time_budget"] <= MAX_EPISODE_BUDGET:
-        # Beyond it every training decision and episode end failed their schemas (the learner
-        # learned nothing), and beyond 1e9 s every query failed.
+    limit = episode_budget_limit(p["policy"])
+    if not p["time_budget"] <= limit:
+        # Beyond 3600 s every training decision and episode end failed their schemas (the
+        # learner learned nothing), beyond 86400 s every observation, beyond 1e9 every query.
         return (
-            f"time_budget must be 0 (the scenario's) or at most {MAX_EPISODE_BUDGET:g} s, got "
-            f"{p['time_budget']}"
+            f"time_budget must be 0 (the scenario's) or at most {limit:g} s with policy "
+            f"{p['policy']}, got {p['time_budget']}"
         )
     for name in ("learner_retry", "learner_wait", "learner_resend"):
         if not (math.isfinite(p[name]) and p[name] >= 0):

@@ -929,7 +929,9 @@ def _pair_episodes(
             ),
             None,
         )
-        if match is None:
+        # A path the node's own check found invalid is never published: none is its by time.
+        flagged = bool(payload.get("solved")) and payload.get("path_valid") is False
+        if match is None and not flagged:
             free = [t for t in candidates if (episode.namespace, t.frame_id) not in ids]
             index = _nearest_unused([t.log_ns for t in free], episode.log_ns, used, free)
             match = None if index is None else free[index]
@@ -939,7 +941,7 @@ def _pair_episodes(
             yield episode, None
         elif match is not None and match.path:
             yield episode, match.path
-        elif payload.get("solved") and payload.get("path_valid") is False:
+        elif flagged:
             # The planner node does not publish a path its own check (the one done here) finds
             # invalid, but it returned it: an invalid path, not one that cannot be checked.
             report.checked += 1

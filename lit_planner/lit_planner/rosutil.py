@@ -28,8 +28,17 @@ DECIDE_SERVICE = "/lit/learner/decide"
 EXPORT_SERVICE = "/lit/learner/export"
 """The learner's export service (``std_srvs/srv/Trigger``)."""
 MAX_EPISODE_BUDGET = 3600.0
-"""Most seconds of a node episode's time budget: the maximum of ``time_budget`` in the
+"""Most seconds of a training episode's time budget: the maximum of ``time_budget`` in the
 DecideRequest and EpisodeEnd schemas."""
+MAX_INFERENCE_BUDGET = 86400.0
+"""Most seconds of another policy's episode: the maximum ``planning_time`` of an Observation."""
+
+
+def episode_budget_limit(policy: str) -> float:
+    """The longest time budget the planner node's episodes of ``policy`` can have."""
+    return MAX_EPISODE_BUDGET if policy == "training" else MAX_INFERENCE_BUDGET
+
+
 PLAN_SERVICE = "lit/planner/plan"
 """The planner's plan service, relative to the planner node's namespace."""
 CANCEL_SERVICE = "lit/planner/cancel"
@@ -55,6 +64,16 @@ class SafeLogger:
 
     def __init__(self, logger: Any) -> None:
         self._logger = logger
+        # rclpy names the first caller outside its own files as the log's file, line and
+        # function (and keys once= and throttle filters on it): without this, every line of
+        # both nodes came from here. rclpy's own code invites third parties to add files.
+        try:
+            from rclpy.impl import rcutils_logger
+        except ImportError:
+            return
+        here = os.path.realpath(__file__)
+        if here not in rcutils_logger._internal_callers:
+            rcutils_logger._internal_callers.append(here)
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._logger, name)

@@ -31,8 +31,8 @@ from lit_planner import argtypes
 from lit_planner.rosutil import (
     DEFAULT_DOMAIN_ID,
     LOCALHOST_ENV,
-    MAX_EPISODE_BUDGET,
     add_domain_option,
+    episode_budget_limit,
     set_domain_id,
 )
 
@@ -410,10 +410,11 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
         return "--bag and --no-record contradict each other; give one of them"
     if args.episodes < 0:
         return f"--episodes must be 0 (serve only) or more, got {args.episodes}"
-    if not (0 <= args.time_budget <= MAX_EPISODE_BUDGET):  # NaN too
+    limit = episode_budget_limit(args.policy)
+    if not (0 <= args.time_budget <= limit):  # NaN too
         return (
             f"--time-budget must be 0 (the scenario's) or a positive number of seconds up to "
-            f"{MAX_EPISODE_BUDGET:g}, got {args.time_budget}"
+            f"{limit:g} with --policy {args.policy}, got {args.time_budget}"
         )
     try:
         if args.policy == "training" and args.scenario is not None:

@@ -210,7 +210,9 @@ def test_the_database_never_replaces_a_file_of_the_run(bench_dir: Path, name: st
 
 
 def test_an_earlier_export_is_replaced(bench_dir: Path) -> None:
-    """Its database is written anew, and the log of a scenario the runs no longer have goes."""
+    """Its database is written anew, and the log of a scenario the runs no longer have goes.
+    An empty file is an empty SQLite database (what a converter killed after connect() leaves)."""
+    (bench_dir / "arena.db").touch()
     arena.export_arena(bench_dir, database="arena.db")
     assert sorted(p.name for p in (bench_dir / arena.LOG_DIR).iterdir()) == [
         "np4.log",

@@ -527,13 +527,14 @@ def test_the_note_says_what_made_the_tensors_it_played(tmp_path) -> None:
     tensors = planner_setup("litstar-tensor", folder).to_dict()["tensors"]
     assert tensors["origins"] == {"B": "constant 120", "psi_K": "constant 4.5"}
     assert report.tensors_note(tensors) == (
-        f"constant lookup tensors in {folder}: B constant 120; ψ_K constant 4.5"
+        f"constant lookup tensors in `{folder}`: B constant 120; ψ_K constant 4.5"
     )
     trained = {**tensors, "psi_K": None, "origins": {"B": "trained, policy version 7"}}
     assert (
-        report.tensors_note(trained) == f"lookup tensors in {folder}: B trained, policy version 7"
+        report.tensors_note(trained, str(tmp_path))
+        == "lookup tensors in `constant`: B trained, policy version 7"
     )
     # Recorded before the setups named the origin: the folder alone.
     assert report.tensors_note({"folder": "/x", "B": "ab", "psi_K": None}) == (
-        "the lookup tensors in /x"
+        "the lookup tensors in `/x`"
     )

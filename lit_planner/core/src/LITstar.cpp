@@ -283,7 +283,8 @@ namespace lit
         clockRunning_ = false;
         statusMessage_.clear();
         firstSolutionMeasure_ = 0.0;
-        warnedUnusableDecision_ = false;
+        warnedUnusableBatchSize_ = false;
+        warnedUnusableFactor_ = false;
     }
 
     ompl::base::PlannerStatus LITstar::initializeProblem(const ompl::base::PlannerTerminationCondition &ptc)
@@ -1098,13 +1099,15 @@ namespace lit
         return value;
     }
 
-    void LITstar::warnUnusableDecision(const char *parameter, double value)
+    void LITstar::warnUnusableDecision(DecisionKind kind, double value)
     {
-        if (!warnedUnusableDecision_)
+        bool &warned = kind == DecisionKind::BatchSize ? warnedUnusableBatchSize_ : warnedUnusableFactor_;
+        if (!warned)
             OMPL_WARN("%s: the %s policy answered %g for %s; the value in use is kept (further unusable answers "
-                      "of this problem are not reported)",
-                      getName().c_str(), policy_->name().c_str(), value, parameter);
-        warnedUnusableDecision_ = true;
+                      "for it in this problem are not reported)",
+                      getName().c_str(), policy_->name().c_str(), value,
+                      kind == DecisionKind::BatchSize ? "B" : "psi_K");
+        warned = true;
     }
 
     void LITstar::adaptiveBatchsize()
@@ -1129,7 +1132,7 @@ namespace lit
             batchSize_ = static_cast<unsigned int>(
                 std::clamp(std::round(value), 1.0, static_cast<double>(std::numeric_limits<int>::max())));
         else
-            warnUnusableDecision("B", value);
+            warnUnusableDecision(DecisionKind::BatchSize, value);
         ++counters_.batchDecisions;
         DecisionEvent event;
         event.kind = DecisionKind::BatchSize;
@@ -1156,7 +1159,7 @@ namespace lit
             if (std::isfinite(value) && value > 0.0)
                 neighbourFactor_ = value;
             else
-                warnUnusableDecision("psi_K", value);  // keeps the factor in use
+                warnUnusableDecision(DecisionKind::NeighbourFactor, value);  // keeps the factor in use
             ++counters_.neighbourDecisions;
             const std::size_t k = neighbourCount(neighbourFactor_);
             DecisionEvent event;

@@ -273,6 +273,7 @@ def write_outputs(
             plot_files[name] = [str(path.relative_to(out)) for path in paths]
     facts = environment_facts if environment_facts is not None else _environment_facts()
     setups = recorded["planners"] if recorded else planners or planner_setups(config)
+    cwd = recorded["cwd"] if recorded else os.getcwd()
     summary = {
         "schema": report.SUMMARY_SCHEMA,
         "version": report.SUMMARY_SCHEMA_VERSION,
@@ -282,7 +283,7 @@ def write_outputs(
         "duration_s": duration,
         "command": {
             "argv": argv if argv is not None else ["lit", *sys.argv[1:]],
-            "cwd": recorded["cwd"] if recorded else os.getcwd(),
+            "cwd": cwd,
             "preset": preset,
         },
         "config": summary_config(config, requested),
@@ -300,6 +301,7 @@ def write_outputs(
             [s.planner for s in config.skipped],
             records,
             (setups.get(runner.TENSOR_PLANNER) or {}).get("tensors"),
+            cwd,
         ),
         "statistics": {
             "interval_rule": report.CI_RULE,

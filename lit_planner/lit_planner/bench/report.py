@@ -223,12 +223,16 @@ def _as_float(value: float | str | None) -> float:
     return math.inf if value is None else float(value)
 
 
-def tensors_note(tensors: Mapping[str, Any] | None) -> str:
-    """What ``litstar-tensor`` played, from its planner setup's ``tensors``: the folder and what
-    made each tensor (runs recorded before the setups named it say only the folder)."""
+def tensors_note(tensors: Mapping[str, Any] | None, cwd: str | None = None) -> str:
+    """What ``litstar-tensor`` played, from its planner setup's ``tensors``: the folder (relative
+    to the run's working directory ``cwd`` when inside it) and what made each tensor (runs
+    recorded before the setups named it say only the folder)."""
     if not tensors:
         return "lookup tensors"
-    folder = tensors.get("folder", "?")
+    folder = str(tensors.get("folder", "?"))
+    if cwd and folder.startswith(cwd.rstrip("/") + "/"):
+        folder = folder[len(cwd.rstrip("/")) + 1 :]
+    folder = f"`{folder}`"
     origins = tensors.get("origins")
     if origins is None:
         return f"the lookup tensors in {folder}"
@@ -246,13 +250,15 @@ def comparisons(
     skipped: Sequence[str],
     records: Sequence[Record] = (),
     tensors: Mapping[str, Any] | None = None,
+    cwd: str | None = None,
 ) -> dict[str, Any]:
     """Table I (LIT* against FIT*) and LIT* against the best OMPL planner, per scenario; with the
     run ``records``, each row also compares the two query by query (:func:`paired`).
-    ``tensors``: the ``litstar-tensor`` setup's ``tensors`` (:func:`tensors_note`)."""
+    ``tensors``: the ``litstar-tensor`` setup's ``tensors``, ``cwd`` the run's working
+    directory (:func:`tensors_note`)."""
     lit = next((p for p in LIT_CANDIDATES if p in planners), None)
     if lit == TENSOR_PLANNER:
-        note = f"LIT* is litstar-tensor ({tensors_note(tensors)})"
+        note = f"LIT* is litstar-tensor ({tensors_note(tensors, cwd)})"
     elif lit is not None and TENSOR_PLANNER in skipped:
         note = f"LIT* is {lit}: litstar-tensor was skipped (no trained tensors)"
     elif lit is not None:

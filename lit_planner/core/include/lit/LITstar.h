@@ -206,7 +206,7 @@ namespace lit
         /** \brief Algorithm 1's decisions. */
         void adaptiveBatchsize();
         /** \brief Warns (once per problem) of a policy answer the planner cannot use. */
-        void warnUnusableDecision(const char *parameter, double value);
+        void warnUnusableDecision(DecisionKind kind, double value);
         std::size_t adaptiveNeighborSize(litstar::State *centre);
         double getMeasure() const;
         /** \brief rho_local,B alone: the mean local ratio along the best path (rho_global without one). */
@@ -292,8 +292,9 @@ namespace lit
         double rhoLocalB_{0.0};
         unsigned int batchSize_{100u};
         double neighbourFactor_{M_E};
-        /** \brief An unusable policy answer (not a number; psi_K <= 0) was reported for this problem. */
-        bool warnedUnusableDecision_{false};
+        /** \brief An unusable policy answer (not a number; psi_K <= 0) was reported for this problem, per parameter. */
+        bool warnedUnusableBatchSize_{false};
+        bool warnedUnusableFactor_{false};
         std::size_t currentK_{1u};
         std::size_t improvements_{0u};
         /** \brief Informed-set measure at this problem's first solution (0 before it; FIT*'s reference). */
