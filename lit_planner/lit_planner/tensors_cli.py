@@ -79,7 +79,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     low_b, high_b = _range("B")
     low_k, high_k = _range("psi_K")
     constant.add_argument(
-        "--b", type=int, metavar="B", help=f"batch size, a whole number {low_b:g}..{high_b:g}"
+        "--b", type=float, metavar="B", help=f"batch size, a whole number {low_b:g}..{high_b:g}"
     )
     constant.add_argument(
         "--psi-k", type=float, metavar="PSI", help=f"neighbour factor psi_K, {low_k:g}..{high_k:g}"

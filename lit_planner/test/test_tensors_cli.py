@@ -45,6 +45,8 @@ def test_one_tensor_alone_and_the_fallback_of_the_other(tmp_path: Path) -> None:
     [
         ([], "give --b and/or --psi-k: the value(s) to write"),
         (["--b", "201"], "B = 201 is outside its range 20..200"),
+        (["--b", "20.5"], "B = 20.5 is not a whole number"),  # was argparse's usage, 3 lines
+        (["--b", "nan"], "B = nan is outside its range 20..200"),
         (["--b", "100", "--psi-k", "2.5"], "psi_K = 2.5 is outside its range 3..15"),
         (["--psi-k", "nan"], "psi_K = nan is outside its range 3..15"),
         (["--b", "100"], "b_tensor.npy: already there; choose another --out"),
