@@ -100,6 +100,13 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path
     assert all(p["missing"] == 0 and p["leading"] == 0 for p in info["publishers"])
     episodes, _ = read_episodes([bag])
     assert len(episodes) == 12
+    # One observation and one decision of an episode lost (a recording gap) left as many of
+    # each: `lit replay tensors` trained on the episode as if it were complete.
+    gapped = tmp_path / "gapped" / "bag"  # not beside the run's bags, which the test counts
+    _without_one_pair(bag, gapped, episodes[0].key)
+    rest, counts = read_episodes([gapped])
+    assert [e.key for e in rest] == [e.key for e in episodes[1:]]
+    assert counts.counts["incomplete training episode"] == 1
     # The bag and a copy of it (a compacted or salvaged one): each message counts once.
     import shutil
 
@@ -857,23 +864,14 @@ def test_empty_scenarios_are_refused_not_the_default_mix(
     assert "no training scenarios" in capsys.readouterr().err
 
 
-def test_an_episode_that_lost_a_pair_of_messages_is_not_trained_on(tmp_path: Path) -> None:
-    """One observation and one decision of an episode lost (a recording gap) left as many of
-    each: `lit replay tensors` trained on the episode as if it were complete."""
-    from lit_learner.offline import read_episodes
-
+def _without_one_pair(source: Path, target: Path, victim: tuple[str, str, str]) -> None:
+    """Copy bag ``source`` to ``target`` without the first observation and the first decision
+    of episode ``victim`` (as a recording gap loses them)."""
     from lit_planner import bag, replay
 
-    source = Path(__file__).resolve().parents[2] / "bags" / "demo-20261204-193935"
-    complete, _ = read_episodes([source])
-    assert len(complete) == 4
-    victim = complete[0].key
     dropped = {"lit_msgs_json/Observation": 0, "lit_msgs_json/Decision": 0}
     skipped = replay.Skipped()
-    with (
-        replay.BagReader(source) as reader,
-        bag.BagRecorder(tmp_path / "gap", run_id="gap") as recorder,
-    ):
+    with replay.BagReader(source) as reader, bag.BagRecorder(target, run_id="gap") as recorder:
         topics: set[str] = set()
         for message in reader.messages():
             if message.msgtype != bag.STRING_TYPE:
@@ -893,6 +891,3 @@ def test_an_episode_that_lost_a_pair_of_messages_is_not_trained_on(tmp_path: Pat
             text = bag.typestore().deserialize_cdr(message.data, bag.STRING_TYPE).data
             recorder.write_string(message.topic, text, message.log_ns)
     assert dropped == {"lit_msgs_json/Observation": 1, "lit_msgs_json/Decision": 1}
-    episodes, counts = read_episodes([tmp_path / "gap"])
-    assert [e.key for e in episodes] == [e.key for e in complete[1:]]
-    assert counts.counts["incomplete training episode"] == 1
