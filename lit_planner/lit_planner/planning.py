@@ -95,7 +95,9 @@ _CORE_ARGUMENT_ERROR = re.compile(
 
 def query_for(scenario: Scenario | str) -> lit_core.Query:
     """The core's query for ``scenario`` (or the registry's scenario of that name): its bounds,
-    boxes, start, goal and resolution.
+    boxes, start, goal and resolution; a custom world's edges are checked exactly against its
+    boxes (the registry's scenarios keep the discrete checks at their resolution, the same for
+    every planner, as PDT's benchmarks do).
 
     Raises:
         ScenarioError: an unknown scenario name.
@@ -110,6 +112,7 @@ def query_for(scenario: Scenario | str) -> lit_core.Query:
         list(scenario.start),
         list(scenario.goal),
         scenario.resolution,
+        exact_edges=scenario.family == scenarios.CUSTOM_FAMILY,
     )
 
 

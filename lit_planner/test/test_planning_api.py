@@ -783,3 +783,21 @@ def test_the_core_refuses_a_time_that_is_not_finite() -> None:
         for budget in (math.inf, math.nan, -1.0):
             with pytest.raises(ValueError, match="solve needs a finite time >= 0 in seconds"):
                 lit_core.solve(planning.query_for("np4"), planner, time=budget, max_iterations=10)
+
+
+def test_custom_worlds_check_edges_exactly() -> None:
+    """At the resolution alone (10^-3 in a custom world) LIT*'s paths clipped the wall's corner
+    between two checks: 2 of these 10 seeds came back failing the independent re-check. The
+    registry's scenarios keep the discrete checks (PDT's convention for every planner)."""
+    from lit_planner import planning
+
+    world = scenarios.custom(
+        [-0.5, -0.5], [0.5, 0.5], [((-0.1, -0.5), (0.1, 0.3))], [-0.3, 0], [0.3, 0]
+    )
+    assert planning.query_for(world).exact_edges
+    assert not planning.query_for("np4").exact_edges
+    for seed in range(3000, 3010):
+        result = plan(world, seed=seed, max_iterations=100_000)
+        assert result["solved"] and result["path_check"]["ok"], (seed, result["path_check"])
+    bitstar = plan(world, planner="bitstar", seed=3000, time=0.2)
+    assert bitstar["solved"] and bitstar["path_check"]["ok"]

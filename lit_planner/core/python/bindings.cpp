@@ -52,6 +52,8 @@ namespace
         std::vector<double> start;
         std::vector<double> goal;
         double resolution{5e-6};
+        /** Edges checked exactly against the boxes (custom worlds), not at the resolution alone. */
+        bool exactEdges{false};
     };
 
     const std::vector<std::string> &plannerNames()
@@ -212,7 +214,7 @@ namespace
         const ompl::base::PlannerTerminationCondition cancelCondition =
             cancelled ? ompl::base::PlannerTerminationCondition([cancelled] { return cancelled->load(); }) :
                         ompl::base::plannerNonTerminatingCondition();
-        BoxProblem problem = makeBoxProblem(query.world, query.start, query.goal, query.resolution);
+        BoxProblem problem = makeBoxProblem(query.world, query.start, query.goal, query.resolution, query.exactEdges);
         // inf ended an OMPL planner at once (as a timeout) and gave LIT* no limit at all.
         if (!(std::isfinite(time) && time >= 0.0))
             throw py::value_error("solve needs a finite time >= 0 in seconds, got " + std::to_string(time));
@@ -504,7 +506,7 @@ PYBIND11_MODULE(lit_core, m)
     py::class_<Query>(m, "Query", "A planning query in a box world (axis-aligned, closed box obstacles).")
         .def(py::init([](std::vector<double> lower, std::vector<double> upper, std::vector<std::vector<double>> boxLower,
                          std::vector<std::vector<double>> boxUpper, std::vector<double> start, std::vector<double> goal,
-                         double resolution) {
+                         double resolution, bool exactEdges) {
                  if (boxLower.size() != boxUpper.size())
                      throw py::value_error("box_lower and box_upper must list the same number of boxes");
                  Query q;
@@ -520,13 +522,15 @@ PYBIND11_MODULE(lit_core, m)
                  q.start = std::move(start);
                  q.goal = std::move(goal);
                  q.resolution = resolution;
+                 q.exactEdges = exactEdges;
                  return q;
              }),
              py::arg("lower"), py::arg("upper"), py::arg("box_lower"), py::arg("box_upper"), py::arg("start"),
-             py::arg("goal"), py::arg("resolution"))
+             py::arg("goal"), py::arg("resolution"), py::arg("exact_edges") = false)
         .def_property_readonly("dimension", [](const Query &q) { return q.world.lower.size(); })
         .def_readonly("start", &Query::start)
         .def_readonly("goal", &Query::goal)
+        .def_readonly("exact_edges", &Query::exactEdges)
         .def_readonly("resolution", &Query::resolution)
         .def("is_valid", [](const Query &q, std::vector<double> x) {
                  if (x.size() != q.world.lower.size())

@@ -4,9 +4,12 @@
 #include <ompl/base/objectives/PathLengthOptimizationObjective.h>
 #include <ompl/base/spaces/RealVectorStateSpace.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace lit
 {
@@ -72,8 +75,83 @@ namespace lit
         return isValidPoint(state->as<ompl::base::RealVectorStateSpace::StateType>()->values);
     }
 
+    BoxWorldMotionValidator::BoxWorldMotionValidator(const ompl::base::SpaceInformationPtr &si,
+                                                     const BoxWorld &world)
+      : ompl::base::MotionValidator(si), dim_(world.validatedDimension())
+    {
+        for (const auto &box : world.boxes)
+        {
+            boxLower_.insert(boxLower_.end(), box.lower.begin(), box.lower.end());
+            boxUpper_.insert(boxUpper_.end(), box.upper.begin(), box.upper.end());
+        }
+    }
+
+    double BoxWorldMotionValidator::firstContact(const double *a, const double *b) const
+    {
+        double first = std::numeric_limits<double>::infinity();
+        const std::size_t numBoxes = boxLower_.size() / (dim_ == 0u ? 1u : dim_);
+        for (std::size_t k = 0; k < numBoxes; ++k)
+        {
+            const double *lo = &boxLower_[k * dim_];
+            const double *hi = &boxUpper_[k * dim_];
+            double enter = 0.0, leave = 1.0;  // the part of the segment inside every slab so far
+            unsigned int i = 0;
+            for (; i < dim_; ++i)
+            {
+                const double d = b[i] - a[i];
+                if (d == 0.0)
+                {
+                    if (a[i] < lo[i] || a[i] > hi[i])
+                        break;
+                    continue;
+                }
+                double t0 = (lo[i] - a[i]) / d, t1 = (hi[i] - a[i]) / d;
+                if (t0 > t1)
+                    std::swap(t0, t1);
+                enter = std::max(enter, t0);
+                leave = std::min(leave, t1);
+                if (enter > leave)  // closed boxes: touching a face (enter == leave) is a contact
+                    break;
+            }
+            if (i == dim_)
+                first = std::min(first, enter);
+        }
+        return first;
+    }
+
+    bool BoxWorldMotionValidator::checkMotion(const ompl::base::State *s1, const ompl::base::State *s2) const
+    {
+        const bool valid = si_->isValid(s2) &&
+                           !std::isfinite(firstContact(s1->as<ompl::base::RealVectorStateSpace::StateType>()->values,
+                                                       s2->as<ompl::base::RealVectorStateSpace::StateType>()->values));
+        if (valid)
+            ++valid_;
+        else
+            ++invalid_;
+        return valid;
+    }
+
+    bool BoxWorldMotionValidator::checkMotion(const ompl::base::State *s1, const ompl::base::State *s2,
+                                              std::pair<ompl::base::State *, double> &lastValid) const
+    {
+        const double contact = firstContact(s1->as<ompl::base::RealVectorStateSpace::StateType>()->values,
+                                            s2->as<ompl::base::RealVectorStateSpace::StateType>()->values);
+        if (!std::isfinite(contact) && si_->isValid(s2))
+        {
+            ++valid_;
+            return true;
+        }
+        // Just before the first box (the end state itself when it is out of bounds but no box is met).
+        const double t = std::isfinite(contact) ? std::max(0.0, contact - 1e-9) : 1.0 - 1e-9;
+        if (lastValid.first != nullptr)
+            si_->getStateSpace()->interpolate(s1, s2, t, lastValid.first);
+        lastValid.second = t;
+        ++invalid_;
+        return false;
+    }
+
     BoxProblem makeBoxProblem(const BoxWorld &world, const std::vector<double> &start,
-                              const std::vector<double> &goal, double resolution)
+                              const std::vector<double> &goal, double resolution, bool exactEdges)
     {
         const unsigned int dim = world.validatedDimension();
         if (start.size() != dim || goal.size() != dim)
@@ -96,6 +174,8 @@ namespace lit
         problem.checker = std::make_shared<BoxWorldValidityChecker>(problem.si, world);
         problem.si->setStateValidityChecker(problem.checker);
         problem.si->setStateValidityCheckingResolution(resolution);
+        if (exactEdges)
+            problem.si->setMotionValidator(std::make_shared<BoxWorldMotionValidator>(problem.si, world));
         problem.si->setup();
 
         problem.pdef = std::make_shared<ompl::base::ProblemDefinition>(problem.si);

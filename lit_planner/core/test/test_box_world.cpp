@@ -54,3 +54,45 @@ TEST(BoxWorld, RejectsInconsistentWorlds)
     EXPECT_TRUE(throwsWith<std::invalid_argument>([&] { makeBoxProblem(world, {0.0, 0.0}, {0.0, 0.0}, 0.0); },
                                                   "resolution must be in (0, 1)"));
 }
+
+TEST(BoxWorld, ExactMotionValidationSeesThinWallsAndClippedCorners)
+{
+    // A 10 x 10 room cut by a 2 mm wall, and a box whose corner a segment clips by 1e-4: at the resolution 1e-3
+    // (checks 10 mm apart) the discrete validator passes both; the exact one refuses both.
+    BoxWorld world;
+    world.lower = {0.0, 0.0};
+    world.upper = {10.0, 10.0};
+    world.boxes = {Box{{5.0, 0.0}, {5.002, 4.0}}, Box{{2.0, 6.0}, {3.0, 7.0}}};
+    BoxProblem discrete = makeBoxProblem(world, {1.0, 1.0}, {9.0, 1.0}, 1e-3);
+    BoxProblem exact = makeBoxProblem(world, {1.0, 1.0}, {9.0, 1.0}, 1e-3, true);
+    auto validator = std::dynamic_pointer_cast<BoxWorldMotionValidator>(exact.si->getMotionValidator());
+    ASSERT_NE(validator, nullptr);
+    ompl::base::ScopedState<> a(exact.si), b(exact.si);
+    auto check = [&](const BoxProblem &problem, std::vector<double> from, std::vector<double> to) {
+        a[0] = from[0], a[1] = from[1], b[0] = to[0], b[1] = to[1];
+        return problem.si->checkMotion(a.get(), b.get());
+    };
+    const std::vector<double> left{4.0047, 1.0}, right{6.0047, 1.0};  // through the thin wall, between points
+    EXPECT_TRUE(check(discrete, left, right));
+    EXPECT_FALSE(check(exact, left, right));
+    // The corner (3, 6) clipped: (2.9, 5.9) -> (3.1, 6.1001) is inside the box for t in [0.49975, 0.5] only,
+    // 7e-5 long, between two of the discrete validator's points.
+    const std::vector<double> below{2.9, 5.9}, beyond{3.1, 6.1001};
+    EXPECT_TRUE(check(discrete, below, beyond));
+    EXPECT_FALSE(check(exact, below, beyond));
+    EXPECT_TRUE(check(exact, below, {3.1, 6.0999}));  // passes the corner outside
+    // Touching a face is a contact (closed boxes), a miss by a hair is not.
+    EXPECT_FALSE(check(exact, {1.0, 4.0}, {9.0, 4.0}));
+    EXPECT_TRUE(check(exact, {1.0, 4.0 + 1e-9}, {9.0, 4.0 + 1e-9}));
+    EXPECT_TRUE(check(exact, {1.0, 5.0}, {9.0, 5.0}));
+    // The last valid state lies just before the first box met.
+    std::pair<ompl::base::State *, double> last{exact.si->allocState(), 0.0};
+    a[0] = 4.0, a[1] = 1.0, b[0] = 6.0, b[1] = 1.0;
+    EXPECT_FALSE(validator->checkMotion(a.get(), b.get(), last));
+    EXPECT_NEAR(last.second, 0.5, 1e-8);  // the wall at x = 5, half-way
+    EXPECT_TRUE(exact.si->isValid(last.first));
+    exact.si->freeState(last.first);
+    // An end state in collision or out of bounds.
+    EXPECT_FALSE(check(exact, {1.0, 1.0}, {5.001, 1.0}));
+    EXPECT_FALSE(check(exact, {1.0, 1.0}, {11.0, 1.0}));
+}

@@ -2,6 +2,7 @@
 /** \file BoxWorld.h
  *  \brief Hyperrectangle worlds in R^n and a validity checker that counts its calls. */
 
+#include <ompl/base/MotionValidator.h>
 #include <ompl/base/SpaceInformation.h>
 #include <ompl/base/ProblemDefinition.h>
 #include <ompl/base/StateValidityChecker.h>
@@ -79,9 +80,34 @@ namespace lit
         BoxWorld world;
     };
 
+    /** \brief Exact motion validation in a BoxWorld: a straight segment is valid iff its end state is valid and
+     *  it meets no (closed) box, by a slab test per box, however thin the box or short the clip of its corner.
+     *  The discrete check at a resolution can step over both (a path the exact re-check then refuses). */
+    class BoxWorldMotionValidator : public ompl::base::MotionValidator
+    {
+    public:
+        BoxWorldMotionValidator(const ompl::base::SpaceInformationPtr &si, const BoxWorld &world);
+
+        /** \brief As OMPL's validators: \e s1 is taken as valid. */
+        bool checkMotion(const ompl::base::State *s1, const ompl::base::State *s2) const override;
+
+        /** \brief Also gives the last valid state and its fraction of the segment (just before the first box). */
+        bool checkMotion(const ompl::base::State *s1, const ompl::base::State *s2,
+                         std::pair<ompl::base::State *, double> &lastValid) const override;
+
+        /** \brief The fraction t in [0, 1] where the segment a -> b first meets a box; infinity when it meets none. */
+        double firstContact(const double *a, const double *b) const;
+
+    private:
+        unsigned int dim_{0u};
+        std::vector<double> boxLower_, boxUpper_;
+    };
+
     /** \brief Builds an R^n problem with path-length objective. \e resolution is OMPL's
-     *  state-validity-checking resolution (a fraction of the space's maximum extent). Start and goal are
-     *  not validated here: the planners report invalid ones with a status. */
+     *  state-validity-checking resolution (a fraction of the space's maximum extent). With \e exactEdges the
+     *  motion validator is BoxWorldMotionValidator (custom worlds), else OMPL's discrete one at the resolution
+     *  (the benchmark scenarios: the same checks for every planner, as PDT's). Start and goal are not validated
+     *  here: the planners report invalid ones with a status. */
     BoxProblem makeBoxProblem(const BoxWorld &world, const std::vector<double> &start,
-                              const std::vector<double> &goal, double resolution);
+                              const std::vector<double> &goal, double resolution, bool exactEdges = false);
 }  // namespace lit
