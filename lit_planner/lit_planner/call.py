@@ -323,8 +323,9 @@ def _call(
             print(
                 "lit call: warning: the returned path failed the node's independent re-check "
                 "(path_valid false): it leaves the free space between the planner's collision "
-                "checks; do not execute it as it is (exit 3). A world with a finer resolution "
-                "has its edges checked more densely",
+                "checks; do not execute it as it is (exit 3). A registry scenario's edges are "
+                "checked at its resolution; an explicit world's exactly, so there this is a bug "
+                "to report",
                 file=sys.stderr,
             )
             return PATH_INVALID_EXIT

@@ -693,8 +693,9 @@ def _first_box_crossing(scenario: Scenario, waypoints: FloatArray) -> tuple[int,
     over the axes and with [0, 1]. *Through* means the stretch begins and ends on the same axis's
     bounds: the segment crosses the box from one face to the opposite one (a wall thinner than the
     samples' spacing, or of zero thickness). One that clips an edge or corner between samples
-    (in across one axis, out across another) is not reported: every planner here checks edges at
-    a resolution and clips corners by up to it."""
+    (in across one axis, out across another) is not reported: every planner checks a registry
+    scenario's edges at its resolution and clips corners by up to it (a custom world's edges are
+    checked exactly, so its paths clip nothing)."""
     if len(waypoints) < 2 or len(scenario.boxes) == 0:
         return None
     box_lo, box_hi = scenario.boxes[None, :, 0, :], scenario.boxes[None, :, 1, :]

@@ -141,12 +141,29 @@ namespace lit
             ++valid_;
             return true;
         }
-        // Just before the first box (the end state itself when it is out of bounds but no box is met).
-        const double t = std::isfinite(contact) ? std::max(0.0, contact - 1e-9) : 1.0 - 1e-9;
-        if (lastValid.first != nullptr)
-            si_->getStateSpace()->interpolate(s1, s2, t, lastValid.first);
-        lastValid.second = t;
         ++invalid_;
+        // A valid state before the first contact (a box, or the bounds the end state is outside of): just before
+        // it, then halfway back towards s1 while rounding leaves it on a face or outside (at most 64 times);
+        // s1 itself (t = 0) when none is.
+        double t = std::isfinite(contact) ? std::max(0.0, contact - 1e-9) : 1.0 - 1e-9;
+        ompl::base::State *probe = lastValid.first != nullptr ? lastValid.first : si_->allocState();
+        int halvings = 0;
+        for (; t > 0.0 && halvings < 64; t *= 0.5, ++halvings)
+        {
+            si_->getStateSpace()->interpolate(s1, s2, t, probe);
+            if (si_->isValid(probe) &&
+                !std::isfinite(firstContact(s1->as<ompl::base::RealVectorStateSpace::StateType>()->values,
+                                            probe->as<ompl::base::RealVectorStateSpace::StateType>()->values)))
+                break;
+        }
+        if (!(t > 0.0) || halvings == 64)
+        {
+            t = 0.0;
+            si_->copyState(probe, s1);
+        }
+        if (lastValid.first == nullptr)
+            si_->freeState(probe);
+        lastValid.second = t;
         return false;
     }
 

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <stdexcept>
 
 using namespace lit;
@@ -95,4 +96,25 @@ TEST(BoxWorld, ExactMotionValidationSeesThinWallsAndClippedCorners)
     // An end state in collision or out of bounds.
     EXPECT_FALSE(check(exact, {1.0, 1.0}, {5.001, 1.0}));
     EXPECT_FALSE(check(exact, {1.0, 1.0}, {11.0, 1.0}));
+    // The last valid state is valid also when the end is out of bounds with no box in the way, when the
+    // segment meets a face at a grazing angle (backing off by 1e-9 of it stays on the face), and when the end is
+    // not a number (s1 itself).
+    const auto lastValidOf = [&](std::vector<double> from, std::vector<double> to) {
+        std::pair<ompl::base::State *, double> out{exact.si->allocState(), -1.0};
+        a[0] = from[0], a[1] = from[1], b[0] = to[0], b[1] = to[1];
+        EXPECT_FALSE(validator->checkMotion(a.get(), b.get(), out));
+        EXPECT_TRUE(exact.si->isValid(out.first)) << from[0] << "," << from[1] << " -> " << to[0] << "," << to[1];
+        EXPECT_GE(out.second, 0.0);
+        EXPECT_LE(out.second, 1.0);
+        const double t = out.second;
+        exact.si->freeState(out.first);
+        return t;
+    };
+    EXPECT_GT(lastValidOf({8.0, 1.0}, {11.0, 1.0}), 0.0);
+    EXPECT_GT(lastValidOf({1.5, 6.0 + 1e-13}, {2.5, 6.0 - 1e-13}), 0.0);
+    EXPECT_EQ(lastValidOf({1.0, 1.0}, {std::nan(""), 1.0}), 0.0);
+    std::pair<ompl::base::State *, double> nothing{nullptr, -1.0};  // only the fraction asked for
+    a[0] = 4.0, a[1] = 1.0, b[0] = 6.0, b[1] = 1.0;
+    EXPECT_FALSE(validator->checkMotion(a.get(), b.get(), nothing));
+    EXPECT_NEAR(nothing.second, 0.5, 1e-8);
 }
