@@ -259,9 +259,10 @@ def _bag_custom_data(path: Path) -> dict[str, Any]:
 
 def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
     """Complete training episodes (summary, and as many observations and decisions as the
-    summary counts decisions), in the order their summaries were recorded. A message read twice (a bag given with its compacted
-    or salvaged copy: the same topic, publisher, run and seq) counts once; it was paired twice,
-    and the pairing failed on the second copy's earlier times."""
+    summary counts decisions), in the order their summaries were recorded. A message read twice
+    (a bag given with its compacted or salvaged copy: the same topic, publisher, run and seq)
+    counts once; it was paired twice, and the pairing failed on the second copy's earlier
+    times."""
     skipped = Skipped()
     found: dict[tuple[str, str, str], RecordedEpisode] = {}
     order: list[tuple[str, str, str]] = []

@@ -336,7 +336,7 @@ class Publisher:
         # os.fsdecode gives it): escaped, or every receiver would refuse the Error.
         for key in ("message", "field"):
             if isinstance(payload.get(key), str):
-                payload[key] = _unicode_text(payload[key])
+                payload[key] = unicode_text(payload[key])
         return self.encode("Error", payload)
 
     def _check(self, name: str, payload: object, stamp_ns: int | None) -> tuple[str, int, bool]:
@@ -776,8 +776,9 @@ def _shorten(text: str, limit: int) -> str:
     return text[:keep] + marker + text[len(text) - keep :]
 
 
-def _unicode_text(text: str) -> str:
-    """``text`` with lone surrogates written as backslash escapes (it encodes to UTF-8 then)."""
+def unicode_text(text: str) -> str:
+    """``text`` with lone surrogates written as backslash escapes (it encodes to UTF-8 then;
+    the nodes' loggers and Error texts use it)."""
     if text.isascii() or not _SURROGATES.search(text):
         return text
     return text.encode("utf-8", "backslashreplace").decode("utf-8")

@@ -331,7 +331,6 @@ class BagReader:
         Raises:
             ReplayError: the data cannot be read on (names how many messages were read).
         """
-        read = 0
         per_topic: dict[str, int] = {}
         iterator = self._reader.messages()
         while True:
@@ -342,10 +341,10 @@ class BagReader:
                 return
             except Exception as error:  # noqa: BLE001 -- damaged files raise anything
                 raise ReplayError(
-                    f"bag {self.path} is damaged after {read} messages: {_describe(error)}; "
+                    f"bag {self.path} is damaged after {sum(per_topic.values())} messages: "
+                    f"{_describe(error)}; "
                     f"recover it with `lit replay salvage {self.path}`"
                 ) from None
-            read += 1
             per_topic[item[0].topic] = per_topic.get(item[0].topic, 0) + 1
             yield item
 

@@ -32,13 +32,6 @@ MAX_EPISODE_BUDGET = 3600.0
 DecideRequest and EpisodeEnd schemas."""
 MAX_INFERENCE_BUDGET = 86400.0
 """Most seconds of another policy's episode: the maximum ``planning_time`` of an Observation."""
-
-
-def episode_budget_limit(policy: str) -> float:
-    """The longest time budget the planner node's episodes of ``policy`` can have."""
-    return MAX_EPISODE_BUDGET if policy == "training" else MAX_INFERENCE_BUDGET
-
-
 PLAN_SERVICE = "lit/planner/plan"
 """The planner's plan service, relative to the planner node's namespace."""
 CANCEL_SERVICE = "lit/planner/cancel"
@@ -54,6 +47,11 @@ TOPICS = {
 """The planner node's topics, relative to its namespace."""
 STATS_TOPIC = "/lit/learner/stats"
 """The learner's training-progress topic."""
+
+
+def episode_budget_limit(policy: str) -> float:
+    """The longest time budget the planner node's episodes of ``policy`` can have."""
+    return MAX_EPISODE_BUDGET if policy == "training" else MAX_INFERENCE_BUDGET
 
 
 class SafeLogger:
@@ -81,12 +79,9 @@ class SafeLogger:
     @staticmethod
     def text(message: object) -> str:
         """``message`` as text that encodes to UTF-8."""
-        text = str(message)
-        try:
-            text.encode("utf-8")
-        except UnicodeEncodeError:
-            text = text.encode("utf-8", "backslashreplace").decode("utf-8")
-        return text
+        from lit_msgs_json.envelope import unicode_text
+
+        return unicode_text(str(message))
 
     def debug(self, message: object, **kwargs: Any) -> Any:
         return self._logger.debug(self.text(message), **kwargs)

@@ -214,12 +214,12 @@ namespace
         const ompl::base::PlannerTerminationCondition cancelCondition =
             cancelled ? ompl::base::PlannerTerminationCondition([cancelled] { return cancelled->load(); }) :
                         ompl::base::plannerNonTerminatingCondition();
-        BoxProblem problem = makeBoxProblem(query.world, query.start, query.goal, query.resolution, query.exactEdges);
         // inf ended an OMPL planner at once (as a timeout) and gave LIT* no limit at all.
         if (!(std::isfinite(time) && time >= 0.0))
             throw py::value_error("solve needs a finite time >= 0 in seconds, got " + std::to_string(time));
         if (!(time > 0.0) && maxIterations == 0u && maxBatches == 0u)
             throw py::value_error("solve needs a positive time, max_iterations or max_batches");
+        BoxProblem problem = makeBoxProblem(query.world, query.start, query.goal, query.resolution, query.exactEdges);
 
         py::dict result;
         result["planner"] = plannerName;
