@@ -27,6 +27,7 @@ def test_colcon_builds_the_workspace(tmp_path: Path) -> None:
     colcon = Path(sys.executable).parent / "colcon"
     assert colcon.exists(), "colcon is part of requirements.lock"
     env = dict(os.environ, COLCON_HOME=str(tmp_path / "colcon_home"))
+    before = _source_tree_status()
     process = subprocess.run(
         [
             str(colcon), "--log-base", str(tmp_path / "log"), "build",
@@ -65,12 +66,20 @@ def test_colcon_builds_the_workspace(tmp_path: Path) -> None:
     assert probe.returncode == 0, probe.stdout + probe.stderr
     assert probe.stdout.startswith(str(install / "lit_core")), probe.stdout
     _check_cpp_consumer(install, tmp_path, env)
-    # The build works on copies: the source tree is left as it was.
+    # The build works on copies: the source tree is left as it was, ignored files included (a
+    # build/ or *.egg-info/ written into a package is in .gitignore; bytecode caches aside).
+    written = [line for line in _source_tree_status() - before if "__pycache__" not in line]
+    assert written == [], written
+
+
+def _source_tree_status() -> set[str]:
+    """``git status`` of the workspace and the packages, listing ignored files too."""
     status = subprocess.run(
-        ["git", "status", "--porcelain", "--", "ros2_ws", *PACKAGES],
-        cwd=ROOT, capture_output=True, text=True, check=False,
+        ["git", "status", "--porcelain", "--ignored", "--", "ros2_ws",
+         *PACKAGES],
+        cwd=ROOT, capture_output=True, text=True, check=True,
     )  # fmt: skip
-    assert "build/" not in status.stdout and ".egg-info" not in status.stdout, status.stdout
+    return set(status.stdout.splitlines())
 
 
 def _check_cpp_consumer(install: Path, tmp_path: Path, env: dict[str, str]) -> None:

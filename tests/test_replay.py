@@ -27,7 +27,7 @@ from lit_planner import bag, replay, scenarios
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "bags" / "samples" / "bench_np4"
-ENV = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID="57")
+ENV = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")  # lit test's own domain
 OBSERVATION = "lit_msgs_json/Observation"
 # The statistics of the live `lit bench` run that recorded SAMPLE (its summary.json).
 SAMPLE_STATISTICS = {

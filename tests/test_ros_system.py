@@ -1367,8 +1367,11 @@ def test_a_training_episode_cut_short_goes_to_the_learner_and_is_not_published(
     ), planner.tail()
     assert "episodes done" not in planner.text(), planner.tail()  # it said "1 ... done"
     assert ros.stop(learner, signal.SIGTERM, timeout=60.0) == 0, learner.tail()
-    final = recording.payloads(STATS)[-1]  # published and flushed at the learner's shutdown
-    assert final["episodes"] == 1, final
+    # The final stats were published at the learner's shutdown; the recorder may still be writing
+    # them (or the tick before them), so wait for stats that count the episode.
+    final = recording.wait_until(
+        STATS, lambda stats: bool(stats) and stats[-1]["episodes"] == 1, 60.0, "the final stats"
+    )[-1]
     assert final["transitions"]["B"] + final["transitions"]["psi_K"] >= 1, final
     assert recording.payloads(EPISODE) == []
     _no_traceback(planner, learner)
@@ -1452,9 +1455,8 @@ def test_sigterm_shuts_both_nodes_down_cleanly(ros: RosSystem) -> None:
 
     for name, node in nodes.items():  # planner first: its episode ends while the learner runs
         assert ros.stop(node, signal.SIGTERM, timeout=60.0) == 0, f"{name}:\n{node.tail()}"
-        # Nothing it started lives on: no child, nothing else in its session (orphans are
-        # adopted by another parent, but keep the session).
-        assert children_of(node.pid) == [], f"{name} left children behind"
+        # Nothing it started lives on: nothing else in its session (orphans are adopted by
+        # another parent, but keep the session), none of the children it had.
         assert session_members(node.pid) == [], f"{name} left processes behind"
         assert not set(spawned[name]) & live_pids(), f"{name}'s children {spawned[name]} live on"
     assert checkpoint.is_file()

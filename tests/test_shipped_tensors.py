@@ -1,7 +1,7 @@
 """The shipped tensors (``tensors/``) trace back to the bag of the training run that made them.
 
 ``tensors/provenance.json`` names the run folder; exactly one bag under ``bags/`` was recorded by
-that run (``lit.run_folder`` in its metadata). The bag holds one episode summary per trained
+that run (``lit.run_folder`` in its metadata; bags not in git do not count). The bag holds one episode summary per trained
 episode with every publisher's ``seq`` unbroken, and both sidecars carry the same provenance.
 The shipped evaluations (``tensors/evaluation_summary.md``, ``tensors/paper/summary.md``) are what
 ``lit replay bench`` makes of their shipped bags.
@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -23,8 +24,13 @@ TENSORS = ROOT / "tensors"
 
 
 def _bags_of(run_folder: str) -> list[Path]:
+    """The bags in git (not a local copy, a salvaged one or a user's own run) recorded by it."""
+    listed = subprocess.run(
+        ["git", "ls-files", "-z", "--", "bags/**/metadata.yaml"],
+        cwd=ROOT, capture_output=True, text=True, check=True,
+    )  # fmt: skip
     found = []
-    for metadata in sorted((ROOT / "bags").glob("**/metadata.yaml")):
+    for metadata in sorted(ROOT / name for name in listed.stdout.split("\0") if name):
         info = yaml.safe_load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
         if (info.get("custom_data") or {}).get("lit.run_folder") == run_folder:
             found.append(metadata.parent)

@@ -11,6 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from lit_planner.testing import read_until
+
 
 def test_sigint_stops_a_command_started_with_sigint_ignored(tmp_path: Path) -> None:
     process = subprocess.Popen(
@@ -22,9 +24,9 @@ def test_sigint_stops_a_command_started_with_sigint_ignored(tmp_path: Path) -> N
     )  # fmt: skip
     try:
         assert process.stderr is not None
-        for line in process.stderr:  # running: past start-up, where the handler is set
-            if line.startswith("lit bench: writing to"):
-                break
+        read_until(
+            process.stderr, "lit bench: writing to"
+        )  # past start-up, where the handler is set
         process.send_signal(signal.SIGINT)
         _, err = process.communicate(timeout=120)
         assert process.returncode == 130, err

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from lit_planner.testing import handles_signal
+from lit_planner.testing import DescendantWatch, handles_signal, read_until
 from ros_helpers import launcher_domain
 
 
@@ -261,7 +261,8 @@ def test_lit_call_names_a_service_of_another_type() -> None:
         [sys.executable, "-c", server_code], env=env, stdout=subprocess.PIPE, text=True
     )
     try:
-        assert server.stdout is not None and server.stdout.readline().strip() == "ready"
+        assert server.stdout is not None
+        assert read_until(server.stdout, "ready") == ["ready\n"]
         time.sleep(1.0)  # discovery
         process = subprocess.run(
             [sys.executable, "-m", "lit_planner.cli", "call", "--wait", "5", "raw",
@@ -299,6 +300,7 @@ def test_sigterm_stops_system_bench_in_order(tmp_path: Path) -> None:
         env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", TMPDIR=str(tmp_path)),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
+    watch = DescendantWatch(process.pid)
     try:
         assert process.stdout is not None
         begun = threading.Event()
@@ -318,7 +320,9 @@ def test_sigterm_stops_system_bench_in_order(tmp_path: Path) -> None:
         assert process.returncode == 130, err
         assert "lit system-bench: interrupted" in err and "Traceback" not in err
         assert not [p for p in tmp_path.iterdir() if p.name.startswith("lit-system-bench-")]
+        assert watch.seen and not watch.alive()  # its nodes and client stopped with it
     finally:
         if process.poll() is None:
             process.kill()
             process.wait()
+        watch.kill()

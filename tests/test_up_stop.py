@@ -13,6 +13,9 @@ import sys
 import textwrap
 import time
 from pathlib import Path
+from typing import IO
+
+from lit_planner.testing import read_until
 
 LAUNCHER = textwrap.dedent(
     """
@@ -39,17 +42,9 @@ LAUNCHER = textwrap.dedent(
 )
 
 
-def _read_until(stream: object, text: str, timeout: float = 60.0) -> list[str]:
-    lines: list[str] = []
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        line = stream.readline()  # type: ignore[attr-defined]
-        if not line:
-            break
-        lines.append(line.rstrip("\n"))
-        if text in line:
-            return lines
-    raise AssertionError(f"{text!r} not seen: {lines}")
+def _read_until(stream: IO[str] | None, text: str, timeout: float = 60.0) -> list[str]:
+    assert stream is not None
+    return [line.rstrip("\n") for line in read_until(stream, text, timeout)]
 
 
 def _gone(pid: int, timeout: float = 30.0) -> bool:

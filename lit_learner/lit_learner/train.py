@@ -912,6 +912,20 @@ def _check_folders(args: argparse.Namespace) -> None:
         )
 
 
+def _tensor_files_state(folder: str | Path | None) -> dict[str, tuple[int, int]]:
+    """(modification time, size) of each tensor file in the export ``folder`` now."""
+    from lit_planner import planning
+
+    state = {}
+    for name in planning.TENSOR_FILES.values() if folder is not None else ():
+        try:
+            stat = (Path(folder) / name).stat()
+        except OSError:
+            continue
+        state[name] = (stat.st_mtime_ns, stat.st_size)
+    return state
+
+
 def _own_export(folder: Path, resume: Path | None) -> bool:
     """Whether ``folder`` holds an export of the run that ``resume`` continues (an interrupted
     run exports the state it reached; the resumed run replaces that export)."""
@@ -971,6 +985,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             raise TrainingError(f"{label} must be positive, got {value}")
 
     _check_folders(args)
+    exported_before = _tensor_files_state(args.export)  # an earlier export of the run resumed
     limits = _episode_limits(args)
     w_search = args.w_search
     if w_search is not None and not (math.isfinite(w_search) and w_search >= 0):
@@ -1275,9 +1290,9 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
     if args.export is not None and final is None:
         lines.append(f"  not exported to {args.export}: the learner's state matches no checkpoint")
     elif args.export is not None:
-        replaced = [  # written there by something else while this run trained
-            name for name in planning.TENSOR_FILES.values() if (Path(args.export) / name).exists()
-        ]
+        # Written there by something else while this run trained (an earlier export of the run
+        # it resumes was there from the start, and is what it replaces).
+        replaced = _tensor_files_state(args.export) != exported_before
         written = export(core, Path(args.export), record, curves)
         lines.append(f"  tensors {', '.join(str(path) for path in written.values())}")
         if replaced:

@@ -641,10 +641,24 @@ def test_export_into_the_run_folder_is_refused_and_an_export_records_no_bag(
     assert "bag" not in result.summary
     assert sorted(path.name for path in tmp_path.iterdir()) == sorted([*before, "tensors"])
     # A resume may replace its own run's export (an interrupted run exports what it reached),
-    # never another run's.
-    train.train(arguments(run_dir, resume=final, episodes=2, export=tmp_path / "tensors"))
+    # never another run's; it does not take its own earlier export for somebody else's.
+    again = train.train(arguments(run_dir, resume=final, episodes=2, export=tmp_path / "tensors"))
     provenance = json.loads((tmp_path / "tensors" / train.PROVENANCE_FILE).read_text())
     assert provenance["episodes"] == 2
+    assert "replaced" not in again.summary, again.summary
+    # Tensors that something else writes into the export folder while the run trains are named.
+    meanwhile = tmp_path / "meanwhile"
+
+    def write_there(outcome: train.EpisodeOutcome) -> None:
+        meanwhile.mkdir(exist_ok=True)
+        (meanwhile / "k_tensor.npy").write_bytes(b"another writer")
+
+    hooks_writing = train.TrainingHooks(learner_config=small_config(), on_episode=write_there)
+    crossed = train.train(
+        arguments(tmp_path / "crossed", episodes=1, scenarios="np4", no_bag=True, export=meanwhile),
+        hooks_writing,
+    )
+    assert f"replaced the tensors written to {meanwhile} during this run" in crossed.summary
     other = tmp_path / "other"
     train.train(arguments(other, episodes=1, scenarios="np4", no_bag=True), hooks)
     with pytest.raises(train.TrainingError, match="exists and is not empty"):

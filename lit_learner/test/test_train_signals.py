@@ -17,6 +17,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+from lit_planner.testing import read_until
 
 from lit_learner import train
 
@@ -91,11 +92,8 @@ def test_a_second_signal_stops_at_once(tmp_path: Path) -> None:
         _wait_for_episodes(process, run, 1)
         process.send_signal(signal.SIGINT)
         assert process.stderr is not None
-        seen = []
-        for line in process.stderr:  # the first one taken (two at once may arrive as one)
-            seen.append(line)
-            if "stopping after this episode" in line:
-                break
+        # the first one taken (two at once may arrive as one)
+        seen = read_until(process.stderr, "stopping after this episode")
         process.send_signal(signal.SIGINT)
         out, err = process.communicate(timeout=300)
         err = "".join(seen) + err

@@ -26,6 +26,7 @@ import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO
 from xml.etree import ElementTree
 
 from lit_planner.up import DomainBusy, DomainClaim, claim_domain
@@ -160,6 +161,33 @@ class DescendantWatch:
                 os.kill(pid, signal.SIGKILL)
             except ProcessLookupError:
                 pass
+
+
+def read_until(stream: IO[str], text: str, timeout: float = 120.0) -> list[str]:
+    """Lines of a child's ``stream`` up to and including the first one that holds ``text``.
+
+    The lines are read on a thread, so that a child that never prints ``text`` (or hangs before
+    it) fails the test after ``timeout`` seconds instead of blocking the run: AssertionError with
+    the lines seen. Nothing past the matching line is read here. After a timeout the thread may
+    still be blocked in its read until the caller ends the child (which closes the pipe).
+    """
+    lines: list[str] = []
+    found = threading.Event()
+
+    def read() -> None:
+        for line in stream:
+            lines.append(line)
+            if text in line:
+                found.set()
+                return
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    reader.join(timeout)
+    if not found.is_set():
+        why = f"within {timeout:g} s" if reader.is_alive() else "before the stream ended"
+        raise AssertionError(f"{text!r} not seen {why}; lines: {''.join(list(lines))[-3000:]}")
+    return lines
 
 
 def _start_time(pid: int) -> int | None:

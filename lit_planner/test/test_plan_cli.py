@@ -14,10 +14,12 @@ from typing import Any
 
 import pytest
 from cli_helpers import lit
-from lit_planner.testing import DescendantWatch, reserve_ros_domain
+from lit_planner.testing import DescendantWatch, read_until, reserve_ros_domain
 
 from lit_planner import scenarios
 from lit_planner import tensor_files as tf
+
+ROOT = Path(__file__).resolve().parents[2]
 
 REQUIRED_FIELDS = {
     "status", "solved", "cost", "t_init", "c_init", "improvements", "path", "counters",
@@ -143,8 +145,8 @@ def test_a_path_that_fails_the_recheck_exits_3(
         (["--planner", "bitstar", "--iterations", "5"], "stops on time only"),
         (["--seed", "-1"], "seed must be"),
         (["--policy", "fixed", "--interpolation", "nearest"], "are for the tensor policy"),
-        (["--planner", "aitstar", "--tensors", "tensors"], "not for aitstar"),
-        (["--policy", "tensor", "--tensors", "README.md"], "README.md: a file"),
+        (["--planner", "aitstar", "--tensors", str(ROOT / "tensors")], "not for aitstar"),
+        (["--policy", "tensor", "--tensors", str(ROOT / "README.md")], "README.md: a file"),
     ],
 )
 def test_plan_bad_input_is_one_line(args: list[str], message: str) -> None:
@@ -188,7 +190,21 @@ def test_demo_solves_the_default_scenario(tmp_path: Path) -> None:
     domain, claim = reserve_ros_domain(range(101, 233))
     if claim is not None:
         claim.close()
-    process = lit("demo", "--out", str(tmp_path), "--domain-id", str(domain))
+    demo = subprocess.Popen(
+        [sys.executable, "-m", "lit_planner.cli", "demo", "--out", str(tmp_path), "--domain-id",
+         str(domain)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+    )  # fmt: skip
+    watch = DescendantWatch(demo.pid)  # its nodes run in sessions of their own
+    try:
+        out, err = demo.communicate(timeout=600)
+    finally:
+        if demo.poll() is None:  # it hung: end it and every node it started, by PID
+            demo.kill()
+            demo.wait()
+        watch.kill()
+    process = subprocess.CompletedProcess(demo.args, demo.returncode, out, err)
     assert process.returncode == 0, process.stderr
     # Two ROS processes trained over ROS, the plan service answered, the bag accounts for all.
     assert "4 episodes over ROS" in process.stdout
@@ -229,13 +245,8 @@ def test_ctrl_c_stops_the_demo_and_reports_what_it_kept(tmp_path: Path) -> None:
     watch = DescendantWatch(process.pid)  # its nodes run in sessions of their own
     try:
         assert process.stdout is not None
-        seen = []
-        for line in process.stdout:  # training under way: the first episode's progress line
-            seen.append(line)
-            if line.startswith("    episode 1/100000:"):
-                break
-        else:
-            raise AssertionError("".join(seen))
+        # training under way: the first episode's progress line
+        seen = read_until(process.stdout, "    episode 1/100000:", timeout=300)
         process.send_signal(signal.SIGINT)
         out, err = process.communicate(timeout=120)
         out = "".join(seen) + out

@@ -32,8 +32,9 @@ from lit_planner import tensor_files as tf
 
 ITERATIONS = 3000
 """LIT*'s iteration budget in these tests: a few milliseconds, enough to solve np4 and rrd4."""
-BASELINE_TIME = 0.3
-"""Wall-time budget of each OMPL baseline run (they need 2-110 ms on np4 / rrd4)."""
+BASELINE_TIME = 1.0
+"""Wall-time budget of each OMPL baseline run: they solve np4 in 2-125 ms here, and np4's check
+that every one solves it must not fail on a loaded machine."""
 K_TENSOR_COEFFICIENTS = (3.0, 4.0, 4.0, 4.0)
 """An affine psi_K tensor spanning 3..15, psi_K's range."""
 
@@ -335,11 +336,18 @@ def test_external_policy_failures_fall_back(capfd: pytest.CaptureFixture[str]) -
         return math.nan
 
     policy = make_policy("external", callback=broken)
-    result = plan("np4", policy=policy, max_iterations=ITERATIONS)
+    lit_core.set_log_level("warn")  # (this module keeps OMPL's console to errors)
+    try:
+        result = plan("np4", policy=policy, max_iterations=ITERATIONS)
+    finally:
+        lit_core.set_log_level("error")
     assert result["solved"]
     assert policy.failures == len(result["decisions"]) > 0
     assert {d["value"] for d in result["decisions"] if d["kind"] == "B"} == {100.0}
     assert {d["value"] for d in result["decisions"] if d["kind"] == "psi_K"} == {math.e}
+    warnings = capfd.readouterr().err  # OMPL's console: each fallback is said, with its reason
+    assert "external policy raised 'RuntimeError: learner unavailable" in warnings
+    assert "external policy answered NaN/inf for psi_K; using the fixed value" in warnings
     with pytest.raises(PlannerError, match="needs a callback"):
         make_policy("external")
     with pytest.raises(PlannerError, match="external policy only"):
@@ -799,5 +807,5 @@ def test_custom_worlds_check_edges_exactly() -> None:
     for seed in range(3000, 3010):
         result = plan(world, seed=seed, max_iterations=100_000)
         assert result["solved"] and result["path_check"]["ok"], (seed, result["path_check"])
-    bitstar = plan(world, planner="bitstar", seed=3000, time=0.2)
+    bitstar = plan(world, planner="bitstar", seed=3000, time=1.0)  # a few ms needed
     assert bitstar["solved"] and bitstar["path_check"]["ok"]

@@ -52,9 +52,10 @@ def _workers_after_sigkill(mode: str, tmp_path: Path) -> list[int]:
             stderr=subprocess.STDOUT,
             timeout=120,
         ).returncode
-    assert code == -signal.SIGKILL, log.read_text()
-    pids = [int(pid) for pid in pid_file.read_text().split()]
-    assert pids, log.read_text()
+    pids = [int(pid) for pid in pid_file.read_text().split()] if pid_file.exists() else []
+    if code != -signal.SIGKILL or not pids:
+        _end(pids)  # the workers it did start do not outlive the failure
+        raise AssertionError(f"exit {code}, workers {pids}:\n{log.read_text()}")
     return pids
 
 

@@ -1,0 +1,54 @@
+"""``lit_planner.testing.read_until``, which the process tests use to wait for a child's line
+without blocking the run when the line never comes (real child processes)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+from lit_planner.testing import read_until
+
+PRINTS_THEN_HANGS = (
+    "import time\nprint('one', flush=True)\nprint('two', flush=True)\ntime.sleep(600)"
+)
+
+
+def _child(code: str) -> subprocess.Popen[str]:
+    return subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+
+
+def test_returns_the_lines_up_to_the_match_and_reads_no_further() -> None:
+    process = _child("print('one')\nprint('two')\nprint('three')")
+    try:
+        assert process.stdout is not None
+        assert read_until(process.stdout, "tw") == ["one\n", "two\n"]
+        assert process.stdout.readline() == "three\n"
+    finally:
+        process.kill()
+        process.wait()
+
+
+def test_a_line_that_never_comes_fails_after_the_timeout() -> None:
+    process = _child(PRINTS_THEN_HANGS)
+    try:
+        assert process.stdout is not None
+        # (a read that blocked would see the stream end only when the child does, 600 s on)
+        with pytest.raises(AssertionError, match=r"'three' not seen within 1 s; lines: one\ntwo"):
+            read_until(process.stdout, "three", timeout=1.0)
+    finally:
+        process.kill()
+        process.wait()
+
+
+def test_a_stream_that_ends_first_fails_at_once() -> None:
+    process = _child("print('one')")
+    try:
+        assert process.stdout is not None
+        with pytest.raises(
+            AssertionError, match="'two' not seen before the stream ended; lines: one"
+        ):
+            read_until(process.stdout, "two", timeout=600.0)
+    finally:
+        process.kill()
+        process.wait()
