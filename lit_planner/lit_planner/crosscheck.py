@@ -321,8 +321,14 @@ def format_table(report: Mapping[str, Any]) -> str:
     optima = {row["scenario"]: row["optimal_cost"] for row in report["rows"] if row["optimal_cost"]}
     lines.append("")
     if optima:
+        families = {scenarios.get(row["scenario"]).family for row in report["rows"]}
+        notes = [note for family, note in (("np", "NP's is the infimum through the slab"),
+                                           ("wg", "WG's the infimum through the gap"))
+                 if family in families]  # fmt: skip
+        if families - {"np", "wg"}:
+            notes.append("random scenarios have none")
         lines.append("Known optima: " + ", ".join(f"{name} {cost:.4f}" for name, cost in optima.items())
-                     + " (NP: the infimum through the slab; random scenarios have none).")  # fmt: skip
+                     + f" ({'; '.join(notes)}).")  # fmt: skip
     lines.append(
         f"Agreement: |c_LIT* - c_OMPL| <= {tolerance:.0%} x min(c_LIT*, c_OMPL) on the best final "
         "costs over the runs; vs LIT* = (c_OMPL - c_LIT*) / min(...)."

@@ -219,8 +219,7 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
     if p["episodes"] > 0:  # the only use of scenario and training_scenarios
         from lit_learner.train import TrainingDistribution, TrainingError
 
-        training = p["policy"] == "training"
-        drawn = p["episodes_from"] == "training" or (training and p["episodes_from"] != "scenario")
+        drawn = _episodes_drawn(p)
         name = "training_scenarios" if drawn else "scenario"
         try:
             if drawn:
@@ -235,6 +234,21 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
                 f"{MAX_SEED}"
             )
     return None
+
+
+def _episodes_drawn(p: Mapping[str, Any]) -> bool:
+    """Whether the node's own episodes come from the training distribution (else ``scenario``)."""
+    training = p["policy"] == "training"
+    return p["episodes_from"] == "training" or (training and p["episodes_from"] != "scenario")
+
+
+def _episodes_shown(p: Mapping[str, Any]) -> str:
+    """The node's own episodes in words, for its ready line."""
+    if p["episodes"] <= 0:
+        return "no episodes of its own"
+    if _episodes_drawn(p):
+        return f"{p['episodes']} episodes drawn from {p['training_scenarios']}"
+    return f"{p['episodes']} episodes on {p['scenario']}"
 
 
 @dataclass
@@ -387,7 +401,7 @@ class PlannerNode:
         self._driver = threading.Thread(target=self._drive, name="episodes", daemon=True)
         self._driver.start()
         self.log.info(
-            f"ready: policy {p['policy']}, scenario {p['scenario']}, run_id {self.run_id}, "
+            f"ready: policy {p['policy']}, {_episodes_shown(p)}, run_id {self.run_id}, "
             f"service {node.resolve_service_name(PLAN_SERVICE)}, "
             f"cancel {node.resolve_service_name(CANCEL_SERVICE)}"
         )
@@ -726,7 +740,7 @@ class PlannerNode:
                 f"{p['learner_wait']} s; starting the episodes anyway"
             )
 
-        drawn = p["episodes_from"] == "training" or (training and p["episodes_from"] != "scenario")
+        drawn = _episodes_drawn(p)
         if drawn:
             from lit_learner.train import TrainingDistribution, draw_generator
 

@@ -76,6 +76,13 @@ def test_verdict_of_an_invalid_path_and_a_disagreement() -> None:
     text = crosscheck.format_table(report)
     assert "FAILED: 1 invalid path(s)" in text
     assert "best costs disagree: np4 OMPL 2.0.1 Informed RRT*" in text
+    assert "Known optima: np4 0.4236 (NP's is the infimum through the slab)." in text
+    # The note on the optima names the families in the table (it called WG's value NP's).
+    others = [crosscheck._row(scenarios.get(name), "irrtstar", "x", [run("irrtstar", 1.0)])
+              for name in ("wg4", "rrd4")]  # fmt: skip
+    text = crosscheck.format_table(dict(report, rows=others))
+    assert ("Known optima: wg4 0.6308 (WG's the infimum through the gap; random scenarios have "
+            "none).") in text  # fmt: skip
     below = crosscheck._row(scenario, "bitstar", "x", [run("bitstar", 0.40)])
     assert below["below_optimum"] and not below["ok"]  # np4's optimum is 0.4236
 

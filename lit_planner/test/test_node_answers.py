@@ -140,3 +140,17 @@ def test_the_nodes_logger_logs_text_that_is_not_unicode() -> None:
         ("error", "x\\udfff"),
     ]
     assert log.name == "strict"
+
+
+def test_the_ready_line_names_where_the_episodes_come_from() -> None:
+    """It said "scenario np8" in training mode, whose episodes are drawn from the training mix."""
+    from lit_planner.node import PARAMETERS, _episodes_shown
+
+    training = PARAMETERS | {"policy": "training", "episodes": 5}
+    assert _episodes_shown(training) == f"5 episodes drawn from {PARAMETERS['training_scenarios']}"
+    on_scenario = training | {"episodes_from": "scenario", "scenario": "rrd4"}
+    assert _episodes_shown(on_scenario) == "5 episodes on rrd4"
+    inference = PARAMETERS | {"policy": "tensor", "episodes": 2}
+    assert _episodes_shown(inference) == f"2 episodes on {PARAMETERS['scenario']}"
+    assert _episodes_shown(inference | {"episodes_from": "training"}).startswith("2 episodes drawn")
+    assert _episodes_shown(PARAMETERS | {"episodes": 0}) == "no episodes of its own"
