@@ -36,8 +36,9 @@ CI_RULE = (
     "99% interval of the median from binomial order statistics: with the sample sorted "
     "x_(1) <= ... <= x_(n), P(x_(l) <= median <= x_(u)) = F(u-1) - F(l-1), F the CDF of "
     "Binomial(n, 1/2) (scipy.stats.binom). Of all rank pairs with coverage >= 0.99 the narrowest, "
-    "then the one of highest coverage, then (mirror-image ties) the upper one; this reproduces "
-    "PDT's table (n = 100: ranks 38 and 64). For n < 8 no pair reaches 99%: the interval is null "
+    "then the one of highest coverage, then (mirror-image ties) the upper one (n = 100: ranks 38 and "
+    "64; PDT's published table has pairs of the same width one rank lower, of equal or lower "
+    "coverage: 37 and 63). For n < 8 no pair reaches 99%: the interval is null "
     "and the tables show the full range (min–max) instead, marked †. Unsolved runs count as "
     "infinite time and cost, and so does a run whose first solution came after the time budget "
     "(the run's own first time; LIT* checks its budget between iterations, OMPL's planners stop "
@@ -633,13 +634,18 @@ def _paper_range(rows: dict[str, Any]) -> list[str]:
         gain, cost = row["improvement_percent"]["t_init"], row["improvement_percent"]["c_init"]
         return gain is not None and gain >= PAPER_SMALLEST_GAIN and (cost is None or cost >= 0.0)
 
-    def reliably(row: dict[str, Any]) -> bool:
+    def intervals(row: dict[str, Any]) -> tuple[Any, Any] | None:
         pair = row.get("paired")
         if pair is None:
-            return False
+            return None
         time_ci, cost_ci = pair["t_init"]["ratio"]["ci"], pair["c_init"]["ratio"]["ci"]
-        if time_ci is None or cost_ci is None:
+        return None if time_ci is None or cost_ci is None else (time_ci, cost_ci)
+
+    def reliably(row: dict[str, Any]) -> bool:
+        found = intervals(row)
+        if found is None:
             return False
+        time_ci, cost_ci = found
         bound = 1.0 - PAPER_SMALLEST_GAIN / 100.0
         return _as_float(time_ci["upper"]) <= bound and _as_float(cost_ci["upper"]) <= 1.0
 
@@ -659,6 +665,11 @@ def _paper_range(rows: dict[str, Any]) -> list[str]:
             "intervals, so jointly at least 98 %, per scenario) "
             f"{listed([n for n, r in rows.items() if reliably(r)])}"
         )
+        untested = [n for n, r in rows.items() if "paired" in r and intervals(r) is None]
+        if untested:  # not "none reached": no interval could say so
+            lines[0] += (
+                f", not testable on {', '.join(untested)} (too few queries for a 99 % interval)"
+            )
     return [lines[0] + ".", ""]
 
 

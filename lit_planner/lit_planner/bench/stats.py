@@ -17,8 +17,11 @@ ranks), the number of samples below the population median is Binomial(n, 1/2), s
 picks, among all pairs ``1 <= l < u <= n`` with coverage at least the confidence (99 %), the
 narrowest (smallest ``u - l``); among equally narrow pairs the one with the highest coverage; and
 of two mirror-image pairs with equal coverage, ``(l, u)`` and ``(n + 1 - u, n + 1 - l)``, the
-upper one. This reproduces PDT's published table (``esp_statistics``, zero-based there): n = 10
--> ranks (1, 10), n = 50 -> (16, 35), n = 100 -> (38, 64), n = 200 -> (82, 119).
+upper one: n = 10 -> ranks (1, 10), n = 50 -> (16, 35), n = 100 -> (38, 64), n = 200 -> (82, 119).
+PDT's published table (``parameters/statistics/percentiles/<n>.json`` in robotic-esp/pdt,
+zero-based indices) has pairs of the same width one rank lower: n = 50 -> ranks (15, 34),
+coverage 0.9910 against our 0.9934; n = 100 -> (37, 63), the mirror image of ours, both 0.9907;
+n = 200 -> (81, 118), 0.9906 against 0.9913; n = 300 -> (127, 172), 0.9903 against 0.9907.
 
 **Too few runs.** The widest pair, ``(1, n)``, covers ``1 - 2 * 0.5**n``, which reaches 99 % only
 from n = 8 on (:data:`MIN_RUNS_FOR_INTERVAL`). Below that no interval exists: the interval is
