@@ -158,6 +158,32 @@ def test_info_counts_topics_and_seq_gaps(mixed_bag: Path) -> None:
     assert "3 skipped" in text.stdout
 
 
+def test_info_accounts_a_restarted_publisher_as_a_process_of_its_own(tmp_path: Path) -> None:
+    """A node restarted under the same name and run id (lit up passes one) counts from 0 again:
+    its second process is accounted apart, so its numbers do not pass for duplicates of the first
+    one's, and a gap in either still shows. A copy of a message (same stamp) and a message
+    recorded out of order (sent just before the later ones) stay in their process."""
+    second = 10_000_000_000  # the second process starts sending 10 s after the first
+    sent = [(0, 0), (1, 1_000), (2, 2_000), (2, 2_000), (4, 4_000), (3, 3_000)]  # copy, order
+    sent += [(0, second), (1, second + 1_000), (3, second + 3_000)]  # 2 lost
+    path = tmp_path / "restarted"
+    with BagRecorder(path, run_id="r1") as recorder:
+        recorder.add_topic("/lit/decision", bag.STRING_TYPE)
+        for index, (seq, stamp) in enumerate(sent):
+            text = envelope("lit_msgs_json/Decision", seq, "/lit_planner", "r1", {}, stamp_ns=stamp)
+            recorder.write_string("/lit/decision", text, 100 + index)
+    info = replay.bag_info(path)
+    first, restarted = info["publishers"]
+    assert (first["instance"], first["count"], first["last_seq"]) == (1, 6, 4)
+    assert (first["duplicates"], first["reordered"], first["missing"]) == (1, 1, 0)
+    assert (restarted["instance"], restarted["count"], restarted["first_seq"]) == (2, 3, 0)
+    assert (restarted["duplicates"], restarted["gaps"], restarted["missing"]) == (0, 1, 1)
+    text = _replay("info", path)
+    assert "/lit/decision from /lit_planner (run r1, process 2): seq 0..3, 3 messages, 1 gaps" in (
+        text.stdout
+    )
+
+
 def test_bag_reads_with_rosbags_mcap_and_metadata(mixed_bag: Path) -> None:
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory

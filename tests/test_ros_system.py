@@ -565,7 +565,8 @@ def test_a_failing_checkpoint_leaves_the_trainer_running_and_probes_train_nothin
 
 
 def test_two_planners_train_one_learner(ros: RosSystem) -> None:
-    """Planners in ``/robot1`` and ``/robot2`` train the same learner at the same time."""
+    """Planners in ``/robot1`` and ``/robot2`` train the same learner at the same time, on
+    problems of their own although their training seeds are the same (the default)."""
     topics = ["/robot1" + EPISODE, "/robot2" + EPISODE]
     recording = ros.recorder([*topics, STATS])
     planners = [
@@ -574,7 +575,6 @@ def test_two_planners_train_one_learner(ros: RosSystem) -> None:
             namespace=f"/robot{robot}",
             episodes=2,
             exit_when_done=True,
-            training_seed=robot,
             **TRAINING,
         )
         for robot in (1, 2)
@@ -595,13 +595,16 @@ def test_two_planners_train_one_learner(ros: RosSystem) -> None:
         watch=[learner],
     )
     assert {"/robot1/lit_planner", "/robot2/lit_planner"} <= set(stats[-1]["planners"])
+    drawn = []
     for topic in topics:
         summaries = recording.payloads(topic)
         assert len(summaries) == 2, (topic, summaries)
+        drawn.append([(s["scenario"], s["seed"]) for s in summaries])
         assert all(_learned(summary) for summary in summaries), (
             [(s["episode_id"], s["learner_calls"], s["fallback_decisions"]) for s in summaries],
             *(child.tail(15) for child in (*planners, learner)),
         )
+    assert drawn[0] != drawn[1], drawn
     _no_traceback(learner, *planners)
 
 

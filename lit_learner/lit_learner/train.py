@@ -35,6 +35,7 @@ import shutil
 import sys
 import threading
 import time
+import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -399,11 +400,17 @@ DRAW_STREAM = 0x6C697464
 """Second word of the seed of a new run's episode draws (scenario, instance, seed)."""
 
 
-def draw_generator(seed: int) -> np.random.Generator:
+def draw_generator(seed: int, namespace: str = "/") -> np.random.Generator:
     """The generator of a new run's episode draws: a stream of its own. The agents' generators
     are seeded with seed + 0 (B) and seed + 1 (psi_K); one seeded with the bare seed would repeat
-    the B agent's numbers (its warm-up actions and exploration noise) in its draws."""
-    return np.random.default_rng([seed, DRAW_STREAM])
+    the B agent's numbers (its warm-up actions and exploration noise) in its draws.
+
+    ``namespace``: a planner node's ROS namespace. Planners in other namespaces than the root
+    draw streams of their own for the same seed (they would otherwise feed one learner the same
+    problems); the root's stream is the plain seed's, as ``lit train``'s.
+    """
+    extra = [] if namespace == "/" else [zlib.crc32(namespace.encode("utf-8"))]
+    return np.random.default_rng([seed, DRAW_STREAM, *extra])
 
 
 def final_features(

@@ -66,6 +66,25 @@ def test_episode_draws_do_not_repeat_an_agents_random_numbers() -> None:
             assert not np.isin(core.agents[name].rng.random(8), draws).any()
 
 
+def test_planners_in_namespaces_draw_problems_of_their_own() -> None:
+    """Two robots' planners with the same training seed fed one learner the same problems."""
+    names = ["np4", "np8", "wg4", "rrd4", "rrd8"]
+
+    def problems(namespace: str) -> list[tuple[str, int, int]]:
+        distribution = train.TrainingDistribution(names, train.draw_generator(7, namespace))
+        return [(d.scenario, d.instance, d.seed) for d in map(distribution.draw, range(20))]
+
+    root = problems("/")
+    assert root == [
+        (d.scenario, d.instance, d.seed)
+        for d in map(train.TrainingDistribution(names, train.draw_generator(7)).draw, range(20))
+    ]  # lit train's and the root namespace's: the seed's own stream
+    robot1, robot2 = problems("/robot1"), problems("/robot2")
+    assert robot1 == problems("/robot1")  # repeatable
+    assert len({tuple(root), tuple(robot1), tuple(robot2)}) == 3
+    assert not {seed for *_, seed in robot1} & {seed for *_, seed in robot2}
+
+
 def test_training_distribution_rejects_an_instance_suffix() -> None:
     import numpy as np
 

@@ -39,7 +39,8 @@
 - Other policies with ``episodes > 0``: that many inference queries on ``scenario`` (seeds
   ``seed``, ``seed + 1``, ...), then the node keeps serving.
 - ``episodes_from``: ``training`` draws the episodes from the training distribution
-  (``training_scenarios``, ``training_seed``) whatever the policy, ``scenario`` plans ``scenario``;
+  (``training_scenarios``, ``training_seed``; a node in a namespace draws its own problems for
+  the seed) whatever the policy, ``scenario`` plans ``scenario``;
   empty: the distribution in training mode, the scenario otherwise. The same draws with two
   policies are the same problems (``lit system-bench`` compares them).
 - ``decision_interval``: expansions per psi_K decision; 0 (default): 1 in training, and for the
@@ -746,7 +747,9 @@ class PlannerNode:
 
             names = scenarios.split_names(p["training_scenarios"])
             # Not default_rng(seed): that would repeat a learner agent's numbers for equal seeds.
-            distribution = TrainingDistribution(names, draw_generator(p["training_seed"]))
+            # Planners in other namespaces draw other problems for the same seed.
+            generator = draw_generator(p["training_seed"], self.node.get_namespace())
+            distribution = TrainingDistribution(names, generator)
         mode = "training" if training else "inference"
         failed = 0
         for index in range(p["episodes"]):

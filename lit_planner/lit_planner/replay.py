@@ -11,7 +11,7 @@ A BAG is a rosbag2 bag directory or one of its ``.mcap`` files. Messages on ``/l
 (optionally below a namespace, e.g. ``/robot1/lit/observation``) are ``std_msgs/msg/String``
 envelopes ``{"schema", "version", "seq", "stamp_ns", "source", "run_id", "payload"}`` or, on
 ``/lit/path``, ``trajectory_msgs/msg/JointTrajectory``. ``seq`` rises by one per publisher, that
-is per (topic, source, run id): ``info`` counts, per publisher, the gaps (runs of missing numbers), the
+is per (topic, source, run id) and process (:class:`SeqAccount`): ``info`` counts, per publisher, the gaps (runs of missing numbers), the
 missing messages and the duplicates, and ``leading`` (the numbers before the first recorded one,
 when a publisher started at 0 before the recording did).
 
@@ -672,16 +672,44 @@ def _decode_trajectory(message: RawMessage, skipped: Skipped) -> Trajectory | No
 # --- info ------------------------------------------------------------------------------------
 
 
+RESTART_GAP_NS = 500_000_000
+"""A publisher's message whose seq it has sent already, stamped this much later than anything it
+sent before, comes from a new process of it (see :class:`SeqAccount`)."""
+
+
 @dataclass
 class SeqAccount:
-    """The sequence numbers of one publisher: (topic, source, run id). A node restarted under the
-    same name starts a new run id and counts from 0 again, so it is a publisher of its own."""
+    """The sequence numbers of one publisher: (topic, source, run id) in one process.
+
+    A node restarted under the same name and run id (``lit up`` and compose pass one) counts from
+    0 again. Its messages are told apart by their stamps: a seq at or below the highest one seen,
+    sent more than :data:`RESTART_GAP_NS` after everything seen so far, starts a new
+    ``instance`` (1, 2, ...), accounted on its own. A copy of a message keeps its stamp and a
+    message recorded out of order was sent before the later ones, so neither starts one.
+    """
 
     topic: str
     source: str
+    instance: int = 1
     seqs: list[int] = field(default_factory=list)
     run_ids: set[str] = field(default_factory=set)
     schemas: Counter[str] = field(default_factory=Counter)
+    last_stamp_ns: int = -1
+    """The latest send time seen."""
+
+    def restarted_by(self, seq: int, stamp_ns: int) -> bool:
+        """Whether a message (``seq``, ``stamp_ns``) comes from a new process of the publisher."""
+        return (
+            bool(self.seqs)
+            and seq <= max(self.seqs)
+            and (stamp_ns > self.last_stamp_ns + RESTART_GAP_NS)
+        )
+
+    def add(self, item: Envelope) -> None:
+        self.seqs.append(item.seq)
+        self.run_ids.add(item.run_id)
+        self.schemas[item.schema] += 1
+        self.last_stamp_ns = max(self.last_stamp_ns, item.stamp_ns)
 
     def to_dict(self) -> dict[str, Any]:
         """First/last seq, count, gaps, missing, duplicates, leading, run ids and schemas."""
@@ -691,6 +719,7 @@ class SeqAccount:
         return {
             "topic": self.topic,
             "source": self.source,
+            "instance": self.instance,
             "run_ids": sorted(self.run_ids),
             "first_seq": unique[0],
             "last_seq": unique[-1],
@@ -707,7 +736,7 @@ class SeqAccount:
 def bag_info(path: str | Path) -> dict[str, Any]:
     """Everything ``lit replay info`` reports, as JSON-ready data."""
     skipped = Skipped()
-    accounts: dict[tuple[str, str, str], SeqAccount] = {}
+    accounts: dict[tuple[str, str, str], list[SeqAccount]] = {}  # a publisher's processes
     schemas: Counter[str] = Counter()
     counts: Counter[str] = Counter()
     trajectories = 0
@@ -722,11 +751,10 @@ def bag_info(path: str | Path) -> dict[str, Any]:
             if isinstance(item, Trajectory):
                 trajectories += 1
             elif isinstance(item, Envelope):
-                key = (item.topic, item.source, item.run_id)
-                account = accounts.setdefault(key, SeqAccount(item.topic, item.source))
-                account.seqs.append(item.seq)
-                account.run_ids.add(item.run_id)
-                account.schemas[item.schema] += 1
+                instances = accounts.setdefault((item.topic, item.source, item.run_id), [])
+                if not instances or instances[-1].restarted_by(item.seq, item.stamp_ns):
+                    instances.append(SeqAccount(item.topic, item.source, len(instances) + 1))
+                instances[-1].add(item)
                 schemas[item.schema] += 1
     types = {t.topic: t.msgtype for t in facts.topics}
     return {
@@ -751,7 +779,7 @@ def bag_info(path: str | Path) -> dict[str, Any]:
             for topic, count in sorted(counts.items())
             if topic not in types
         ],
-        "publishers": [accounts[key].to_dict() for key in sorted(accounts)],
+        "publishers": [account.to_dict() for key in sorted(accounts) for account in accounts[key]],
         "schemas": dict(sorted(schemas.items())),
         "trajectories": trajectories,
         "skipped": skipped.to_dict(),
@@ -798,8 +826,9 @@ def format_info(info: dict[str, Any]) -> str:
             for key in ("gaps", "missing", "duplicates", "reordered")
             if pub[key]
         ]
+        restart = f", process {pub['instance']}" if pub["instance"] > 1 else ""
         lines.append(
-            f"  {pub['topic']} from {pub['source']} (run {', '.join(pub['run_ids'])}): "
+            f"  {pub['topic']} from {pub['source']} (run {', '.join(pub['run_ids'])}{restart}): "
             f"seq {pub['first_seq']}..{pub['last_seq']}, {pub['count']} messages, "
             + (", ".join(problems) if problems else "no gaps")
             + (f", {pub['leading']} before the first" if pub["leading"] else "")
