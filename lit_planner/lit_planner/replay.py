@@ -11,9 +11,9 @@ A BAG is a rosbag2 bag directory or one of its ``.mcap`` files. Messages on ``/l
 (optionally below a namespace, e.g. ``/robot1/lit/observation``) are ``std_msgs/msg/String``
 envelopes ``{"schema", "version", "seq", "stamp_ns", "source", "run_id", "payload"}`` or, on
 ``/lit/path``, ``trajectory_msgs/msg/JointTrajectory``. ``seq`` rises by one per publisher, that
-is per (topic, source, run id) and process (:class:`SeqAccount`): ``info`` counts, per publisher, the gaps (runs of missing numbers), the
-missing messages and the duplicates, and ``leading`` (the numbers before the first recorded one,
-when a publisher started at 0 before the recording did).
+is per (topic, source, run id) and process (:class:`SeqAccount`): ``info`` counts, per publisher,
+the gaps (runs of missing numbers), the missing messages and the duplicates, and ``leading`` (the
+numbers before the first recorded one, when a publisher started at 0 before the recording did).
 
 What cannot be used is skipped and counted, never fatal: messages on other topics, envelopes of an
 unknown schema or an unsupported version, text that is not an envelope, undecodable messages, and
@@ -694,14 +694,16 @@ class SeqAccount:
     seqs: list[int] = field(default_factory=list)
     run_ids: set[str] = field(default_factory=set)
     schemas: Counter[str] = field(default_factory=Counter)
+    last_seq: int = -1
+    """The highest seq seen."""
     last_stamp_ns: int = -1
     """The latest send time seen."""
 
     def restarted_by(self, seq: int, stamp_ns: int) -> bool:
         """Whether a message (``seq``, ``stamp_ns``) comes from a new process of the publisher."""
         return (
-            bool(self.seqs)
-            and seq <= max(self.seqs)
+            0 <= self.last_seq
+            and seq <= self.last_seq
             and (stamp_ns > self.last_stamp_ns + RESTART_GAP_NS)
         )
 
@@ -709,6 +711,7 @@ class SeqAccount:
         self.seqs.append(item.seq)
         self.run_ids.add(item.run_id)
         self.schemas[item.schema] += 1
+        self.last_seq = max(self.last_seq, item.seq)
         self.last_stamp_ns = max(self.last_stamp_ns, item.stamp_ns)
 
     def to_dict(self) -> dict[str, Any]:
