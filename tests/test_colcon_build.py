@@ -75,8 +75,7 @@ def test_colcon_builds_the_workspace(tmp_path: Path) -> None:
 def _source_tree_status() -> set[str]:
     """``git status`` of the workspace and the packages, listing ignored files too."""
     status = subprocess.run(
-        ["git", "status", "--porcelain", "--ignored", "--", "ros2_ws",
-         *PACKAGES],
+        ["git", "status", "--porcelain", "--ignored", "--", "ros2_ws", *PACKAGES],
         cwd=ROOT, capture_output=True, text=True, check=True,
     )  # fmt: skip
     return set(status.stdout.splitlines())

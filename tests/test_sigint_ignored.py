@@ -24,9 +24,8 @@ def test_sigint_stops_a_command_started_with_sigint_ignored(tmp_path: Path) -> N
     )  # fmt: skip
     try:
         assert process.stderr is not None
-        read_until(
-            process.stderr, "lit bench: writing to"
-        )  # past start-up, where the handler is set
+        # Running: past start-up, where the handler is set.
+        read_until(process.stderr, "lit bench: writing to")
         process.send_signal(signal.SIGINT)
         _, err = process.communicate(timeout=120)
         assert process.returncode == 130, err
