@@ -46,7 +46,23 @@ namespace lit
         std::ifstream in(path, std::ios::binary);
         if (!in)
             fail(path, "cannot be opened");
-        const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        // In one read when the file's size is known (a byte at a time through istreambuf_iterator took about
+        // 8 ms for a 101^3 tensor, twice per plan with the tensor policy); else (a pipe, say) as a stream.
+        std::string bytes;
+        in.seekg(0, std::ios::end);
+        const std::streamoff size = in.tellg();
+        if (size >= 0 && in.seekg(0, std::ios::beg))
+        {
+            bytes.resize(static_cast<std::size_t>(size));
+            in.read(bytes.data(), size);
+            bytes.resize(static_cast<std::size_t>(in.gcount()));
+        }
+        else
+        {
+            in.clear();
+            in.seekg(0, std::ios::beg);
+            bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+        }
 
         static const char magic[] = "\x93NUMPY";
         if (bytes.size() < 10u || bytes.compare(0, 6, magic, 6) != 0)
