@@ -300,7 +300,7 @@ def test_sigterm_stops_system_bench_in_order(tmp_path: Path) -> None:
         env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", TMPDIR=str(tmp_path)),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
-    watch = DescendantWatch(process.pid)
+    nodes = DescendantWatch(process.pid)
     try:
         assert process.stdout is not None
         begun = threading.Event()
@@ -320,9 +320,9 @@ def test_sigterm_stops_system_bench_in_order(tmp_path: Path) -> None:
         assert process.returncode == 130, err
         assert "lit system-bench: interrupted" in err and "Traceback" not in err
         assert not [p for p in tmp_path.iterdir() if p.name.startswith("lit-system-bench-")]
-        assert watch.seen and not watch.alive()  # its nodes and client stopped with it
+        assert nodes.seen and not nodes.alive()  # its nodes and client stopped with it
     finally:
         if process.poll() is None:
             process.kill()
             process.wait()
-        watch.kill()
+        nodes.kill()
