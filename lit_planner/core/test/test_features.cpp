@@ -1,3 +1,4 @@
+#include "Nearest.h"
 #include "Worlds.h"
 
 #include "lit/litstar/RandomGeometricGraph.h"
@@ -183,16 +184,9 @@ TEST(Features, NeighbourCacheEqualsABruteForceScanWhateverTheSequenceOfK)
         }
     };
     const auto bruteForce = [&](const litstar::State *state, std::size_t k) {
-        std::vector<std::pair<double, const litstar::State *>> all;
-        for (const auto &other : graph.states())
-            if (other.get() != state)
-                all.emplace_back(graph.distance(state, other.get()), other.get());
-        std::sort(all.begin(), all.end(), [](const auto &a, const auto &b) {
-            return a.first != b.first ? a.first < b.first : a.second->id_ < b.second->id_;
-        });
         std::vector<const litstar::State *> nearest;
-        for (std::size_t i = 0; i < std::min(k, all.size()); ++i)
-            nearest.push_back(all[i].second);
+        for (const auto &[distance, other] : test::nearestByBruteForce(graph, state, k))
+            nearest.push_back(other);
         return nearest;
     };
     std::map<const litstar::State *, std::vector<const litstar::State *>> lastAnswer;

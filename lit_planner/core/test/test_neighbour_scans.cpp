@@ -1,6 +1,7 @@
 // The neighbour scans' fast path must answer exactly as a plain scan: a rescan into an empty cache keeps a bound that
 // tightens as it goes (RandomGeometricGraph::scanNeighbours), which must drop no sample among the k nearest, ties and
 // near-ties included.
+#include "Nearest.h"
 #include "Worlds.h"
 
 #include "lit/litstar/RandomGeometricGraph.h"
@@ -16,7 +17,20 @@
 using namespace lit;
 using litstar::RandomGeometricGraph;
 
-TEST(FastPaths, NeighbourScansEqualABruteForceScanInR16)
+namespace
+{
+    /** \brief What the graph answers for the k nearest of \e state, with their distances. */
+    std::vector<std::pair<double, const litstar::State *>> scanned(RandomGeometricGraph &graph, litstar::State *state,
+                                                                   std::size_t k)
+    {
+        std::vector<std::pair<double, const litstar::State *>> got;
+        for (litstar::State *other : graph.neighbours(state, k))
+            got.emplace_back(graph.distance(state, other), other);
+        return got;
+    }
+}  // namespace
+
+TEST(NeighbourScans, NeighbourScansEqualABruteForceScanInR16)
 {
     // As Features.NeighbourCacheEqualsABruteForceScanWhateverTheSequenceOfK, in R^16 and at several scales of the
     // coordinates (also on a coarse grid: many exact ties), with enough samples for the running bound.
@@ -37,18 +51,6 @@ TEST(FastPaths, NeighbourScansEqualABruteForceScanInR16)
                     graph.addValidSample(x);
                 }
             };
-            const auto bruteForce = [&](const litstar::State *state, std::size_t k) {
-                std::vector<std::pair<double, const litstar::State *>> all;
-                for (const auto &other : graph.states())
-                    if (other.get() != state)
-                        all.emplace_back(graph.distance(state, other.get()), other.get());
-                std::sort(all.begin(), all.end(), [](const auto &a, const auto &b) {
-                    return a.first != b.first ? a.first < b.first : a.second->id_ < b.second->id_;
-                });
-                std::vector<std::pair<double, const litstar::State *>> nearest(
-                    all.begin(), all.begin() + static_cast<std::ptrdiff_t>(std::min(k, all.size())));
-                return nearest;
-            };
             for (int round = 0; round < 8; ++round)
             {
                 addBatch(round == 0 ? 10u : 120u);
@@ -58,17 +60,14 @@ TEST(FastPaths, NeighbourScansEqualABruteForceScanInR16)
                     std::uniform_int_distribution<std::size_t> pick(0u, states.size() - 1u);
                     litstar::State *state = states[pick(rng)].get();
                     const std::size_t k = kDraw(rng);
-                    const auto range = graph.neighbours(state, k);
-                    std::vector<std::pair<double, const litstar::State *>> got;
-                    for (std::size_t i = 0; i < range.size(); ++i)
-                        got.emplace_back(graph.distance(state, range[i]), range[i]);
-                    ASSERT_EQ(got, bruteForce(state, k)) << "scale " << scale << ", round " << round << ", k " << k;
+                    ASSERT_EQ(scanned(graph, state, k), test::nearestByBruteForce(graph, state, k))
+                        << "scale " << scale << ", round " << round << ", k " << k;
                 }
             }
         }
 }
 
-TEST(FastPaths, NeighbourScansKeepSamplesWithinRoundingOfTheBoundInR16)
+TEST(NeighbourScans, NeighbourScansKeepSamplesWithinRoundingOfTheBoundInR16)
 {
     // Samples on spheres around a centre, some with radii 1e-12 apart (within the bound's margin of each other): the
     // running bound must drop none of those among the k nearest. Then more of them, for the incremental scan.
@@ -103,27 +102,9 @@ TEST(FastPaths, NeighbourScansKeepSamplesWithinRoundingOfTheBoundInR16)
         addShell(30, 0.1, 1e-3);
         addShell(60, 0.3, 1e-12);
         addShell(300, 1.0, 1e-3);
-        const auto bruteForce = [&](std::size_t k) {
-            std::vector<std::pair<double, const litstar::State *>> all;
-            for (const auto &other : graph.states())
-                if (other.get() != c)
-                    all.emplace_back(graph.distance(c, other.get()), other.get());
-            std::sort(all.begin(), all.end(), [](const auto &a, const auto &b) {
-                return a.first != b.first ? a.first < b.first : a.second->id_ < b.second->id_;
-            });
-            all.resize(std::min(k, all.size()));
-            return all;
-        };
-        const auto answer = [&](std::size_t k) {
-            const auto range = graph.neighbours(c, k);
-            std::vector<std::pair<double, const litstar::State *>> got;
-            for (std::size_t i = 0; i < range.size(); ++i)
-                got.emplace_back(graph.distance(c, range[i]), range[i]);
-            return got;
-        };
         const std::size_t k = 31u + static_cast<std::size_t>(unit(rng) * 58.0);
-        ASSERT_EQ(answer(k), bruteForce(k)) << "trial " << trial << ", k " << k;
+        ASSERT_EQ(scanned(graph, c, k), test::nearestByBruteForce(graph, c, k)) << "trial " << trial << ", k " << k;
         addShell(60, 0.3, 1e-12);  // ties and near-ties of the cached entries
-        ASSERT_EQ(answer(k), bruteForce(k)) << "trial " << trial << ", k " << k;
+        ASSERT_EQ(scanned(graph, c, k), test::nearestByBruteForce(graph, c, k)) << "trial " << trial << ", k " << k;
     }
 }
