@@ -73,12 +73,38 @@ def validate(name: str, obj: object, *, plain: bool | None = None) -> None:
     else:
         for json_path, value in _non_finite_numbers(obj, "$"):
             raise SchemaError(short, json_path, "finite", f"{value!r} is not a finite number")
-    error = best_match(validator.iter_errors(obj))
+    errors = list(validator.iter_errors(obj))
+    # A choice of exactly one field (PlanRequest: a scenario or a world) comes first: the rules that
+    # depend on the choice would otherwise name a field of one side ('scenario' is required).
+    error = next((e for e in errors if _exclusive_fields(e) is not None), None) or best_match(
+        errors
+    )
     if error is not None:
         message = error.message
+        exclusive = _exclusive_fields(error)
+        if exclusive is not None:
+            given = [name for name in exclusive if name in error.instance]
+            message = f"exactly one of {', '.join(map(repr, exclusive))} is required, got " + (
+                "neither" if not given else " and ".join(map(repr, given))
+            )
         if error.validator == "const":  # jsonschema names the expected value only
             message += f", got {_shown(error.instance)}"
         raise SchemaError(short, error.json_path, str(error.validator), message)
+
+
+def _exclusive_fields(error: Any) -> list[str] | None:
+    """The field names of a violated ``oneOf`` whose alternatives each require one field (exactly
+    one of them must be present), else None."""
+    alternatives = error.validator_value if error.validator == "oneOf" else None
+    if not isinstance(alternatives, list) or not isinstance(error.instance, dict):
+        return None
+    names = []
+    for alternative in alternatives:
+        required = alternative.get("required") if isinstance(alternative, dict) else None
+        if set(alternative) != {"required"} or not isinstance(required, list) or len(required) != 1:
+            return None
+        names.append(required[0])
+    return names
 
 
 def _shown(value: object) -> str:

@@ -145,6 +145,26 @@ def test_required_error_names_the_missing_field() -> None:
         validate("TensorSidecar", doc)
 
 
+@pytest.mark.parametrize(
+    ("request_doc", "got"),
+    [({"time": 1.0}, "neither"), ({"scenario": "np4", "world": {}}, "'scenario' and 'world'")],
+)
+def test_a_plan_request_needs_exactly_one_of_scenario_and_world(
+    request_doc: dict, got: str
+) -> None:
+    """Neither used to read "'scenario' is a required property" (the else branch of the world's
+    if), and both "'start' is a required property" (its then branch)."""
+    expected = (
+        f"PlanRequest: $: exactly one of 'scenario', 'world' is required, got {got} (rule: oneOf)"
+    )
+    with pytest.raises(SchemaError) as info:
+        validate("PlanRequest", request_doc)
+    assert str(info.value) == expected
+    # The rules inside either choice still speak for themselves.
+    with pytest.raises(SchemaError, match=r"'start' is a required property \(rule: required\)"):
+        validate("PlanRequest", {"world": {"lower": [0, 0], "upper": [1, 1], "boxes": []}})
+
+
 def test_validate_does_not_modify_the_document() -> None:
     doc = good_sidecar()
     before = copy.deepcopy(doc)

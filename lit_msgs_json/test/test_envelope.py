@@ -829,7 +829,7 @@ PAYLOAD_FAILURES: list[tuple[str, str, object, str, str]] = [
         "$.payload",
         "oneOf",
     ),
-    ("plan-neither", "PlanRequest", {"time": 1.0}, "$.payload", "required"),
+    ("plan-neither", "PlanRequest", {"time": 1.0}, "$.payload", "oneOf"),
     (
         "plan-world-no-start",
         "PlanRequest",
@@ -1010,7 +1010,7 @@ def test_decode_failure_messages_explain() -> None:
         envelope_text({}, "Foo")
     )
     assert "not valid JSON: NaN is not allowed" in message(GOOD.replace("0.42", "NaN"))
-    assert "is valid under each of" in message(
+    assert "exactly one of 'scenario', 'world' is required, got 'scenario' and 'world'" in message(
         envelope_text(
             {"scenario": "np8", "world": WORLD, "start": [0, 0], "goal": [1, 1]}, "PlanRequest"
         )
