@@ -101,7 +101,7 @@ def _exclusive_fields(error: Any) -> list[str] | None:
     names = []
     for alternative in alternatives:
         required = alternative.get("required") if isinstance(alternative, dict) else None
-        if set(alternative) != {"required"} or not isinstance(required, list) or len(required) != 1:
+        if not isinstance(required, list) or len(required) != 1 or set(alternative) != {"required"}:
             return None
         names.append(required[0])
     return names
