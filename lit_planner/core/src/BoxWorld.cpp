@@ -41,6 +41,10 @@ namespace lit
       , lower_(world.lower)
       , upper_(world.upper)
     {
+        // Each box as the axes on which it does not cover the bounds, narrowest cover first: a point inside the
+        // bounds is inside the box on every other axis, and the narrowest cover is the one a point most likely
+        // misses, so the test leaves early. A box that misses the bounds on an axis holds no point inside them.
+        // (The order of the axes and the boxes cannot change what the test answers.)
         boxLower_.reserve(world.boxes.size() * dim_);
         boxUpper_.reserve(world.boxes.size() * dim_);
         for (const auto &box : world.boxes)
@@ -48,6 +52,72 @@ namespace lit
             boxLower_.insert(boxLower_.end(), box.lower.begin(), box.lower.end());
             boxUpper_.insert(boxUpper_.end(), box.upper.begin(), box.upper.end());
         }
+        boxBegin_.push_back(0u);
+        for (const auto &box : world.boxes)
+        {
+            std::vector<std::pair<double, Interval>> axes;
+            bool missesBounds = false;
+            for (unsigned int i = 0; i < dim_; ++i)
+            {
+                if (box.lower[i] > upper_[i] || box.upper[i] < lower_[i])
+                    missesBounds = true;
+                if (box.lower[i] <= lower_[i] && box.upper[i] >= upper_[i])
+                    continue;  // covers the bounds on this axis
+                const double cover = (std::min(box.upper[i], upper_[i]) - std::max(box.lower[i], lower_[i])) /
+                                     (upper_[i] - lower_[i]);
+                // (NaN only for bounds whose extent overflows: last, so that the sort's order stays strict.)
+                axes.emplace_back(std::isnan(cover) ? 2.0 : cover, Interval{box.lower[i], box.upper[i], i});
+            }
+            if (missesBounds)
+                continue;
+            std::stable_sort(axes.begin(), axes.end(),
+                             [](const auto &a, const auto &b) { return a.first < b.first; });
+            for (const auto &axis : axes)
+                intervals_.push_back(axis.second);
+            boxBegin_.push_back(intervals_.size());
+        }
+        // The grid: per axis, GRID_CELLS cells, each with the bit set of the boxes whose interval on that axis
+        // meets the cell widened by two cells on either side. A point's cell (as computed, within one cell of its
+        // true one) then has every box that holds the point, with a margin of a cell for the rounding.
+        const std::size_t boxes = boxBegin_.size() - 1u;
+        maskWords_ = (boxes + 63u) / 64u;
+        cellScale_.resize(dim_);
+        for (unsigned int i = 0; i < dim_; ++i)
+            cellScale_[i] = static_cast<double>(GRID_CELLS) / (upper_[i] - lower_[i]);
+        useGrid_ = boxes >= 4u && std::all_of(cellScale_.begin(), cellScale_.end(),
+                                              [](double scale) { return std::isfinite(scale) && scale > 0.0; });
+        if (useGrid_)
+        {
+            cellMasks_.assign(static_cast<std::size_t>(dim_) * GRID_CELLS * maskWords_, 0u);
+            for (unsigned int i = 0; i < dim_; ++i)
+            {
+                const double width = (upper_[i] - lower_[i]) / static_cast<double>(GRID_CELLS);
+                for (unsigned int c = 0; c < GRID_CELLS; ++c)
+                {
+                    const double from = lower_[i] + (static_cast<double>(c) - 2.0) * width;
+                    const double to = lower_[i] + (static_cast<double>(c) + 3.0) * width;
+                    std::uint64_t *mask = &cellMasks_[(static_cast<std::size_t>(i) * GRID_CELLS + c) * maskWords_];
+                    for (std::size_t b = 0; b < boxes; ++b)
+                    {
+                        bool meets = true;  // a box that covers the axis has no interval on it
+                        for (std::size_t k = boxBegin_[b]; k < boxBegin_[b + 1u]; ++k)
+                            if (intervals_[k].axis == i)
+                                meets = intervals_[k].lower <= to && intervals_[k].upper >= from;
+                        if (meets)
+                            mask[b / 64u] |= std::uint64_t{1} << (b % 64u);
+                    }
+                }
+            }
+        }
+    }
+
+    bool BoxWorldValidityChecker::insideBox(const double *x, std::size_t box) const
+    {
+        const Interval *interval = intervals_.data() + boxBegin_[box];
+        const Interval *end = intervals_.data() + boxBegin_[box + 1u];
+        while (interval != end && x[interval->axis] >= interval->lower && x[interval->axis] <= interval->upper)
+            ++interval;
+        return interval == end;
     }
 
     bool BoxWorldValidityChecker::isValidPoint(const double *x) const
@@ -55,16 +125,41 @@ namespace lit
         for (unsigned int i = 0; i < dim_; ++i)
             if (!(x[i] >= lower_[i] && x[i] <= upper_[i]))  // also rejects NaN
                 return false;
-        const std::size_t numBoxes = boxLower_.size() / (dim_ == 0u ? 1u : dim_);
-        for (std::size_t b = 0; b < numBoxes; ++b)
+        if (!useGrid_)
         {
-            const double *lo = &boxLower_[b * dim_];
-            const double *hi = &boxUpper_[b * dim_];
-            unsigned int i = 0;
-            while (i < dim_ && x[i] >= lo[i] && x[i] <= hi[i])
-                ++i;
-            if (i == dim_)
-                return false;
+            // Few boxes: each one axis by axis (as fast as the grid's lookups, or faster).
+            const std::size_t numBoxes = boxLower_.size() / dim_;  // dim_ >= 1 (validatedDimension)
+            for (std::size_t b = 0; b < numBoxes; ++b)
+            {
+                const double *lo = &boxLower_[b * dim_];
+                const double *hi = &boxUpper_[b * dim_];
+                unsigned int i = 0;
+                while (i < dim_ && x[i] >= lo[i] && x[i] <= hi[i])
+                    ++i;
+                if (i == dim_)
+                    return false;
+            }
+            return true;
+        }
+        // The boxes in the point's cell on every axis, each then tested (x is inside the bounds: (x - lower) * scale
+        // is in [0, GRID_CELLS], and the last cell also takes the upper bound).
+        for (std::size_t w = 0; w < maskWords_; ++w)
+        {
+            std::uint64_t candidates = ~std::uint64_t{0};
+            for (unsigned int i = 0; i < dim_ && candidates != 0u; ++i)
+            {
+                const double t = (x[i] - lower_[i]) * cellScale_[i];
+                const std::size_t cell = t < static_cast<double>(GRID_CELLS) ? static_cast<std::size_t>(t)
+                                                                              : GRID_CELLS - 1u;
+                candidates &= cellMasks_[(static_cast<std::size_t>(i) * GRID_CELLS + cell) * maskWords_ + w];
+            }
+            while (candidates != 0u)
+            {
+                const unsigned int bit = static_cast<unsigned int>(__builtin_ctzll(candidates));
+                candidates &= candidates - 1u;
+                if (insideBox(x, w * 64u + bit))
+                    return false;
+            }
         }
         return true;
     }

@@ -663,33 +663,55 @@ namespace lit
         }
     }
 
-    void LITstar::collectNeighbours(State *state, std::vector<State *> &out)
+    void LITstar::collectNeighbours(State *state)
     {
-        const auto &nearest = graph_->neighbours(state, currentK_);
+        const auto nearest = graph_->neighbours(state, currentK_);
+        auto &out = neighbours_;
+        auto &distances = neighbourDistances_;
         out.assign(nearest.begin(), nearest.end());
-        auto addUnique = [&out](State *other) {
-            if (other != nullptr && std::find(out.begin(), out.end(), other) == out.end())
+        distances.assign(nearest.distances(), nearest.distances() + nearest.size());
+        // Listed states carry the current stamp (a search of the list per addition was quadratic in k).
+        const std::size_t stamp = ++collectStamp_;
+        for (State *other : out)
+            other->collectMark_ = stamp;
+        auto addUnique = [&](State *other) {
+            if (other != nullptr && other->collectMark_ != stamp)
+            {
+                other->collectMark_ = stamp;
                 out.push_back(other);
+                distances.push_back(graph_->distance(state, other));
+            }
         };
         // The k-nearest relation is not symmetric; the edges the searches use are. Without the reverse direction the
         // reverse search (which expands from the goal side) and the forward search would search each other's
         // transposed graph, and the cost-to-go of the reverse search would not bound the forward search's paths. (Only
         // the lists computed so far are made symmetric: a sample never expanded adds no edges of its own.)
-        for (State *other : graph_->incomingNeighbours(state))
-            addUnique(other);
+        const auto &incoming = graph_->incomingNeighbours(state);
+        const auto &incomingDistances = graph_->incomingDistances(state);
+        for (std::size_t i = 0; i < incoming.size(); ++i)
+        {
+            State *other = incoming[i];
+            if (other->collectMark_ != stamp)
+            {
+                other->collectMark_ = stamp;
+                out.push_back(other);
+                distances.push_back(incomingDistances[i]);  // distance(other, state): distance(state, other)'s
+            }
+        }
         addUnique(state->forwardParent_);
         for (State *child : state->forwardChildren_)
             addUnique(child);
         addUnique(state->reverseParent(reverseTag_));
     }
 
-    void LITstar::connectExpandedNeighbours(State *state, const std::vector<State *> &neighbours)
+    void LITstar::connectExpandedNeighbours(State *state)
     {
-        for (State *other : neighbours)
+        for (std::size_t i = 0; i < neighbours_.size(); ++i)
         {
+            State *other = neighbours_[i];
             if (isBlacklisted(state, other))
                 continue;
-            const double distance = graph_->distance(state, other);
+            const double distance = neighbourDistances_[i];
             // Reverse search: other -> state (towards the goal through other).
             if (!state->isGoal_ && other != state->reverseParent(reverseTag_))
             {
@@ -729,15 +751,15 @@ namespace lit
     {
         if (state->isStart_)
             return;  // the reverse search only has to reach the start
-        std::vector<State *> neighbours;
-        collectNeighbours(state, neighbours);
-        connectExpandedNeighbours(state, neighbours);
+        collectNeighbours(state);
+        connectExpandedNeighbours(state);
         const double costToGo = state->reverseCost_;
-        for (State *other : neighbours)
+        for (std::size_t i = 0; i < neighbours_.size(); ++i)
         {
+            State *other = neighbours_[i];
             if (other == state->reverseParent_ || other->isGoal_ || isBlacklisted(state, other))
                 continue;
-            const double cost = costToGo + graph_->distance(state, other);
+            const double cost = costToGo + neighbourDistances_[i];
             if (cost >= other->reverseCost(reverseTag_))
                 continue;
             const double key = cost + other->costToComeLowerBound_;
@@ -781,11 +803,11 @@ namespace lit
             return;  // a path through a goal never improves a solution
         ++counters_.expansions;
         currentK_ = adaptiveNeighborSize(state);
-        std::vector<State *> neighbours;
-        collectNeighbours(state, neighbours);
-        connectExpandedNeighbours(state, neighbours);
-        for (State *other : neighbours)
+        collectNeighbours(state);
+        connectExpandedNeighbours(state);
+        for (std::size_t i = 0; i < neighbours_.size(); ++i)
         {
+            State *other = neighbours_[i];
             if (other == state->forwardParent_ || other->isStart_ || isBlacklisted(state, other))
                 continue;
             if (other->forwardParent_ == state)
@@ -793,7 +815,7 @@ namespace lit
                 forwardQueue_->insert(state, other);  // re-traverses the kept forward tree
                 continue;
             }
-            const double costToCome = state->costToCome_ + graph_->distance(state, other);
+            const double costToCome = state->costToCome_ + neighbourDistances_[i];
             if (costToCome >= other->costToCome_ || costToCome + other->costToGoLowerBound_ >= bestCost_)
                 continue;
             forwardQueue_->insert(state, other);

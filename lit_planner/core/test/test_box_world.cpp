@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 #include <stdexcept>
+#include <vector>
 
 using namespace lit;
 
@@ -117,4 +119,119 @@ TEST(BoxWorld, ExactMotionValidationSeesThinWallsAndClippedCorners)
     a[0] = 4.0, a[1] = 1.0, b[0] = 6.0, b[1] = 1.0;
     EXPECT_FALSE(validator->checkMotion(a.get(), b.get(), nothing));
     EXPECT_NEAR(nothing.second, 0.5, 1e-8);
+}
+
+namespace
+{
+    /** \brief The plain test the checker's grid of boxes replaces: inside the bounds and outside every closed box,
+     *  axis by axis. */
+    bool plainIsValid(const BoxWorld &world, const double *x)
+    {
+        const std::size_t n = world.lower.size();
+        for (std::size_t i = 0; i < n; ++i)
+            if (!(x[i] >= world.lower[i] && x[i] <= world.upper[i]))
+                return false;
+        for (const Box &box : world.boxes)
+        {
+            std::size_t i = 0;
+            while (i < n && x[i] >= box.lower[i] && x[i] <= box.upper[i])
+                ++i;
+            if (i == n)
+                return false;
+        }
+        return true;
+    }
+}  // namespace
+
+TEST(BoxWorld, GridOfBoxesAnswersAsThePlainTest)
+{
+    // From 4 boxes on the checker narrows them with a grid (64 cells per axis, bit sets of 64 boxes): the answers
+    // must be the plain test's, on faces, on cell boundaries, for boxes that cover an axis, reach beyond the bounds,
+    // miss them or are flat, and for more boxes than one word of bits holds.
+    std::mt19937 rng(5u);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    std::size_t validWithGrid = 0u, invalidWithGrid = 0u;
+    for (unsigned int n : {1u, 2u, 3u, 8u, 16u})
+        for (std::size_t boxes : {0u, 3u, 4u, 30u, 64u, 65u, 130u})
+        {
+            BoxWorld world;
+            for (unsigned int i = 0; i < n; ++i)
+            {
+                world.lower.push_back(-0.5 - unit(rng));
+                world.upper.push_back(0.5 + unit(rng));
+            }
+            for (std::size_t b = 0; b < boxes; ++b)
+            {
+                Box box;
+                for (unsigned int i = 0; i < n; ++i)
+                {
+                    const double extent = world.upper[i] - world.lower[i];
+                    double lo = world.lower[i] + (1.4 * unit(rng) - 0.2) * extent;
+                    double hi = lo + (b % 5u == 4u ? 0.0 : unit(rng) * extent);
+                    if (b % 3u == 1u)  // faces on the grid's cell boundaries or the next double inside
+                    {
+                        lo = world.lower[i] + std::floor(unit(rng) * 65.0) * extent / 64.0;
+                        hi = std::max(lo, world.lower[i] + std::floor(unit(rng) * 65.0) * extent / 64.0);
+                        if (b % 2u == 0u)
+                        {
+                            lo = std::nextafter(lo, 1e300);
+                            hi = std::max(lo, std::nextafter(hi, -1e300));
+                        }
+                    }
+                    if (b % 7u == 3u && (i + b) % 2u == 0u)
+                    {
+                        lo = world.lower[i] - 1.0;
+                        hi = world.upper[i] + 1.0;
+                    }
+                    box.lower.push_back(lo);
+                    box.upper.push_back(hi);
+                }
+                world.boxes.push_back(box);
+            }
+            const BoxProblem problem =
+                makeBoxProblem(world, std::vector<double>(n, 0.0), std::vector<double>(n, 0.0), 0.01);
+            std::vector<double> x(n);
+            std::size_t valid = 0u;
+            for (int trial = 0; trial < 4000; ++trial)
+            {
+                // Half of the points inside a box on every axis but the ones redrawn below.
+                if (boxes > 0u && trial % 2 == 0)
+                {
+                    const Box &box = world.boxes[static_cast<std::size_t>(unit(rng) * boxes) % boxes];
+                    for (unsigned int i = 0; i < n; ++i)
+                        x[i] = box.lower[i] + unit(rng) * (box.upper[i] - box.lower[i]);
+                }
+                for (unsigned int i = 0; i < n; ++i)
+                {
+                    if (trial % 2 == 0 && unit(rng) < 0.7)
+                        continue;
+                    const double extent = world.upper[i] - world.lower[i];
+                    const int kind = static_cast<int>(unit(rng) * 6.0);
+                    if (boxes > 0u && kind <= 1)
+                    {
+                        // On a face of a box, or the next double inside or outside it.
+                        const Box &box = world.boxes[static_cast<std::size_t>(unit(rng) * boxes) % boxes];
+                        const double face = kind == 0 ? box.lower[i] : box.upper[i];
+                        const int step = static_cast<int>(unit(rng) * 3.0) - 1;
+                        x[i] = step == 0 ? face : std::nextafter(face, step * 1e300);
+                    }
+                    else if (kind == 2)  // a cell boundary of the grid, or a bound
+                        x[i] = world.lower[i] + std::floor(unit(rng) * 65.0) * extent / 64.0;
+                    else
+                        x[i] = world.lower[i] + (1.2 * unit(rng) - 0.1) * extent;
+                }
+                const bool expected = plainIsValid(world, x.data());
+                valid += expected ? 1u : 0u;
+                ASSERT_EQ(problem.checker->isValidPoint(x.data()), expected)
+                    << "n " << n << ", boxes " << boxes << ", trial " << trial;
+            }
+            if (boxes >= 4u)
+            {
+                validWithGrid += valid;
+                invalidWithGrid += 4000u - valid;
+            }
+        }
+    // Both answers came from the grid, many times (in R^1 and R^2 many boxes leave no free space).
+    EXPECT_GT(validWithGrid, 1000u);
+    EXPECT_GT(invalidWithGrid, 1000u);
 }

@@ -166,74 +166,86 @@ TEST(Features, IncomingNeighboursMakeTheKNearestGraphSymmetric)
 TEST(Features, NeighbourCacheEqualsABruteForceScanWhateverTheSequenceOfK)
 {
     // Samples arrive in batches, k goes up and down as a learned policy's psi_K does, and a prune removes samples
-    // (shifting the positions of the rest): every answer must equal a fresh exact scan, and the incoming lists
-    // must mirror the k last asked.
-    BoxProblem problem = test::narrowPassage(4);
-    RandomGeometricGraph graph(problem.si, 1u);
-    std::mt19937 rng(7u);
-    std::uniform_real_distribution<double> coordinate(-0.5, 0.5);
-    std::uniform_int_distribution<std::size_t> kDraw(1u, 14u);
-    // A few exact duplicates and equal distances exercise the tie order (distance, then id).
-    const auto addBatch = [&](std::size_t count) {
-        for (std::size_t i = 0; i < count; ++i)
-        {
-            std::vector<double> x(4u);
-            for (double &v : x)
-                v = std::round(coordinate(rng) * 8.0) / 8.0;
-            graph.addValidSample(x);
-        }
-    };
-    const auto bruteForce = [&](const litstar::State *state, std::size_t k) {
-        std::vector<const litstar::State *> nearest;
-        for (const auto &[distance, other] : test::nearestByBruteForce(graph, state, k))
-            nearest.push_back(other);
-        return nearest;
-    };
-    std::map<const litstar::State *, std::vector<const litstar::State *>> lastAnswer;
-    for (int round = 0; round < 12; ++round)
+    // (shifting the positions of the rest): every answer must equal a fresh exact scan, with distance()'s distances
+    // to the bit, and the incoming lists must mirror the k last asked, with their distances. In R^4 and in R^11
+    // (the scans' single-precision filter, its rows padded to 12 values and rebuilt by the prune).
+    for (const unsigned int dim : {4u, 11u})
     {
-        // Round 0 starts with fewer samples than most k: caches that are not full, prefixes that are the whole
-        // cache, k above the number of samples.
-        addBatch(round == 0 ? 6u : 15u);
-        if (round == 6)
-        {
-            // Remove a quarter of the samples (by id), as a prune would; the cached lists must not name them.
-            std::vector<const litstar::State *> doomed;
-            for (const auto &state : graph.states())
-                if (state->id_ % 4u == 1u)
-                    doomed.push_back(state.get());
-            for (const auto &state : graph.states())
+        BoxProblem problem = test::narrowPassage(dim);
+        RandomGeometricGraph graph(problem.si, 1u);
+        std::mt19937 rng(7u);
+        std::uniform_real_distribution<double> coordinate(-0.5, 0.5);
+        std::uniform_int_distribution<std::size_t> kDraw(1u, 14u);
+        // A few exact duplicates and equal distances exercise the tie order (distance, then id).
+        const auto addBatch = [&](std::size_t count) {
+            for (std::size_t i = 0; i < count; ++i)
             {
-                state->costToComeLowerBound_ = state->id_ % 4u == 1u ? 10.0 : 0.0;
-                state->costToGoLowerBound_ = 0.0;
+                std::vector<double> x(dim);
+                for (double &v : x)
+                    v = std::round(coordinate(rng) * 8.0) / 8.0;
+                graph.addValidSample(x);
             }
-            ASSERT_EQ(graph.prune(5.0, [](litstar::State *) {}), doomed.size());
-            lastAnswer.clear();  // a prune clears the incoming lists: nothing has been asked in the new epoch
-        }
-        for (int query = 0; query < 40; ++query)
+        };
+        const auto bruteForce = [&](const litstar::State *state, std::size_t k) {
+            std::vector<const litstar::State *> nearest;
+            for (const auto &[distance, other] : test::nearestByBruteForce(graph, state, k))
+                nearest.push_back(other);
+            return nearest;
+        };
+        std::map<const litstar::State *, std::vector<const litstar::State *>> lastAnswer;
+        for (int round = 0; round < 12; ++round)
         {
-            auto &states = graph.states();
-            std::uniform_int_distribution<std::size_t> pick(0u, states.size() - 1u);
-            litstar::State *state = states[pick(rng)].get();
-            const std::size_t k = kDraw(rng);
-            const auto range = graph.neighbours(state, k);
-            const std::vector<const litstar::State *> got(range.begin(), range.end());
-            ASSERT_EQ(got, bruteForce(state, k)) << "round " << round << ", k " << k;
-            lastAnswer[state] = got;
-        }
-        // Incoming lists: s names t exactly when s was in t's last answer (the k nearest as last asked for,
-        // possibly before later batches).
-        for (const auto &s : graph.states())
-        {
-            std::vector<const litstar::State *> expected;
-            for (const auto &[t, answer] : lastAnswer)
-                if (std::find(answer.begin(), answer.end(), s.get()) != answer.end())
-                    expected.push_back(t);
-            const auto &incoming = graph.incomingNeighbours(s.get());
-            std::vector<const litstar::State *> got(incoming.begin(), incoming.end());
-            std::sort(got.begin(), got.end());
-            std::sort(expected.begin(), expected.end());
-            ASSERT_EQ(got, expected) << "round " << round;
+            // Round 0 starts with fewer samples than most k: caches that are not full, prefixes that are the whole
+            // cache, k above the number of samples.
+            addBatch(round == 0 ? 6u : 15u);
+            if (round == 6)
+            {
+                // Remove a quarter of the samples (by id), as a prune would; the cached lists must not name them.
+                std::vector<const litstar::State *> doomed;
+                for (const auto &state : graph.states())
+                    if (state->id_ % 4u == 1u)
+                        doomed.push_back(state.get());
+                for (const auto &state : graph.states())
+                {
+                    state->costToComeLowerBound_ = state->id_ % 4u == 1u ? 10.0 : 0.0;
+                    state->costToGoLowerBound_ = 0.0;
+                }
+                ASSERT_EQ(graph.prune(5.0, [](litstar::State *) {}), doomed.size());
+                lastAnswer.clear();  // a prune clears the incoming lists: nothing has been asked in the new epoch
+            }
+            for (int query = 0; query < 40; ++query)
+            {
+                auto &states = graph.states();
+                std::uniform_int_distribution<std::size_t> pick(0u, states.size() - 1u);
+                litstar::State *state = states[pick(rng)].get();
+                const std::size_t k = kDraw(rng);
+                const auto range = graph.neighbours(state, k);
+                const std::vector<const litstar::State *> got(range.begin(), range.end());
+                ASSERT_EQ(got, bruteForce(state, k)) << "dim " << dim << ", round " << round << ", k " << k;
+                for (std::size_t i = 0; i < range.size(); ++i)
+                    ASSERT_EQ(range.distances()[i], graph.distance(state, range[i]))
+                        << "dim " << dim << ", round " << round;
+                lastAnswer[state] = got;
+            }
+            // Incoming lists: s names t exactly when s was in t's last answer (the k nearest as last asked for,
+            // possibly before later batches).
+            for (const auto &s : graph.states())
+            {
+                std::vector<const litstar::State *> expected;
+                for (const auto &[t, answer] : lastAnswer)
+                    if (std::find(answer.begin(), answer.end(), s.get()) != answer.end())
+                        expected.push_back(t);
+                const auto &incoming = graph.incomingNeighbours(s.get());
+                const auto &distances = graph.incomingDistances(s.get());
+                ASSERT_EQ(distances.size(), incoming.size());
+                for (std::size_t i = 0; i < incoming.size(); ++i)
+                    ASSERT_EQ(distances[i], graph.distance(s.get(), incoming[i]))
+                        << "dim " << dim << ", round " << round;
+                std::vector<const litstar::State *> got(incoming.begin(), incoming.end());
+                std::sort(got.begin(), got.end());
+                std::sort(expected.begin(), expected.end());
+                ASSERT_EQ(got, expected) << "dim " << dim << ", round " << round;
+            }
         }
     }
 }

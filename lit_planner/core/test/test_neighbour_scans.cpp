@@ -1,6 +1,7 @@
-// The neighbour scans' fast path must answer exactly as a plain scan: a rescan into an empty cache keeps a bound that
-// tightens as it goes (RandomGeometricGraph::scanNeighbours), which must drop no sample among the k nearest, ties and
-// near-ties included.
+// The neighbour scans' fast paths must answer exactly as a plain scan (RandomGeometricGraph::scanNeighbours): a rescan
+// into an empty cache keeps a bound that tightens as it goes, and in R^9 and up a single-precision sum with an error
+// bound drops samples before the double one. Neither may drop a sample among the k nearest, ties and near-ties
+// included, and the cached distances must be distance()'s to the bit (the searches take edge lengths from them).
 #include "Nearest.h"
 #include "Worlds.h"
 
@@ -19,13 +20,14 @@ using litstar::RandomGeometricGraph;
 
 namespace
 {
-    /** \brief What the graph answers for the k nearest of \e state, with their distances. */
+    /** \brief What the graph answers for the k nearest of \e state, with the distances it has cached for them. */
     std::vector<std::pair<double, const litstar::State *>> scanned(RandomGeometricGraph &graph, litstar::State *state,
                                                                    std::size_t k)
     {
+        const auto range = graph.neighbours(state, k);
         std::vector<std::pair<double, const litstar::State *>> got;
-        for (litstar::State *other : graph.neighbours(state, k))
-            got.emplace_back(graph.distance(state, other), other);
+        for (std::size_t i = 0; i < range.size(); ++i)
+            got.emplace_back(range.distances()[i], range[i]);
         return got;
     }
 }  // namespace
@@ -69,8 +71,9 @@ TEST(NeighbourScans, NeighbourScansEqualABruteForceScanInR16)
 
 TEST(NeighbourScans, NeighbourScansKeepSamplesWithinRoundingOfTheBoundInR16)
 {
-    // Samples on spheres around a centre, some with radii 1e-12 apart (within the bound's margin of each other): the
-    // running bound must drop none of those among the k nearest. Then more of them, for the incremental scan.
+    // Samples on spheres around a centre, some with radii 1e-12 apart (within the bound's margin of each other,
+    // and far below single precision): neither the running bound nor the filter may drop one of those among the
+    // k nearest. Then more of them, for the incremental scan.
     std::mt19937 rng(3u);
     std::normal_distribution<double> normal;
     std::uniform_real_distribution<double> unit(0.0, 1.0);
@@ -107,4 +110,37 @@ TEST(NeighbourScans, NeighbourScansKeepSamplesWithinRoundingOfTheBoundInR16)
         addShell(60, 0.3, 1e-12);  // ties and near-ties of the cached entries
         ASSERT_EQ(scanned(graph, c, k), test::nearestByBruteForce(graph, c, k)) << "trial " << trial << ", k " << k;
     }
+}
+
+TEST(NeighbourScans, ANaNCoordinateTurnsTheSinglePrecisionFilterOff)
+{
+    // The filter's error bound rests on the largest |coordinate| so far. A NaN must keep it off (a later coordinate
+    // of 0.5 once replaced the NaN as that bound, and a sample 0.032 away, rounded to 0.0625 in single precision, was
+    // dropped for one 0.04 away). A NaN can come in through addValidSample or a checker that lets one through.
+    BoxProblem problem = test::narrowPassage(12);
+    RandomGeometricGraph graph(problem.si, 1u);
+    std::vector<double> query(12u, 0.0);
+    query[0] = 1e6;
+    litstar::State *q = graph.addValidSample(query);
+    for (int j = 0; j < 200; ++j)
+    {
+        std::vector<double> filler(query);
+        filler[1] = 0.04 + 1e-4 * j;
+        graph.addValidSample(filler);
+    }
+    std::vector<double> nearest(query);
+    nearest[0] = 1e6 + 0.032;
+    litstar::State *y = graph.addValidSample(nearest);
+    std::vector<double> nan(12u, 0.0);
+    nan[0] = std::nan("");
+    nan[1] = 0.5;
+    litstar::State *n = graph.addValidSample(nan);
+    for (int j = 0; j < 5; ++j)
+        graph.addValidSample(std::vector<double>(12u, 0.0));
+    // The NaN sample a goal and the query the start: the NaN distance stays out of the selection.
+    q->isStart_ = true;
+    n->isGoal_ = true;
+    const auto range = graph.neighbours(q, 3u);
+    ASSERT_EQ(range.size(), 3u);
+    EXPECT_EQ(range[0], y);
 }

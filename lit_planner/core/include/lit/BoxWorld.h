@@ -65,8 +65,28 @@ namespace lit
         unsigned int dim_{0u};
         /** \brief Bounds, flattened. */
         std::vector<double> lower_, upper_;
-        /** \brief Box corners, flattened box-major: boxLower_[b * dim_ + i]. */
+        /** \brief Box corners, flattened box-major: boxLower_[b * dim_ + i] (the test without the grid). */
         std::vector<double> boxLower_, boxUpper_;
+        /** \brief A box's extent on one axis. */
+        struct Interval
+        {
+            double lower;
+            double upper;
+            unsigned int axis;
+        };
+        /** \brief The boxes that meet the bounds, each as its intervals on the axes where it does not cover them
+         *  (narrowest first): box b's are intervals_[boxBegin_[b], boxBegin_[b + 1]). */
+        std::vector<Interval> intervals_;
+        std::vector<std::size_t> boxBegin_;
+        /** \brief Whether \e x (inside the bounds) is inside box \e box (of those kept). */
+        bool insideBox(const double *x, std::size_t box) const;
+        /** \brief A grid over the bounds that narrows the boxes to test: cellMasks_[(axis * GRID_CELLS + cell) *
+         *  maskWords_ + w] holds bits w * 64 ... of the boxes that may hold a point of that cell on that axis. */
+        static constexpr unsigned int GRID_CELLS = 64u;
+        bool useGrid_{false};
+        std::size_t maskWords_{0u};
+        std::vector<double> cellScale_;
+        std::vector<std::uint64_t> cellMasks_;
         /** \brief Call counter. */
         mutable std::atomic<std::uint64_t> calls_{0u};
     };

@@ -196,13 +196,13 @@ namespace lit
         void addBestPathToProblem();
         void registerSolution(litstar::State *goal);
         /** \brief Neighbours for either search: the k nearest, the samples that have \e state among their k nearest,
-         *  and its tree relatives. */
-        void collectNeighbours(litstar::State *state, std::vector<litstar::State *> &out);
+         *  and its tree relatives, into neighbours_, with their distances from \e state in neighbourDistances_. */
+        void collectNeighbours(litstar::State *state);
         /** \brief Hands the edges between \e state and its \e neighbours to the searches in the direction towards
          *  \e state: a neighbour already in the reverse tree may lower state's cost-to-go, one already in the forward
          *  tree may lower its cost-to-come. Needed because an edge becomes known only when one of its endpoints'
          *  neighbour list is computed, possibly after the other endpoint was expanded. */
-        void connectExpandedNeighbours(litstar::State *state, const std::vector<litstar::State *> &neighbours);
+        void connectExpandedNeighbours(litstar::State *state);
         /** \brief Algorithm 1's decisions. */
         void adaptiveBatchsize();
         /** \brief Warns (once per problem) of a policy answer the planner cannot use. */
@@ -302,6 +302,13 @@ namespace lit
         LITstarCounters counters_;
         ompl::base::State *interpolated_{nullptr};
         std::vector<litstar::State *> scratch_;
+        /** \brief The neighbours of the state being expanded and their distances (collectNeighbours(); kept to avoid
+         *  two allocations per expansion). The k nearest take their distances from the graph's cache, which holds
+         *  distance()'s values to the bit: each neighbour's distance was computed up to three times per expansion. */
+        std::vector<litstar::State *> neighbours_;
+        std::vector<double> neighbourDistances_;
+        /** \brief Stamp of the current collectNeighbours() (see State::collectMark_). */
+        std::size_t collectStamp_{0u};
 
         // Planner clock: wall time in solve minus external-policy time.
         using Clock = std::chrono::steady_clock;

@@ -28,7 +28,11 @@ namespace lit::litstar
     }  // namespace
 
     RandomGeometricGraph::RandomGeometricGraph(const ompl::base::SpaceInformationPtr &si, std::uint_fast32_t seed)
-      : si_(si), sampler_(si, seed), dim_(si->getStateDimension())
+      : si_(si)
+      , sampler_(si, seed)
+      , floatFilter_(si->getStateDimension() > 8u)
+      , floatStride_((si->getStateDimension() + 3u) / 4u * 4u)
+      , dim_(si->getStateDimension())
     {
     }
 
@@ -48,6 +52,8 @@ namespace lit::litstar
             si_->freeState(state->raw_);
         states_.clear();
         packed_.clear();
+        packedFloat_.clear();
+        maxAbsCoordinate_ = 0.0;
         packedInvalid_.clear();
         starts_.clear();
         goals_.clear();
@@ -60,8 +66,25 @@ namespace lit::litstar
     {
         const double *x = coordinatesOf(raw);
         states_.push_back(std::make_unique<State>(nextId_++, raw, x));
-        appendPacked(packed_, x);
+        appendValid(x);
         return states_.back().get();
+    }
+
+    void RandomGeometricGraph::appendValid(const double *x)
+    {
+        appendPacked(packed_, x);
+        if (!floatFilter_)
+            return;
+        for (unsigned int i = 0; i < dim_; ++i)
+        {
+            packedFloat_.push_back(static_cast<float>(x[i]));
+            const double magnitude = std::abs(x[i]);
+            // A NaN stays (it turns the filter off until the next clear or prune): a later coordinate must not
+            // replace it with a bound that leaves out the samples before it.
+            if (!(magnitude <= maxAbsCoordinate_) && !std::isnan(maxAbsCoordinate_))
+                maxAbsCoordinate_ = magnitude;
+        }
+        packedFloat_.insert(packedFloat_.end(), floatStride_ - dim_, 0.0f);
     }
 
     void RandomGeometricGraph::appendPacked(std::vector<double> &packed, const double *x) const
@@ -222,8 +245,10 @@ namespace lit::litstar
         }
         states_ = std::move(kept);  // destroys the removed samples
         packed_.clear();
+        packedFloat_.clear();
+        maxAbsCoordinate_ = 0.0;
         for (const auto &state : states_)
-            appendPacked(packed_, state->coordinates_);
+            appendValid(state->coordinates_);
         std::size_t out = 0u;  // compacted in place, in order
         for (std::size_t at = 0u; at < packedInvalid_.size(); at += dim_)
         {
@@ -243,7 +268,10 @@ namespace lit::litstar
             // Incoming lists may hold removed states: they are rebuilt as the samples are asked for their
             // neighbours again (in the order a fresh start would rebuild them).
             for (auto &state : states_)
+            {
                 state->incomingNeighbours_.clear();
+                state->incomingDistances_.clear();
+            }
             ++incomingEpoch_;
             ++version_;
         }
@@ -282,11 +310,10 @@ namespace lit::litstar
             constexpr bool Tighten = decltype(tightenTag)::value;
             double limit = bound;
             const double *y = packed_.data() + from * dim_;
-            for (std::size_t i = from; i < states_.size(); ++i, y += dim_)
+            // A sample whose sum passed the bound (a sum above it is farther than the cache's last entry, or than
+            // the running bound).
+            const auto handle = [&](std::size_t i, double sum)
             {
-                const double sum = squaredDistance(x, y);
-                if (sum > limit)
-                    continue;  // farther than the cache's last entry
                 State *other = states_[i].get();
                 // A goal's neighbours are the samples that are not goals: no search uses an edge between two goals
                 // (the reverse search starts at every goal with cost 0, the forward search never leaves one), and a
@@ -300,7 +327,7 @@ namespace lit::litstar
                 // and the reverse search ends at one.
                 // The flags of state first: other's are read (a cache miss per sample) only for a terminal.
                 if (other == state || (terminal && other->isGoal_) || (state->isStart_ && other->isStart_))
-                    continue;
+                    return;
                 if constexpr (Tighten)
                 {
                     // The sum for now (its sqrt once the scan is done). Now and then the candidates are cut back to
@@ -323,6 +350,59 @@ namespace lit::litstar
                     if (!full || closer(d, other, worstDistance, worstState))
                         candidates.emplace_back(d, other);
                 }
+            };
+            // Four samples at a time. With a finite bound, the single-precision sums drop the samples that are
+            // certainly beyond it, and only the others take the double sum. The error bound: with u = 2^-24, M the
+            // largest |coordinate| and n = floatStride_ terms, each float difference is within 4.02 u M of the
+            // exact one, so each float square is at most the exact one plus 16.1 u M^2 (before its own rounding),
+            // and the float sum of n non-negative terms is at most (1 + u)^n <= 1 + 2 n u times the sum of its terms
+            // (plus 1e-38 for subnormal rounding). A float sum above ((limit (1 + 1e-9) + 20 n u M^2 + 1e-38)
+            // (1 + 2 n u)) (1 + 1e-6) is therefore of an exact sum above limit (1 + 1e-9), whose double sum (within
+            // (n + 1) 2^-53 of it) is above limit. Such a sample is dropped by the exact test as well: the samples
+            // that reach handle() are the same. Otherwise four independent double sums (each added in the order of
+            // squaredDistance(), so bit-identical to it) keep the adder busy where one waits on its last addition.
+            const double u = std::ldexp(1.0, -24);
+            const double n = static_cast<double>(floatStride_);
+            const bool useFloat = floatFilter_ && maxAbsCoordinate_ < 1e15;  // false for an inf or NaN coordinate too
+            const double slack = 20.0 * n * u * maxAbsCoordinate_ * maxAbsCoordinate_ + 1e-38;
+            const double growth = (1.0 + 2.0 * n * u) * (1.0 + 1e-6);
+            auto &xf = queryFloat_;
+            if (useFloat)
+            {
+                xf.assign(floatStride_, 0.0f);
+                for (unsigned int d = 0; d < dim_; ++d)
+                    xf[d] = static_cast<float>(x[d]);
+            }
+            std::size_t i = from;
+            const std::size_t end = states_.size();
+            for (; i + 4u <= end; i += 4u, y += 4u * dim_)
+            {
+                if (useFloat && limit < std::numeric_limits<double>::infinity())
+                {
+                    const double floatLimit = (limit * (1.0 + 1e-9) + slack) * growth;
+                    float approximate[4];
+                    floatSquaredDistances4(xf.data(), packedFloat_.data() + i * floatStride_, approximate);
+                    for (std::size_t j = 0; j < 4u; ++j)
+                    {
+                        if (static_cast<double>(approximate[j]) > floatLimit)
+                            continue;  // the double sum is above limit too
+                        const double sum = squaredDistance(x, y + j * dim_);
+                        if (!(sum > limit))
+                            handle(i + j, sum);
+                    }
+                    continue;
+                }
+                double sums[4];
+                squaredDistances4(x, y, sums);
+                for (std::size_t j = 0; j < 4u; ++j)
+                    if (!(sums[j] > limit))
+                        handle(i + j, sums[j]);
+            }
+            for (; i < end; ++i, y += dim_)
+            {
+                const double sum = squaredDistance(x, y);
+                if (!(sum > limit))
+                    handle(i, sum);
             }
             if constexpr (Tighten)
                 for (auto &candidate : candidates)
@@ -366,7 +446,7 @@ namespace lit::litstar
         }
     }
 
-    bool RandomGeometricGraph::inAskedPrefix(const State *owner, const State *state) const
+    bool RandomGeometricGraph::inAskedPrefix(const State *owner, const State *state, double distance) const
     {
         // state was in owner's prefix at some point since the last prune, so owner has scanned it, and owner's
         // cache is exact over what it scanned: state is in the prefix iff it is not farther than the prefix's
@@ -379,15 +459,25 @@ namespace lit::litstar
             return true;
         if (list[size - 1u] == state)
             return true;  // the boundary itself: decided without recomputing its distance
-        return !closer(owner->neighbourDistances_[size - 1u], list[size - 1u], distance(owner, state), state);
+        return !closer(owner->neighbourDistances_[size - 1u], list[size - 1u], distance, state);
     }
 
     const std::vector<State *> &RandomGeometricGraph::incomingNeighbours(State *state)
     {
+        // In place and in order (as std::remove_if), the distances alongside.
         auto &incoming = state->incomingNeighbours_;
-        incoming.erase(std::remove_if(incoming.begin(), incoming.end(),
-                                      [this, state](const State *owner) { return !inAskedPrefix(owner, state); }),
-                       incoming.end());
+        auto &distances = state->incomingDistances_;
+        std::size_t kept = 0u;
+        for (std::size_t i = 0; i < incoming.size(); ++i)
+        {
+            if (!inAskedPrefix(incoming[i], state, distances[i]))
+                continue;
+            incoming[kept] = incoming[i];
+            distances[kept] = distances[i];
+            ++kept;
+        }
+        incoming.resize(kept);
+        distances.resize(kept);
         return incoming;
     }
 
@@ -433,11 +523,14 @@ namespace lit::litstar
             // Stale entries (from a larger k asked earlier) are dropped when the incoming list is read.
             auto &incoming = other->incomingNeighbours_;
             if (std::find(incoming.begin(), incoming.end(), state) == incoming.end())
+            {
                 incoming.push_back(state);
+                other->incomingDistances_.push_back(state->neighbourDistances_[i]);
+            }
         }
         state->neighboursK_ = k;
         state->incomingEpoch_ = incomingEpoch_;
-        return {state->neighbours_.data(), size};
+        return {state->neighbours_.data(), state->neighbourDistances_.data(), size};
     }
 
     double RandomGeometricGraph::ratioCalc() const
@@ -458,13 +551,20 @@ namespace lit::litstar
         const double inside = squared * (1.0 - 1e-9);
         const double outside = squared * (1.0 + 1e-9);
         std::size_t count = 0u;
+        const auto within = [&](double sum) {
+            return sum < inside || (sum <= outside && std::sqrt(sum) <= radius) ? 1u : 0u;
+        };
         const double *y = packed.data();
-        const double *stop = y + packed.size();
-        for (; y != stop; y += dim_)
+        const std::size_t points = packed.size() / dim_;
+        std::size_t i = 0u;
+        for (; i + 4u <= points; i += 4u, y += 4u * dim_)  // four sums side by side, as in scanNeighbours
         {
-            const double sum = squaredDistance(centre, y);
-            count += sum < inside || (sum <= outside && std::sqrt(sum) <= radius) ? 1u : 0u;
+            double sums[4];
+            squaredDistances4(centre, y, sums);
+            count += within(sums[0]) + within(sums[1]) + within(sums[2]) + within(sums[3]);
         }
+        for (; i < points; ++i, y += dim_)
+            count += within(squaredDistance(centre, y));
         return count;
     }
 

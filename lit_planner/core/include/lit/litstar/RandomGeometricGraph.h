@@ -15,6 +15,7 @@
 #include <ompl/base/SpaceInformation.h>
 
 #include <cmath>
+#include <cstring>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -23,11 +24,12 @@
 
 namespace lit::litstar
 {
-    /** \brief A read-only view of the first entries of a state's neighbour cache. */
+    /** \brief A read-only view of the first entries of a state's neighbour cache, with their distances. */
     class NeighbourRange
     {
     public:
-        NeighbourRange(State *const *first, std::size_t size) : first_(first), size_(size)
+        NeighbourRange(State *const *first, const double *distances, std::size_t size)
+          : first_(first), distances_(distances), size_(size)
         {
         }
         State *const *begin() const
@@ -54,9 +56,15 @@ namespace lit::litstar
         {
             return first_[i];
         }
+        /** \brief The distances of the entries (bit-identical to RandomGeometricGraph::distance()). */
+        const double *distances() const
+        {
+            return distances_;
+        }
 
     private:
         State *const *first_;
+        const double *distances_;
         std::size_t size_;
     };
 
@@ -108,6 +116,11 @@ namespace lit::litstar
          *  neighbours()); together they make the lists computed so far symmetric (samples whose own list was never
          *  asked for add no edges: not the full undirected k-nearest graph). */
         const std::vector<State *> &incomingNeighbours(State *state);
+        /** \brief The distances of incomingNeighbours(state) as it last returned them, in its order. */
+        const std::vector<double> &incomingDistances(const State *state) const
+        {
+            return state->incomingDistances_;
+        }
 
         /** \brief Euclidean distance between two samples. */
         double distance(const State *a, const State *b) const
@@ -126,6 +139,25 @@ namespace lit::litstar
             for (unsigned int i = 0; i < dim_; ++i)
                 sum += (a[i] - b[i]) * (a[i] - b[i]);
             return sum;
+        }
+
+        /** \brief squaredDistance() of \e a to the four points packed at \e b (dim values each), bit-identical to
+         *  four calls: each sum is added in the same order, the four side by side. */
+        void squaredDistances4(const double *a, const double *b, double *sums) const
+        {
+            const double *b1 = b + dim_, *b2 = b1 + dim_, *b3 = b2 + dim_;
+            double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+            for (unsigned int i = 0; i < dim_; ++i)
+            {
+                s0 += (a[i] - b[i]) * (a[i] - b[i]);
+                s1 += (a[i] - b1[i]) * (a[i] - b1[i]);
+                s2 += (a[i] - b2[i]) * (a[i] - b2[i]);
+                s3 += (a[i] - b3[i]) * (a[i] - b3[i]);
+            }
+            sums[0] = s0;
+            sums[1] = s1;
+            sums[2] = s2;
+            sums[3] = s3;
         }
 
         /** \brief rho = |X_invalid| / (|X_valid| + |X_invalid|) (Eq. 4 of the paper); 0 without samples. */
@@ -190,9 +222,9 @@ namespace lit::litstar
         /** \brief Appends a point's dim_ coordinates to a packed array. */
         void appendPacked(std::vector<double> &packed, const double *x) const;
         void computeLowerBounds(State *state) const;
-        /** \brief Whether \e state is among the k nearest that \e owner was last asked for, given that it was
-         *  at some point since the last prune. */
-        bool inAskedPrefix(const State *owner, const State *state) const;
+        /** \brief Whether \e state, at \e distance from \e owner, is among the k nearest that \e owner was last
+         *  asked for, given that it was at some point since the last prune. */
+        bool inAskedPrefix(const State *owner, const State *state, double distance) const;
         /** \brief How many of the packed points lie within \e radius of \e centre (as distance() <= radius). */
         std::size_t countWithin(const std::vector<double> &packed, const double *centre, double radius) const;
         /** \brief Merges states_[from, end) into \e state's cache of its \e cap nearest. */
@@ -204,6 +236,52 @@ namespace lit::litstar
         std::vector<std::unique_ptr<State>> states_;
         /** \brief The valid samples' coordinates, dim_ per sample, in the order of states_ (for linear scans). */
         std::vector<double> packed_;
+        /** \brief In R^9 and up (floatFilter_), packed_ in single precision, each row padded with zeros to
+         *  floatStride_ (a multiple of 4) values: a cheap filter in scanNeighbours, whose sums (with a bound on their
+         *  error) drop most samples before the exact double sum. maxAbsCoordinate_ bounds |x_i| over these rows, or
+         *  is NaN after a NaN coordinate (it only grows until a clear or prune). In R^8 and below the double sums
+         *  cost about what the filter does (measured slower on np8 and rrd8), and packedFloat_ stays empty. */
+        bool floatFilter_;
+        std::vector<float> packedFloat_;
+        unsigned int floatStride_;
+        double maxAbsCoordinate_{0.0};
+        std::vector<float> queryFloat_;
+        /** \brief Appends a valid sample's coordinates to packed_ (and packedFloat_). */
+        void appendValid(const double *x);
+        /** \brief The sums of squared differences of row \e a to the four rows of packedFloat_ at \e b (any order
+         *  of additions: a filter only). */
+        void floatSquaredDistances4(const float *a, const float *b, float *sums) const
+        {
+#if defined(__GNUC__)
+            typedef float Float4 __attribute__((vector_size(16)));
+            Float4 acc[4] = {};
+            for (unsigned int i = 0; i < floatStride_; i += 4u)
+            {
+                Float4 x;
+                std::memcpy(&x, a + i, sizeof x);
+                for (unsigned int j = 0; j < 4u; ++j)
+                {
+                    Float4 y;
+                    std::memcpy(&y, b + j * floatStride_ + i, sizeof y);
+                    const Float4 d = x - y;
+                    acc[j] += d * d;
+                }
+            }
+            for (unsigned int j = 0; j < 4u; ++j)
+                sums[j] = (acc[j][0] + acc[j][1]) + (acc[j][2] + acc[j][3]);
+#else
+            for (unsigned int j = 0; j < 4u; ++j)
+            {
+                float sum = 0.0f;
+                for (unsigned int i = 0; i < floatStride_; ++i)
+                {
+                    const float d = a[i] - b[j * floatStride_ + i];
+                    sum += d * d;
+                }
+                sums[j] = sum;
+            }
+#endif
+        }
         /** \brief The invalid samples' coordinates, dim_ per sample: all that is kept of them (for the invalid
          *  ratios and the prune). An OMPL state each, as they used to be kept as well, took about 190 more bytes per
          *  sample in R^16 (an unsolvable query keeps every invalid draw) and two allocations per draw. */

@@ -88,6 +88,11 @@ namespace lit::litstar
          *  full undirected k-nearest graph). Entries whose list has dropped this sample since are removed when
          *  read. */
         std::vector<State *> incomingNeighbours_;
+        /** \brief Their distances to this sample (each the one in its owner's cache, equal to distance() to the
+         *  bit), parallel to incomingNeighbours_. */
+        std::vector<double> incomingDistances_;
+        /** \brief The planner's mark while it collects a neighbour list (equal to its current stamp: listed). */
+        std::size_t collectMark_{0u};
 
         /** \brief Forward-queue edges leaving / entering this state (for re-keying). */
         std::vector<ForwardQueueElement *> outgoing_;
