@@ -3,8 +3,9 @@
 Speed-ups of the core (the neighbour scans, the cached edge lengths, the checker's grid of boxes)
 must leave the search as it was, bit for bit: the same samples, neighbours, queue order, checks,
 costs and decisions. These runs pin that down. A change that is meant to alter the search (a new
-rule, different tie-breaking) changes them too: then check that the change is wanted and print
-the new values into ``search_fingerprints.json`` with
+rule, different tie-breaking) changes them too, and so do new shipped tensors (the ``tensor``
+runs): then check that the change is wanted and write the new values into
+``search_fingerprints.json`` with
 ``.venv/bin/python lit_planner/test/test_search_fingerprints.py``.
 """
 
@@ -51,7 +52,9 @@ def recorded() -> dict[str, dict[str, Any]]:
 def test_the_search_is_as_it_was(key: str) -> None:
     expected = recorded()[key]
     assert expected["c_init"] is not None and expected["counters"]["prunes"] > 0  # a telling run
-    assert fingerprint(key) == expected, f"{key}: the search changed (see this module's docstring)"
+    assert fingerprint(key) == expected, (
+        f"{key}: the search or the shipped tensors changed (see this module's docstring)"
+    )
 
 
 if __name__ == "__main__":
