@@ -166,8 +166,7 @@ namespace lit
 
     bool BoxWorldValidityChecker::isValid(const ompl::base::State *state) const
     {
-        calls_.fetch_add(1u, std::memory_order_relaxed);
-        return isValidPoint(state->as<ompl::base::RealVectorStateSpace::StateType>()->values);
+        return isValidCounted(state->as<ompl::base::RealVectorStateSpace::StateType>()->values);
     }
 
     BoxWorldMotionValidator::BoxWorldMotionValidator(const ompl::base::SpaceInformationPtr &si,

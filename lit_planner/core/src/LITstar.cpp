@@ -17,6 +17,7 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <typeinfo>
 
 namespace lit
 {
@@ -381,6 +382,11 @@ namespace lit
         spaceMeasure_ = si_->getSpaceMeasure();
         if (interpolated_ == nullptr)
             interpolated_ = si_->allocState();
+        const ompl::base::StateSpace *space = si_->getStateSpace().get();
+        boxChecker_ = typeid(*space) == typeid(ompl::base::RealVectorStateSpace)
+                          ? dynamic_cast<const BoxWorldValidityChecker *>(si_->getStateValidityChecker().get())
+                          : nullptr;
+        point_.assign(dimension_, 0.0);
         bestPathStates_.clear();  // they belonged to the graph replaced here
         if (!seedSet_)
         {
@@ -641,9 +647,14 @@ namespace lit
             return checkLevel(from, to, segments, lo, mid, level - 1u, points) &&
                    checkLevel(from, to, segments, mid, hi, level - 1u, points);
         ++points;
-        si_->getStateSpace()->interpolate(from->raw_, to->raw_,
-                                          static_cast<double>(mid) / static_cast<double>(segments), interpolated_);
         ++counters_.collisionChecks;
+        const double t = static_cast<double>(mid) / static_cast<double>(segments);
+        if (boxChecker_ != nullptr)
+        {
+            litstar::interpolateAsOmpl(from->coordinates_, to->coordinates_, t, point_.data(), dimension_);
+            return boxChecker_->isValidCounted(point_.data());
+        }
+        si_->getStateSpace()->interpolate(from->raw_, to->raw_, t, interpolated_);
         return si_->isValid(interpolated_);
     }
 

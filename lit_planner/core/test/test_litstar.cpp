@@ -22,6 +22,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <memory>
 #include <random>
@@ -199,6 +200,72 @@ TEST(LITstar, SameSeedSameResult)
     EXPECT_EQ(a.planner->counters().collisionChecks, b.planner->counters().collisionChecks);
     EXPECT_EQ(a.problem.checker->calls(), b.problem.checker->calls());
     EXPECT_NE(a.planner->bestPath(), c.planner->bestPath());
+}
+
+TEST(LITstar, ChecksABoxWorldDirectlyAsThroughOmpl)
+{
+    // With the box-world checker on OMPL's own R^n space LIT* interpolates and checks the points itself; behind any
+    // other checker (here one that forwards to the same box-world checker) it goes through OMPL's interpolate() and
+    // SpaceInformation::isValid(). The two must make the same search, and count the same checker calls.
+    class Forwarding : public ompl::base::StateValidityChecker
+    {
+    public:
+        Forwarding(const ompl::base::SpaceInformationPtr &si, std::shared_ptr<BoxWorldValidityChecker> inner)
+          : ompl::base::StateValidityChecker(si), inner_(std::move(inner))
+        {
+        }
+        bool isValid(const ompl::base::State *state) const override
+        {
+            return inner_->isValid(state);
+        }
+
+    private:
+        std::shared_ptr<BoxWorldValidityChecker> inner_;
+    };
+    for (const unsigned int dim : {5u, 8u})
+    {
+        BoxProblem wrapped = test::narrowPassage(dim);
+        wrapped.si->setStateValidityChecker(std::make_shared<Forwarding>(wrapped.si, wrapped.checker));
+        PlanRun viaOmpl = plan(wrapped, 11u, 20000u);
+        PlanRun direct = plan(test::narrowPassage(dim), 11u, 20000u);
+        ASSERT_EQ(direct.status, ompl::base::PlannerStatus::EXACT_SOLUTION);
+        EXPECT_EQ(direct.planner->bestPath(), viaOmpl.planner->bestPath()) << "dim " << dim;
+        EXPECT_EQ(direct.planner->bestCost(), viaOmpl.planner->bestCost()) << "dim " << dim;
+        EXPECT_EQ(direct.planner->counters().collisionChecks, viaOmpl.planner->counters().collisionChecks);
+        EXPECT_EQ(direct.planner->counters().edgesInvalid, viaOmpl.planner->counters().edgesInvalid);
+        EXPECT_EQ(direct.problem.checker->calls(), viaOmpl.problem.checker->calls()) << "dim " << dim;
+        EXPECT_GT(direct.problem.checker->calls(), direct.planner->counters().validSamples);
+    }
+}
+
+TEST(LITstar, InterpolatesAsOmplToTheBit)
+{
+    // The direct box checks' points must be RealVectorStateSpace::interpolate's, bit for bit (a point on a box
+    // face is inside the closed box, the next double beside it may not be).
+    std::mt19937 rng(17u);
+    std::uniform_real_distribution<double> unit(-1.0, 1.0);
+    for (const unsigned int dim : {2u, 7u, 16u})
+    {
+        auto space = std::make_shared<ompl::base::RealVectorStateSpace>(dim);
+        space->setBounds(-1e6, 1e6);
+        ompl::base::ScopedState<ompl::base::RealVectorStateSpace> from(space), to(space), mid(space);
+        std::vector<double> ours(dim);
+        for (int trial = 0; trial < 2000; ++trial)
+        {
+            const double scale = std::pow(10.0, static_cast<int>(trial % 7) - 3);
+            for (unsigned int i = 0; i < dim; ++i)
+            {
+                from[i] = scale * unit(rng);
+                to[i] = scale * unit(rng);
+            }
+            const unsigned int segments = 1u + static_cast<unsigned int>(trial % 97);
+            const double t = static_cast<double>(trial % segments) / static_cast<double>(segments);
+            space->interpolate(from.get(), to.get(), t, mid.get());
+            litstar::interpolateAsOmpl(from->values, to->values, t, ours.data(), dim);
+            for (unsigned int i = 0; i < dim; ++i)
+                ASSERT_EQ(std::memcmp(&ours[i], &mid[i], sizeof(double)), 0) << "dim " << dim << ", trial " << trial;
+        }
+    }
 }
 
 TEST(LITstar, StopsAfterIterationsOrBatches)

@@ -48,6 +48,13 @@ namespace lit
         /** \brief The same test on raw coordinates, without counting. */
         bool isValidPoint(const double *x) const;
 
+        /** \brief isValid() on raw coordinates: the same test, counted as a call. */
+        bool isValidCounted(const double *x) const
+        {
+            calls_.fetch_add(1u, std::memory_order_relaxed);
+            return isValidPoint(x);
+        }
+
         /** \brief Number of isValid calls since construction or the last reset. */
         std::uint64_t calls() const
         {

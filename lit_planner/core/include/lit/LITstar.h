@@ -3,6 +3,7 @@
  *  \brief LIT* (Learning-based Informed Trees): an EIT*-class asymmetric bidirectional search whose batch size
  *  B and neighbour factor psi_K come from a ParameterPolicy fed with obstacle features. */
 
+#include "lit/BoxWorld.h"
 #include "lit/ParameterPolicy.h"
 #include "lit/PlannerListener.h"
 #include "lit/litstar/ForwardQueue.h"
@@ -301,6 +302,11 @@ namespace lit
         double firstSolutionMeasure_{0.0};
         LITstarCounters counters_;
         ompl::base::State *interpolated_{nullptr};
+        /** \brief The box-world checker when it is the problem's and the space is OMPL's own R^n space: checkLevel()
+         *  then interpolates as RealVectorStateSpace::interpolate does and calls the checker directly (the same
+         *  points, answers and call count, without two virtual calls and an OMPL state per check); else null. */
+        const BoxWorldValidityChecker *boxChecker_{nullptr};
+        std::vector<double> point_;
         std::vector<litstar::State *> scratch_;
         /** \brief The neighbours of the state being expanded and their distances (collectNeighbours(); kept to avoid
          *  two allocations per expansion). The k nearest take their distances from the graph's cache, which holds

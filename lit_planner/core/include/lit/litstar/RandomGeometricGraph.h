@@ -24,6 +24,15 @@
 
 namespace lit::litstar
 {
+    /** \brief The point at \e t on the segment \e from -> \e to in R^dim, computed as OMPL's
+     *  RealVectorStateSpace::interpolate computes it, term for term, so to the bit (the core is built with
+     *  -ffp-contract=off; OMPL's Debian build has no fused multiply-adds either). */
+    inline void interpolateAsOmpl(const double *from, const double *to, double t, double *out, unsigned int dim)
+    {
+        for (unsigned int i = 0; i < dim; ++i)
+            out[i] = from[i] + (to[i] - from[i]) * t;
+    }
+
     /** \brief A read-only view of the first entries of a state's neighbour cache, with their distances. */
     class NeighbourRange
     {
