@@ -382,10 +382,6 @@ namespace lit
         spaceMeasure_ = si_->getSpaceMeasure();
         if (interpolated_ == nullptr)
             interpolated_ = si_->allocState();
-        const ompl::base::StateSpace *space = si_->getStateSpace().get();
-        boxChecker_ = typeid(*space) == typeid(ompl::base::RealVectorStateSpace)
-                          ? dynamic_cast<const BoxWorldValidityChecker *>(si_->getStateValidityChecker().get())
-                          : nullptr;
         point_.assign(dimension_, 0.0);
         bestPathStates_.clear();  // they belonged to the graph replaced here
         if (!seedSet_)
@@ -436,6 +432,11 @@ namespace lit
             {
             }
         }
+        // At every solve(): the checker may have been replaced since the last one (and is held while used).
+        const ompl::base::StateSpace *space = si_->getStateSpace().get();
+        boxChecker_ = typeid(*space) == typeid(ompl::base::RealVectorStateSpace)
+                          ? std::dynamic_pointer_cast<const BoxWorldValidityChecker>(si_->getStateValidityChecker())
+                          : nullptr;
         batchLimitReached_ = false;
         statusMessage_.clear();
         struct Running  // the termination condition and the clock belong to this call, also if it throws

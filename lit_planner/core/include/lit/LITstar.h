@@ -305,7 +305,7 @@ namespace lit
         /** \brief The box-world checker when it is the problem's and the space is OMPL's own R^n space: checkLevel()
          *  then interpolates as RealVectorStateSpace::interpolate does and calls the checker directly (the same
          *  points, answers and call count, without two virtual calls and an OMPL state per check); else null. */
-        const BoxWorldValidityChecker *boxChecker_{nullptr};
+        std::shared_ptr<const BoxWorldValidityChecker> boxChecker_;
         std::vector<double> point_;
         std::vector<litstar::State *> scratch_;
         /** \brief The neighbours of the state being expanded and their distances (collectNeighbours(); kept to avoid
