@@ -174,18 +174,9 @@ TEST(Features, NeighbourCacheEqualsABruteForceScanWhateverTheSequenceOfK)
         BoxProblem problem = test::narrowPassage(dim);
         RandomGeometricGraph graph(problem.si, 1u);
         std::mt19937 rng(7u);
-        std::uniform_real_distribution<double> coordinate(-0.5, 0.5);
         std::uniform_int_distribution<std::size_t> kDraw(1u, 14u);
         // A few exact duplicates and equal distances exercise the tie order (distance, then id).
-        const auto addBatch = [&](std::size_t count) {
-            for (std::size_t i = 0; i < count; ++i)
-            {
-                std::vector<double> x(dim);
-                for (double &v : x)
-                    v = std::round(coordinate(rng) * 8.0) / 8.0;
-                graph.addValidSample(x);
-            }
-        };
+        const auto addBatch = [&](std::size_t count) { test::addRandomSamples(graph, rng, count, dim, 8.0); };
         const auto bruteForce = [&](const litstar::State *state, std::size_t k) {
             std::vector<const litstar::State *> nearest;
             for (const auto &[distance, other] : test::nearestByBruteForce(graph, state, k))

@@ -42,16 +42,9 @@ TEST(NeighbourScans, NeighbourScansEqualABruteForceScanInR16)
             BoxProblem problem = test::narrowPassage(16);
             RandomGeometricGraph graph(problem.si, 1u);
             std::mt19937 rng(9u);
-            std::uniform_real_distribution<double> coordinate(-0.5, 0.5);
             std::uniform_int_distribution<std::size_t> kDraw(1u, 40u);
             const auto addBatch = [&](std::size_t count) {
-                for (std::size_t i = 0; i < count; ++i)
-                {
-                    std::vector<double> x(16u);
-                    for (double &v : x)
-                        v = scale * (grid ? std::round(coordinate(rng) * 4.0) / 4.0 : coordinate(rng));
-                    graph.addValidSample(x);
-                }
+                test::addRandomSamples(graph, rng, count, 16u, grid ? 4.0 : 0.0, scale);
             };
             for (int round = 0; round < 8; ++round)
             {
