@@ -486,7 +486,8 @@ def write_problem(path: str | Path) -> str | None:
     try:
         os.rmdir(tempfile.mkdtemp(prefix=".lit-write-probe-", dir=ancestor))
     except OSError as error:
-        return f"cannot write in {ancestor} ({error.strerror or error})"
+        # The errno is the probe folder's (ENOENT in /proc, which exists): said as such.
+        return f"cannot write in {ancestor} (creating a folder there failed: {error.strerror or error})"
     return None
 
 

@@ -496,8 +496,11 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
             # `lit plan` gives instead of the schema's pattern error, and nothing is sent.
             scenarios.get(args.scenario)  # ScenarioError is a ValueError
             payload["scenario"] = args.scenario
-        if args.planner in planning.SHORTHANDS:  # as `lit plan` takes them: litstar-fit
-            args.planner, args.policy = planning.resolve_planner(args.planner, args.policy)
+        if args.planner is not None:
+            # Refused with `lit plan`'s message (shorthands listed), before anything is sent.
+            resolved = planning.resolve_planner(args.planner, args.policy)
+            if args.planner in planning.SHORTHANDS:  # as `lit plan` takes them: litstar-fit
+                args.planner, args.policy = resolved
         for key in ("time", "planner", "policy", "seed", "start", "goal", "request_id"):
             value = getattr(args, key)
             if value is not None:

@@ -107,6 +107,8 @@ def run(args: argparse.Namespace) -> int:
         _check_policy_name(args.policy)
         planner, policy = planning.resolve_planner(args.planner, args.policy)
         planning.check_seed(args.seed)
+        planning.check_count(args.iterations, "--iterations")
+        planning.check_count(args.batches, "--batches")
         if policy != "tensor" and (args.tensors is not None or args.interpolation is not None):
             raise PlannerError(
                 f"--tensors and --interpolation are for the tensor policy, not for "
@@ -212,8 +214,10 @@ def summary_lines(result: Mapping[str, Any], scenario: Scenario) -> list[str]:
     if result["solved"]:
         cost, optimum = result["cost"], result.get("optimal_cost")
         versus = f" (optimum {optimum:.4f}, ratio {cost / optimum:.3f})" if optimum else ""
+        better = len(result["improvements"]) - 1  # the list starts with the first solution
         lines.append(
-            f"final      cost {cost:.4f}{versus} after {len(result['improvements'])} improvement(s)"
+            f"final      cost {cost:.4f}{versus}, "
+            + (f"the first solution improved {better} time(s)" if better else "the first solution")
         )
     lines.append(f"time       {_duration(result['time'])} planning")
     if "batches" in counters:

@@ -116,6 +116,19 @@ def query_for(scenario: Scenario | str) -> lit_core.Query:
     )
 
 
+def check_count(value: object, label: str) -> None:
+    """Refuse an iteration or batch limit that LIT* cannot take (``label`` names it in the
+    message: the argument, or a command's option).
+
+    Raises:
+        PlannerError: not a whole number in 0 (no limit) .. :data:`MAX_SEED`.
+    """
+    if not _is_whole(value) or not 0 <= value <= MAX_SEED:
+        raise PlannerError(
+            f"{label} must be a whole number between 0 (no limit) and {MAX_SEED}, got {value!r}"
+        )
+
+
 def resolve_planner(planner: str, policy: str | None = None) -> tuple[str, str | None]:
     """Split a planner name (shorthands included) into the core's planner and the policy name.
 
@@ -457,11 +470,8 @@ def plan(
             )
     # A psi_K tensor is used as it was trained: one decision every that many expansions.
     params = {**policy_params(policy_object), **(params or {})}
-    for label, value in (("max_iterations", max_iterations), ("max_batches", max_batches)):
-        if not _is_whole(value) or not 0 <= value <= MAX_SEED:
-            raise PlannerError(
-                f"{label} must be a whole number between 0 (no limit) and {MAX_SEED}, got {value!r}"
-            )
+    check_count(max_iterations, "max_iterations")
+    check_count(max_batches, "max_batches")
     check_seed(seed)
     stops_on_count = bool(max_iterations or max_batches)
     if core_planner != LITSTAR and stops_on_count:

@@ -176,6 +176,16 @@ def test_plan_takes_the_litstar_shorthands_as_lit_plan_does(tmp_path: Path) -> N
                  cwd=tmp_path)
     )  # fmt: skip
     assert "means policy 'fit', but policy 'tensor' was given" in line
+    # Any other name is checked the same way: the message lists the shorthands too (the schema's
+    # enum error did not), and a plain name is sent as given, without a policy added.
+    line = refusal(lit_call("plan", "--scenario", "np4", "--planner", "foo", cwd=tmp_path))
+    assert "unknown planner 'foo'" in line and "litstar-fit" in line, line
+    for planner in ("litstar", "aitstar"):
+        args = cli.build_parser("call")[0].parse_args(
+            ["call", "plan", "--scenario", "np4", "--planner", planner]
+        )
+        payload = json.loads(call._request(args)[1])["payload"]
+        assert payload["planner"] == planner and "policy" not in payload
 
 
 def test_a_bad_namespace_or_non_utf8_raw_text_is_one_line(tmp_path: Path) -> None:

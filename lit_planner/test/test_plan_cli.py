@@ -100,6 +100,12 @@ def test_plan_summary_is_readable() -> None:
     assert "exact_solution: solved" in process.stdout
     assert "independent re-check passed" in process.stdout
     assert "optimum 0.6308" in process.stdout
+    # The first solution is not counted as an improvement of itself.
+    final = next(line for line in process.stdout.splitlines() if line.startswith("final"))
+    assert final.endswith("the first solution"), final
+    process = lit("plan", "--scenario", "np4", "--iterations", "20000")
+    final = next(line for line in process.stdout.splitlines() if line.startswith("final"))
+    assert re.search(r"the first solution improved [1-9]\d* time\(s\)$", final), final
     # OMPL calls every stop a timeout; with no time limit it was the iteration limit.
     for limits in (["--iterations", "1"], ["--iterations", "1", "--time", "5"]):
         process = lit("plan", "--scenario", "np4", *limits)
@@ -144,6 +150,8 @@ def test_a_path_that_fails_the_recheck_exits_3(
         (["--policy", "tensor", "--tensors", "/nonexistent/tensors"], "no lookup tensors"),
         (["--planner", "bitstar", "--iterations", "5"], "stops on time only"),
         (["--seed", "-1"], "seed must be"),
+        (["--iterations", "-5"], "--iterations must be a whole number"),
+        (["--batches", "4294967296"], "--batches must be a whole number"),
         (["--policy", "fixed", "--interpolation", "nearest"], "are for the tensor policy"),
         (["--planner", "aitstar", "--tensors", str(ROOT / "tensors")], "not for aitstar"),
         (["--policy", "tensor", "--tensors", str(ROOT / "README.md")], "README.md: a file"),
@@ -224,7 +232,7 @@ def test_demo_solves_the_default_scenario(tmp_path: Path) -> None:
     )
     assert "solved" in process.stdout
     assert scenarios.get(scenarios.DEFAULT_SCENARIO).description in process.stdout
-    for words in ("t_init", "c_init", "ratio", "improvement", "batches", "collision checks",
+    for words in ("t_init", "c_init", "ratio", "the first solution", "batches", "collision checks",
                   "fully checked by the forward search", "re-check passed"):  # fmt: skip
         assert words in process.stdout
 
