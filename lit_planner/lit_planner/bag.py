@@ -101,6 +101,12 @@ BENCH_RUN_SCHEMA = "lit_msgs_json/BenchRun"
 BENCH_CONFIG_SCHEMA = "lit_msgs_json/BenchConfig"
 """Envelope schema of the :data:`BENCH_CONFIG_TOPIC` message."""
 BENCH_SOURCE = "lit_bench"
+BENCH_DURATION_KEY = "lit.bench.duration_s"
+"""``custom_data`` key of a finished ``lit bench`` bag: the benchmark's own wall time in seconds
+(set-up and path checks included), which ``lit replay bench`` prints as ``lit bench`` did; the
+messages' stamps span only the configuration message to the last run record."""
+BENCH_FINISHED_KEY = "lit.bench.finished"
+"""``custom_data`` key of a finished ``lit bench`` bag: when it finished (ISO 8601, UTC)."""
 """Envelope ``source`` of ``lit bench``'s messages."""
 ENVELOPE_VERSION = 1
 """Envelope version written by :func:`envelope`."""
@@ -356,6 +362,18 @@ class BagRecorder:
             if not self._closed:
                 self._writer.flush()
 
+    def set_metadata(self, key: str, value: str) -> None:
+        """Set a ``custom_data`` entry of ``metadata.yaml``, written when the bag closes.
+
+        Raises:
+            BagError: the bag is closed, or the key or value is not a string.
+        """
+        if not isinstance(key, str) or not isinstance(value, str):
+            raise BagError(f"bag {self.path}: metadata {key!r}: {value!r} is not a string")
+        with self._lock:
+            self._check_open()
+            self._writer.set_custom_data(key, value)
+
     def close(self) -> None:
         """Write the MCAP summary and ``metadata.yaml``; later calls do nothing."""
         with self._lock:
@@ -520,6 +538,12 @@ class BenchRecording:
         for record in records:
             self._write(BENCH_RUN_TOPIC, BENCH_RUN_SCHEMA, dict(record))
         self.recorder.flush()
+
+    def finish(self, finished: datetime, duration_s: float) -> None:
+        """Record when the benchmark finished and its wall time (:data:`BENCH_FINISHED_KEY`,
+        :data:`BENCH_DURATION_KEY`); a bag closed without it was interrupted."""
+        self.recorder.set_metadata(BENCH_FINISHED_KEY, finished.isoformat())
+        self.recorder.set_metadata(BENCH_DURATION_KEY, repr(float(duration_s)))
 
     def close(self) -> None:
         """Finish the bag (idempotent)."""

@@ -1730,6 +1730,8 @@ class BenchBag:
     duplicates: list[str] = field(default_factory=list)
     """Records left out because an identical one (same topic, source, run id and seq) was read
     already, each as ``<topic> seq <n> of run <id> in <bag>``."""
+    custom_data: dict[str, str] = field(default_factory=dict)
+    """The ``custom_data`` of the first bag, which holds the configuration used."""
 
 
 def read_bench(paths: Sequence[str | Path]) -> BenchBag:
@@ -1755,9 +1757,12 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
     # share it, two runs with the same --out name do not), publisher and seq.
     first_seen: dict[tuple[int, str, str, str, int], tuple[Envelope, str | Path]] = {}
     duplicates: list[str] = []
+    custom_data: dict[str, str] = {}
     for path in paths:
         bag_config, bag_runs = None, []
         with BagReader(path) as reader:
+            if config is None:
+                custom_data = dict(reader.facts.custom_data)
             for message in reader.messages():
                 item = decode(message, skipped)
                 if not isinstance(item, Envelope):
@@ -1819,7 +1824,7 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
     missing = sum(
         b - a - 1 for seqs in publishers.values() for a, b in itertools.pairwise(sorted(seqs))
     )
-    return BenchBag(config, runs, skipped, missing, duplicates)
+    return BenchBag(config, runs, skipped, missing, duplicates, custom_data)
 
 
 def check_distinct_bags(paths: Sequence[str | Path]) -> None:
@@ -1888,6 +1893,19 @@ def replay_bench(paths: Sequence[str | Path], out: Path) -> tuple[dict[str, Any]
         )
     last_ns = max(run.stamp_ns for run in recorded.runs)
     finished = datetime.fromtimestamp(last_ns / 1e9, UTC)
+    duration = max(0.0, (last_ns - recorded.config.stamp_ns) / 1e9)
+    timing = recorded.custom_data
+    if bag.BENCH_DURATION_KEY in timing and bag.BENCH_FINISHED_KEY in timing:
+        # A finished run recorded its own clock: the same header as `lit bench` printed. (Bags
+        # from before 2026-12-05 and interrupted runs: from the configuration's stamp to the
+        # last run record's, which leaves out the set-up before the first.)
+        try:
+            finished = datetime.fromisoformat(timing[bag.BENCH_FINISHED_KEY])
+            duration = float(timing[bag.BENCH_DURATION_KEY])
+            if not (math.isfinite(duration) and duration >= 0):
+                raise ValueError(f"duration {timing[bag.BENCH_DURATION_KEY]!r}")
+        except ValueError as error:
+            raise ReplayError(f"malformed bench timing in the bag's metadata: {error}") from None
     planned = config.runs * len(config.scenarios) * len(config.planners)
     incomplete = None
     if len(recorded.runs) < planned:
@@ -1923,7 +1941,7 @@ def replay_bench(paths: Sequence[str | Path], out: Path) -> tuple[dict[str, Any]
             requested=requested,
             started=started,
             finished=finished,
-            duration=max(0.0, (last_ns - recorded.config.stamp_ns) / 1e9),
+            duration=duration,
             estimate=(float(estimate["planning_s"]), str(estimate["formula"])),
             argv=list(payload["argv"]),
             recorded=environment,

@@ -167,6 +167,10 @@ def run(args: argparse.Namespace) -> int:
     previous = signal.signal(signal.SIGTERM, signal.default_int_handler) if main_thread else None
     try:
         records = runner.run_benchmark(config, on_scenario_done=append, policies=policies)
+        duration = time.perf_counter() - clock
+        finished = datetime.now(UTC)
+        if recording is not None:  # for `lit replay bench`: the stamps do not span all of it
+            recording.finish(finished, duration)
     except KeyboardInterrupt:
         print(
             f"lit bench: interrupted; {runs_path} holds the runs of the finished scenarios",
@@ -184,8 +188,6 @@ def run(args: argparse.Namespace) -> int:
             signal.signal(signal.SIGTERM, previous)
         if recording is not None:
             recording.close()
-    duration = time.perf_counter() - clock
-    finished = datetime.now(UTC)
 
     write_outputs(
         out,
