@@ -958,6 +958,7 @@ def test_compact_keeps_every_message_and_compresses(mixed_bag: Path, tmp_path: P
     result = _replay("compact", mixed_bag, out)
     assert result.returncode == 0, result.stderr
     assert "messages" in result.stdout and " MB -> " in result.stdout
+    assert "compressed already" not in result.stdout
 
     def everything(path: Path) -> list[tuple[str, str, int, bytes]]:
         with Reader(path) as reader:
@@ -975,6 +976,11 @@ def test_compact_keeps_every_message_and_compresses(mixed_bag: Path, tmp_path: P
     assert info["custom_data"]["lit.compacted_from"] == mixed_bag.name
     assert info["custom_data"]["lit.chunk_bytes"] == str(bag.MAX_CHUNK_BYTES)  # not the source's
     assert _replay("compact", mixed_bag, out).returncode == 2  # never overwrites
+    # Compacting a compacted bag again gains nothing, and says why (it printed only "x MB -> x MB").
+    again = _replay("compact", out, tmp_path / "again")
+    assert again.returncode == 0, again.stderr
+    assert "(the source was compressed already: chunks zstd)" in again.stdout, again.stdout
+    assert everything(tmp_path / "again") == everything(mixed_bag)
 
 
 # --- review fixes: duplicates, damaged files, argument and output checks ---------------------

@@ -1686,7 +1686,8 @@ def compact(source: str | Path, out: str | Path) -> dict[str, Any]:
     message bytes, its ``custom_data`` plus ``lit.compacted_from``.
 
     Returns:
-        ``messages``, ``bytes_before`` and ``bytes_after``.
+        ``messages``, ``bytes_before``, ``bytes_after`` and ``compressed_before`` (the source's
+        compression as ``lit replay info`` shows it, e.g. "chunks zstd"; None when it had none).
     """
     source, target = _named(Path(source)), Path(out)
     _check_readable(source)
@@ -1697,6 +1698,7 @@ def compact(source: str | Path, out: str | Path) -> dict[str, Any]:
     # BagReader: a damaged or unfinished bag is the same one-line error (with the salvage hint)
     # as for info and verify, before or while the messages are copied.
     with BagReader(source) as reader:
+        compressed_before = reader.facts.compression
         count = _write_bag(
             bag.ChunkedWriter(target, chunk_bytes=bag.MAX_CHUNK_BYTES, compress=True),
             custom,
@@ -1711,7 +1713,12 @@ def compact(source: str | Path, out: str | Path) -> dict[str, Any]:
             return path.stat().st_size
         return sum(f.stat().st_size for f in path.iterdir() if f.is_file())
 
-    return {"messages": count, "bytes_before": size(source), "bytes_after": size(target)}
+    return {
+        "messages": count,
+        "bytes_before": size(source),
+        "bytes_after": size(target),
+        "compressed_before": compressed_before,
+    }
 
 
 # --- bench -----------------------------------------------------------------------------------
@@ -2163,6 +2170,11 @@ def _compact(args: argparse.Namespace) -> int:
     print(
         f"{PROG} compact: wrote {args.out}: {result['messages']} messages, "
         f"{result['bytes_before'] / 1e6:.2f} MB -> {result['bytes_after'] / 1e6:.2f} MB"
+        + (
+            f" (the source was compressed already: {result['compressed_before']})"
+            if result["compressed_before"]
+            else ""
+        )
     )
     return 0
 
