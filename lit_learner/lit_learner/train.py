@@ -146,8 +146,8 @@ class TrainingDistribution:
         for name in self.names:
             try:
                 problem = scenarios.get(name)
-            except Exception as error:  # ScenarioError: names the bad input
-                raise TrainingError(f"training scenario {name!r}: {error}") from error
+            except Exception as error:  # ScenarioError: "unknown scenario 'xx9': expected ..."
+                raise TrainingError(str(error)) from error
             if problem.instance != 0 or "/" in name:
                 raise TrainingError(
                     f"training scenario {name!r}: give the family and dimension only; the "

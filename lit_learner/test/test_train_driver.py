@@ -413,7 +413,8 @@ def test_run_reports_bad_input_as_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     assert train.run(arguments(tmp_path / "run", scenarios="np4,xx9", episodes=1)) == 2
-    assert "training scenario 'xx9'" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "unknown scenario 'xx9'" in err and err.count("xx9") == 1, err
     assert train.run(arguments(tmp_path / "run", decision_interval=0)) == 2
     assert "--decision-interval must be between 1 and 4294967295, got 0" in capsys.readouterr().err
     # Beyond the planner's unsigned 32-bit parameter: refused before a run folder or bag exists
