@@ -1143,6 +1143,22 @@ def test_salvage_reports_a_missing_end_magic(tmp_path: Path) -> None:
     assert result.returncode == 0 and "complete file" in result.stdout, result.stdout
 
 
+def test_salvage_of_a_file_shorter_than_the_magic_says_so(tmp_path: Path) -> None:
+    """A 5-byte prefix of an MCAP file was "end of file inside the record header at byte 0"."""
+    (tmp_path / "five.mcap").write_bytes(_mcap(SAMPLE).read_bytes()[:5])
+    (tmp_path / "other.mcap").write_bytes(b"{ ")
+    for name, words in (
+        (
+            "five",
+            "ends inside the MCAP magic (5 of its 8 bytes): truncated before its first record",
+        ),
+        ("other", "does not start with the MCAP magic: not an MCAP file"),
+    ):
+        result = _replay("salvage", tmp_path / f"{name}.mcap", "-o", tmp_path / f"out-{name}")
+        _assert_clean_error(result, words)
+        assert not (tmp_path / f"out-{name}").exists()
+
+
 def test_tensors_and_measure_reject_bad_arguments(tmp_path: Path) -> None:
     (tmp_path / "file").write_text("x")
     _assert_clean_error(_replay("tensors", SAMPLE, "--out", tmp_path / "file"), "not a folder")

@@ -1373,6 +1373,15 @@ def _stop_reason(
         if start <= len(_MCAP_MAGIC):
             return "end of file after the MCAP magic: no record (the writer did not finish)"
         return "end of file without footer (the writer did not finish)"
+    if size < len(_MCAP_MAGIC):
+        with result.file.open("rb") as handle:
+            head = handle.read(size)
+        if _MCAP_MAGIC.startswith(head):
+            return (
+                f"the file ends inside the MCAP magic ({size} of its {len(_MCAP_MAGIC)} bytes): "
+                "truncated before its first record"
+            )
+        return "the file does not start with the MCAP magic: not an MCAP file, or damaged"
     header = _record_header(result.file, start)
     if header is None:
         return f"end of file inside the record header at byte {start}: the file is truncated"
