@@ -704,6 +704,14 @@ def test_bench_replay_reproduces_live_summary(tmp_path: Path) -> None:
     assert again == live
     assert (tmp_path / "replayed" / "plots" / "np4.png").is_file()
     assert (tmp_path / "replayed" / "summary.md").read_text() == (out / "summary.md").read_text()
+    # A malformed recorded duration is one clear line, not a header with a wrong time.
+    copy = tmp_path / "bad-timing"
+    shutil.copytree(recorded, copy)
+    metadata = copy / "metadata.yaml"
+    text = metadata.read_text()
+    assert text.count(repr(live["duration_s"])) == 1
+    metadata.write_text(text.replace(repr(live["duration_s"]), "-1.5"))
+    _assert_clean_error(_replay("bench", copy, "--out", tmp_path / "bad"), "malformed bench timing")
 
     # The default folder: <bag>/replay.
     assert _replay("bench", recorded).returncode == 0

@@ -101,13 +101,13 @@ BENCH_RUN_SCHEMA = "lit_msgs_json/BenchRun"
 BENCH_CONFIG_SCHEMA = "lit_msgs_json/BenchConfig"
 """Envelope schema of the :data:`BENCH_CONFIG_TOPIC` message."""
 BENCH_SOURCE = "lit_bench"
+"""Envelope ``source`` of ``lit bench``'s messages."""
 BENCH_DURATION_KEY = "lit.bench.duration_s"
 """``custom_data`` key of a finished ``lit bench`` bag: the benchmark's own wall time in seconds
 (set-up and path checks included), which ``lit replay bench`` prints as ``lit bench`` did; the
 messages' stamps span only the configuration message to the last run record."""
 BENCH_FINISHED_KEY = "lit.bench.finished"
 """``custom_data`` key of a finished ``lit bench`` bag: when it finished (ISO 8601, UTC)."""
-"""Envelope ``source`` of ``lit bench``'s messages."""
 ENVELOPE_VERSION = 1
 """Envelope version written by :func:`envelope`."""
 
