@@ -844,6 +844,33 @@ def _finished(state: DriverState) -> bool:
     )
 
 
+def _refuse_a_total_the_other_stops(state: DriverState, args: argparse.Namespace) -> None:
+    """A resume that gives a new total in one unit while the run's total in the other is
+    reached already would train nothing and exit 0: refused, naming the total to raise as well.
+
+    Raises:
+        TrainingError: only totals this command did not give stop the run.
+    """
+    if args.episodes is None and args.minutes is None:
+        return  # the run's own totals: a finished run exports (or does nothing), as documented
+    reached = []
+    if state.episodes is not None and state.episode >= state.episodes and args.episodes is None:
+        reached.append(("--episodes", f"{state.episodes} episodes ({state.episode} trained)"))
+    if state.minutes is not None and state.elapsed >= state.minutes * 60.0 and args.minutes is None:
+        reached.append(
+            ("--minutes", f"{state.minutes:g} minutes ({state.elapsed / 60.0:.2f} trained)")
+        )
+    if not reached:
+        return
+    option, total = reached[0]
+    given = "--episodes" if args.episodes is not None else "--minutes"
+    raise TrainingError(
+        f"{given} with --resume: the run's total of {total} is reached already, and the totals "
+        f"apply together (whichever comes first), so nothing would train; give a larger {option} "
+        "as well"
+    )
+
+
 def _episode_limits(args: argparse.Namespace) -> dict[str, Any]:
     """The episode options given (``--max-iterations``, ``--limit-terminates``,
     ``--effort-clock``, ``--budget-scale``) as :class:`DriverState` fields, checked.
@@ -1088,6 +1115,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             state.episodes = args.episodes
         if args.minutes is not None:
             state.minutes = args.minutes
+        _refuse_a_total_the_other_stops(state, args)
         if not _finished(state):
             # An interrupted run resumed to its own total trains on: said before it does.
             totals = [f"{state.episodes} episodes"] if state.episodes is not None else []

@@ -800,6 +800,30 @@ def test_a_resume_keeps_the_episode_limits(
     assert train.run(arguments(run, episodes=2, resume=final, max_iterations=200, no_bag=True)) == 0
 
 
+def test_a_new_total_in_one_unit_is_refused_when_the_other_stops_the_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """It trained nothing and exited 0: the run's total in the other unit still applied."""
+    run = tmp_path / "run"
+    # 0.03 s: the run stops on its minutes after its first episode, long before 50 episodes.
+    assert train.run(arguments(run, scenarios="np4", episodes=50, minutes=0.0005, no_bag=True)) == 0
+    final = run / "checkpoints" / "final.ckpt"
+    capsys.readouterr()
+    assert train.run(arguments(run, episodes=60, resume=final, no_bag=True)) == 2
+    err = capsys.readouterr().err
+    assert "--episodes with --resume: the run's total of 0.0005 minutes" in err, err
+    assert "give a larger --minutes as well" in err, err
+    episodes = train.DriverState.load(train.state_path(final)).episode
+    # Raising the reached total trains on; the other way round is refused the same way.
+    assert train.run(arguments(run, resume=final, minutes=1.0, episodes=episodes + 1,
+                               no_bag=True)) == 0  # fmt: skip
+    assert train.DriverState.load(train.state_path(final)).episode == episodes + 1
+    capsys.readouterr()
+    assert train.run(arguments(run, resume=final, minutes=2.0, no_bag=True)) == 2
+    err = capsys.readouterr().err
+    assert f"the run's total of {episodes + 1} episodes" in err and "larger --episodes" in err
+
+
 def _bags(folder: Path) -> set[Path]:
     return {path.parent for path in folder.glob("*/metadata.yaml")}
 
