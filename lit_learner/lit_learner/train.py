@@ -1048,6 +1048,18 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 "whole run folder"
             )
         state = DriverState.load(state_path(checkpoint))
+        # Before the checks that trust the driver state's episode (a later checkpoint, the metrics
+        # rows): a driver state of another checkpoint sent the user to --rollback first.
+        core = LearnerCore.load_checkpoint(checkpoint)
+        warning = core.load_warning()
+        if warning:
+            print(f"lit train: warning: {checkpoint}: {warning}", file=sys.stderr, flush=True)
+        if core.episodes != state.episode:  # a kill between writing the two files
+            raise TrainingError(
+                f"--resume {checkpoint}: the checkpoint holds {core.episodes} episodes and its "
+                f"driver state {state_path(checkpoint).name} {state.episode}; they were not "
+                "written together: resume another checkpoint of the run"
+            )
         rows = _metrics_rows(run_dir)
         if state.episode > rows:
             raise TrainingError(
@@ -1100,16 +1112,6 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             raise TrainingError(
                 "this run limits its episodes (--max-iterations or --effort-clock), which a bag "
                 "cannot carry; resume it with --no-bag"
-            )
-        core = LearnerCore.load_checkpoint(checkpoint)
-        warning = core.load_warning()
-        if warning:
-            print(f"lit train: warning: {checkpoint}: {warning}", file=sys.stderr, flush=True)
-        if core.episodes != state.episode:  # a kill between writing the two files
-            raise TrainingError(
-                f"--resume {checkpoint}: the checkpoint holds {core.episodes} episodes and its "
-                f"driver state {state_path(checkpoint).name} {state.episode}; they were not "
-                "written together: resume another checkpoint of the run"
             )
         if args.episodes is not None:
             state.episodes = args.episodes

@@ -824,6 +824,26 @@ def test_a_new_total_in_one_unit_is_refused_when_the_other_stops_the_run(
     assert f"the run's total of {episodes + 1} episodes" in err and "larger --episodes" in err
 
 
+def test_a_driver_state_of_another_checkpoint_is_named_before_a_rollback_is_offered(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The driver state of an earlier checkpoint beside the final one: the first answer was
+    "add --rollback", and following it failed on the real cause."""
+    import shutil
+
+    run = tmp_path / "run"
+    options = {"scenarios": "np4", "max_iterations": 200, "no_bag": True, "checkpoint_every": 1}
+    assert train.run(arguments(run, episodes=3, **options)) == 0
+    final = run / "checkpoints" / "final.ckpt"
+    earlier = min((run / "checkpoints").glob("episode-*.ckpt"))
+    shutil.copyfile(train.state_path(earlier), train.state_path(final))
+    capsys.readouterr()
+    assert train.run(arguments(run, episodes=4, resume=final, max_iterations=200, no_bag=True)) == 2
+    err = capsys.readouterr().err
+    assert "the checkpoint holds 3 episodes and its driver state" in err, err
+    assert "--rollback" not in err, err
+
+
 def _bags(folder: Path) -> set[Path]:
     return {path.parent for path in folder.glob("*/metadata.yaml")}
 
