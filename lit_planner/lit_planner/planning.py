@@ -24,7 +24,7 @@ import numbers
 import os
 import re
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -239,20 +239,32 @@ def make_policy(
     if "psi_K" in tensors:
         interval = trained_decision_interval(folder / TENSOR_FILES["psi_K"])
     if interpolation is None:
-        named = {
-            output: tensor_files.read_sidecar(folder / TENSOR_FILES[output]).interpolation
-            for output in tensors
-        }
-        if len(set(named.values())) > 1:
-            raise TensorFileError(
-                f"{folder}: the sidecars name different lookup modes "
-                f"({', '.join(f'{output}: {mode}' for output, mode in named.items())}); "
-                "choose one (interpolation=, --interpolation)"
-            )
-        interpolation = next(iter(named.values()))
+        interpolation = sidecar_interpolation(folder, list(tensors))
     return lit_core.TensorPolicy(
         tensors.get("B"), tensors.get("psi_K"), INTERPOLATIONS[interpolation], interval
     )
+
+
+def sidecar_interpolation(folder: Path, outputs: Sequence[str]) -> str:
+    """The lookup mode that the sidecars of ``folder``'s tensors of ``outputs`` (B, psi_K) name:
+    the tensor policy uses one mode for both.
+
+    Raises:
+        TensorFileError: a sidecar is defective, or the sidecars name different modes.
+    """
+    from lit_planner import tensor_files
+
+    named = {
+        output: tensor_files.read_sidecar(folder / TENSOR_FILES[output]).interpolation
+        for output in outputs
+    }
+    if len(set(named.values())) > 1:
+        raise TensorFileError(
+            f"{folder}: the sidecars name different lookup modes "
+            f"({', '.join(f'{output}: {mode}' for output, mode in named.items())}); "
+            "choose one (interpolation=, --interpolation)"
+        )
+    return next(iter(named.values()))
 
 
 def policy_params(policy: lit_core.ParameterPolicy | None) -> dict[str, str]:
@@ -270,7 +282,7 @@ def trained_decision_interval(path: Path) -> int:
 
     Raises:
         TensorFileError: the sidecar is defective, or names an interval that is not a whole
-            number of at least 1.
+            number from 1 to :data:`MAX_DECISION_INTERVAL`.
     """
     from lit_planner import tensor_files
 
@@ -285,7 +297,7 @@ def trained_decision_interval(path: Path) -> int:
     ):
         raise TensorFileError(
             f"{tensor_files.sidecar_path(path)}: $.provenance.decision_interval must be a whole "
-            f"number of at least 1, got {value!r}"
+            f"number from 1 to {MAX_DECISION_INTERVAL}, got {value!r}"
         )
     return value
 

@@ -132,7 +132,9 @@ PROVENANCE_SHOWN = ("command", "constant", "episodes", "wall_time_s", "git_commi
 
 def describe(folder: Path) -> dict[str, object]:
     """What ``lit tensors info`` shows of ``folder``: one entry per tensor file name, each either
-    a description or ``{"error": message}`` for a defective tensor.
+    a description or ``{"error": message}`` for a defective tensor, and the folder's own
+    ``"error"`` when its tensors cannot be used together (their sidecars name different lookup
+    modes).
 
     Raises:
         TensorFileError: ``folder`` is not a folder or holds no tensor.
@@ -175,7 +177,14 @@ def describe(folder: Path) -> dict[str, object]:
         if output == "psi_K":
             entry["decision_interval"] = interval or None
         tensors[path.name] = entry
-    return {"folder": str(folder), "tensors": tensors}
+    document: dict[str, object] = {"folder": str(folder), "tensors": tensors}
+    readable = [output for output, path in found.items() if "error" not in tensors[path.name]]
+    if len(readable) > 1:
+        try:  # what the planner checks of the folder as a whole, beyond each tensor
+            planning.sidecar_interpolation(folder, readable)
+        except TensorFileError as error:
+            document["error"] = str(error)
+    return document
 
 
 def _info(args: argparse.Namespace) -> int:
@@ -188,6 +197,8 @@ def _info(args: argparse.Namespace) -> int:
     tensors = document["tensors"]
     assert isinstance(tensors, dict)
     defective = [entry["error"] for entry in tensors.values() if "error" in entry]
+    if "error" in document:  # the folder as a whole: the tensors disagree
+        defective.append(str(document["error"]))
     if args.json:
         print(json.dumps(document))
     else:

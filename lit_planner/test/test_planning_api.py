@@ -692,8 +692,11 @@ def test_a_psi_k_tensor_is_used_with_the_decision_interval_it_was_trained_with(
     b_only = tmp_path / "b-only"
     write_tensor_pair(b_only, k=False)
     assert make_policy("tensor", b_only).decision_interval == 0  # psi_K stays e: no decisions
-    for bad in (0, 2.5, "10", True):
-        with pytest.raises(TensorFileError, match="decision_interval must be a whole number"):
+    for bad in (0, 2.5, "10", True, planning.MAX_DECISION_INTERVAL + 1, 10**30):
+        with pytest.raises(
+            TensorFileError,
+            match=f"decision_interval must be a whole number from 1 to {planning.MAX_DECISION_INTERVAL}",
+        ):
             make_policy("tensor", folder_with(bad))
 
 

@@ -151,6 +151,30 @@ def test_info_names_a_defective_tensor_and_still_shows_the_other(tmp_path: Path)
     assert "interval    not named" not in process.stdout
 
 
+def test_info_refuses_tensors_that_the_planner_cannot_use_together(tmp_path: Path) -> None:
+    """Each sidecar valid, but naming different lookup modes: `lit plan` refused the folder while
+    `lit tensors info` passed it."""
+    assert (
+        lit("tensors", "constant", "--b", "80", "--psi-k", "4", "--out", str(tmp_path)).returncode
+        == 0
+    )
+    sidecar = tmp_path / "k_tensor.json"
+    document = json.loads(sidecar.read_text())
+    document["interpolation"] = "nearest" if document["interpolation"] != "nearest" else "trilinear"
+    sidecar.write_text(json.dumps(document))
+    plan = lit("plan", "--scenario", "np4", "--policy", "tensor", "--tensors", str(tmp_path))
+    info = lit("tensors", "info", str(tmp_path))
+    for process in (plan, info):
+        assert process.returncode == 2, process.stdout + process.stderr
+        (line,) = process.stderr.strip().splitlines()
+        assert "the sidecars name different lookup modes" in line, line
+    assert "b_tensor.npy: B in 20..200" in info.stdout  # each tensor is still shown
+    assert (
+        "different lookup modes"
+        in json.loads(lit("tensors", "info", str(tmp_path), "--json").stdout)["error"]
+    )
+
+
 @pytest.mark.parametrize("make", ["empty", "file"])
 def test_info_without_tensors_is_one_line(tmp_path: Path, make: str) -> None:
     target = tmp_path / "t"
