@@ -141,6 +141,12 @@ class TrainingDistribution:
 
         if not scenario_names:
             raise TrainingError("no training scenarios given")
+        twice = sorted({name for name in scenario_names if list(scenario_names).count(name) > 1})
+        if twice:  # a silent double weight in the uniform draw
+            raise TrainingError(
+                f"training scenario{'s' if len(twice) > 1 else ''} "
+                f"{', '.join(map(repr, twice))} given more than once; each is drawn equally often"
+            )
         self.names = list(scenario_names)
         self.randomised = {}
         for name in self.names:
@@ -1121,11 +1127,15 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         if not _finished(state):
             # An interrupted run resumed to its own total trains on: said before it does.
             totals = [f"{state.episodes} episodes"] if state.episodes is not None else []
-            totals += [f"{state.minutes:g} minutes"] if state.minutes is not None else []
+            totals += (
+                [f"{state.minutes:g} minute{'' if state.minutes == 1 else 's'}"]
+                if state.minutes is not None
+                else []
+            )
             print(
                 f"lit train: resuming at episode {state.episode} "
                 f"({state.elapsed / 60.0:.1f} minutes trained) to the run's total of "
-                f"{' or '.join(totals)}, whichever comes first"
+                f"{' or '.join(totals)}{', whichever comes first' if len(totals) > 1 else ''}"
                 + (
                     f" (--episodes {state.episode} would export without training)"
                     if args.export is not None and args.episodes is None
@@ -1309,7 +1319,8 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
     lines = [
         (
             f"lit train: {state.episode} episodes in {state.elapsed / 60:.1f} min "
-            f"({state.episodes_per_phase}), run folder {run_dir}"
+            f"({', '.join(f'{count} {phase}' for phase, count in state.episodes_per_phase.items())}"
+            f"), run folder {run_dir}"
             + (
                 (
                     " (interrupted: --resume the final checkpoint to continue)"

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import re
 import shutil
 from pathlib import Path
 from typing import Any
@@ -415,6 +416,8 @@ def test_run_reports_bad_input_as_one_line(
     assert train.run(arguments(tmp_path / "run", scenarios="np4,xx9", episodes=1)) == 2
     err = capsys.readouterr().err
     assert "unknown scenario 'xx9'" in err and err.count("xx9") == 1, err
+    assert train.run(arguments(tmp_path / "run", scenarios="np4,rrd8,np4", episodes=1)) == 2
+    assert "training scenario 'np4' given more than once" in capsys.readouterr().err
     assert train.run(arguments(tmp_path / "run", decision_interval=0)) == 2
     assert "--decision-interval must be between 1 and 4294967295, got 0" in capsys.readouterr().err
     # Beyond the planner's unsigned 32-bit parameter: refused before a run folder or bag exists
@@ -639,8 +642,12 @@ def test_an_error_in_an_episode_saves_the_episodes_before_it(
     assert json.loads((as_it_is / train.PROVENANCE_FILE).read_text())["episodes"] == 2
     assert train.DriverState.load(train.state_path(final)).episode == 2
     capsys.readouterr()
-    train.train(arguments(run_dir, resume=final, episodes=6))  # its open steps were dropped
-    assert "resuming at episode 2" in capsys.readouterr().err
+    result = train.train(arguments(run_dir, resume=final, episodes=6))  # open steps dropped
+    out, err = result.summary, capsys.readouterr().err
+    assert "resuming at episode 2" in err
+    # One total: said without "whichever comes first"; the summary counts each phase in words.
+    assert "to the run's total of 6 episodes\n" in err and "whichever" not in err, err
+    assert re.search(r"lit train: 6 episodes in [\d.]+ min \(\d+ B(, \d+ psi_K)?\)", out), out
     assert train.DriverState.load(train.state_path(final)).episode == 6
     with (run_dir / METRICS_FILE).open(newline="") as handle:
         assert [int(row["episode"]) for row in csv.DictReader(handle)] == list(range(6))
