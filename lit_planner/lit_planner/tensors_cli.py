@@ -243,6 +243,12 @@ def _info_lines(name: str, entry: dict[str, object]) -> list[str]:
     assert isinstance(provenance, dict)
     lines.append(f"    created     {entry['created']}, policy version {entry['policy_version']}")
     lines += [f"    {key:<11s} {provenance[key]}" for key in PROVENANCE_SHOWN if key in provenance]
+    resumes = provenance.get("resumed_with") or []
+    if isinstance(resumes, list) and resumes:  # the run's last command, the export's own
+        lines.append(
+            f"    {'resumed':<11s} {resumes[-1]}"
+            + (f" (the last of {len(resumes)} resumes)" if len(resumes) > 1 else "")
+        )
     return lines
 
 

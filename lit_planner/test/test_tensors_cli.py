@@ -132,6 +132,27 @@ def test_info_marks_an_untrained_export(tmp_path: Path) -> None:
     assert readable.stdout.count("0 gradient updates from 0 transitions; UNTRAINED") == 2
 
 
+def test_info_shows_the_resume_that_wrote_an_export(tmp_path: Path) -> None:
+    """The run's first command alone was shown, without --export, for an export a resume wrote."""
+    from lit_learner.config import LearnerConfig
+    from lit_learner.core import LearnerCore
+
+    provenance = {
+        "command": "lit train --episodes 6",
+        "resumed_with": ["lit train --resume R --episodes 8", "lit train --resume R --export X"],
+    }
+    LearnerCore(LearnerConfig(seed=0)).export_tensors(tmp_path, provenance)
+    readable = lit("tensors", "info", str(tmp_path))
+    assert readable.returncode == 0, readable.stderr
+    assert readable.stdout.count("    command     lit train --episodes 6\n") == 2
+    assert (
+        readable.stdout.count(
+            "    resumed     lit train --resume R --export X (the last of 2 resumes)\n"
+        )
+        == 2
+    ), readable.stdout
+
+
 def test_info_names_a_defective_tensor_and_still_shows_the_other(tmp_path: Path) -> None:
     assert (
         lit("tensors", "constant", "--b", "80", "--psi-k", "4", "--out", str(tmp_path)).returncode
