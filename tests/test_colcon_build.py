@@ -122,3 +122,15 @@ def _check_cpp_consumer(install: Path, tmp_path: Path, env: dict[str, str]) -> N
     )  # fmt: skip
     assert every.returncode == 0 and "Exact solution" in every.stdout, every.stdout + every.stderr
     assert first not in every.stdout, every.stdout
+    # A bad argument is named (std::stod's own message was only "stod").
+    for arguments, message in (
+        ("0.2x", "SECONDS must be a number, got '0.2x'"),
+        ("0.2 1.5", "SEED must be a whole number, got '1.5'"),
+        ("-1", "SECONDS must be positive, got -1"),
+    ):
+        bad = subprocess.run(
+            ["sh", "-c", f". {install}/setup.sh && {build}/plan_narrow_passage {ROOT / 'tensors'} {arguments}"],
+            cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600, check=False,
+        )  # fmt: skip
+        assert bad.returncode == 2, bad.stdout + bad.stderr
+        assert bad.stderr.strip() == f"plan_narrow_passage: {message}", bad.stderr

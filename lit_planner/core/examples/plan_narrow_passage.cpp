@@ -5,6 +5,9 @@
 //
 //   plan_narrow_passage [TENSOR_DIR [SECONDS [SEED [DECISION_INTERVAL]]]]
 //
+// TENSOR_DIR must hold both tensors, b_tensor.npy and k_tensor.npy (this program loads both; the
+// library's lit::TensorPolicy, like `lit plan`, also takes one alone and keeps the other parameter at
+// its fixed value); an empty TENSOR_DIR ("") plans with FIT*'s rule.
 // DECISION_INTERVAL: expansions per psi_K decision, default 10, the interval the shipped tensors were
 // trained with. Give your tensors' own: k_tensor.json's provenance.decision_interval, which the Python
 // side applies by itself (1 where it names none).
@@ -21,6 +24,7 @@
 #include <ompl/geometric/SimpleSetup.h>
 #include <ompl/util/Console.h>
 
+#include <cmath>
 #include <cstdio>
 #include <exception>
 #include <limits>
@@ -67,6 +71,32 @@ namespace
                                                    load("k_tensor.npy", 3.0, 15.0),
                                                    lit::Interpolation::Trilinear);
     }
+
+    // The whole of an argument as a number, or an error naming it (std::stod alone says "stod").
+    double numberArgument(const std::string &text, const std::string &name)
+    {
+        std::size_t used = 0u;
+        double value = 0.0;
+        try
+        {
+            value = std::stod(text, &used);
+        }
+        catch (const std::exception &)
+        {
+            used = 0u;
+        }
+        if (used == 0u || used != text.size() || !std::isfinite(value))
+            throw std::invalid_argument(name + " must be a number, got '" + text + "'");
+        return value;
+    }
+
+    long long wholeArgument(const std::string &text, const std::string &name)
+    {
+        const double value = numberArgument(text, name);
+        if (value != std::floor(value) || std::fabs(value) > 9.0e15)
+            throw std::invalid_argument(name + " must be a whole number, got '" + text + "'");
+        return static_cast<long long>(value);
+    }
 }  // namespace
 
 int main(int argc, char **argv)
@@ -74,9 +104,11 @@ int main(int argc, char **argv)
     try
     {
         const std::string tensors = argc > 1 ? argv[1] : "";
-        const double seconds = argc > 2 ? std::stod(argv[2]) : 0.4;
-        const long long seed = argc > 3 ? std::stoll(argv[3]) : 1;
-        const long long interval = argc > 4 ? std::stoll(argv[4]) : 10;
+        const double seconds = argc > 2 ? numberArgument(argv[2], "SECONDS") : 0.4;
+        const long long seed = argc > 3 ? wholeArgument(argv[3], "SEED") : 1;
+        const long long interval = argc > 4 ? wholeArgument(argv[4], "DECISION_INTERVAL") : 10;
+        if (!(seconds > 0.0))
+            throw std::invalid_argument("SECONDS must be positive, got " + std::string(argv[2]));
         if (seed < 0 || seed > std::numeric_limits<unsigned int>::max())
             throw std::invalid_argument("the seed must be between 0 and " +
                                         std::to_string(std::numeric_limits<unsigned int>::max()));
