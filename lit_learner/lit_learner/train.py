@@ -859,6 +859,8 @@ def _refuse_a_total_the_other_stops(state: DriverState, args: argparse.Namespace
     """
     if args.episodes is None and args.minutes is None:
         return  # the run's own totals: a finished run exports (or does nothing), as documented
+    if args.episodes is not None and state.episode >= args.episodes:
+        return  # the total given stops it: --episodes at the checkpoint's count exports only
     reached = []
     if state.episodes is not None and state.episode >= state.episodes and args.episodes is None:
         reached.append(("--episodes", f"{state.episodes} episodes ({state.episode} trained)"))

@@ -829,6 +829,17 @@ def test_a_new_total_in_one_unit_is_refused_when_the_other_stops_the_run(
     assert train.run(arguments(run, resume=final, minutes=2.0, no_bag=True)) == 2
     err = capsys.readouterr().err
     assert f"the run's total of {episodes + 1} episodes" in err and "larger --episodes" in err
+    # --episodes at the checkpoint's count still exports without training, whatever stops the run.
+    first = tmp_path / "first"
+    assert (
+        train.run(arguments(first, scenarios="np4", episodes=50, minutes=0.0005, no_bag=True)) == 0
+    )
+    final = first / "checkpoints" / "final.ckpt"
+    episodes = train.DriverState.load(train.state_path(final)).episode
+    export = tmp_path / "export"
+    assert train.run(arguments(first, resume=final, episodes=episodes, export=export)) == 0
+    assert (export / "k_tensor.npy").is_file()
+    assert train.DriverState.load(train.state_path(final)).episode == episodes
 
 
 def test_a_driver_state_of_another_checkpoint_is_named_before_a_rollback_is_offered(
