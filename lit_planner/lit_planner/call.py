@@ -496,11 +496,13 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
             # `lit plan` gives instead of the schema's pattern error, and nothing is sent.
             scenarios.get(args.scenario)  # ScenarioError is a ValueError
             payload["scenario"] = args.scenario
-        if args.planner is not None:
-            # Refused with `lit plan`'s message (shorthands listed), before anything is sent.
-            resolved = planning.resolve_planner(args.planner, args.policy)
-            if args.planner in planning.SHORTHANDS:  # as `lit plan` takes them: litstar-fit
-                args.planner, args.policy = resolved
+        if args.planner in planning.SHORTHANDS:  # as `lit plan` takes them: litstar-fit
+            args.planner, args.policy = planning.resolve_planner(args.planner, args.policy)
+        elif args.planner is not None and args.planner not in planning.PLANNER_CHOICES:
+            # An unknown name gets `lit plan`'s message (the shorthands listed; the schema's enum
+            # error lists only the node's names) and nothing is sent. Combinations, such as a
+            # policy for an OMPL planner, are the node's to refuse.
+            planning.resolve_planner(args.planner)
         for key in ("time", "planner", "policy", "seed", "start", "goal", "request_id"):
             value = getattr(args, key)
             if value is not None:

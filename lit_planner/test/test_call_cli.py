@@ -186,6 +186,12 @@ def test_plan_takes_the_litstar_shorthands_as_lit_plan_does(tmp_path: Path) -> N
         )
         payload = json.loads(call._request(args)[1])["payload"]
         assert payload["planner"] == planner and "policy" not in payload
+    # A combination the node refuses is sent as given: the node's answer is the one to test.
+    args = cli.build_parser("call")[0].parse_args(
+        ["call", "plan", "--scenario", "np4", "--planner", "aitstar", "--policy", "tensor"]
+    )
+    payload = json.loads(call._request(args)[1])["payload"]
+    assert (payload["planner"], payload["policy"]) == ("aitstar", "tensor")
 
 
 def test_a_bad_namespace_or_non_utf8_raw_text_is_one_line(tmp_path: Path) -> None:
