@@ -34,7 +34,7 @@ from ros_helpers import (
     session_members,
 )
 
-from lit_planner import scenarios
+from lit_planner import planning, scenarios
 
 NODE_START = 120.0
 """Seconds a node may take to log ``ready:`` (the learner imports torch)."""
@@ -115,6 +115,7 @@ def test_plan_service_round_trip(ros: RosSystem, tmp_path: Path) -> None:
     assert result.returncode == 0, result
     response = result.json()
     assert response["solved"] is False and response["path"] == [], response
+    assert response["checks_init"] is None and response["iteration_init"] is None
 
     world = {
         "lower": [0.0, 0.0],
@@ -164,6 +165,13 @@ def test_plan_service_round_trip(ros: RosSystem, tmp_path: Path) -> None:
     assert response["cost"] > 0
     assert response["cost"] >= math.dist(scenario.start, scenario.goal) - 1e-9
     assert _avoids_obstacles(scenario, response["path"])
+    # The effort to the first solution, as the same query in this process takes it (the node's
+    # defaults: the shipped tensors, seed 1).
+    alone = planning.plan("np4", policy="tensor", time=0.2, seed=1, check_path=False)
+    assert alone["iteration_init"] > 0 and alone["checks_init"] > 0
+    for key in ("checks_init", "iteration_init", "c_init"):
+        assert response[key] == alone[key], key
+    assert response["counters"]["validity_checks"] >= response["checks_init"]
 
     # The trajectories come in the order the node published them: the last one's arrival means
     # the others' would have come already.

@@ -50,7 +50,7 @@ MESSAGE_VERSIONS: dict[str, int] = {
     "EpisodeEnd": 2,
     "EpisodeEndResponse": 1,
     "PlanRequest": 1,
-    "PlanResponse": 1,
+    "PlanResponse": 2,
     "CancelRequest": 1,
     "CancelResponse": 1,
     "Observation": 1,
@@ -74,6 +74,8 @@ OLDER_VERSIONS: dict[str, dict[int, tuple[str, ...]]] = {
     # version 2 (2026-12-02): the world of a custom scenario, for lit replay verify; version 3
     # (2026-12-03): a training query's final features, for lit replay tensors
     "EpisodeSummary": {1: ("world", "final_features"), 2: ("final_features",)},
+    # version 2 (2026-12-06): the effort to the first solution
+    "PlanResponse": {1: ("checks_init", "iteration_init")},
 }
 """Older versions a receiver still decodes, by short name: for each, the payload fields that
 version did not have. Such a message is checked against the current schema and must not carry

@@ -99,6 +99,8 @@ EXAMPLES: dict[str, dict[str, Any]] = {
         "t_init": 0.012,
         "c_init": 1.9,
         "time": 2.5,
+        "checks_init": 40213,
+        "iteration_init": 731,
         "improvements": [[0.012, 1.9], [0.4, 1.61], [1.7, 1.52]],
         "path": [[0.1, 0.1], [0.5, 0.62], [0.9, 0.9]],
         "counters": {"iterations": 12034, "batches": 41, "collision_checks": 880213},
@@ -295,6 +297,7 @@ def test_message_versions_name_every_message_schema() -> None:
         "DecideRequest": 3,  # and probe
         "EpisodeEnd": 2,
         "EpisodeSummary": 3,  # the world of a custom scenario; a training query's final features
+        "PlanResponse": 2,  # the effort to the first solution
     }
     assert set(OLDER_VERSIONS) <= set(MESSAGE_VERSIONS)
     for name, older in OLDER_VERSIONS.items():
@@ -1164,6 +1167,23 @@ def test_episode_summary_version_3_adds_the_final_features() -> None:
             )
         )
     assert info.value.code == "payload" and info.value.field == "$.payload.final_features.B[2]"
+
+
+def test_plan_response_version_2_adds_the_effort_to_the_first_solution() -> None:
+    effort = {"checks_init": 40213, "iteration_init": 731}
+    payload = {key: v for key, v in EXAMPLES["PlanResponse"].items() if key not in effort}
+    assert accepted_versions("PlanResponse") == (1, 2)
+    assert decode(envelope_text(payload, "PlanResponse", version=1)).version == 1
+    for key, value in effort.items():
+        with pytest.raises(MessageError, match=f"{key} is not a field of version 1"):
+            decode(envelope_text({**payload, key: value}, "PlanResponse", version=1))
+    message = decode(envelope_text({**payload, **effort}, "PlanResponse", version=2))
+    assert message.payload | effort == message.payload
+    unsolved = {**payload, "checks_init": None, "iteration_init": None}
+    assert decode(envelope_text(unsolved, "PlanResponse", version=2)).version == 2
+    with pytest.raises(MessageError) as info:
+        decode(envelope_text({**payload, "checks_init": -1}, "PlanResponse", version=2))
+    assert info.value.field == "$.payload.checks_init"
 
 
 @pytest.mark.parametrize(

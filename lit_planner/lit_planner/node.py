@@ -701,6 +701,8 @@ class PlannerNode:
             "t_init": finite(result["t_init"]),
             "c_init": finite(result["c_init"]),
             "time": float(result["time"]),
+            "checks_init": result.get("checks_init"),
+            "iteration_init": result.get("iteration_init"),
             "improvements": [[float(t), float(c)] for t, c in result["improvements"]],
             "path": [list(map(float, state)) for state in result["path"]],
             "counters": {k: int(v) for k, v in result["counters"].items()},
