@@ -235,6 +235,9 @@ def test_demo_solves_the_default_scenario(tmp_path: Path) -> None:
     for words in ("t_init", "c_init", "ratio", "the first solution", "batches", "collision checks",
                   "fully checked by the forward search", "re-check passed"):  # fmt: skip
         assert words in process.stdout
+    # the effort to the first solution, from the PlanResponse (version 2)
+    assert re.search(r"^checks .* collision checks, \d+ up to the first solution$", process.stdout,
+                     re.MULTILINE), process.stdout  # fmt: skip
 
 
 def test_ctrl_c_stops_the_demo_and_reports_what_it_kept(tmp_path: Path) -> None:
