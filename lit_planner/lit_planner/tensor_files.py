@@ -20,6 +20,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import math
+import tokenize
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -330,7 +331,7 @@ def read_tensor(path_npy: str | Path) -> tuple[NDArray[np.float32], TensorSideca
         try:
             version = np.lib.format.read_magic(stream)
             header = np.lib.format.read_array_header_1_0(stream) if version == (1, 0) else None
-        except ValueError as exc:
+        except (ValueError, SyntaxError, tokenize.TokenError) as exc:  # numpy parses a dict literal
             raise TensorFileError(f"{path}: not a valid NPY file: {exc}") from exc
         if header is None:
             raise TensorFileError(f"{path}: NPY version {version[0]}.{version[1]}, expected 1.0")

@@ -345,9 +345,11 @@ def test_external_policy_failures_fall_back(capfd: pytest.CaptureFixture[str]) -
     assert policy.failures == len(result["decisions"]) > 0
     assert {d["value"] for d in result["decisions"] if d["kind"] == "B"} == {100.0}
     assert {d["value"] for d in result["decisions"] if d["kind"] == "psi_K"} == {math.e}
-    warnings = capfd.readouterr().err  # OMPL's console: each fallback is said, with its reason
-    assert "external policy raised 'RuntimeError: learner unavailable" in warnings
-    assert "external policy answered NaN/inf for psi_K; using the fixed value" in warnings
+    warnings = (
+        capfd.readouterr().err
+    )  # OMPL's console: the first fallback of each kind, with its reason
+    assert warnings.count("external policy raised 'RuntimeError: learner unavailable") == 1
+    assert warnings.count("external policy answered NaN/inf for psi_K; using the fixed value") == 1
     with pytest.raises(PlannerError, match="needs a callback"):
         make_policy("external")
     with pytest.raises(PlannerError, match="external policy only"):
@@ -560,6 +562,16 @@ def test_cpp_and_python_lookups_agree(tmp_path: Path) -> None:
 def corrupt(path: Path, defect: str) -> None:
     """Rewrite ``path`` (a valid B tensor) with one defect, keeping its sidecar."""
     values = np.load(path).copy()
+    header_edits = {  # the header's text changed in place, its length kept
+        "shape not a number": (b"(101, 101, 101)", b"(101, abc, 101)"),
+        "header not a dict": (b"}", b" "),
+    }
+    if defect in header_edits:
+        old, new = header_edits[defect]
+        data = path.read_bytes()
+        assert data.count(old) >= 1 and data.index(old) < 128  # in the header
+        path.write_bytes(data.replace(old, new, 1))
+        return
     if defect == "bad magic":
         data = bytearray(path.read_bytes())
         data[:6] = b"NOTNPY"
@@ -582,6 +594,9 @@ def corrupt(path: Path, defect: str) -> None:
     ("defect", "message"),
     [
         ("bad magic", "bad magic"),
+        # std::stoull's own exception left the reader as a ValueError("stoull") with a traceback
+        ("shape not a number", "shape entry 'abc' is not a whole number"),
+        ("header not a dict", r"header is not a dict"),  # numpy's reader raised a TokenError
         ("wrong dtype", "dtype is '<f8', expected '<f4'"),
         ("wrong shape", r"shape \(101, 101, 100\) does not match the sidecar's \(101, 101, 101\)"),
         ("NaN", r"value nan at index \(3, 4, 5\) is not finite"),
@@ -794,6 +809,34 @@ def test_the_core_refuses_a_time_that_is_not_finite() -> None:
         for budget in (math.inf, math.nan, -1.0):
             with pytest.raises(ValueError, match="solve needs a finite time >= 0 in seconds"):
                 lit_core.solve(planning.query_for("np4"), planner, time=budget, max_iterations=10)
+
+
+_AIT_THROWS = """
+import lit_core
+query = lit_core.Query([-0.5] * 4, [0.5] * 4, [], [], [0.2, 0, 0, 0], [0.2, 0, 0, 0], 1e-3)
+try:
+    lit_core.solve(query, "aitstar", time=0.1)
+except RuntimeError as error:
+    print("raised:", error)
+"""
+
+
+def test_an_exception_of_a_polled_ompl_planner_reaches_python() -> None:
+    """OMPL's AIT* throws for a start equal to its goal; the thread that polls its solutions was
+    then never joined, and the process aborted ("terminate called without an active exception",
+    exit 134). In a process of its own for that reason."""
+    import subprocess
+    import sys
+
+    process = subprocess.run(
+        [sys.executable, "-c", _AIT_THROWS],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert process.returncode == 0, process.stderr
+    assert "raised: The transformation is not up to date in the PHS class" in process.stdout
 
 
 def test_custom_worlds_check_edges_exactly() -> None:

@@ -230,6 +230,9 @@ def test_read_tensor_detects_tampered_data(b_tensor: Path) -> None:
         ),
         (lambda p: p.write_bytes(p.read_bytes()[:-4]), r"4121200 data bytes, expected 4121204"),
         (lambda p: p.write_bytes(b"not an npy file at all"), r"not a valid NPY file"),
+        # header edits that keep its length: numpy raised a tokenize.TokenError for the second
+        (lambda p: _edit_header(p, b"(101, 101, 101)", b"(101, abc, 101)"), r"not a valid NPY"),
+        (lambda p: _edit_header(p, b"}", b" "), r"not a valid NPY file"),
         (lambda p: _save_v2(p), r"NPY version 2\.0, expected 1\.0"),
     ],
 )
@@ -248,6 +251,12 @@ def test_read_tensor_checks_range_even_when_hash_matches(b_tensor: Path) -> None
         TensorFileError, match=r"value 250\.0 at index \(0, 0, 0\) outside the range"
     ):
         tf.read_tensor(b_tensor)
+
+
+def _edit_header(path: Path, old: bytes, new: bytes) -> None:
+    data = path.read_bytes()
+    assert len(old) == len(new) and data.index(old) < 128  # in the header, its length kept
+    path.write_bytes(data.replace(old, new, 1))
 
 
 def _save_v2(path: Path) -> None:

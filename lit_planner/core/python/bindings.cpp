@@ -363,10 +363,22 @@ namespace
                             std::this_thread::sleep_for(std::chrono::microseconds(50));
                         }
                     });
-                    plannerStatus = planner->solve(ompl::base::plannerOrTerminationCondition(
-                        ompl::base::timedPlannerTerminationCondition(time), cancelCondition));
-                    done.store(true);
-                    watcher.join();
+                    {
+                        // Stops and joins the watcher also when solve() throws (AIT* does, on a start equal to
+                        // its goal): a joinable std::thread destroyed on the way out would abort the process.
+                        struct StopWatcher
+                        {
+                            std::atomic<bool> &done;
+                            std::thread &watcher;
+                            ~StopWatcher()
+                            {
+                                done.store(true);
+                                watcher.join();
+                            }
+                        } stopWatcher{done, watcher};
+                        plannerStatus = planner->solve(ompl::base::plannerOrTerminationCondition(
+                            ompl::base::timedPlannerTerminationCondition(time), cancelCondition));
+                    }
                     std::lock_guard<std::mutex> lock(mutex);
                     // Merge callback and polled events into one non-increasing cost curve.
                     polled.insert(polled.end(), improvements.begin(), improvements.end());
@@ -653,9 +665,12 @@ PYBIND11_MODULE(lit_core, m)
                      }
                      catch (const py::cast_error &)
                      {
-                         throw std::runtime_error("external policy answered " +
-                                                  std::string(py::repr(answer)) + " for " + toString(context.kind) +
-                                                  ", expected a number");
+                         // An int beyond a double's range (10**400) does not convert either.
+                         std::string shown = py::repr(answer);
+                         if (shown.size() > 60u)
+                             shown = shown.substr(0, 57u) + "...";
+                         throw std::runtime_error("external policy answered " + shown + " for " +
+                                                  toString(context.kind) + ", expected a number a double can hold");
                      }
                  };
                  // The py::function must be released with the GIL held.

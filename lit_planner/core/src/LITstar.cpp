@@ -127,9 +127,15 @@ namespace lit
     void LITstar::setRewireFactor(double factor)
     {
         // 0 or less gave K = 1 and inf an overflowed K of 0: planners that never solved, without a word.
+        std::ostringstream text;
+        text << factor;  // std::to_string printed 1e-300 as 0.000000
         if (!(std::isfinite(factor) && factor > 0.0 && factor <= 1e6))
-            throw ompl::Exception("LITstar: the rewire factor must be a number in (0, 1e6], got " +
-                                  std::to_string(factor));
+            throw ompl::Exception("LITstar: the rewire factor must be a number in (0, 1e6], got " + text.str());
+        if (factor < 1.0)
+            OMPL_WARN("LITstar: a rewire factor below 1 (%s) gives fewer neighbours than the k-nearest RGG's bound: "
+                      "the planner loses asymptotic optimality and, from about 0.05 down, may never connect start and "
+                      "goal (K = 1)",
+                      text.str().c_str());
         rewireFactor_ = factor;
     }
     double LITstar::getRewireFactor() const
@@ -164,6 +170,9 @@ namespace lit
         if (!policy)
             throw ompl::Exception("LITstar: the policy must not be null");
         policy_ = std::move(policy);
+        // getBatchSize() and the batch_size parameter (what OMPL's Benchmark records) report a fixed policy's B.
+        if (policy_->name() == "fixed")
+            fixedBatchSize_ = static_cast<unsigned int>(policy_->initialBatchSize());
     }
     const ParameterPolicyPtr &LITstar::getPolicy() const
     {
@@ -286,6 +295,8 @@ namespace lit
         firstSolutionMeasure_ = 0.0;
         warnedUnusableBatchSize_ = false;
         warnedUnusableFactor_ = false;
+        warnedReplacedGoal_ = false;
+        goalRead_.reset();
     }
 
     ompl::base::PlannerStatus LITstar::initializeProblem(const ompl::base::PlannerTerminationCondition &ptc)
@@ -300,14 +311,30 @@ namespace lit
         }
         // Every valid start state is a root of the forward tree (nextStart() skips, with OMPL's warning, those
         // out of bounds or in collision).
+        // A NaN coordinate passes OMPL's bounds check (every comparison with it is false) and may pass a user's
+        // checker; its edges would then ask for NaN collision checks. Such states are left out here.
+        std::vector<double> reals;
+        const auto finite = [this, &reals](const ompl::base::State *state)
+        {
+            si_->getStateSpace()->copyToReals(reals, state);
+            return std::all_of(reals.begin(), reals.end(), [](double x) { return std::isfinite(x); });
+        };
+        std::size_t notFinite = 0u;
         std::vector<const ompl::base::State *> starts;
         while (const ompl::base::State *start = pis_.nextStart())
-            starts.push_back(start);
+        {
+            if (finite(start))
+                starts.push_back(start);
+            else
+                ++notFinite;
+        }
         if (starts.empty())
         {
-            statusMessage_ = "the start state is missing, out of bounds or in collision";
+            statusMessage_ = notFinite > 0u ? "the start state has a coordinate that is not a finite number" :
+                                              "the start state is missing, out of bounds or in collision";
             return ompl::base::PlannerStatus::INVALID_START;
         }
+        notFinite = 0u;
         // A goal state or set is read to its end through PlannerInputStates: nextGoal() answers null (with OMPL's
         // warning, once per state) for a goal out of bounds or in collision. Any other region (OMPL's GoalSpace,
         // whose samples never end) is sampled here: at most MAX_GOAL_SAMPLES valid samples in at most 10 times as
@@ -317,6 +344,11 @@ namespace lit
         std::vector<const ompl::base::State *> goals;
         const auto keep = [&](const ompl::base::State *g)
         {
+            if (!finite(g))
+            {
+                ++notFinite;
+                return;
+            }
             owned.emplace_back(si_->cloneState(g), [this](ompl::base::State *state) { si_->freeState(state); });
             goals.push_back(owned.back().get());
         };
@@ -369,9 +401,11 @@ namespace lit
         }
         if (goals.empty())
         {
-            statusMessage_ = "the goal state is missing, out of bounds or in collision";
+            statusMessage_ = notFinite > 0u ? "the goal state has a coordinate that is not a finite number" :
+                                              "the goal state is missing, out of bounds or in collision";
             return ompl::base::PlannerStatus::INVALID_GOAL;
         }
+        goalRead_ = goal;
 
         dimension_ = si_->getStateDimension();
         longestValidSegment_ = si_->getStateSpace()->getLongestValidSegmentLength();
@@ -431,6 +465,14 @@ namespace lit
             while (pis_.nextStart() != nullptr)
             {
             }
+        }
+        if (problemInitialized_ && goalRead_.lock() != pdef_->getGoal() && !warnedReplacedGoal_)
+        {
+            // The goal object replaced in the same problem definition (SimpleSetup::setGoalState does that).
+            warnedReplacedGoal_ = true;
+            OMPL_WARN("%s: the goal was replaced after the problem was read and is not used; clear() the planner to "
+                      "plan to it",
+                      getName().c_str());
         }
         // At every solve(): the checker may have been replaced since the last one (and is held while used).
         const ompl::base::StateSpace *space = si_->getStateSpace().get();

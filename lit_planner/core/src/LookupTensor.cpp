@@ -39,6 +39,11 @@ namespace lit
         if (shape_[0] == 0u || shape_[1] == 0u || shape_[2] == 0u ||
             values_.size() != shape_[0] * shape_[1] * shape_[2])
             throw TensorError("tensor: value count does not match the shape");
+        // Lookups would interpolate a NaN into B or psi_K (load() names the file and the index first).
+        for (std::size_t i = 0; i < values_.size(); ++i)
+            if (!std::isfinite(values_[i]))
+                throw TensorError("tensor: value " + std::to_string(values_[i]) + " at flat index " +
+                                  std::to_string(i) + " is not finite");
     }
 
     LookupTensor LookupTensor::load(const std::string &path, const TensorSpec &spec)
@@ -77,6 +82,10 @@ namespace lit
         if (bytes.size() < 10u + headerLength)
             fail(path, "truncated header");
         const std::string header = bytes.substr(10u, headerLength);
+        // A Python dict literal, padded with spaces and ended by a newline (numpy refuses anything else).
+        const std::size_t last = header.find_last_not_of(" \n");
+        if (header.empty() || header.front() != '{' || last == std::string::npos || header[last] != '}')
+            fail(path, "header is not a dict ('{...}')");
 
         std::smatch match;
         if (!std::regex_search(header, match, std::regex("'descr'\\s*:\\s*'([^']*)'")))
@@ -97,8 +106,13 @@ namespace lit
             while (std::getline(dims, item, ','))
             {
                 item.erase(std::remove_if(item.begin(), item.end(), ::isspace), item.end());
-                if (!item.empty())
-                    shape.push_back(static_cast<std::size_t>(std::stoull(item)));
+                if (item.empty())
+                    continue;
+                // Digits only, and few enough not to overflow (std::stoull would throw its own exception).
+                if (item.size() > 9u || !std::all_of(item.begin(), item.end(), ::isdigit))
+                    fail(path, "shape entry '" + (item.size() > 20u ? item.substr(0, 20) + "..." : item) +
+                                   "' is not a whole number below 10^9");
+                shape.push_back(static_cast<std::size_t>(std::stoull(item)));
             }
         }
         auto shapeText = [](const auto &s) {

@@ -105,9 +105,13 @@ namespace lit
         }
         catch (const std::exception &e)
         {
+            // The first failure of each kind is logged, later ones only counted (failures()): hundreds of lines per
+            // plan otherwise.
             ++failures_;
-            OMPL_WARN("LITstar: external policy raised '%s'; using the fixed value for %s", e.what(),
-                      toString(context.kind));
+            if (!warnedRaised_.exchange(true))
+                OMPL_WARN("LITstar: external policy raised '%s'; using the fixed value for %s (later exceptions of "
+                          "this policy are counted, not logged)",
+                          e.what(), toString(context.kind));
             return fallback;
         }
         if (context.kind == DecisionKind::BatchSize)
@@ -118,7 +122,10 @@ namespace lit
         else if (auto psi = clampNeighbourFactor(answer))
             return *psi;
         ++failures_;
-        OMPL_WARN("LITstar: external policy answered NaN/inf for %s; using the fixed value", toString(context.kind));
+        if (!warnedUnusable_.exchange(true))
+            OMPL_WARN("LITstar: external policy answered NaN/inf for %s; using the fixed value (later such answers of "
+                      "this policy are counted, not logged)",
+                      toString(context.kind));
         return fallback;
     }
 }  // namespace lit

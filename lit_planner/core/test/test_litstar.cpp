@@ -23,6 +23,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <random>
@@ -298,6 +299,30 @@ TEST(LITstar, InvalidStartOrGoalGivesAStatusNotACrash)
         EXPECT_EQ(planner.solve(ompl::base::timedPlannerTerminationCondition(0.1)),
                   ompl::base::PlannerStatus::INVALID_GOAL);
         EXPECT_NE(planner.statusMessage().find("goal"), std::string::npos);
+    }
+    // A NaN coordinate passes OMPL's bounds check and this checker (no box contains it): its edges then asked for
+    // NaN collision checks, an exception out of solve().
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    for (const bool inStart : {true, false})
+    {
+        // A checker of the user's own that takes any state (the box world's refuses NaN).
+        auto space = std::make_shared<ompl::base::RealVectorStateSpace>(2u);
+        space->setBounds(-1.0, 1.0);
+        auto si = std::make_shared<ompl::base::SpaceInformation>(space);
+        si->setStateValidityChecker([](const ompl::base::State *) { return true; });
+        si->setup();
+        auto pdef = std::make_shared<ompl::base::ProblemDefinition>(si);
+        ompl::base::ScopedState<> start(si), goal(si);
+        start[0] = inStart ? nan : -0.2;
+        start[1] = goal[1] = 0.0;
+        goal[0] = inStart ? 0.2 : nan;
+        pdef->setStartAndGoalStates(start, goal);
+        LITstar planner(si);
+        planner.setProblemDefinition(pdef);
+        EXPECT_EQ(planner.solve(ompl::base::timedPlannerTerminationCondition(0.1)),
+                  inStart ? ompl::base::PlannerStatus::INVALID_START : ompl::base::PlannerStatus::INVALID_GOAL);
+        EXPECT_EQ(planner.statusMessage(), std::string("the ") + (inStart ? "start" : "goal") +
+                                               " state has a coordinate that is not a finite number");
     }
     {
         BoxProblem problem = makeBoxProblem(world, {-0.2, 0.0}, {0.2, 0.0}, 1e-3);
@@ -941,25 +966,33 @@ TEST(LITstar, EveryStartStateIsARootOfTheForwardTree)
     }
 }
 
+namespace
+{
+    /** \brief A planner of \e problem after two batches, \e change (of the problem), then two more solves; and the
+     *  warnings of those two solves. */
+    std::pair<std::shared_ptr<LITstar>, std::vector<std::string>> warningsAfter(const BoxProblem &problem,
+                                                                                 const std::function<void()> &change)
+    {
+        auto planner = batchLimited(problem, 2u);
+        planner->setSeed(3u);
+        planner->solve(ompl::base::plannerNonTerminatingCondition());
+        change();
+        planner->setMaxBatches(4u);
+        const CapturedWarnings messages;
+        planner->solve(ompl::base::plannerNonTerminatingCondition());
+        planner->solve(ompl::base::plannerNonTerminatingCondition());  // said once
+        return {planner, messages.warnings};
+    }
+}  // namespace
+
 TEST(LITstar, AStartAddedAfterTheProblemWasReadIsNamedInAWarning)
 {
     // Starts are read when the problem is first solved; one added later was ignored without a word.
     BoxProblem problem = test::narrowPassage(2, 1e-3);
-    auto planner = batchLimited(problem, 2u);
-    planner->setSeed(3u);
-    planner->solve(ompl::base::plannerNonTerminatingCondition());
     ompl::base::ScopedState<> later(problem.si);
     later[0] = 0.15;
     later[1] = 0.3;
-    problem.pdef->addStartState(later);
-    planner->setMaxBatches(4u);
-    std::vector<std::string> warnings;
-    {
-        const CapturedWarnings messages;
-        planner->solve(ompl::base::plannerNonTerminatingCondition());
-        planner->solve(ompl::base::plannerNonTerminatingCondition());  // said once
-        warnings = messages.warnings;
-    }
+    const auto [planner, warnings] = warningsAfter(problem, [&] { problem.pdef->addStartState(later); });
     ASSERT_EQ(warnings.size(), 1u);
     EXPECT_NE(warnings[0].find("start states added after the problem was read are not used"), std::string::npos)
         << warnings[0];
@@ -968,6 +1001,29 @@ TEST(LITstar, AStartAddedAfterTheProblemWasReadIsNamedInAWarning)
     planner->solve(ompl::base::plannerNonTerminatingCondition());
     EXPECT_EQ(planner->graph().starts().size(), 2u);
     EXPECT_DOUBLE_EQ(planner->bestCost(), std::hypot(0.05, 0.3));
+}
+
+TEST(LITstar, AGoalReplacedAfterTheProblemWasReadIsNamedInAWarning)
+{
+    // SimpleSetup::setGoalState replaces the goal object of the same problem definition: LIT* kept planning to the
+    // old goal without a word (as OMPL's RRT* does), and reported its path as an exact solution.
+    BoxProblem problem = test::narrowPassage(2, 1e-3);
+    ompl::base::ScopedState<> other(problem.si);
+    other[0] = 0.2;
+    other[1] = 0.3;
+    const auto [planner, warnings] = warningsAfter(problem, [&] { problem.pdef->setGoalState(other); });
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_NE(warnings[0].find("the goal was replaced after the problem was read and is not used"), std::string::npos)
+        << warnings[0];
+    planner->clear();  // read again: planned to the new goal, without a warning
+    {
+        const CapturedWarnings messages;
+        planner->solve(ompl::base::plannerNonTerminatingCondition());
+        EXPECT_TRUE(messages.warnings.empty());
+    }
+    ASSERT_EQ(planner->graph().goals().size(), 1u);
+    EXPECT_DOUBLE_EQ(planner->graph().goals()[0]->raw_->as<ompl::base::RealVectorStateSpace::StateType>()->values[1],
+                     0.3);
 }
 
 TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
@@ -1028,6 +1084,16 @@ TEST(LITstar, ParametersOutsideTheirRangeAreRefused)
         EXPECT_TRUE(test::throwsWith<ompl::Exception>([&] { planner.setRewireFactor(factor); },
                                                       "the rewire factor must be a number in (0, 1e6]"))
             << factor;
+    EXPECT_TRUE(test::throwsWith<ompl::Exception>([&] { planner.setRewireFactor(-1e-300); }, "got -1e-300"));
+    {
+        // Taken, with a warning: from about 0.05 down K was 1 and the planner never solved, without a word.
+        const CapturedWarnings messages;
+        planner.setRewireFactor(0.5);
+        planner.setRewireFactor(1.2);
+        ASSERT_EQ(messages.warnings.size(), 1u);
+        EXPECT_NE(messages.warnings[0].find("a rewire factor below 1 (0.5)"), std::string::npos)
+            << messages.warnings[0];
+    }
     planner.setRewireFactor(0.5);
     EXPECT_DOUBLE_EQ(planner.getRewireFactor(), 0.5);
     for (const double budget : {-1.0, std::numeric_limits<double>::quiet_NaN()})
@@ -1059,7 +1125,12 @@ TEST(LITstar, AFixedPolicysNeighbourFactorIsUsed)
     // FixedPolicy(B, psi_K) ignored psi_K: the planner used e whatever it said.
     BoxProblem problem = test::narrowPassage(4, 1e-3);
     auto planner = std::make_shared<LITstar>(problem.si);
-    planner->setPolicy(std::make_shared<FixedPolicy>(100, 12.0));
+    planner->setPolicy(std::make_shared<FixedPolicy>(70, 12.0));
+    // The policy's B, as OMPL's Benchmark records it (it said 100, the value before).
+    std::string recorded;
+    ASSERT_TRUE(planner->params().getParam("batch_size", recorded));
+    EXPECT_EQ(planner->getBatchSize(), 70u);
+    EXPECT_EQ(recorded, "70");
     planner->setBatchSize(50u);  // a new fixed policy with this B: it kept psi_K = e
     EXPECT_TRUE(test::throwsWith<ompl::Exception>([&] { planner->setBatchSize(3000000000u); },
                                                   "the batch size must be between 1 and 2^31 - 1"));

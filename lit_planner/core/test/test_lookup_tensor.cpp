@@ -110,6 +110,32 @@ TEST(LookupTensor, RejectsEachDefectWithItsOwnMessage)
     outOfRange[99] = 250.0f;
     EXPECT_NE(loadError(writeNpy("range.npy", goodDict, payload(outOfRange))).find("value 250.000000 at index (0, 0, 99) is out of range"),
               std::string::npos);
+    // std::stoull's own std::invalid_argument ("stoull") left the reader, not a TensorError.
+    EXPECT_NE(loadError(writeNpy("letters.npy", "{'descr': '<f4', 'fortran_order': False, 'shape': (101, abc, 101), }", payload(good)))
+                  .find("shape entry 'abc' is not a whole number below 10^9"), std::string::npos);
+    EXPECT_NE(loadError(writeNpy("huge.npy", "{'descr': '<f4', 'fortran_order': False, 'shape': (101, 99999999999999999999999, 101), }", payload(good)))
+                  .find("shape entry '99999999999999999999...' is not"), std::string::npos);
+    EXPECT_NE(loadError(writeNpy("brace.npy", "{'descr': '<f4', 'fortran_order': False, 'shape': (101, 101, 101), ", payload(good)))
+                  .find("header is not a dict"), std::string::npos);  // numpy refuses it too
+}
+
+TEST(LookupTensor, AnInMemoryTensorMustBeFinite)
+{
+    // Built in memory, a NaN reached TensorPolicy's clamps as an empty optional (B = 1, psi_K = 0.14 in a review).
+    auto values = std::vector<float>(8u, 50.0f);
+    values[5] = NAN;
+    try
+    {
+        LookupTensor tensor({2u, 2u, 2u}, values);
+        ADD_FAILURE() << "a NaN value was taken";
+    }
+    catch (const TensorError &error)
+    {
+        EXPECT_NE(std::string(error.what()).find("tensor: value nan at flat index 5 is not finite"), std::string::npos)
+            << error.what();
+    }
+    values[5] = 50.0f;
+    EXPECT_DOUBLE_EQ(LookupTensor({2u, 2u, 2u}, values).trilinear(0.3, 0.6, 0.9), 50.0);
 }
 
 TEST(TensorPolicy, LooksUpRawFeaturesAndClamps)

@@ -2,9 +2,12 @@
 #include "lit/ParameterPolicy.h"
 
 #include <gtest/gtest.h>
+#include <ompl/util/Console.h>
 
 #include <cmath>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 using namespace lit;
 
@@ -97,11 +100,32 @@ TEST(Policies, ExternalClampsAndFallsBack)
     EXPECT_DOUBLE_EQ(policy.decide(context), 200.0);
     context.kind = DecisionKind::NeighbourFactor;
     EXPECT_DOUBLE_EQ(policy.decide(context), 7.5);
-    context.expansions = 1u;
-    EXPECT_DOUBLE_EQ(policy.decide(context), M_E);
-    context.expansions = 2u;
-    context.kind = DecisionKind::BatchSize;
-    EXPECT_DOUBLE_EQ(policy.decide(context), 100.0);
-    EXPECT_EQ(policy.failures(), 2u);
-    EXPECT_EQ(calls, 4);
+    struct Warnings : ompl::msg::OutputHandler
+    {
+        std::vector<std::string> lines;
+        void log(const std::string &text, ompl::msg::LogLevel level, const char *, int) override
+        {
+            if (level >= ompl::msg::LOG_WARN)
+                lines.push_back(text);
+        }
+    } warnings;
+    ompl::msg::useOutputHandler(&warnings);
+    for (int round = 0; round < 3; ++round)
+    {
+        context.expansions = 1u;
+        context.kind = DecisionKind::NeighbourFactor;
+        EXPECT_DOUBLE_EQ(policy.decide(context), M_E);
+        context.expansions = 2u;
+        context.kind = DecisionKind::BatchSize;
+        EXPECT_DOUBLE_EQ(policy.decide(context), 100.0);
+    }
+    ompl::msg::restorePreviousOutputHandler();
+    EXPECT_EQ(policy.failures(), 6u);
+    EXPECT_EQ(calls, 8);
+    // The first failure of each kind is logged, the others counted: a plan's hundreds of failed answers gave as
+    // many lines.
+    ASSERT_EQ(warnings.lines.size(), 2u);
+    EXPECT_NE(warnings.lines[0].find("answered NaN/inf for psi_K"), std::string::npos) << warnings.lines[0];
+    EXPECT_NE(warnings.lines[1].find("raised 'learner gone'; using the fixed value for B"), std::string::npos)
+        << warnings.lines[1];
 }

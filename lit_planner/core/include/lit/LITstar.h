@@ -295,6 +295,9 @@ namespace lit
         double neighbourFactor_{M_E};
         /** \brief An unusable policy answer (not a number; psi_K <= 0) was reported for this problem, per parameter. */
         bool warnedUnusableBatchSize_{false};
+        /** \brief The goal read when the problem was initialised, and whether its replacement was warned about. */
+        std::weak_ptr<ompl::base::Goal> goalRead_;
+        bool warnedReplacedGoal_{false};
         bool warnedUnusableFactor_{false};
         std::size_t currentK_{1u};
         std::size_t improvements_{0u};

@@ -281,7 +281,7 @@ namespace lit
         }
         double decide(const DecisionContext &context) override;
 
-        /** \brief Answers that were unusable (NaN or a throwing callable). */
+        /** \brief Answers that were unusable (NaN or a throwing callable). The first of each kind is logged. */
         std::size_t failures() const
         {
             return failures_;
@@ -291,5 +291,8 @@ namespace lit
         Callback callback_;
         bool decidesNeighbourFactor_;
         std::atomic<std::size_t> failures_{0u};
+        /** \brief Whether an exception, and an answer that is not a number, were logged (once each). */
+        std::atomic<bool> warnedRaised_{false};
+        std::atomic<bool> warnedUnusable_{false};
     };
 }  // namespace lit
