@@ -11,6 +11,7 @@ decisions as the episodes' summaries say were made.
 from __future__ import annotations
 
 import contextlib
+import re
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -144,7 +145,8 @@ def test_training_run_bag_gives_deterministic_offline_tensors(tmp_path: Path) ->
 
     first = offline(tmp_path / "a", 3)
     assert "3 episodes" in first
-    version = int(first.split("policy version ")[1].split(";")[0])
+    version = int(re.findall(r"policy version (\d+)$", first, re.MULTILINE)[0])
+    assert re.search(r"^  messages: \d+ skipped", first, re.MULTILINE), first
     assert version > 0  # gradient steps ran on the recorded transitions
     from lit_planner import tensor_files
 

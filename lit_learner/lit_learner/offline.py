@@ -52,6 +52,8 @@ class RecordedEpisode:
     decisions: list[dict[str, Any]] = field(default_factory=list)
     solutions: list[dict[str, Any]] = field(default_factory=list)
     summary: dict[str, Any] | None = None
+    summary_stamp_ns: int = -1
+    """Its summary's stamp (the publisher's)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -106,8 +108,16 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"lit replay tensors: {len(episodes)} episodes, {provenance['decisions']} decisions, "
         f"{sum(a.transitions for a in core.agents.values())} transitions, "
-        f"policy version {core.policy_version}; skipped {sum(skipped.counts.values())} messages"
+        f"policy version {core.policy_version}"
     )
+    episodes_left_out = {
+        reason: skipped.counts.pop(reason) for reason in (RECORDED_AGAIN, INCOMPLETE)
+        if skipped.counts.get(reason)
+    }  # fmt: skip
+    if episodes_left_out:
+        print("  episodes left out: " + ", ".join(
+            f"{count} {reason}" for reason, count in episodes_left_out.items()))  # fmt: skip
+    print(f"  messages: {skipped.line()}")
     print(f"  psi_K decision interval {interval.value} ({interval.source})")
     for name, path in paths.items():
         agent = core.agents.get(name)
@@ -257,16 +267,45 @@ def _bag_custom_data(path: Path) -> dict[str, Any]:
     return dict(custom) if isinstance(custom, dict) else {}
 
 
+RECORDED_AGAIN = "training episode recorded again (the later recording is used)"
+"""Why an episode's earlier recording is left out: a ``lit train`` run resumed from an earlier
+checkpoint (``--rollback``, or after a second Ctrl-C) ran it again under the same id."""
+INCOMPLETE = "incomplete training episode"
+
+
+class _Sessions:
+    """Which publishing session of a publisher and run a message belongs to. A resumed ``lit
+    train`` run publishes under the same run id with every topic's seq from 0 again: a topic's
+    seq that does not rise starts the next session, which the publisher's other topics then
+    join as their seq restarts."""
+
+    def __init__(self) -> None:
+        self._current: dict[tuple[str, str], int] = {}
+        self._topics: dict[tuple[str, str, str], tuple[int, int]] = {}
+
+    def of(self, item: Envelope) -> int:
+        publisher = (item.source, item.run_id)
+        session = self._current.get(publisher, 0)
+        last = self._topics.get((item.topic, *publisher))
+        if last is not None and item.seq <= last[0] and last[1] == session:
+            session = self._current[publisher] = session + 1
+        self._topics[(item.topic, *publisher)] = (item.seq, session)
+        return session
+
+
 def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
     """Complete training episodes (summary, and as many observations and decisions as the
     summary counts decisions), in the order their summaries were recorded. A message read twice
     (a bag given with its compacted or salvaged copy: the same topic, publisher, run and seq)
     counts once; it was paired twice, and the pairing failed on the second copy's earlier
-    times."""
+    times. An episode recorded again by a resumed run (same run and episode id, a later
+    publishing session) takes the place of its first recording with the content of its latest
+    one (the latest summary stamp): the episodes the resumed learner trained on."""
     skipped = Skipped()
-    found: dict[tuple[str, str, str], RecordedEpisode] = {}
-    order: list[tuple[str, str, str]] = []
+    found: dict[tuple[str, str, str, int], RecordedEpisode] = {}
+    order: list[tuple[str, str, str, int]] = []
     seen: set[tuple[str, str, str, int, int]] = set()
+    sessions = _Sessions()
     for path in paths:
         with BagReader(path) as reader:
             for message in reader.messages():
@@ -278,11 +317,12 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
                     skipped.counts[READ_TWICE] += 1
                     continue
                 seen.add(identity)
+                session = sessions.of(item)
                 episode_id = item.payload.get("episode_id")
                 if episode_id is None:
                     continue
-                key = (item.source, item.run_id, str(episode_id))
-                episode = found.setdefault(key, RecordedEpisode(key))
+                key = (item.source, item.run_id, str(episode_id), session)
+                episode = found.setdefault(key, RecordedEpisode(key[:3]))
                 if item.schema == OBSERVATION:
                     episode.observations.append(item.payload)
                 elif item.schema == DECISION:
@@ -291,13 +331,23 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
                     episode.solutions.append(item.payload)
                 elif item.schema == SUMMARY:
                     episode.summary = item.payload
+                    episode.summary_stamp_ns = item.stamp_ns
                     order.append(key)
-    complete = []
+    # Each episode once, at its first recording's place, as its latest recording holds it.
+    latest: dict[tuple[str, str, str], RecordedEpisode] = {}
     for key in order:
         episode = found[key]
-        summary = episode.summary
-        if summary is None or summary.get("mode") != "training":
+        if episode.summary is None or episode.summary.get("mode") != "training":
             continue
+        kept = latest.setdefault(episode.key, episode)
+        if kept is not episode:
+            skipped.counts[RECORDED_AGAIN] += 1
+            if episode.summary_stamp_ns > kept.summary_stamp_ns:
+                latest[episode.key] = episode
+    complete = []
+    for episode in latest.values():
+        summary = episode.summary
+        assert summary is not None
         # Its summary counts the decisions made: a lost observation and decision pair (a gap
         # in the recording) left an episode that looked complete by the pairing alone.
         made = summary.get("decisions")
@@ -312,7 +362,7 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
             or not episode.decisions
             or len(episode.decisions) != counted
         ):
-            skipped.counts["incomplete training episode"] += 1
+            skipped.counts[INCOMPLETE] += 1
             continue
         complete.append(episode)
     return complete, skipped

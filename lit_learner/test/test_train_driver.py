@@ -11,6 +11,7 @@ import csv
 import json
 import re
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -544,6 +545,38 @@ def test_resume_from_an_earlier_checkpoint_trains_its_episodes_again_once(
     with (run_dir / METRICS_FILE).open(newline="") as handle:
         assert [int(row["episode"]) for row in csv.DictReader(handle)] == [0, 1, 2, 3, 4]
 
+    # lit replay tensors of both sessions' bags: episodes 3 and 4 once each, as the resumed
+    # session recorded them (same ids: the two recordings merged and both were left out as
+    # incomplete); episode 5, which only the first session ran, stays.
+    from lit_learner import offline
+
+    first, again = sorted(p for p in tmp_path.iterdir() if (p / "metadata.yaml").exists())
+    ids = [f"{e.key[2]}" for e in offline.read_episodes([first])[0]]
+    (resumed, _) = offline.read_episodes([again])
+    assert [e.key[2] for e in resumed] == ids[3:5]
+    for bags in ([first, again], [again, first]):
+        episodes, skipped = offline.read_episodes(bags)
+        assert sorted(e.key[2] for e in episodes) == ids, bags
+        assert (
+            skipped.counts[offline.RECORDED_AGAIN] == 2 and not skipped.counts[offline.INCOMPLETE]
+        )
+        used = {e.key[2]: e.summary_stamp_ns for e in episodes}
+        assert [used[e.key[2]] for e in resumed] == [e.summary_stamp_ns for e in resumed]
+    assert [e.key[2] for e in offline.read_episodes([first, again])[0]] == ids
+    # The first session stopped at once inside episode 4 (a second Ctrl-C: no summary), and the
+    # resumed one ran it again: its partial first recording is not mixed into the second.
+    stopped = tmp_path / "stopped" / "bag"
+    cut = {"done": False}
+
+    def after_the_cut(item: Any) -> bool:
+        if item.schema == offline.SUMMARY and item.payload["episode_id"] == ids[4]:
+            cut["done"] = True
+        return cut["done"]
+
+    _copy_bag(first, stopped, after_the_cut)
+    episodes, skipped = offline.read_episodes([stopped, again])
+    assert [e.key[2] for e in episodes] == ids[:5] and not skipped.counts[offline.INCOMPLETE]
+
     final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
     with pytest.raises(train.TrainingError, match="has 5 episodes already"):
         train.train(arguments(run_dir, episodes=4, resume=final))
@@ -963,27 +996,37 @@ def test_empty_scenarios_are_refused_not_the_default_mix(
 def _without_one_pair(source: Path, target: Path, victim: tuple[str, str, str]) -> None:
     """Copy bag ``source`` to ``target`` without the first observation and the first decision
     of episode ``victim`` (as a recording gap loses them)."""
+    dropped = {"lit_msgs_json/Observation": 0, "lit_msgs_json/Decision": 0}
+
+    def drop(item: Any) -> bool:
+        if (
+            item.schema in dropped
+            and not dropped[item.schema]
+            and (item.source, item.run_id, str(item.payload.get("episode_id"))) == victim
+        ):
+            dropped[item.schema] += 1
+            return True
+        return False
+
+    _copy_bag(source, target, drop)
+    assert dropped == {"lit_msgs_json/Observation": 1, "lit_msgs_json/Decision": 1}
+
+
+def _copy_bag(source: Path, target: Path, drop: Callable[[Any], bool]) -> None:
+    """Copy the envelopes of bag ``source`` to ``target``, leaving out those ``drop`` says."""
     from lit_planner import bag, replay
 
-    dropped = {"lit_msgs_json/Observation": 0, "lit_msgs_json/Decision": 0}
     skipped = replay.Skipped()
-    with replay.BagReader(source) as reader, bag.BagRecorder(target, run_id="gap") as recorder:
+    with replay.BagReader(source) as reader, bag.BagRecorder(target, run_id="copy") as recorder:
         topics: set[str] = set()
         for message in reader.messages():
             if message.msgtype != bag.STRING_TYPE:
                 continue
             item = replay.decode(message, skipped)
-            if (
-                isinstance(item, replay.Envelope)
-                and item.schema in dropped
-                and not dropped[item.schema]
-                and (item.source, item.run_id, str(item.payload.get("episode_id"))) == victim
-            ):
-                dropped[item.schema] += 1
+            if isinstance(item, replay.Envelope) and drop(item):
                 continue
             if message.topic not in topics:
                 recorder.add_topic(message.topic, bag.STRING_TYPE)
                 topics.add(message.topic)
             text = bag.typestore().deserialize_cdr(message.data, bag.STRING_TYPE).data
             recorder.write_string(message.topic, text, message.log_ns)
-    assert dropped == {"lit_msgs_json/Observation": 1, "lit_msgs_json/Decision": 1}
