@@ -13,9 +13,11 @@ import copy
 import hashlib
 import os
 import random
+import shutil
+import tempfile
 import threading
-from collections.abc import Sequence
-from contextlib import AbstractContextManager, nullcontext
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import AbstractContextManager, contextmanager, nullcontext
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -24,7 +26,7 @@ import torch
 
 from lit_learner.agent import DDPGAgent
 from lit_learner.config import AGENT_NAMES, LearnerConfig
-from lit_learner.errors import CheckpointError, ConfigError, NonFiniteWeights
+from lit_learner.errors import CheckpointError, ConfigError, ExportError, NonFiniteWeights
 from lit_learner.export import CHECKPOINT_FILE, TENSOR_FILES, policy_grid
 from lit_learner.messages import DecisionRequest, EpisodeEnd
 from lit_learner.networks import ActorSnapshot
@@ -383,8 +385,12 @@ class LearnerCore:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         temporary = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
-        torch.save(_arrays_as_tensors(state), temporary)
-        os.replace(temporary, path)
+        try:
+            torch.save(_arrays_as_tensors(state), temporary)
+            os.replace(temporary, path)
+        except BaseException:
+            temporary.unlink(missing_ok=True)  # a full disk left it, beside the checkpoints
+            raise
 
     @classmethod
     def load_checkpoint(cls, path: str | Path) -> LearnerCore:
@@ -457,24 +463,43 @@ class LearnerCore:
         provenance: dict[str, Any],
         agents: Sequence[str] = AGENT_NAMES,
         lock: AbstractContextManager[Any] | None = None,
+        extra: Mapping[str, bytes] | None = None,
     ) -> dict[str, Path]:
         """Write ``checkpoint.pt`` and each agent's lookup tensor with its sidecar into
-        ``directory``.
+        ``directory``, with the ``extra`` files (name: content).
 
         ``lock`` (held by whoever else uses the core, e.g. the learner node's decision service)
         is taken only while the state and the actors are copied; the checkpoint file and the
-        lookup grids, which take seconds, are written from those copies without it.
+        lookup grids, which take seconds, are written from those copies without it. Every file
+        is written in a staging folder first and then renamed into ``directory``: a reader sees
+        each file whole, and an export that fails leaves nothing of itself.
 
         Returns:
             Paths keyed ``B`` (b_tensor.npy), ``psi_K`` (k_tensor.npy) and ``checkpoint``.
 
         Raises:
             lit_planner.errors.TensorFileError: a tensor or sidecar failed validation.
+            ExportError: a file could not be written (a full disk, say).
         """
+        directory = Path(directory)
+        with _staged(directory) as stage:
+            self._export_into(stage, provenance, agents, lock)
+            for name, content in (extra or {}).items():
+                (stage / name).write_bytes(content)
+        return {"checkpoint": directory / CHECKPOINT_FILE} | {
+            name: directory / TENSOR_FILES[name] for name in agents
+        }
+
+    def _export_into(
+        self,
+        directory: Path,
+        provenance: dict[str, Any],
+        agents: Sequence[str],
+        lock: AbstractContextManager[Any] | None,
+    ) -> None:
+        """:meth:`export_tensors`' files, written into ``directory``."""
         from lit_planner.tensor_files import write_tensor  # pulls in the JSON-Schema validator
 
-        directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
         checkpoint = directory / CHECKPOINT_FILE
         with lock if lock is not None else nullcontext():
             state = self.checkpoint_state()  # written below, after the lock
@@ -495,12 +520,10 @@ class LearnerCore:
             policy_version = self._policy_version
         self.write_checkpoint(state, checkpoint)
         checkpoint_sha256 = _sha256(checkpoint)
-        paths: dict[str, Path] = {"checkpoint": checkpoint}
         for name, (actor, training) in frozen.items():
             config = self.agents[name].config  # immutable
-            path = directory / TENSOR_FILES[name]
             write_tensor(
-                path,
+                directory / TENSOR_FILES[name],
                 policy_grid(actor, config),
                 name,
                 interpolation="trilinear",
@@ -513,8 +536,35 @@ class LearnerCore:
                 checkpoint_sha256=checkpoint_sha256,
                 provenance=provenance,
             )
-            paths[name] = path
-        return paths
+
+
+@contextmanager
+def _staged(directory: Path) -> Iterator[Path]:
+    """A staging folder inside ``directory`` (created if needed) whose files replace those of
+    the same names in ``directory``, one rename each, once the block has written them all. On
+    an error the staging folder goes, and ``directory`` too if it was created here.
+
+    Raises:
+        ExportError: a file could not be written or moved (OSError).
+    """
+    created = not directory.exists()
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=".export-", dir=directory))
+    except OSError as error:
+        raise ExportError(f"export to {directory} failed: {error}") from None
+    try:
+        yield stage
+        for item in sorted(stage.iterdir()):
+            os.replace(item, directory / item.name)
+    except BaseException as error:
+        shutil.rmtree(directory if created else stage, ignore_errors=True)
+        if isinstance(error, OSError):
+            left = "the folder was removed" if created else "its files there are as they were"
+            raise ExportError(f"export to {directory} failed ({error}); {left}") from None
+        raise
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
 
 
 def _sha256(path: Path) -> str:

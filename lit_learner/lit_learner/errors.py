@@ -35,3 +35,7 @@ class CheckpointError(LearnerError):
 class NonFiniteWeights(LearnerError, ValueError):
     """A network (or its optimiser) loaded from a checkpoint holds values that are NaN or
     infinite."""
+
+
+class ExportError(LearnerError):
+    """An export could not be written (a full disk, say); nothing of it was left behind."""

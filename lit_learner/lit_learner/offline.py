@@ -33,6 +33,7 @@ from lit_planner.replay import (
     message_identity,
 )
 
+from lit_learner.errors import ExportError
 from lit_planner import argtypes
 
 MAX_INTERVAL = 2**32 - 1
@@ -103,8 +104,14 @@ def run(args: argparse.Namespace) -> int:
         "decisions": sum(len(e.decisions) for e in episodes),
         "decision_interval": interval.value,
     }
-    paths = core.export_tensors(args.out, provenance)
-    (Path(args.out) / "provenance.json").write_text(json.dumps(provenance, indent=2) + "\n")
+    try:
+        paths = core.export_tensors(
+            args.out,
+            provenance,
+            extra={"provenance.json": json.dumps(provenance, indent=2).encode() + b"\n"},
+        )
+    except ExportError as error:
+        raise ReplayError(str(error)) from None
     print(
         f"lit replay tensors: {len(episodes)} episodes, {provenance['decisions']} decisions, "
         f"{sum(a.transitions for a in core.agents.values())} transitions, "

@@ -31,7 +31,6 @@ import json
 import math
 import os
 import shlex
-import shutil
 import sys
 import threading
 import time
@@ -43,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from lit_learner.errors import ExportError
 from lit_learner.metrics import (
     CURVES_FILE,
     METRICS_FILE,
@@ -1022,9 +1022,10 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         raise TrainingError(f"--seed must be between 0 and {planning.MAX_SEED}, got {args.seed}")
     if args.checkpoint_every is not None and args.checkpoint_every < 0:
         raise TrainingError(f"--checkpoint-every must be 0 or more, got {args.checkpoint_every}")
-    for label, value in (("--episodes", args.episodes), ("--minutes", args.minutes)):
-        if value is not None and not value > 0:
-            raise TrainingError(f"{label} must be positive, got {value}")
+    if args.episodes is not None and not args.episodes > 0:
+        raise TrainingError(f"--episodes must be positive, got {args.episodes}")
+    if args.minutes is not None and not (args.minutes > 0 and math.isfinite(args.minutes)):
+        raise TrainingError(f"--minutes must be a positive finite number, got {args.minutes}")
 
     _check_folders(args)
     exported_before = _tensor_files_state(args.export)  # an earlier export of the run resumed
@@ -1343,7 +1344,14 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         # Written there by something else while this run trained (an earlier export of the run
         # it resumes was there from the start, and is what it replaces).
         replaced = _tensor_files_state(args.export) != exported_before
-        written = export(core, Path(args.export), record, curves)
+        try:
+            written = export(core, Path(args.export), record, curves)
+        except ExportError as error:
+            lock.close()
+            raise TrainingError(
+                f"{error}. The run is saved in {final}: `lit train --resume {final} --episodes "
+                f"{state.episode} --export {args.export}` exports it without training"
+            ) from None
         lines.append(f"  tensors {', '.join(str(path) for path in written.values())}")
         if replaced:
             lines.append(
@@ -1471,13 +1479,12 @@ def _lock_run_folder(run_dir: Path) -> Any:
 
 
 def export(core: Any, directory: Path, record: dict[str, Any], curves: Path | None) -> dict:
-    """Write both tensors with ``record`` as provenance, plus ``provenance.json`` and the curves."""
-    directory.mkdir(parents=True, exist_ok=True)
-    written = core.export_tensors(directory, record)
-    (directory / PROVENANCE_FILE).write_text(json.dumps(record, indent=2) + "\n")
+    """Write both tensors with ``record`` as provenance, plus ``provenance.json`` and the curves
+    (all or nothing: :meth:`~lit_learner.core.LearnerCore.export_tensors`)."""
+    extra = {PROVENANCE_FILE: (json.dumps(record, indent=2) + "\n").encode()}
     if curves is not None and curves.exists():
-        shutil.copyfile(curves, directory / CURVES_FILE)
-    return written
+        extra[CURVES_FILE] = curves.read_bytes()
+    return core.export_tensors(directory, record, extra=extra)
 
 
 def _open_bag(state: DriverState, run_dir: Path) -> Any:

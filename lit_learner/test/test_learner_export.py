@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import resource
+from collections.abc import Iterator
 from pathlib import Path
 
 import lit_core
@@ -11,6 +14,7 @@ import pytest
 import torch
 from lit_learner.config import AgentConfig, LearnerConfig
 from lit_learner.core import LearnerCore
+from lit_learner.errors import ExportError
 from lit_learner.export import grid_features
 
 from lit_planner import tensor_files as tf
@@ -79,3 +83,42 @@ def test_export_round_trip(exported: tuple[LearnerCore, dict[str, Path]], name: 
         expected = tf.lookup(values, points, mode)
         got = [getattr(cpp, mode)(*map(float, p)) for p in points]
         np.testing.assert_allclose(got, expected, rtol=0, atol=1e-4, err_msg=mode)
+
+
+@contextlib.contextmanager
+def _files_limited_to(size: int) -> Iterator[None]:
+    """Writes beyond ``size`` bytes per file fail with EFBIG (Python ignores SIGXFSZ): as a full
+    disk makes an export fail partway."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (size, hard))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+
+
+def test_an_export_that_fails_partway_leaves_nothing_of_itself(
+    exported: tuple[LearnerCore, dict[str, Path]], tmp_path: Path
+) -> None:
+    """A full disk left a truncated b_tensor.npy and a checkpoint without sidecars, raised a bare
+    OSError (a traceback from lit train), and the folder then blocked the retry ("exists and is
+    not empty")."""
+    core, before = exported
+    new = tmp_path / "new"
+    with _files_limited_to(3_000_000), pytest.raises(ExportError) as failed:  # a tensor: 4.1 MB
+        core.export_tensors(new, {"command": "pytest"}, extra={"provenance.json": b"{}\n"})
+    assert str(failed.value).startswith(f"export to {new} failed (")
+    assert "the folder was removed" in str(failed.value)
+    assert not new.exists()
+    # Over an earlier export: its files stay as they were, and nothing is added.
+    old = before["B"].parent
+    files = {path.name: path.read_bytes() for path in old.iterdir()}
+    with _files_limited_to(3_000_000), pytest.raises(ExportError, match="as they were"):
+        core.export_tensors(old, {"command": "pytest", "episodes": 1})
+    assert {path.name: path.read_bytes() for path in old.iterdir()} == files
+    written = core.export_tensors(new, {"command": "pytest"}, extra={"provenance.json": b"{}\n"})
+    assert sorted(path.name for path in new.iterdir()) == sorted(
+        [*(path.name for path in written.values()), "b_tensor.json", "k_tensor.json",
+         "provenance.json"]
+    )  # fmt: skip
+    tf.read_tensor(written["B"])

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 import re
 import shutil
 from collections.abc import Callable
@@ -425,6 +426,11 @@ def test_run_reports_bad_input_as_one_line(
     # (it failed in the first episode and left a run that could not be resumed).
     assert train.run(arguments(tmp_path / "run", decision_interval=2**32)) == 2
     assert "got 4294967296" in capsys.readouterr().err
+    for minutes in (0.0, math.inf, math.nan):  # inf was taken (its driver state: Infinity)
+        assert train.run(arguments(tmp_path / "run", minutes=minutes)) == 2
+        assert f"--minutes must be a positive finite number, got {minutes}" in (
+            capsys.readouterr().err
+        )
     assert list(tmp_path.iterdir()) == []
     assert train.run(arguments(tmp_path / "run", w_search=-1.0)) == 2
     assert "--w-search must be finite and >= 0, got -1.0" in capsys.readouterr().err
@@ -1030,3 +1036,36 @@ def _copy_bag(source: Path, target: Path, drop: Callable[[Any], bool]) -> None:
                 topics.add(message.topic)
             text = bag.typestore().deserialize_cdr(message.data, bag.STRING_TYPE).data
             recorder.write_string(message.topic, text, message.log_ns)
+
+
+def test_an_export_that_fails_is_one_line_that_says_how_to_export_again(tmp_path: Path) -> None:
+    """A full disk during the export printed a traceback (exit 1) and left a truncated tensor
+    that blocked the retry. ``ulimit -f`` stands in for the full disk."""
+    import subprocess
+    import sys
+
+    from lit_planner import tensor_files
+
+    run_dir = tmp_path / "run"
+    hooks = train.TrainingHooks(learner_config=small_config())
+    train.train(arguments(run_dir, episodes=1, scenarios="np4", no_bag=True), hooks)
+    final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
+    export = tmp_path / "tensors"
+    command = [sys.executable, "-m", "lit_planner.cli", "train", "--resume", str(final),
+               "--episodes", "1", "--export", str(export), "--no-progress"]  # fmt: skip
+    limited = subprocess.run(
+        ["bash", "-c", 'ulimit -f 2900 && exec "$@"', "bash", *command],  # a tensor: 4.1 MB
+        capture_output=True, text=True, timeout=300, check=False,
+    )  # fmt: skip
+    assert limited.returncode == 2, limited.stderr
+    assert "Traceback" not in limited.stderr, limited.stderr
+    (line,) = [x for x in limited.stderr.splitlines() if "export to" in x]
+    assert (
+        line.startswith(f"lit train: export to {export} failed (") and "folder was removed" in line
+    )
+    advice = f"`lit train --resume {final} --episodes 1 --export {export}` exports it"
+    assert advice in line, line
+    assert not export.exists()
+    again = subprocess.run(command, capture_output=True, text=True, timeout=300, check=False)
+    assert again.returncode == 0, again.stderr
+    tensor_files.read_tensor(export / "b_tensor.npy")
