@@ -122,8 +122,8 @@ def run(args: argparse.Namespace) -> int:
         if skipped.counts.get(reason)
     }  # fmt: skip
     if episodes_left_out:
-        print("  episodes left out: " + ", ".join(
-            f"{count} {reason}" for reason, count in episodes_left_out.items()))  # fmt: skip
+        print("  episodes left out: " + "; ".join(
+            f"{reason}: {count}" for reason, count in episodes_left_out.items()))  # fmt: skip
     print(f"  messages: {skipped.line()}")
     print(f"  psi_K decision interval {interval.value} ({interval.source})")
     for name, path in paths.items():
