@@ -178,8 +178,16 @@ def test_improvement_and_best_planner() -> None:
     )  # paper, RR-R4
     assert stats.improvement_percent(2.0, 2.5) == pytest.approx(-25.0)
     assert stats.improvement_percent(INF, 1.0) is None
-    medians = {"aitstar": (1.0, 0.2), "bitstar": (1.0, 0.1), "rrtconnect": (INF, 0.01)}
+    medians = {
+        "aitstar": (1.0, 0.2, 1.0),
+        "bitstar": (1.0, 0.1, 1.0),
+        "rrtconnect": (INF, 0.01, 1.0),
+    }
     assert stats.best_by_final_cost(medians) == "bitstar"  # tie on cost, faster first solution
+    # Neither solved half its runs: the one that solved more (it was the first listed: AIT* with
+    # 0 of 10 over RRT-Connect with 2 of 10).
+    failing = {"aitstar": (INF, INF, 0.0), "rrtconnect": (INF, INF, 0.2)}
+    assert stats.best_by_final_cost(failing) == "rrtconnect"
     assert stats.best_by_final_cost({}) is None
 
 
@@ -411,16 +419,41 @@ def test_summary_compares_the_same_queries_pairwise(tmp_path: Any) -> None:
     text = (tmp_path / "summary.md").read_text()
     assert "| scenario | queries | t_init ratio | t_init ⇑ (%) | c_init ratio |" in text
     assert f"| np4 | 8 | {report.fmt(expected, 3)} [" in text
-    assert "initial cost not worse): from the medians np4 (1 of 1); query by query at 99 %" in text
+    assert (
+        "initial cost not worse): from the medians (point estimates, without an interval) np4 "
+        "(1 of 1); query by query at 99 %"
+    ) in text
     assert "so jointly at least 98 %, per scenario) np4 (1 of 1)." in text
-    # With too few queries for an interval the verdict says so rather than "none" alone.
+    # With too few queries for an interval the verdict says so: it said "none (0 of 1), not
+    # testable on np4", which read as a negative finding.
     few = {"ratio": {"ci": None}}
     rows = {"np4": {"improvement_percent": {"t_init": 5.0, "c_init": 1.0},
                     "paired": {"t_init": few, "c_init": few}}}  # fmt: skip
     (verdict, _) = report._paper_range(rows)
     assert verdict.endswith(
-        "per scenario) none (0 of 1), not testable on np4 (too few queries for a 99 % interval)."
+        "; query by query at 99 % not testable on any scenario (too few queries that either "
+        "policy solved for a 99 % interval)."
     ), verdict
+    # A scenario without a pair (neither policy solved a query) is not testable either, and has
+    # its row in the table (it was left out of both, and counted as tested).
+    rows["np4"]["paired"] = pair
+    rows["rrd8"] = {"improvement_percent": {"t_init": None, "c_init": None}}
+    (verdict, _) = report._paper_range(rows)
+    assert verdict.endswith(
+        "per scenario) np4 (1 of 1), not testable on rrd8 (too few queries that either policy "
+        "solved for a 99 % interval)."
+    ), verdict
+    assert "| rrd8 | 0 | — | — | — | — |" in report._paired_table(rows)
+    # Decided on the values as printed: +4.60 and a bound of 0.954 are in the range.
+    rows = {"np4": {"improvement_percent": {"t_init": 4.5999, "c_init": -0.001}}}
+    assert (
+        "from the medians (point estimates, without an interval) np4 (1 of 1)"
+        in (report._paper_range(rows)[0])
+    )
+    edge = {"ratio": {"ci": {"lower": 0.9, "upper": 0.95449}}}
+    cost = {"ratio": {"ci": {"lower": 0.9, "upper": 1.0004}}}
+    rows["np4"]["paired"] = {"t_init": edge, "c_init": cost}
+    assert "per scenario) np4 (1 of 1)." in report._paper_range(rows)[0]
     # Not against the best OMPL planner (AIT* here): its seed does not fix its run.
     assert "paired" not in summary["comparisons"]["best_ompl"]["rows"]["np4"]
     # Records of other queries (another first seed for FIT*): no pairing, no table.
@@ -433,7 +466,7 @@ def test_summary_compares_the_same_queries_pairwise(tmp_path: Any) -> None:
     other = (tmp_path / "other" / "summary.md").read_text()
     assert "| scenario | queries |" not in other
     # Equal times (the fixture's 0.01 s): outside the paper's range; no paired part of the line.
-    assert "initial cost not worse): from the medians none (0 of 1)." in other
+    assert "from the medians (point estimates, without an interval) none (0 of 1)." in other
 
 
 def test_pairing_takes_the_common_queries_and_refuses_ambiguity(tmp_path: Any) -> None:

@@ -241,13 +241,15 @@ def improvement_percent(reference: float, candidate: float) -> float | None:
     return (reference - candidate) / reference * 100.0
 
 
-def best_by_final_cost(medians: dict[str, tuple[float, float]]) -> str | None:
-    """The planner with the lowest median final cost, ties broken by median t_init.
+def best_by_final_cost(medians: dict[str, tuple[float, float, float]]) -> str | None:
+    """The planner with the lowest median final cost, ties broken by median t_init, then by the
+    higher success rate (the medians of planners that solved fewer than half their runs are all
+    infinite: the success rate then decides).
 
     Args:
-        medians: ``planner -> (median c_final, median t_init)``; a remaining tie goes to the
-            planner listed first.
+        medians: ``planner -> (median c_final, median t_init, success rate)``; a remaining tie
+            goes to the planner listed first.
     """
     if not medians:
         return None
-    return min(medians, key=lambda name: medians[name])
+    return min(medians, key=lambda name: (medians[name][0], medians[name][1], -medians[name][2]))
