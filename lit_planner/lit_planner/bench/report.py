@@ -584,8 +584,9 @@ def markdown(summary: dict[str, Any]) -> str:
         ),
         (
             "- Times: every planner's clock starts after its setup(), at solve(). LIT*'s is its own "
-            "planning clock (it pauses only for an external policy, unused here; its first batch of "
-            "samples is inside it); the OMPL planners' is wall time. Every planner gets the same budget."
+            "planning clock, started once solve() has read the start and goal (microseconds; it "
+            "pauses only for an external policy, unused here; its first batch of samples is inside "
+            "it); the OMPL planners' is wall time. Every planner gets the same budget."
         ),
     ]
     watched = [
