@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -238,6 +239,33 @@ def test_lit_up_keeps_only_the_last_output_lines(tmp_path: Path) -> None:
     assert 5 <= len(child.lines) <= 10
     assert child.lines[-5:] == [str(i) for i in range(18, 23)]
     assert up.System(0, tmp_path, echo=None).keep_lines is None  # bounded runs keep all
+
+
+_INTERRUPTS_ITS_PARENT = """
+import os, signal, time
+def stop(*_):
+    os.kill(os.getppid(), signal.SIGINT)  # as a user's Ctrl-C while the nodes stop
+    os._exit(0)
+signal.signal(signal.SIGTERM, stop)
+print("ready", flush=True)
+time.sleep(60)
+"""
+
+
+def test_an_interrupt_while_the_nodes_stop_is_counted(tmp_path: Path) -> None:
+    """lit demo exited 0 after a Ctrl-C during its final stop (its work was done): the stop
+    counts the interrupts, and the demo exits 130 for them."""
+    from lit_planner import up
+
+    system = up.System(0, tmp_path, echo=None)
+    child = system.start("planner", [sys.executable, "-c", _INTERRUPTS_ITS_PARENT])
+    deadline = time.monotonic() + 60.0
+    while "ready" not in child.lines and child.process.poll() is None:
+        assert time.monotonic() < deadline, child.lines
+        time.sleep(0.05)
+    assert "ready" in child.lines, child.lines
+    assert system.stop() == {"planner": 0}
+    assert system.stop_interrupts == 1
 
 
 def test_lit_call_names_a_service_of_another_type() -> None:

@@ -247,7 +247,14 @@ def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
     codes = stop_once()
     wall = time.monotonic() - started
     budget = args.time if args.time is not None else scenario.time_budget
-    return _report(scenario, training, plans, codes, bag, wall, budget)
+    status = _report(scenario, training, plans, codes, bag, wall, budget)
+    if system.stop_interrupts:  # the work was done, the user still interrupted us (it said 0)
+        print(
+            "lit demo: interrupted while the nodes stopped (they stopped in order)",
+            file=sys.stderr,
+        )
+        return 130
+    return status
 
 
 def _quiet_echo(line: str) -> None:

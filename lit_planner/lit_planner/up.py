@@ -97,6 +97,9 @@ class System:
         self.cwd = cwd
         self.echo = echo
         self.children: dict[str, Child] = {}
+        self.stop_interrupts = 0
+        """Interrupts (Ctrl-C, SIGTERM) that came while :meth:`stop` ran: a caller whose work
+        was done by then still owes its user the exit status of an interrupted program."""
 
     def start(
         self,
@@ -176,6 +179,7 @@ class System:
         finally:
             for number, handler in previous.items():
                 signal.signal(number, handler)
+            self.stop_interrupts += interrupts[0]
 
     def _stop_all(self, interrupts: list[int]) -> dict[str, int | None]:
         codes: dict[str, int | None] = {}
