@@ -334,6 +334,9 @@ namespace lit
                                               "the start state is missing, out of bounds or in collision";
             return ompl::base::PlannerStatus::INVALID_START;
         }
+        if (notFinite > 0u)
+            OMPL_WARN("%s: left out %zu start state(s) with a coordinate that is not a finite number",
+                      getName().c_str(), notFinite);
         notFinite = 0u;
         // A goal state or set is read to its end through PlannerInputStates: nextGoal() answers null (with OMPL's
         // warning, once per state) for a goal out of bounds or in collision. Any other region (OMPL's GoalSpace,
@@ -405,6 +408,9 @@ namespace lit
                                               "the goal state is missing, out of bounds or in collision";
             return ompl::base::PlannerStatus::INVALID_GOAL;
         }
+        if (notFinite > 0u)
+            OMPL_WARN("%s: left out %zu goal state(s) with a coordinate that is not a finite number",
+                      getName().c_str(), notFinite);
         goalRead_ = goal;
 
         dimension_ = si_->getStateDimension();

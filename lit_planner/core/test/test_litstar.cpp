@@ -323,6 +323,28 @@ TEST(LITstar, InvalidStartOrGoalGivesAStatusNotACrash)
                   inStart ? ompl::base::PlannerStatus::INVALID_START : ompl::base::PlannerStatus::INVALID_GOAL);
         EXPECT_EQ(planner.statusMessage(), std::string("the ") + (inStart ? "start" : "goal") +
                                                " state has a coordinate that is not a finite number");
+        // Beside a usable one it is left out, with a warning.
+        ompl::base::ScopedState<> usable(si);
+        usable[0] = inStart ? -0.2 : 0.2;
+        usable[1] = 0.0;
+        if (inStart)
+            pdef->addStartState(usable);
+        else
+        {
+            auto goals = std::make_shared<ompl::base::GoalStates>(si);
+            goals->addState(goal);
+            goals->addState(usable);
+            pdef->setGoal(goals);
+        }
+        planner.clear();
+        const CapturedWarnings messages;
+        planner.setMaxIterations(10u);
+        planner.solve(ompl::base::plannerNonTerminatingCondition());
+        ASSERT_EQ(messages.warnings.size(), 1u);
+        EXPECT_NE(messages.warnings[0].find(std::string("left out 1 ") + (inStart ? "start" : "goal") +
+                                            " state(s) with a coordinate that is not a finite number"),
+                  std::string::npos)
+            << messages.warnings[0];
     }
     {
         BoxProblem problem = makeBoxProblem(world, {-0.2, 0.0}, {0.2, 0.0}, 1e-3);
