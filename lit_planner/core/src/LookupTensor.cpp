@@ -1,6 +1,7 @@
 #include "lit/LookupTensor.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -109,7 +110,8 @@ namespace lit
                 if (item.empty())
                     continue;
                 // Digits only, and few enough not to overflow (std::stoull would throw its own exception).
-                if (item.size() > 9u || !std::all_of(item.begin(), item.end(), ::isdigit))
+                if (item.size() > 9u ||
+                    !std::all_of(item.begin(), item.end(), [](unsigned char c) { return std::isdigit(c) != 0; }))
                     fail(path, "shape entry '" + (item.size() > 20u ? item.substr(0, 20) + "..." : item) +
                                    "' is not a whole number below 10^9");
                 shape.push_back(static_cast<std::size_t>(std::stoull(item)));
