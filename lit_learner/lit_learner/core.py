@@ -13,11 +13,9 @@ import copy
 import hashlib
 import os
 import random
-import shutil
-import tempfile
 import threading
-from collections.abc import Iterator, Mapping, Sequence
-from contextlib import AbstractContextManager, contextmanager, nullcontext
+from collections.abc import Mapping, Sequence
+from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -481,11 +479,18 @@ class LearnerCore:
             lit_planner.errors.TensorFileError: a tensor or sidecar failed validation.
             ExportError: a file could not be written (a full disk, say).
         """
+        from lit_planner.tensor_files import staged_folder
+
         directory = Path(directory)
-        with _staged(directory) as stage:
-            self._export_into(stage, provenance, agents, lock)
-            for name, content in (extra or {}).items():
-                (stage / name).write_bytes(content)
+        try:
+            with staged_folder(directory) as stage:
+                self._export_into(stage, provenance, agents, lock)
+                for name, content in (extra or {}).items():
+                    (stage / name).write_bytes(content)
+        except OSError as error:
+            raise ExportError(
+                f"export to {directory} failed ({error}); nothing of it was written there"
+            ) from None
         return {"checkpoint": directory / CHECKPOINT_FILE} | {
             name: directory / TENSOR_FILES[name] for name in agents
         }
@@ -536,35 +541,6 @@ class LearnerCore:
                 checkpoint_sha256=checkpoint_sha256,
                 provenance=provenance,
             )
-
-
-@contextmanager
-def _staged(directory: Path) -> Iterator[Path]:
-    """A staging folder inside ``directory`` (created if needed) whose files replace those of
-    the same names in ``directory``, one rename each, once the block has written them all. On
-    an error the staging folder goes, and ``directory`` too if it was created here.
-
-    Raises:
-        ExportError: a file could not be written or moved (OSError).
-    """
-    created = not directory.exists()
-    try:
-        directory.mkdir(parents=True, exist_ok=True)
-        stage = Path(tempfile.mkdtemp(prefix=".export-", dir=directory))
-    except OSError as error:
-        raise ExportError(f"export to {directory} failed: {error}") from None
-    try:
-        yield stage
-        for item in sorted(stage.iterdir()):
-            os.replace(item, directory / item.name)
-    except BaseException as error:
-        shutil.rmtree(directory if created else stage, ignore_errors=True)
-        if isinstance(error, OSError):
-            left = "the folder was removed" if created else "its files there are as they were"
-            raise ExportError(f"export to {directory} failed ({error}); {left}") from None
-        raise
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
 
 
 def _sha256(path: Path) -> str:

@@ -20,8 +20,12 @@ from __future__ import annotations
 import hashlib
 import itertools
 import math
+import os
+import shutil
+import tempfile
 import tokenize
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -285,6 +289,29 @@ def write_tensor(
         np.lib.format.write_array(stream, data, version=(1, 0), allow_pickle=False)
     side.write_text(text + "\n", encoding="utf-8")
     return sidecar
+
+
+@contextmanager
+def staged_folder(directory: Path) -> Iterator[Path]:
+    """A staging folder inside ``directory`` (created if needed) for files that replace those of
+    the same names in ``directory``, one rename each, once the block has written them all: a
+    reader of ``directory`` sees each file whole, and a block that fails (a full disk) leaves
+    nothing of itself. The staging folder goes in any case, and ``directory`` too on an error if
+    it was created here; the error goes on (OSError for a folder that cannot be made)."""
+    created = not directory.exists()
+    directory.mkdir(parents=True, exist_ok=True)
+    try:
+        stage = Path(tempfile.mkdtemp(prefix=".staged-", dir=directory))
+        try:
+            yield stage
+            for item in sorted(stage.iterdir()):
+                os.replace(item, directory / item.name)
+        finally:
+            shutil.rmtree(stage, ignore_errors=True)
+    except BaseException:
+        if created:
+            shutil.rmtree(directory, ignore_errors=True)
+        raise
 
 
 def read_sidecar(path_npy: str | Path) -> TensorSidecar:

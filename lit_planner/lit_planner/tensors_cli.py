@@ -293,31 +293,26 @@ def write_constant(
         for existing in (folder / name, tensor_files.sidecar_path(folder / name)):
             if existing.exists():
                 raise TensorFileError(f"{existing}: already there; choose another --out")
-    targets = {output: folder / planning.TENSOR_FILES[output] for output in values}
     created = datetime.now(UTC)
-    written: list[Path] = []
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        for output, path in targets.items():
-            stored = float(np.float32(values[output]))
-            provenance: dict[str, object] = {"constant": stored}
-            if command:
-                provenance["command"] = command
-            if output == "psi_K" and decision_interval is not None:
-                provenance["decision_interval"] = decision_interval
-            written += [path, tensor_files.sidecar_path(path)]
-            tensor_files.write_tensor(
-                path,
-                np.full(tensor_files.TENSOR_SHAPE, stored, dtype=tensor_files.TENSOR_DTYPE),
-                output,
-                provenance=provenance,
-                created=created,
-            )
+        with tensor_files.staged_folder(folder) as stage:  # all or nothing
+            for output, value in values.items():
+                stored = float(np.float32(value))
+                provenance: dict[str, object] = {"constant": stored}
+                if command:
+                    provenance["command"] = command
+                if output == "psi_K" and decision_interval is not None:
+                    provenance["decision_interval"] = decision_interval
+                tensor_files.write_tensor(
+                    stage / planning.TENSOR_FILES[output],
+                    np.full(tensor_files.TENSOR_SHAPE, stored, dtype=tensor_files.TENSOR_DTYPE),
+                    output,
+                    provenance=provenance,
+                    created=created,
+                )
     except OSError as error:
-        for path in written:
-            path.unlink(missing_ok=True)
         raise TensorFileError(f"{folder}: tensors not written: {error}") from error
-    return targets
+    return {output: folder / planning.TENSOR_FILES[output] for output in values}
 
 
 def _command() -> str:
