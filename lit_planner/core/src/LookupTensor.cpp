@@ -7,6 +7,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <optional>
 #include <regex>
 #include <sstream>
 
@@ -14,6 +15,16 @@ namespace lit
 {
     namespace
     {
+        /** \brief How an in-memory tensor's errors begin (load() replaces it by the file's name). */
+        constexpr const char *valuePrefix = "tensor: ";
+
+        /** \brief The grid index (i, j, k) of a flat index, as `lit tensors info` names it. */
+        std::string gridIndex(const std::array<std::size_t, 3> &shape, std::size_t flat)
+        {
+            return "(" + std::to_string(flat / (shape[1] * shape[2])) + ", " + std::to_string(flat / shape[2] % shape[1]) +
+                   ", " + std::to_string(flat % shape[2]) + ")";
+        }
+
         [[noreturn]] void fail(const std::string &path, const std::string &problem)
         {
             throw TensorError("tensor file '" + path + "': " + problem);
@@ -39,12 +50,12 @@ namespace lit
     {
         if (shape_[0] == 0u || shape_[1] == 0u || shape_[2] == 0u ||
             values_.size() != shape_[0] * shape_[1] * shape_[2])
-            throw TensorError("tensor: value count does not match the shape");
-        // Lookups would interpolate a NaN into B or psi_K (load() names the file and the index first).
+            throw TensorError(std::string(valuePrefix) + "value count does not match the shape");
+        // Lookups would interpolate a NaN into B or psi_K (load() adds the file's name).
         for (std::size_t i = 0; i < values_.size(); ++i)
             if (!std::isfinite(values_[i]))
-                throw TensorError("tensor: value " + std::to_string(values_[i]) + " at flat index " +
-                                  std::to_string(i) + " is not finite");
+                throw TensorError(std::string(valuePrefix) + "value " + std::to_string(values_[i]) + " at index " +
+                                  gridIndex(shape_, i) + " is not finite");
     }
 
     LookupTensor LookupTensor::load(const std::string &path, const TensorSpec &spec)
@@ -134,20 +145,22 @@ namespace lit
 
         std::vector<float> values(count);
         std::memcpy(values.data(), bytes.data() + dataOffset, count * sizeof(float));  // x86-64: little-endian
-        // The value and its grid index (i, j, k), as `lit tensors info` names them (the flat index read as a value).
-        const auto where = [&shape](std::size_t flat) {
-            return "(" + std::to_string(flat / (shape[1] * shape[2])) + ", " +
-                   std::to_string(flat / shape[2] % shape[1]) + ", " + std::to_string(flat % shape[2]) + ")";
-        };
-        for (std::size_t i = 0; i < count; ++i)
+        std::optional<LookupTensor> tensor;
+        try
         {
-            if (!std::isfinite(values[i]))
-                fail(path, "value " + std::to_string(values[i]) + " at index " + where(i) + " is not finite");
-            if (values[i] < spec.minValue - 1e-4 || values[i] > spec.maxValue + 1e-4)
-                fail(path, "value " + std::to_string(values[i]) + " at index " + where(i) + " is out of range [" +
-                               std::to_string(spec.minValue) + ", " + std::to_string(spec.maxValue) + "]");
+            tensor.emplace(std::array<std::size_t, 3>{shape[0], shape[1], shape[2]}, std::move(values));  // finite
         }
-        return LookupTensor({shape[0], shape[1], shape[2]}, std::move(values));
+        catch (const TensorError &error)
+        {
+            fail(path, std::string(error.what()).substr(std::strlen(valuePrefix)));
+        }
+        const std::vector<float> &stored = tensor->values_;
+        for (std::size_t i = 0; i < count; ++i)
+            if (stored[i] < spec.minValue - 1e-4 || stored[i] > spec.maxValue + 1e-4)
+                fail(path, "value " + std::to_string(stored[i]) + " at index " + gridIndex(tensor->shape_, i) +
+                               " is out of range [" + std::to_string(spec.minValue) + ", " +
+                               std::to_string(spec.maxValue) + "]");
+        return std::move(*tensor);
     }
 
     double LookupTensor::nearest(double x, double y, double z) const
