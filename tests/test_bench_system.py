@@ -82,6 +82,9 @@ def test_bench_records_same_seeds_and_valid_paths(
     assert sorted((r["planner"], r["run"], r["seed"]) for r in records) == sorted(
         (p, run, run + 1) for p in PLANNERS for run in (0, 1)
     )
+    # LIT* finds np4's first solution in a few ms of its own clock (which leaves out the time
+    # it is not running): the checks below are not left without a solved run.
+    assert any(r["solved"] for r in records if r["planner"] == "litstar-fixed")
     for record in records:
         assert record["instance"] == 0 and record["time_budget"] == pytest.approx(0.03)
         if record["solved"]:
@@ -167,7 +170,7 @@ def test_bench_times_lit_star_first_solutions_repeatedly(tmp_path: Path) -> None
         codec.loads("BenchRun", line)
         for line in (out / "runs.jsonl").read_text(encoding="utf-8").splitlines()
     ]
-    assert len(records) == 4
+    assert len(records) == 4 and any(record["solved"] for record in records)
     for record in filter(lambda record: record["solved"], records):
         runs = record["t_init_runs"]
         assert len(runs) == 3 and record["t_init"] == min(runs)

@@ -107,6 +107,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     plan.add_argument("--seed", type=int, help="seed (default: the planner node's)")
     plan.add_argument(
+        "--iterations",
+        type=int,
+        metavar="N",
+        help="LIT*: stop after N iterations (sent as max_iterations; without --time the query "
+        "stops on this alone, the same answer for the same seed)",
+    )
+    plan.add_argument(
+        "--batches", type=int, metavar="N", help="LIT*: stop after N batches (max_batches)"
+    )
+    plan.add_argument(
         "--start",
         type=_vector,
         help="override the start, e.g. 0.1,0.2,... (default: the scenario's or world's)",
@@ -507,6 +517,9 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
             value = getattr(args, key)
             if value is not None:
                 payload[key] = value
+        for option, key in (("iterations", "max_iterations"), ("batches", "max_batches")):
+            if getattr(args, option) is not None:  # the node refuses a value it cannot take
+                payload[key] = getattr(args, option)
         # An id of its own, for the cancel this call sends when it stops waiting.
         payload.setdefault("request_id", f"call-{uuid.uuid4().hex[:12]}")
         args.sent_request_id = payload["request_id"]

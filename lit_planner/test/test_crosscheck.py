@@ -96,12 +96,14 @@ def test_verdict_of_an_invalid_path_and_a_disagreement() -> None:
 
 
 def test_short_real_crosscheck_on_np4(tmp_path: Path) -> None:
-    """One run of each planner, short times; a huge tolerance: here only validity is judged. The
-    report goes into a folder that does not exist yet (it ended the run with a traceback)."""
+    """One run of each planner; a huge tolerance: here only validity is judged. (2 s each: OMPL
+    2.0.1's BIT* with its Python checker solves np4 in well under 0.5 s here, and must solve it
+    on a loaded machine too.) The report goes into a folder that does not exist yet (it ended the
+    run with a traceback)."""
     out = tmp_path / "new" / "crosscheck.json"
     process = subprocess.run(
         [sys.executable, "-m", "lit_planner.cli", "crosscheck", "--scenarios", "np4",
-         "--runs", "1", "--time", "0.5", "--tolerance", "100", "--json", str(out)],
+         "--runs", "1", "--time", "2", "--tolerance", "100", "--json", str(out)],
         capture_output=True, text=True, timeout=120, check=False,
     )  # fmt: skip
     assert process.returncode == 0, process.stdout + process.stderr

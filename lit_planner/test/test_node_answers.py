@@ -83,7 +83,7 @@ def test_a_cancel_copy_is_keyed_by_its_text_and_the_plans_queued_with_its_id() -
     assert _cancel_repeat_key(SimpleNamespace(load_namespace="not json"), generations) is None
 
 
-def test_a_count_limited_request_without_time_plans_for_at_most_the_longest_time() -> None:
+def test_a_count_limited_request_without_time_becomes_a_job_with_the_longest_time() -> None:
     """A plan request with max_iterations or max_batches and no `time` gets the schema's longest
     time (it had no limit: a large count kept the worker busy for good); one with a `time` keeps
     it, and one with neither gets the scenario's budget. The request-to-job rule alone, without a

@@ -91,7 +91,12 @@ def test_plan_json_tensor_policy(tmp_path: Path) -> None:
         "--tensors", str(tmp_path), "--interpolation", "nearest", "--iterations", "1500",
     )  # fmt: skip
     assert doc["policy"] == "tensor" and doc["scenario"] == "rrd4" and doc["instance"] == 0
-    assert all(d["policy"] == "tensor" for d in doc["decisions"])
+    batch_decisions = [d for d in doc["decisions"] if d["kind"] == "B"]
+    assert batch_decisions and all(d["policy"] == "tensor" for d in doc["decisions"])
+    b_values = tf.affine_test_tensor(*tf.AFFINE_TEST_COEFFICIENTS)
+    for decision in batch_decisions:  # B is rounded to a whole number of samples
+        x = (decision["rho_global"], decision["rho_local_b"], decision["measure"])
+        assert abs(decision["value"] - float(tf.lookup(b_values, x, "nearest"))) <= 0.5 + 1e-6
 
 
 def test_plan_summary_is_readable() -> None:

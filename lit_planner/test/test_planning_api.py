@@ -33,8 +33,8 @@ from lit_planner import tensor_files as tf
 ITERATIONS = 3000
 """LIT*'s iteration budget in these tests: a few milliseconds, enough to solve np4 and rrd4."""
 BASELINE_TIME = 1.0
-"""Wall-time budget of each OMPL baseline run: they solve np4 in 2-125 ms here, and np4's check
-that every one solves it must not fail on a loaded machine."""
+"""Wall-time budget of each OMPL baseline run: they solve np4 in 2-125 ms here (one that does not
+on a loaded machine gets 30 times as long once: the test judges solutions, not speed)."""
 K_TENSOR_COEFFICIENTS = (3.0, 4.0, 4.0, 4.0)
 """An affine psi_K tensor spanning 3..15, psi_K's range."""
 
@@ -253,7 +253,9 @@ def test_tensor_policy_nearest_interpolation(tmp_path: Path) -> None:
     k_values = tf.affine_test_tensor(*K_TENSOR_COEFFICIENTS)
     policy = make_policy("tensor", tmp_path, interpolation="nearest")
     result = plan("np4", policy=policy, max_iterations=ITERATIONS)
-    for decision in (d for d in result["decisions"] if d["kind"] == "psi_K"):
+    neighbour_decisions = [d for d in result["decisions"] if d["kind"] == "psi_K"]
+    assert neighbour_decisions
+    for decision in neighbour_decisions:
         x = (decision["rho_global"], decision["rho_local_k"], decision["measure"])
         assert decision["value"] == pytest.approx(float(tf.lookup(k_values, x, "nearest")))
 
@@ -486,6 +488,8 @@ def test_ompl_baselines_give_sound_paths(planner: str, name: str) -> None:
     assert result["planner"] == planner and result["policy"] is None
     assert result["iteration_init"] is None  # LIT*'s iterations only
     assert result["time_budget"] == BASELINE_TIME
+    if name == "np4" and not result["solved"]:  # a machine busy enough: time is not judged here
+        result = plan(name, planner, time=30 * BASELINE_TIME)
     assert result["counters"]["validity_checks"] > 0
     if name == "np4":  # every baseline solves np4 within a few ms; rrd4 may take longer
         assert result["solved"], result["status"]
