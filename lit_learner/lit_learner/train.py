@@ -215,6 +215,7 @@ def run_episode(
     effort_clock: float = 0.0,
     limit_terminates: bool = False,
     recording: Any = None,
+    learn: bool = True,
 ) -> EpisodeOutcome:
     """Plan one training query with the learner deciding, then close the episode.
 
@@ -227,6 +228,9 @@ def run_episode(
         decision_interval: psi_K is decided every this many expansions.
         b_tensor: ``lit_core.LookupTensor`` answering B in :data:`PHASE_K`.
         explore: exploration noise on (training) or off (evaluation).
+        learn: end the episode with its gradient steps (training); False stores its transitions
+            and leaves the steps pending (``core.close_episode``: an evaluation's next query sees
+            the same policy).
         time_budget: planner seconds; the scenario's budget when None.
         max_iterations: also end the query after this many LIT* iterations (0: no limit), a
             truncation as the budget's end is (unless ``limit_terminates``). With the default
@@ -366,7 +370,7 @@ def run_episode(
         and not limit_terminates
     )
     ended = time.perf_counter()
-    metrics = core.end_episode(
+    metrics = (core.end_episode if learn else core.close_episode)(
         EpisodeEnd(
             episode_id=episode_id,
             planning_time=(
@@ -470,7 +474,8 @@ def evaluate(
     iteration limit on the effort clock, makes the returns deterministic).
 
     The copy (saved to and loaded from ``scratch``) absorbs the evaluation's transitions and
-    updates, so evaluating never changes the learner being trained.
+    takes no gradient steps, so every query is answered by the policy being evaluated and
+    evaluating never changes the learner being trained.
     """
     outcomes = evaluate_outcomes(core, scenario, seeds, agent=agent, **options)
     return [float(outcome.metrics[f"charts/return_{agent}"]) for outcome in outcomes]
@@ -516,6 +521,7 @@ def evaluate_outcomes(
                 max_iterations=max_iterations,
                 effort_clock=effort_clock,
                 limit_terminates=limit_terminates,
+                learn=False,
             )
         )
     return outcomes

@@ -32,9 +32,13 @@ def test_memberships_at_the_centres(x: float, expected: tuple[float, float, floa
 
 
 def test_state_is_feature_major() -> None:
-    mu = fuzzify(torch.tensor([0.0, 0.5, 1.0], dtype=torch.float64))
+    """(g_low, g_mid, g_high, l_low, ..., m_high): with three different inputs every entry is
+    one of its own (a set-major order passes a test whose inputs sit on the diagonal)."""
+    x = (0.0, 0.25, 1.0)
+    mu = fuzzify(torch.tensor(x, dtype=torch.float64))
     assert mu.shape == (9,)
-    assert mu[0] == 1.0 and mu[4] == 1.0 and mu[8] == 1.0  # g_low, l_mid, m_high
+    expected = [gauss(value - centre) for value in x for centre in (0.0, 0.5, 1.0)]
+    assert mu.tolist() == pytest.approx(expected, rel=1e-12)
 
 
 def test_neighbours_cross_half_way_between_centres() -> None:

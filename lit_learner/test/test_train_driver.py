@@ -289,6 +289,26 @@ def test_training_moves_the_b_policy_towards_higher_value_on_np4(tmp_path: Path)
     assert moved > 0.5  # at least half a unit of B somewhere on the visited states
 
 
+def test_evaluation_answers_every_query_with_the_same_policy(tmp_path: Path) -> None:
+    """An evaluation's episodes take no gradient steps: a query evaluated again after another
+    one, with the B agent past its warm-up, gets the same actions and return (the copy trained
+    on each episode it evaluated, so later queries saw another actor)."""
+    from lit_learner.core import LearnerCore
+
+    core = LearnerCore(small_config(seed=1))
+    for index in range(3):  # enough transitions for the copy to train at each episode's end
+        spec = train.EpisodeSpec(index, "np4", 0, train.TRAINING_SEEDS[0] + 200 + index)
+        train.run_episode(core, spec, train.PHASE_B, f"warm-{index}")
+    assert core.agents["B"].transitions >= core.agents["B"].config.warmup
+    seed = train.TRAINING_SEEDS[0] + 7
+    first, other, again = train.evaluate_outcomes(
+        core, "np4", [seed, seed + 1, seed], time_budget=10_000.0, max_iterations=1500,
+        scratch=tmp_path / "scratch",
+    )  # fmt: skip
+    assert first.actions["B"] and other.actions["B"] != first.actions["B"]
+    assert again.actions == first.actions and again.metrics == first.metrics
+
+
 def test_an_iteration_limit_under_a_large_budget_gives_noise_free_returns(tmp_path: Path) -> None:
     """Episodes that end on LIT*'s iterations, with a budget far above their planner time, have
     every reward's time term at its floor: the same greedy policy earns the same return twice,
