@@ -36,7 +36,7 @@ from ros_helpers import (
     session_members,
 )
 
-from lit_planner import planning, scenarios
+from lit_planner import planning, scenarios, tensor_files
 
 NODE_START = 120.0
 """Seconds a node may take to log ``ready:`` (the learner imports torch)."""
@@ -1447,6 +1447,47 @@ def test_learner_stats_wait_for_their_subscribers(ros: RosSystem) -> None:
     assert first["/eager/lit_learner"] > 0, first
     assert "stats: 1 subscribers on /lit/learner/stats; publishing" in waiting.text()
     _no_traceback(waiting, eager)
+
+
+def test_the_learner_exports_on_request_and_after_max_episodes(
+    ros: RosSystem, tmp_path: Path
+) -> None:
+    """`lit call export`: a folder that cannot be written is answered with success false and its
+    reason (exit 1), the learner going on; once it can be, both tensors are written with the
+    node's provenance (an untrained learner's too), and the answer names them. With
+    max_episodes the learner exports by itself once that many training episodes ended."""
+    exports = tmp_path / "exports"
+    exports.write_text("a file where the export folder should be", encoding="utf-8")
+    learner = ros.learner(export_dir=str(exports), max_episodes=2)
+    _ready(learner)
+    result = ros.call("export")
+    assert result.returncode == 1, result
+    assert result.stdout.startswith("export failed:") and str(exports) in result.stdout, result
+    decided = ros.call("--payload-only", "decide", "--agent", "B", "--measure", "0.3")
+    assert decided.returncode == 0 and math.isfinite(decided.json()["value"]), decided
+
+    exports.unlink()
+    result = ros.call("export")
+    assert result.returncode == 0, result
+    paths = json.loads(result.stdout)
+    assert set(paths) == {"B", "psi_K", "checkpoint"}, paths
+    for key, name in (("B", "b_tensor.npy"), ("psi_K", "k_tensor.npy")):
+        assert Path(paths[key]) == exports / name, paths
+        values, sidecar = tensor_files.read_tensor(exports / name)
+        assert values.shape == (101, 101, 101)
+        assert sidecar.provenance["reason"] == "request", sidecar.provenance
+        assert sidecar.provenance["episodes"] == 0, sidecar.provenance
+
+    planner = ros.planner(episodes=2, exit_when_done=True, **TRAINING)
+    assert planner.wait(timeout=300.0) == 0, planner.tail()
+    learner.wait_for_log(r"exported tensors to .* \(end of training\)", timeout=300.0)
+    for name in ("b_tensor.npy", "k_tensor.npy"):
+        _, sidecar = tensor_files.read_tensor(exports / name)
+        assert sidecar.provenance["reason"] == "end of training", sidecar.provenance
+        assert sidecar.provenance["episodes"] >= 2, sidecar.provenance
+        assert sidecar.provenance["planners"] == ["/lit_planner"], sidecar.provenance
+    assert learner.running()
+    _no_traceback(planner, learner)
 
 
 def test_a_learner_shutting_down_answers_unavailable(ros: RosSystem) -> None:

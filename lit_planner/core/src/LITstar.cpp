@@ -297,6 +297,7 @@ namespace lit
         warnedUnusableFactor_ = false;
         warnedReplacedGoal_ = false;
         goalRead_.reset();
+        goalsSampled_ = false;
     }
 
     ompl::base::PlannerStatus LITstar::initializeProblem(const ompl::base::PlannerTerminationCondition &ptc)
@@ -377,6 +378,7 @@ namespace lit
                     return ompl::base::PlannerStatus::INVALID_GOAL;
                 }
             }
+            goalsSampled_ = goal->hasType(ompl::base::GOAL_LAZY_SAMPLES);  // it may grow after this read
             const std::size_t members = sampleable->maxSampleCount();
             for (std::size_t read = goals.size(); read < members && pis_.haveMoreGoalStates(); ++read)
                 if (const ompl::base::State *g = pis_.nextGoal())
@@ -384,6 +386,7 @@ namespace lit
         }
         else
         {
+            goalsSampled_ = true;
             const auto *region = goal->as<ompl::base::GoalSampleableRegion>();
             const std::size_t limit = std::min<std::size_t>(region->maxSampleCount(), MAX_GOAL_SAMPLES);
             std::size_t draws = 0u;
@@ -512,6 +515,11 @@ namespace lit
                 iterate();
             }
         }
+        if (goalsSampled_ && atStraightLineBound())
+            OMPL_INFORM("%s: stopped at the straight line to the nearest of its %zu goal samples; the goal is a region "
+                        "(or a growing goal set) sampled once when the problem was read, so a better goal of it may "
+                        "exist",
+                        getName().c_str(), graph_->goals().size());
         if (std::isfinite(bestCost_) && !pdef_->hasExactSolution())
             addBestPathToProblem();  // the caller cleared the solutions since this planner found its best path
         if (!std::isfinite(bestCost_))  // OMPL calls every stop without a solution a timeout: say which it was
@@ -534,12 +542,17 @@ namespace lit
         return (ptc_ != nullptr && (*ptc_)()) || (timeBudget_ > 0.0 && planningTime() >= timeBudget_);
     }
 
+    bool LITstar::atStraightLineBound() const
+    {
+        // Within rounding of the straight line (Eigen's norm and OMPL's distance may differ in the last bits).
+        return std::isfinite(bestCost_) && bestCost_ <= graph_->sampler().minimumCost() * (1.0 + 1e-12);
+    }
+
     bool LITstar::solutionCannotImprove() const
     {
         if (!std::isfinite(bestCost_))
             return false;
-        // Within rounding of the straight line (Eigen's norm and OMPL's distance may differ in the last bits).
-        if (bestCost_ <= graph_->sampler().minimumCost() * (1.0 + 1e-12))
+        if (atStraightLineBound())
             return true;
         const auto &objective = pdef_->getOptimizationObjective();
         return objective && objective->isSatisfied(ompl::base::Cost(bestCost_));

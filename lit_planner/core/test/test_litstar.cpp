@@ -20,6 +20,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -1095,6 +1096,59 @@ TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
         EXPECT_GE(path.back()[i], 0.15);
         EXPECT_LE(path.back()[i], 0.25);
     }
+}
+
+TEST(LITstar, AStopAtTheStraightLineToGoalSamplesSaysTheRegionMayHoldABetterGoal)
+{
+    // An empty R^8 with a goal region x0 in [0.3, 0.45]: the straight line to the nearest of its 100 samples is free,
+    // so LIT* stops at once, though the region's nearest point (0.7 away) is nearer than any sample. It says so
+    // (it stopped as if no better path existed); a single goal state reached in a straight line does not.
+    struct Messages : ompl::msg::OutputHandler
+    {
+        std::vector<std::string> lines;
+        void log(const std::string &text, ompl::msg::LogLevel, const char *, int) override
+        {
+            lines.push_back(text);
+        }
+    };
+    const auto said = [](const Messages &messages)
+    {
+        return std::count_if(messages.lines.begin(), messages.lines.end(), [](const std::string &text)
+                             { return text.find("so a better goal of it may exist") != std::string::npos; });
+    };
+    const ompl::msg::LogLevel level = ompl::msg::getLogLevel();
+    ompl::msg::setLogLevel(ompl::msg::LOG_INFO);
+    BoxWorld world;
+    world.lower.assign(8, -0.5);
+    world.upper.assign(8, 0.5);
+    std::vector<double> start(8, 0.0), goal(8, 0.0);
+    start[0] = -0.4;
+    goal[0] = 0.3;
+    for (const bool region : {true, false})
+    {
+        BoxProblem problem = makeBoxProblem(world, start, goal, 1e-3);
+        if (region)
+        {
+            auto space = std::make_shared<ompl::base::GoalSpace>(problem.si);
+            auto box = std::make_shared<ompl::base::RealVectorStateSpace>(8);
+            ompl::base::RealVectorBounds bounds(8);
+            bounds.setLow(-0.45);
+            bounds.setHigh(0.45);
+            bounds.setLow(0, 0.3);
+            box->setBounds(bounds);
+            space->setSpace(box);
+            problem.pdef->setGoal(space);
+        }
+        Messages messages;
+        ompl::msg::useOutputHandler(&messages);
+        auto planner = batchLimited(problem, 30u);
+        const ompl::base::PlannerStatus status = planner->solve(ompl::base::plannerNonTerminatingCondition());
+        ompl::msg::restorePreviousOutputHandler();
+        EXPECT_EQ(status, ompl::base::PlannerStatus::EXACT_SOLUTION);
+        EXPECT_EQ(planner->counters().batches, 0u);  // stopped at the straight line
+        EXPECT_EQ(said(messages), region ? 1 : 0) << (region ? "goal region" : "goal state");
+    }
+    ompl::msg::setLogLevel(level);
 }
 
 TEST(LITstar, ParametersOutsideTheirRangeAreRefused)

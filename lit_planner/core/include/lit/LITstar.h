@@ -160,6 +160,8 @@ namespace lit
         /** \brief No better solution exists: the best cost reached the straight-line lower bound, or the
          *  objective's cost threshold is met. */
         bool solutionCannotImprove() const;
+        /** \brief The best cost is the straight line of the nearest start-goal pair (within rounding). */
+        bool atStraightLineBound() const;
         bool continueReverseSearch() const;
         bool continueForwardSearch() const;
         void reverseStep();
@@ -298,6 +300,9 @@ namespace lit
         /** \brief The goal read when the problem was initialised, and whether its replacement was warned about. */
         std::weak_ptr<ompl::base::Goal> goalRead_;
         bool warnedReplacedGoal_{false};
+        /** \brief The goals are samples of a region (or what a growing goal set held at the start), not the whole goal:
+         *  the straight line to the nearest of them bounds the cost to those samples only. */
+        bool goalsSampled_{false};
         bool warnedUnusableFactor_{false};
         std::size_t currentK_{1u};
         std::size_t improvements_{0u};
