@@ -540,8 +540,10 @@ def bad_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     }
 
 
-@pytest.mark.parametrize("command", ["info", "verify", "bench", "salvage"])
-def test_bad_input_is_one_line_exit_2(command: str, bad_inputs: dict[str, Path]) -> None:
+@pytest.mark.parametrize("command", ["info", "verify", "bench", "salvage", "tensors"])
+def test_bad_input_is_one_line_exit_2(
+    command: str, bad_inputs: dict[str, Path], tmp_path: Path
+) -> None:
     expected = {
         "missing": "no such file or directory",
         "empty directory": "empty directory",
@@ -551,7 +553,10 @@ def test_bad_input_is_one_line_exit_2(command: str, bad_inputs: dict[str, Path])
         "not a bag": "not an MCAP file" if command == "salvage" else "is not a bag",
     }
     for case, path in bad_inputs.items():
-        result = _replay(command, path)
+        out = tmp_path / f"tensors-{case}"
+        result = _replay(command, path, *(["--out", out] if command == "tensors" else []))
+        if command == "tensors":
+            assert not out.exists(), f"{case}: {sorted(out.iterdir())}"  # nothing half-written
         if (command, case) == ("salvage", "bit flip"):
             # The header's damaged length stops the reading at once; the summary's chunk index
             # gives every chunk.

@@ -251,6 +251,21 @@ def test_the_planner_node_uses_its_tensors_as_trained_and_sees_them_change(
     error = result.json()
     assert "k_tensor.npy" in error["message"] and "not finite" in error["message"], error
     assert error["code"] == "unavailable", error  # the file's fault: not "internal"
+    # Cut short (a copy that stopped half-way), then whole again but not the data its sidecar's
+    # SHA-256 names: each answered with an Error naming the file and the defect.
+    whole = (folder / "k_tensor.npy").read_bytes()
+    (folder / "k_tensor.npy").write_bytes(whole[: len(whole) // 2])
+    result = plan()
+    assert result.returncode == 1 and result.json()["code"] == "unavailable", result
+    assert "k_tensor.npy" in result.json()["message"], result
+    assert "data holds 2060538 bytes, expected 4121204" in result.json()["message"], result
+    changed = values.copy()
+    changed[5, 5, 5] = 7.0  # finite, in range: only the hash can tell
+    np.save(folder / "k_tensor.npy", changed)
+    result = plan()
+    assert result.returncode == 1 and result.json()["code"] == "unavailable", result
+    assert "k_tensor.npy" in result.json()["message"], result
+    assert "SHA-256" in result.json()["message"], result
     np.save(folder / "k_tensor.npy", values)
     result = plan()
     assert result.returncode == 0 and result.json()["solved"] is True, result
@@ -954,6 +969,10 @@ FREE_SQUARE = {
 TOO_FINE = {**FREE_SQUARE["world"], "resolution": 1e-10}
 PLAN = "/lit/planner/plan"
 DECIDE = "/lit/learner/decide"
+CANCEL = "/lit/planner/cancel"
+EPISODE_END = {"episode_id": "bad-input", "planning_time": 0.3, "time_budget": 1.0, "cost": None,
+               "minimum_cost": 1.0, "improvements": 0, "path_states": 0, "truncated": False,
+               "fallback_decisions": 0}  # fmt: skip
 OVERSIZE = ('{"text": "' + "x" * (MAX_MESSAGE_BYTES + 16) + '"}').encode()
 BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
     # (case, lit call arguments, standard input, code, field, words of the message)
@@ -1034,6 +1053,54 @@ BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
         "invalid-request",
         "$.payload.start",
         "start is in collision",
+    ),
+    (
+        "plan: goal inside an obstacle",
+        ["plan", "--scenario", "np4", "--goal", "0,0.3,0,0"],
+        None,
+        "invalid-request",
+        "$.payload.goal",
+        "goal is in collision",
+    ),
+    (
+        "plan: goal out of bounds",
+        ["plan", "--scenario", "np4", "--goal", "0.7,0,0,0"],
+        None,
+        "invalid-request",
+        "$.payload.goal",
+        "goal is out of bounds",
+    ),
+    (
+        "cancel: version 2",
+        ["raw", CANCEL, json.dumps(_envelope("CancelRequest", {"request_id": "a"}, version=2))],
+        None,
+        "version",
+        "$.version",
+        "got version 2",
+    ),
+    (
+        "cancel: payload violates the schema",
+        ["raw", CANCEL, _bad_payload("CancelRequest", {"request_id": "a"}, request_id="")],
+        None,
+        "payload",
+        "$.payload.request_id",
+        "should be non-empty",
+    ),
+    (
+        "episode end: version 3",
+        ["raw", DECIDE, json.dumps(_envelope("EpisodeEnd", EPISODE_END, version=3))],
+        None,
+        "version",
+        "$.version",
+        "got version 3 of EpisodeEnd",
+    ),
+    (
+        "episode end: payload violates the schema",
+        ["raw", DECIDE, _bad_payload("EpisodeEnd", EPISODE_END, improvements=-1)],
+        None,
+        "payload",
+        "$.payload.improvements",
+        "-1",
     ),
     (
         "plan: start of the wrong dimension",
