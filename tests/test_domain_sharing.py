@@ -5,12 +5,12 @@ notices another server of its service (nodes started without a launcher)."""
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import pytest
+from lit_planner.testing import run_watched
 from lit_planner.up import DomainBusy, claim_domain
 from ros_helpers import launcher_domain, reserve_domain
 
@@ -32,11 +32,11 @@ def test_launchers_refuse_a_domain_another_launcher_holds(
     domain, claim = reserve_domain()  # held as lit test holds its domains, as a launcher would
     assert claim is not None, "no free test domain"
     try:
-        process = subprocess.run(
+        process = run_watched(
             [sys.executable, "-m", "lit_planner.cli", *command, "--domain-id", str(domain)],
             cwd=tmp_path,
             env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
-            capture_output=True, text=True, timeout=120, check=False,
+            timeout=120,
         )  # fmt: skip
         assert process.returncode == 2, process.stdout + process.stderr
         holder = f"in use on this host by lit test (pid {os.getpid()}, since "

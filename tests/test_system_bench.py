@@ -11,19 +11,26 @@ import subprocess
 import sys
 import time
 
-from lit_planner.testing import descendants, read_until
+from lit_planner.testing import (
+    descendants,
+    identify,
+    kill_identified,
+    read_until,
+    run_watched,
+    still_running,
+)
 from ros_helpers import launcher_domain
 
 
 def test_system_bench_prints_all_three_measurements() -> None:
     domain = launcher_domain()
-    process = subprocess.run(
+    process = run_watched(
         [
             sys.executable, "-m", "lit_planner.cli", "system-bench", "--episodes", "2",
             "--calls", "30", "--kills", "1", "--budget", "0.2", "--domain-id", str(domain),
         ],
         env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
-        capture_output=True, text=True, timeout=600, check=False,
+        timeout=600,
     )  # fmt: skip
     assert process.returncode == 0, process.stdout[-2000:] + process.stderr[-2000:]
     out = process.stdout
@@ -36,26 +43,18 @@ def test_system_bench_prints_all_three_measurements() -> None:
     assert "kill 1:" in out and "median" in out
 
 
-def _alive(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat", encoding="utf-8") as stat:
-            return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
-
-
 def test_parts_switched_off_and_ctrl_c_stops_every_child() -> None:
     """``--episodes 0 --kills 0`` measures only the round trips (0 episodes used to wait for a
     planner that serves forever); Ctrl-C ends the run with 130 and stops every process it began."""
-    rejected = subprocess.run(
+    rejected = run_watched(
         [sys.executable, "-m", "lit_planner.cli", "system-bench", "--episodes", "-1"],
-        capture_output=True, text=True, timeout=60, check=False,
+        timeout=60,
     )  # fmt: skip
     assert rejected.returncode == 2 and "must be 0 or more, not -1" in rejected.stderr
-    nothing = subprocess.run(
+    nothing = run_watched(
         [sys.executable, "-m", "lit_planner.cli", "system-bench", "--episodes", "0", "--calls", "0",
          "--kills", "0"],
-        capture_output=True, text=True, timeout=60, check=False,
+        timeout=60,
     )  # fmt: skip
     assert nothing.returncode == 2 and "nothing to measure" in nothing.stderr
     domain = launcher_domain()
@@ -67,29 +66,27 @@ def test_parts_switched_off_and_ctrl_c_stops_every_child() -> None:
         env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
-    children: set[int] = set()
+    children: set[tuple[int, int | None]] = set()
     try:
         assert process.stdout is not None
         assert len(read_until(process.stdout, "## Decide round trip")) == 1  # its first line
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:  # learner, echo and the `lit call` client all up
-            children = descendants(process.pid)
+            children = identify(descendants(process.pid))
             if len(children) >= 3:
                 break
             time.sleep(0.2)
         time.sleep(1.0)
-        children = descendants(process.pid)
+        children = identify(descendants(process.pid))
         assert len(children) >= 3, children
         process.send_signal(signal.SIGINT)
         out, err = process.communicate(timeout=120)
         assert process.returncode == 130, out + err
         assert "lit system-bench: interrupted" in err
         assert "Planning throughput" not in out and "dead learner" not in out
-        assert not [pid for pid in children if _alive(pid)]
+        assert not still_running(children)
     finally:
         if process.poll() is None:
             process.kill()
             process.wait()
-        for pid in children:
-            if _alive(pid):
-                os.kill(pid, signal.SIGKILL)
+        kill_identified(children)  # by PID, and only the processes seen (a PID may be reused)

@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 import pytest
-from lit_planner.testing import DescendantWatch, handles_signal, read_until
+from lit_planner.testing import DescendantWatch, handles_signal, read_until, run_watched
 from ros_helpers import launcher_domain
 
 
@@ -69,13 +69,13 @@ def test_bad_options_start_nothing(tmp_path: Path, options: list[str], message: 
     (tmp_path / "bag").mkdir()
     named = {"EXISTING": tmp_path / "bag", "NEW": tmp_path / "new-bag"}
     options = [str(named[o]) if o in named else o for o in options]
-    process = subprocess.run(
+    process = run_watched(
         # A free domain: should a regression start lit up, it starts on a domain of its own.
         [sys.executable, "-m", "lit_planner.cli", "up", "--domain-id", str(launcher_domain()),
          *options],
         cwd=tmp_path,
         env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
-        capture_output=True, text=True, timeout=120, check=False,
+        timeout=120,
     )  # fmt: skip
     assert process.returncode == 2, process.stdout + process.stderr
     assert message in process.stderr and "Traceback" not in process.stderr
@@ -114,13 +114,13 @@ def test_bad_options_start_nothing(tmp_path: Path, options: list[str], message: 
 def test_demo_and_call_refuse_bad_options_before_starting(
     tmp_path: Path, command: list[str], message: str
 ) -> None:
-    process = subprocess.run(
+    process = run_watched(
         [sys.executable, "-m", "lit_planner.cli", *command],
         cwd=tmp_path,
         env=dict(
             os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(launcher_domain())
         ),
-        capture_output=True, text=True, timeout=120, check=False,
+        timeout=120,
     )  # fmt: skip
     assert process.returncode == 2, process.stdout + process.stderr
     assert message in process.stderr and "Traceback" not in process.stderr
@@ -143,11 +143,11 @@ def test_a_bad_ros_domain_id_in_the_environment_is_named(
     the launcher with one line (it used to be a traceback from building the options, or Fast DDS
     errors from every process)."""
     for value, message in (("abc", "not a whole number: 'abc'"), ("500", "500 is not a ROS")):
-        process = subprocess.run(
+        process = run_watched(
             [sys.executable, "-m", "lit_planner.cli", *command],
             cwd=tmp_path,
             env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=value),
-            capture_output=True, text=True, timeout=120, check=False,
+            timeout=120,
         )  # fmt: skip
         assert process.returncode == 2, process.stdout + process.stderr
         assert f"$ROS_DOMAIN_ID: {message}" in process.stderr

@@ -4,7 +4,6 @@ running. Real processes: a launcher script and a child that takes its time over 
 
 from __future__ import annotations
 
-import contextlib
 import os
 import re
 import signal
@@ -15,7 +14,7 @@ import time
 from pathlib import Path
 from typing import IO
 
-from lit_planner.testing import read_until
+from lit_planner.testing import ProcessIdentity, identify, kill_identified, read_until
 
 LAUNCHER = textwrap.dedent(
     """
@@ -70,6 +69,7 @@ class _Launcher:
             start_new_session=True,
         )  # fmt: skip
         self.child_pid: int | None = None
+        self.child: set[ProcessIdentity] = set()
 
     def stopping(self) -> None:
         lines = _read_until(self.process.stdout, "child pid")
@@ -79,6 +79,7 @@ class _Launcher:
         found = re.search(r"child pid (\d+)", lines[-1])
         assert found, lines
         self.child_pid = int(found.group(1))
+        self.child = identify([self.child_pid])  # running now: its start time tells it apart
         _read_until(self.process.stdout, "child: stopping slowly")  # stop() sent SIGTERM
 
     def killed_everything(self) -> list[str]:
@@ -94,9 +95,7 @@ class _Launcher:
         if self.process.poll() is None:
             self.process.kill()
         self.process.wait(timeout=60)
-        if self.child_pid is not None and not _gone(self.child_pid, timeout=0.0):
-            with contextlib.suppress(ProcessLookupError):  # it may end meanwhile
-                os.kill(self.child_pid, signal.SIGKILL)  # the launcher left it behind
+        kill_identified(self.child)  # if the launcher left it behind (and no other took its PID)
 
 
 def test_interrupts_during_stop_wait_then_kill(tmp_path: Path) -> None:

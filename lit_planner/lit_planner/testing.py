@@ -23,7 +23,7 @@ import subprocess
 import sys
 import tempfile
 import threading
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
@@ -127,6 +127,30 @@ def descendants(pid: int) -> set[int]:
     return found
 
 
+ProcessIdentity = tuple[int, int | None]
+"""A process as (PID, start time): a PID reused by another process no longer matches."""
+
+
+def identify(pids: Iterable[int]) -> set[ProcessIdentity]:
+    """The identities of ``pids`` now (a process already gone gets start time None)."""
+    return {(pid, _start_time(pid)) for pid in pids}
+
+
+def still_running(identities: Iterable[ProcessIdentity]) -> list[int]:
+    """PIDs of the identified processes that still run (the same process: its start time is
+    unchanged; a zombie has ended)."""
+    return sorted(pid for pid, start in identities if start and _start_time(pid) == start)
+
+
+def kill_identified(identities: Iterable[ProcessIdentity]) -> None:
+    """SIGKILL the identified processes that still run, and no process that took a PID over."""
+    for pid in still_running(identities):
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:  # it ended meanwhile
+            pass
+
+
 class DescendantWatch:
     """Every process ``pid`` started, directly or not, while it ran (polled from /proc on a
     thread): the nodes a launcher starts in sessions of their own, which ``os.killpg`` of the
@@ -135,7 +159,7 @@ class DescendantWatch:
 
     def __init__(self, pid: int, interval: float = 0.1) -> None:
         self.pid = pid
-        self.seen: set[tuple[int, int | None]] = set()
+        self.seen: set[ProcessIdentity] = set()
         """(PID, start time) of every descendant seen."""
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._poll, args=(interval,), daemon=True)
@@ -143,7 +167,7 @@ class DescendantWatch:
 
     def _poll(self, interval: float) -> None:
         while not self._stop.is_set():
-            self.seen |= {(child, _start_time(child)) for child in descendants(self.pid)}
+            self.seen |= identify(descendants(self.pid))
             self._stop.wait(interval)
 
     def stop(self) -> None:
@@ -153,14 +177,43 @@ class DescendantWatch:
     def alive(self) -> list[int]:
         """Processes seen that still run (the same process: its start time is unchanged)."""
         self.stop()
-        return sorted(pid for pid, start in self.seen if start and _start_time(pid) == start)
+        return still_running(self.seen)
 
     def kill(self) -> None:
-        for pid in self.alive():
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
+        self.stop()
+        kill_identified(self.seen)
+
+
+def run_watched(
+    args: Sequence[str], *, timeout: float, **options: object
+) -> subprocess.CompletedProcess[str]:
+    """``subprocess.run(args, capture_output=True, text=True, timeout=timeout, **options)`` that
+    also ends whatever the command started, even in sessions of their own (ROS nodes that a
+    launcher should not have started, or left behind): every descendant seen while it ran is
+    SIGKILLed by PID afterwards, as is the command if it outlived ``timeout`` (then
+    TimeoutExpired, as from ``subprocess.run``). The output goes through files, so a process
+    left behind that holds them open does not keep this waiting."""
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        process = subprocess.Popen(
+            args,
+            stdout=out,
+            stderr=err,
+            start_new_session=True,
+            **options,  # type: ignore[call-overload]
+        )
+        watch = DescendantWatch(process.pid)
+        try:
+            code = process.wait(timeout=timeout)
+        finally:
+            if process.poll() is None:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait()
+            watch.kill()
+        texts = []
+        for stream in (out, err):
+            stream.seek(0)
+            texts.append(stream.read().decode("utf-8", errors="replace"))
+    return subprocess.CompletedProcess(args, code, *texts)
 
 
 def read_until(stream: IO[str], text: str, timeout: float = 120.0) -> list[str]:

@@ -3,7 +3,6 @@ SIGKILLed (it runs no clean-up then)."""
 
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import sys
@@ -11,6 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
+from lit_planner.testing import ProcessIdentity, identify, kill_identified, still_running
 
 SCRIPT = """
 import multiprocessing, os, signal, sys
@@ -31,17 +31,9 @@ if __name__ == "__main__":
 """
 
 
-def _alive(pid: int) -> bool:
-    """Whether ``pid`` runs (a zombie waiting for a reaper does not)."""
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except (FileNotFoundError, IndexError):
-        return False
-    return state not in ("Z", "X")
-
-
-def _workers_after_sigkill(mode: str, tmp_path: Path) -> list[int]:
-    """Start the script, which SIGKILLs itself with its pool's workers idle; their PIDs."""
+def _workers_after_sigkill(mode: str, tmp_path: Path) -> set[ProcessIdentity]:
+    """Start the script, which SIGKILLs itself with its pool's workers idle; the workers'
+    identities (PID and start time: a PID reused later is not taken for a worker)."""
     script, pid_file, log = tmp_path / "pool.py", tmp_path / "pids", tmp_path / "log"
     script.write_text(SCRIPT)
     with log.open("wb") as output:  # a file: orphaned workers would hold a pipe open
@@ -53,41 +45,37 @@ def _workers_after_sigkill(mode: str, tmp_path: Path) -> list[int]:
             timeout=120,
         ).returncode
     pids = [int(pid) for pid in pid_file.read_text().split()] if pid_file.exists() else []
+    workers = identify(pids)
     if code != -signal.SIGKILL or not pids:
-        _end(pids)  # the workers it did start do not outlive the failure
+        kill_identified(workers)  # the workers it did start do not outlive the failure
         raise AssertionError(f"exit {code}, workers {pids}:\n{log.read_text()}")
-    return pids
+    return workers
 
 
-def _wait_gone(pids: list[int], timeout: float) -> list[int]:
+def _wait_gone(workers: set[ProcessIdentity], timeout: float) -> list[int]:
     deadline = time.monotonic() + timeout
     while True:
-        alive = [pid for pid in pids if _alive(pid)]
+        alive = still_running(workers)
         if not alive or time.monotonic() > deadline:
             return alive
         time.sleep(0.05)
 
 
-def _end(pids: list[int]) -> None:
-    for pid in pids:  # this test's own grandchildren, by PID
-        if _alive(pid):
-            os.kill(pid, signal.SIGKILL)
-
-
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
 def test_workers_end_with_a_sigkilled_parent(tmp_path: Path) -> None:
-    pids = _workers_after_sigkill("end", tmp_path)
+    workers = _workers_after_sigkill("end", tmp_path)
     try:
-        assert _wait_gone(pids, timeout=30.0) == []
+        assert _wait_gone(workers, timeout=30.0) == []
     finally:
-        _end(pids)
+        kill_identified(workers)
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
 def test_without_the_initializer_workers_stay_behind(tmp_path: Path) -> None:
     """What the initializer is for: the same pool without it leaves its workers running."""
-    pids = _workers_after_sigkill("plain", tmp_path)
+    workers = _workers_after_sigkill("plain", tmp_path)
     try:
-        assert _wait_gone(pids, timeout=2.0) == pids
+        assert all(start for _, start in workers), workers  # running when identified
+        assert _wait_gone(workers, timeout=2.0) == sorted(pid for pid, _ in workers)
     finally:
-        _end(pids)
+        kill_identified(workers)

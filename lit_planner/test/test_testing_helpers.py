@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 
 import pytest
-from lit_planner.testing import read_until
+from lit_planner.testing import identify, read_until, run_watched, still_running
 
 PRINTS_THEN_HANGS = (
     "import time\nprint('one', flush=True)\nprint('two', flush=True)\ntime.sleep(600)"
@@ -52,3 +53,27 @@ def test_a_stream_that_ends_first_fails_at_once() -> None:
     finally:
         process.kill()
         process.wait()
+
+
+GRANDCHILD = """
+import os, subprocess, sys, time
+child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"],
+                         start_new_session=True)
+print(child.pid, flush=True)
+time.sleep(1.0)  # long enough for the watch to see its grandchild
+"""
+
+
+def test_run_watched_ends_what_the_command_left_behind() -> None:
+    """A command that starts a process in a session of its own and exits: ``run_watched`` returns
+    its output and code, and the process it left behind is ended (by PID, start time checked)."""
+    result = run_watched([sys.executable, "-c", GRANDCHILD], timeout=60)
+    assert result.returncode == 0, result.stderr
+    left = identify([int(result.stdout.split()[0])])
+    deadline = time.monotonic() + 30.0  # SIGKILLed: gone once the kernel has ended it
+    while still_running(left) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert still_running(left) == []
+    hung = [sys.executable, "-c", GRANDCHILD.replace("time.sleep(1.0)", "time.sleep(600)")]
+    with pytest.raises(subprocess.TimeoutExpired):
+        run_watched(hung, timeout=3)
