@@ -6,6 +6,7 @@
 
 #include <ompl/base/DiscreteMotionValidator.h>
 #include <ompl/base/PlannerData.h>
+#include <ompl/base/goals/GoalLazySamples.h>
 #include <ompl/base/goals/GoalSampleableRegion.h>
 #include <ompl/base/objectives/PathLengthOptimizationObjective.h>
 #include <ompl/base/spaces/RealVectorStateSpace.h>
@@ -297,7 +298,14 @@ namespace lit
         warnedUnusableFactor_ = false;
         warnedReplacedGoal_ = false;
         goalRead_.reset();
-        goalsSampled_ = false;
+        goalsGrow_ = false;
+    }
+
+    bool LITstar::finiteState(const ompl::base::State *state) const
+    {
+        std::vector<double> reals;
+        si_->getStateSpace()->copyToReals(reals, state);
+        return std::all_of(reals.begin(), reals.end(), [](double x) { return std::isfinite(x); });
     }
 
     ompl::base::PlannerStatus LITstar::initializeProblem(const ompl::base::PlannerTerminationCondition &ptc)
@@ -314,12 +322,7 @@ namespace lit
         // out of bounds or in collision).
         // A NaN coordinate passes OMPL's bounds check (every comparison with it is false) and may pass a user's
         // checker; its edges would then ask for NaN collision checks. Such states are left out here.
-        std::vector<double> reals;
-        const auto finite = [this, &reals](const ompl::base::State *state)
-        {
-            si_->getStateSpace()->copyToReals(reals, state);
-            return std::all_of(reals.begin(), reals.end(), [](double x) { return std::isfinite(x); });
-        };
+        const auto finite = [this](const ompl::base::State *state) { return finiteState(state); };
         std::size_t notFinite = 0u;
         std::vector<const ompl::base::State *> starts;
         while (const ompl::base::State *start = pis_.nextStart())
@@ -378,7 +381,7 @@ namespace lit
                     return ompl::base::PlannerStatus::INVALID_GOAL;
                 }
             }
-            goalsSampled_ = goal->hasType(ompl::base::GOAL_LAZY_SAMPLES);  // it may grow after this read
+            goalsGrow_ = goal->hasType(ompl::base::GOAL_LAZY_SAMPLES);  // read again at every batch
             const std::size_t members = sampleable->maxSampleCount();
             for (std::size_t read = goals.size(); read < members && pis_.haveMoreGoalStates(); ++read)
                 if (const ompl::base::State *g = pis_.nextGoal())
@@ -386,7 +389,7 @@ namespace lit
         }
         else
         {
-            goalsSampled_ = true;
+            goalsGrow_ = true;  // sampled again at every batch
             const auto *region = goal->as<ompl::base::GoalSampleableRegion>();
             const std::size_t limit = std::min<std::size_t>(region->maxSampleCount(), MAX_GOAL_SAMPLES);
             std::size_t draws = 0u;
@@ -515,10 +518,9 @@ namespace lit
                 iterate();
             }
         }
-        if (goalsSampled_ && atStraightLineBound())
-            OMPL_INFORM("%s: stopped at the straight line to the nearest of its %zu goal samples; the goal is a region "
-                        "(or a growing goal set) sampled once when the problem was read, so a better goal of it may "
-                        "exist",
+        if (goalsGrow_ && atStraightLineBound() && !goalsMayGrow())
+            OMPL_INFORM("%s: stopped at the straight line to the nearest of its %zu goal samples (the most it takes "
+                        "from a goal region or a growing goal set), so a better goal of it may exist",
                         getName().c_str(), graph_->goals().size());
         if (std::isfinite(bestCost_) && !pdef_->hasExactSolution())
             addBestPathToProblem();  // the caller cleared the solutions since this planner found its best path
@@ -542,6 +544,71 @@ namespace lit
         return (ptc_ != nullptr && (*ptc_)()) || (timeBudget_ > 0.0 && planningTime() >= timeBudget_);
     }
 
+    bool LITstar::goalsMayGrow() const
+    {
+        if (!goalsGrow_ || graph_->goals().size() >= MAX_GOALS)
+            return false;
+        // A goal set grows while its thread samples, or until what it holds is read; a region never runs out.
+        const auto *lazy = dynamic_cast<const ompl::base::GoalLazySamples *>(pdef_->getGoal().get());
+        return lazy == nullptr || lazy->isSampling() || pis_.haveMoreGoalStates();
+    }
+
+    std::size_t LITstar::addGoalSamples()
+    {
+        if (!goalsMayGrow())
+            return 0u;
+        const std::size_t wanted = std::min(GOAL_SAMPLES_PER_BATCH, MAX_GOALS - graph_->goals().size());
+        // Only goals whose straight line from a start is shorter than the best cost; of a region's samples, only those
+        // nearer to a start than every goal so far: samples behind an obstacle would otherwise pile up, each one more
+        // root of every reverse search (100 batches on NP in R^16 with a small goal box took 8 times as long), while
+        // the nearest goals are those that shorten a path that reaches the region in a straight line. A goal set's
+        // new members are the user's own goals: each is read.
+        const ompl::base::GoalPtr &goal = pdef_->getGoal();
+        const bool lazy = goal->hasType(ompl::base::GOAL_LAZY_SAMPLES);
+        double nearest = lazy ? std::numeric_limits<double>::infinity() : graph_->sampler().minimumCost();
+        std::vector<std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>>> owned;
+        std::vector<const ompl::base::State *> fresh;
+        // \e check: a region's draw, whose validity is asked only once it is near enough (pis_ checked the set's).
+        const auto keep = [&](const ompl::base::State *g, bool check)
+        {
+            if (!finiteState(g))
+                return;
+            double straight = std::numeric_limits<double>::infinity();
+            for (const State *start : graph_->starts())
+                straight = std::min(straight, si_->distance(start->raw_, g));
+            if (!(straight < nearest && straight < bestCost_))
+                return;
+            if (check && !(si_->satisfiesBounds(g) && si_->isValid(g)))
+                return;
+            nearest = lazy ? nearest : straight;
+            owned.emplace_back(si_->cloneState(g), [this](ompl::base::State *state) { si_->freeState(state); });
+            fresh.push_back(owned.back().get());
+        };
+        if (lazy)  // what its sampling thread added since the last read
+        {
+            for (std::size_t read = 0u; fresh.size() < wanted && read < 10u * wanted && pis_.haveMoreGoalStates();
+                 ++read)
+            {
+                const ompl::base::State *g = pis_.nextGoal();
+                if (g == nullptr)
+                    break;
+                keep(g, false);
+            }
+        }
+        else if (const auto *region = goal->as<ompl::base::GoalSampleableRegion>(); region->canSample())
+        {
+            std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>> scratch(
+                si_->allocState(), [this](ompl::base::State *state) { si_->freeState(state); });
+            for (std::size_t draws = 0u; fresh.size() < wanted && draws < 10u * wanted; ++draws)
+            {
+                region->sampleGoal(scratch.get());
+                keep(scratch.get(), true);
+            }
+        }
+        graph_->addGoals(fresh);
+        return fresh.size();
+    }
+
     bool LITstar::atStraightLineBound() const
     {
         // Within rounding of the straight line (Eigen's norm and OMPL's distance may differ in the last bits).
@@ -552,7 +619,8 @@ namespace lit
     {
         if (!std::isfinite(bestCost_))
             return false;
-        if (atStraightLineBound())
+        // The straight line to the goals read so far bounds the cost only when no other goal can come.
+        if (atStraightLineBound() && !goalsMayGrow())
             return true;
         const auto &objective = pdef_->getOptimizationObjective();
         return objective && objective->isSatisfied(ompl::base::Cost(bestCost_));
@@ -1079,6 +1147,8 @@ namespace lit
     {
         forwardQueue_->clear();
         reverseQueue_ = {};
+        if (addGoalSamples() > 0u)
+            connectTerminals();  // a new goal may lie in a straight line from a start
         std::size_t pruned = 0u;
         if (pruneDue_ && std::isfinite(bestCost_))
         {

@@ -56,6 +56,11 @@ namespace lit
          *  the reverse search at every goal): on NP in R^4 with goals drawn in a 0.1-wide box, 30 batches took about
          *  11 s with 1000 goals (one-off). */
         static constexpr std::size_t MAX_GOAL_SAMPLES = 100u;
+        /** \brief Goals drawn at each later batch from such a region (or read from a goal set that grows), kept only when
+         *  their straight line from a start is shorter than the best cost: BIT* and AIT* draw new goals as they go. */
+        static constexpr std::size_t GOAL_SAMPLES_PER_BATCH = 10u;
+        /** \brief The most goals taken from a region or a growing goal set in all. */
+        static constexpr std::size_t MAX_GOALS = 4u * MAX_GOAL_SAMPLES;
 
         explicit LITstar(const ompl::base::SpaceInformationPtr &si);
         ~LITstar() override;
@@ -162,6 +167,13 @@ namespace lit
         bool solutionCannotImprove() const;
         /** \brief The best cost is the straight line of the nearest start-goal pair (within rounding). */
         bool atStraightLineBound() const;
+        /** \brief More goals may still be read (see goalsGrow_). */
+        bool goalsMayGrow() const;
+        /** \brief At a new batch: up to GOAL_SAMPLES_PER_BATCH more goals that may improve the solution, from a goal
+         *  region or a growing goal set; returns how many were added. */
+        std::size_t addGoalSamples();
+        /** \brief Every coordinate of \e state is a finite number. */
+        bool finiteState(const ompl::base::State *state) const;
         bool continueReverseSearch() const;
         bool continueForwardSearch() const;
         void reverseStep();
@@ -300,9 +312,9 @@ namespace lit
         /** \brief The goal read when the problem was initialised, and whether its replacement was warned about. */
         std::weak_ptr<ompl::base::Goal> goalRead_;
         bool warnedReplacedGoal_{false};
-        /** \brief The goals are samples of a region (or what a growing goal set held at the start), not the whole goal:
-         *  the straight line to the nearest of them bounds the cost to those samples only. */
-        bool goalsSampled_{false};
+        /** \brief The goal is a region to sample or a goal set that may grow: more goals are read at every batch (up to
+         *  MAX_GOALS), and until then the straight line to those read is no lower bound. */
+        bool goalsGrow_{false};
         bool warnedUnusableFactor_{false};
         std::size_t currentK_{1u};
         std::size_t improvements_{0u};

@@ -128,6 +128,35 @@ namespace lit::litstar
         ++version_;
     }
 
+    void RandomGeometricGraph::addGoals(const std::vector<const ompl::base::State *> &goals)
+    {
+        if (goals.empty())
+            return;
+        const std::size_t first = goals_.size();
+        for (const auto *raw : goals)
+        {
+            State *state = createState(si_->cloneState(raw));
+            state->isGoal_ = true;
+            goals_.push_back(state);
+        }
+        std::vector<std::vector<double>> startFoci, goalFoci;
+        for (const State *start : starts_)
+            startFoci.push_back(coordinates(start->raw_, dim_));
+        for (const State *goal : goals_)
+            goalFoci.push_back(coordinates(goal->raw_, dim_));
+        sampler_.setFoci(startFoci, goalFoci);
+        for (auto &state : states_)  // a new goal can only bring a sample's bound down
+        {
+            if (state->isGoal_ && state->id_ >= goals_[first]->id_)
+                computeLowerBounds(state.get());
+            else
+                for (std::size_t g = first; g < goals_.size(); ++g)
+                    state->costToGoLowerBound_ =
+                        std::min(state->costToGoLowerBound_, distance(state.get(), goals_[g]));
+        }
+        ++version_;
+    }
+
     std::size_t RandomGeometricGraph::addBatch(std::size_t batchSize, double maxCost,
                                                const std::function<bool()> &stop)
     {

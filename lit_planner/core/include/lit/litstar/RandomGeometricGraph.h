@@ -97,6 +97,10 @@ namespace lit::litstar
             setTerminals(std::vector<const ompl::base::State *>{start}, goals);
         }
 
+        /** \brief Adds more goals (valid states, copied) to a graph whose terminals are set: the sampler's foci and
+         *  every sample's cost-to-go lower bound take them in. */
+        void addGoals(const std::vector<const ompl::base::State *> &goals);
+
         /** \brief Draws samples from the informed set of \e maxCost until \e batchSize valid ones were added;
          *  invalid draws are kept in X_invalid. \e stop (if given) is asked every STOP_CHECK_INTERVAL draws and
          *  ends the batch early when true. Returns the number of valid samples added. */
