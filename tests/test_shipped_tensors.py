@@ -103,3 +103,21 @@ def test_shipped_evaluations_are_what_their_bags_give(
     assert process.returncode == 0, process.stderr
     regenerated = (tmp_path / "out" / "summary.md").read_text(encoding="utf-8")
     assert regenerated == (TENSORS / summary).read_text(encoding="utf-8")
+
+
+def test_replay_verify_of_the_shipped_training_bag_finds_its_one_clipped_corner() -> None:
+    """The README's evidence for the dense re-check: `lit replay verify` of the shipped training
+    bag reports 3919 of 3920 paths valid and names the one that clips a box corner between the
+    planner's checks (rrd4 instance 458, /lit/episode seq 2145), exit 1."""
+    import subprocess
+    import sys
+
+    process = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "replay", "verify",
+         str(ROOT / "bags" / "shipped" / "train-20261130c")],
+        capture_output=True, text=True, timeout=300, check=False,
+    )  # fmt: skip
+    text = process.stdout + process.stderr
+    assert process.returncode == 1, text
+    assert "3920 paths checked: 3919 valid, 1 invalid" in text, text
+    assert "INVALID  /lit/episode seq 2145: rrd4/458: segment 0 leaves the free space" in text, text

@@ -14,7 +14,7 @@ from typing import Any
 
 import pytest
 from cli_helpers import lit
-from lit_planner.testing import DescendantWatch, read_until, reserve_ros_domain
+from lit_planner.testing import DescendantWatch, read_until, reserve_ros_domain, run_watched
 
 from lit_planner import scenarios
 from lit_planner import tensor_files as tf
@@ -197,27 +197,32 @@ def test_ctrl_c_stops_lit_plan_during_its_query() -> None:
             process.wait()
 
 
+def test_demo_local_plans_once_in_this_process_without_ros(tmp_path: Path) -> None:
+    """`lit demo --local`: one query of the default scenario in-process, its summary with the
+    independent re-check, exit 0; no process started, no bag written."""
+    process = run_watched(
+        [sys.executable, "-m", "lit_planner.cli", "demo", "--local", "--seed", "7"],
+        cwd=tmp_path, timeout=300,
+    )  # fmt: skip
+    assert process.returncode == 0, process.stderr
+    assert f"LIT* demo: litstar on {scenarios.DEFAULT_SCENARIO}" in process.stdout
+    assert "status     exact_solution: solved" in process.stdout, process.stdout
+    assert "seed 7" in process.stdout and "independent re-check passed" in process.stdout
+    assert not list(tmp_path.iterdir())  # no run folder, no bag
+
+
 def test_demo_solves_the_default_scenario(tmp_path: Path) -> None:
     # A free domain of its own: lit test holds the run's domain, and the demo claims the one it
     # runs on (found free here, then released to the demo).
     domain, claim = reserve_ros_domain(range(101, 233))
     if claim is not None:
         claim.close()
-    demo = subprocess.Popen(
+    # Its nodes run in sessions of their own: every one it started is ended by PID afterwards.
+    process = run_watched(
         [sys.executable, "-m", "lit_planner.cli", "demo", "--out", str(tmp_path), "--domain-id",
          str(domain)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"), timeout=600,
     )  # fmt: skip
-    watch = DescendantWatch(demo.pid)  # its nodes run in sessions of their own
-    try:
-        out, err = demo.communicate(timeout=600)
-    finally:
-        if demo.poll() is None:  # it hung: end it and every node it started, by PID
-            demo.kill()
-            demo.wait()
-        watch.kill()
-    process = subprocess.CompletedProcess(demo.args, demo.returncode, out, err)
     assert process.returncode == 0, process.stderr
     # Two ROS processes trained over ROS, the plan service answered, the bag accounts for all.
     assert "4 episodes over ROS" in process.stdout
