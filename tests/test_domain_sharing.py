@@ -39,6 +39,7 @@ def test_launchers_refuse_a_domain_another_launcher_holds(
             timeout=120,
         )  # fmt: skip
         assert process.returncode == 2, process.stdout + process.stderr
+        assert not process.started, process.started
         holder = f"in use on this host by lit test (pid {os.getpid()}, since "
         assert f"lit {command[0]}: ROS_DOMAIN_ID={domain} is {holder}" in process.stderr
         assert "--domain-id" in process.stderr and "Traceback" not in process.stderr

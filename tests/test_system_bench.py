@@ -51,12 +51,14 @@ def test_parts_switched_off_and_ctrl_c_stops_every_child() -> None:
         timeout=60,
     )  # fmt: skip
     assert rejected.returncode == 2 and "must be 0 or more, not -1" in rejected.stderr
+    assert not rejected.started, rejected.started
     nothing = run_watched(
         [sys.executable, "-m", "lit_planner.cli", "system-bench", "--episodes", "0", "--calls", "0",
          "--kills", "0"],
         timeout=60,
     )  # fmt: skip
     assert nothing.returncode == 2 and "nothing to measure" in nothing.stderr
+    assert not nothing.started, nothing.started
     domain = launcher_domain()
     process = subprocess.Popen(
         [

@@ -78,6 +78,7 @@ def test_bad_options_start_nothing(tmp_path: Path, options: list[str], message: 
         timeout=120,
     )  # fmt: skip
     assert process.returncode == 2, process.stdout + process.stderr
+    assert not process.started, process.started  # nothing started, not even for a moment
     assert message in process.stderr and "Traceback" not in process.stderr
     assert "lit up: run" not in process.stdout  # nothing started
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bag"]  # no runs/ folder either
@@ -123,6 +124,7 @@ def test_demo_and_call_refuse_bad_options_before_starting(
         timeout=120,
     )  # fmt: skip
     assert process.returncode == 2, process.stdout + process.stderr
+    assert not process.started, process.started  # nothing started, not even for a moment
     assert message in process.stderr and "Traceback" not in process.stderr
     assert not list(tmp_path.iterdir())
 
@@ -150,6 +152,7 @@ def test_a_bad_ros_domain_id_in_the_environment_is_named(
             timeout=120,
         )  # fmt: skip
         assert process.returncode == 2, process.stdout + process.stderr
+        assert not process.started, process.started  # nothing started, not even for a moment
         assert f"$ROS_DOMAIN_ID: {message}" in process.stderr
         assert "Traceback" not in process.stderr
         assert not list(tmp_path.iterdir())

@@ -45,6 +45,7 @@ from lit_planner.rosutil import (
     CANCEL_SERVICE,
     DECIDE_SERVICE,
     EXPORT_SERVICE,
+    MAX_REQUEST_TIME,
     PLAN_SERVICE,
     ServiceCaller,
     domain_id,
@@ -82,7 +83,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         help=f"seconds to wait for the answer, all told (default: {DEFAULT_TIMEOUT:g}, plus the "
-        "plan's --time for plan; a plan request is then cancelled in the node)",
+        f"plan's --time for plan, or {MAX_REQUEST_TIME:g} with --iterations or --batches alone; a "
+        "plan request is then cancelled in the node)",
     )
     parser.add_argument(
         "--payload-only", action="store_true", help="print only the response's payload"
@@ -232,7 +234,10 @@ def run(args: argparse.Namespace) -> int:
                 raise ValueError(f"$ROS_DOMAIN_ID: {error}") from None
         name, text = _request(args)
         if args.timeout is None:  # a long plan must not time out on the client's side for sure
-            plan_time = json.loads(text)["payload"].get("time") if args.service == "plan" else None
+            payload = json.loads(text)["payload"] if args.service == "plan" else {}
+            plan_time = payload.get("time")
+            if plan_time is None and (payload.get("max_iterations") or payload.get("max_batches")):
+                plan_time = MAX_REQUEST_TIME  # what the node then allows
             args.timeout = DEFAULT_TIMEOUT + float(plan_time or 0.0)
     except (OSError, ValueError) as exc:
         print(f"lit call: error: {exc}", file=sys.stderr)

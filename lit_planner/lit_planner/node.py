@@ -83,6 +83,7 @@ from lit_planner.errors import PlannerError, ScenarioError, TensorFileError
 from lit_planner.rosutil import (
     CANCEL_SERVICE,
     DECIDE_SERVICE,
+    MAX_REQUEST_TIME,
     PLAN_SEND_ATTEMPTS,
     PLAN_SERVICE,
     TOPICS,
@@ -143,9 +144,6 @@ EXECUTOR_THREADS = 8
 """The planner node's executor threads at least; more for a long queue (``PlannerNode.threads``)."""
 SPARE_THREADS = 3
 """Executor threads kept free of plan requests (the running one and ``queue_limit`` waiting)."""
-MAX_REQUEST_TIME = 600.0
-"""Planning time of a request that gives an iteration or batch limit and no ``time``: the longest
-``time`` PlanRequest allows."""
 INVALID_TERMINAL = {"invalid_start": "start", "invalid_goal": "goal"}
 """Core statuses that mean the request gave an unusable start or goal."""
 

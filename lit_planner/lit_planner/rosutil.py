@@ -32,6 +32,9 @@ MAX_EPISODE_BUDGET = 3600.0
 DecideRequest and EpisodeEnd schemas."""
 MAX_INFERENCE_BUDGET = 86400.0
 """Most seconds of another policy's episode: the maximum ``planning_time`` of an Observation."""
+MAX_REQUEST_TIME = 600.0
+"""Planning time of a plan request that gives an iteration or batch limit and no ``time``: the
+longest ``time`` PlanRequest allows (its schema's maximum, which a test holds this to)."""
 PLAN_SERVICE = "lit/planner/plan"
 """The planner's plan service, relative to the planner node's namespace."""
 CANCEL_SERVICE = "lit/planner/cancel"

@@ -133,13 +133,13 @@ ProcessIdentity = tuple[int, int | None]
 
 def identify(pids: Iterable[int]) -> set[ProcessIdentity]:
     """The identities of ``pids`` now (a process already gone gets start time None)."""
-    return {(pid, _start_time(pid)) for pid in pids}
+    return {(pid, start_time(pid)) for pid in pids}
 
 
 def still_running(identities: Iterable[ProcessIdentity]) -> list[int]:
     """PIDs of the identified processes that still run (the same process: its start time is
     unchanged; a zombie has ended)."""
-    return sorted(pid for pid, start in identities if start and _start_time(pid) == start)
+    return sorted(pid for pid, start in identities if start and start_time(pid) == start)
 
 
 def kill_identified(identities: Iterable[ProcessIdentity]) -> None:
@@ -184,16 +184,44 @@ class DescendantWatch:
         kill_identified(self.seen)
 
 
-def run_watched(
-    args: Sequence[str], *, timeout: float, **options: object
-) -> subprocess.CompletedProcess[str]:
+@dataclass
+class Watched:
+    """What :func:`run_watched` saw: the command's result and every process it started."""
+
+    process: subprocess.CompletedProcess[str]
+    started: set[ProcessIdentity]
+    """Every descendant seen while the command ran (each ended by then)."""
+
+    @property
+    def returncode(self) -> int:
+        return self.process.returncode
+
+    @property
+    def stdout(self) -> str:
+        return self.process.stdout
+
+    @property
+    def stderr(self) -> str:
+        return self.process.stderr
+
+
+def run_watched(args: Sequence[str], *, timeout: float, **options: object) -> Watched:
     """``subprocess.run(args, capture_output=True, text=True, timeout=timeout, **options)`` that
     also ends whatever the command started, even in sessions of their own (ROS nodes that a
     launcher should not have started, or left behind): every descendant seen while it ran is
     SIGKILLed by PID afterwards, as is the command if it outlived ``timeout`` (then
-    TimeoutExpired, as from ``subprocess.run``). The output goes through files, so a process
-    left behind that holds them open does not keep this waiting."""
+    TimeoutExpired, as from ``subprocess.run``, with the output so far). The result names them
+    (``started``), so a test that expects nothing started can say so. The output goes through
+    files, so a process left behind that holds them open does not keep this waiting."""
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+
+        def texts() -> list[str]:
+            read = []
+            for stream in (out, err):
+                stream.seek(0)
+                read.append(stream.read().decode("utf-8", errors="replace"))
+            return read
+
         process = subprocess.Popen(
             args,
             stdout=out,
@@ -204,16 +232,15 @@ def run_watched(
         watch = DescendantWatch(process.pid)
         try:
             code = process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired as expired:
+            expired.output, expired.stderr = texts()
+            raise
         finally:
             if process.poll() is None:
                 os.killpg(process.pid, signal.SIGKILL)
                 process.wait()
             watch.kill()
-        texts = []
-        for stream in (out, err):
-            stream.seek(0)
-            texts.append(stream.read().decode("utf-8", errors="replace"))
-    return subprocess.CompletedProcess(args, code, *texts)
+        return Watched(subprocess.CompletedProcess(args, code, *texts()), watch.seen)
 
 
 def read_until(stream: IO[str], text: str, timeout: float = 120.0) -> list[str]:
@@ -243,7 +270,7 @@ def read_until(stream: IO[str], text: str, timeout: float = 120.0) -> list[str]:
     return lines
 
 
-def _start_time(pid: int) -> int | None:
+def start_time(pid: int) -> int | None:
     """A process's start time in clock ticks after boot (None when it is gone): tells a PID that
     was reused from the process seen before."""
     fields = _stat_fields(pid)

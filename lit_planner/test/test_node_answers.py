@@ -7,6 +7,8 @@ import typing
 from lit_msgs_json.envelope import MAX_MESSAGE_BYTES, Publisher, decode
 from lit_planner.node import plan_answer_text
 
+from lit_msgs_json import codec
+
 
 class _Log:
     def __init__(self) -> None:
@@ -100,6 +102,9 @@ def test_a_count_limited_request_without_time_becomes_a_job_with_the_longest_tim
     for limit in ({"max_iterations": 10**9}, {"max_batches": 10**6}):
         job = make(fake, {"scenario": "np4", **limit})
         assert job.time == node.MAX_REQUEST_TIME == 600.0
+    assert (
+        node.MAX_REQUEST_TIME == codec.load_schema("PlanRequest")["properties"]["time"]["maximum"]
+    )
     assert make(fake, {"scenario": "np4", "max_iterations": 5, "time": 2.5}).time == 2.5
     assert make(fake, {"scenario": "np4"}).time is None  # the scenario's budget
     assert make(fake, {"scenario": "np4"}).seed == 7

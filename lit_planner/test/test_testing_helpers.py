@@ -6,9 +6,17 @@ from __future__ import annotations
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
-from lit_planner.testing import identify, read_until, run_watched, still_running
+from lit_planner.testing import (
+    ProcessIdentity,
+    kill_identified,
+    read_until,
+    run_watched,
+    start_time,
+    still_running,
+)
 
 PRINTS_THEN_HANGS = (
     "import time\nprint('one', flush=True)\nprint('two', flush=True)\ntime.sleep(600)"
@@ -66,14 +74,29 @@ time.sleep(1.0)  # long enough for the watch to see its grandchild
 
 def test_run_watched_ends_what_the_command_left_behind() -> None:
     """A command that starts a process in a session of its own and exits: ``run_watched`` returns
-    its output and code, and the process it left behind is ended (by PID, start time checked)."""
+    its output and code, names the process it started, and has ended it (by PID, start time
+    checked); one that outlives its timeout raises TimeoutExpired with its output, its process
+    ended as well."""
+
+    def ended(identities: set[ProcessIdentity]) -> bool:
+        deadline = time.monotonic() + 30.0  # SIGKILLed: gone once the kernel has ended it
+        while still_running(identities) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        return still_running(identities) == []
+
     result = run_watched([sys.executable, "-c", GRANDCHILD], timeout=60)
-    assert result.returncode == 0, result.stderr
-    left = identify([int(result.stdout.split()[0])])
-    deadline = time.monotonic() + 30.0  # SIGKILLed: gone once the kernel has ended it
-    while still_running(left) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert still_running(left) == []
+    try:
+        assert result.returncode == 0, result.stderr
+        left = int(result.stdout.split()[0])
+        assert left in {pid for pid, _ in result.started}, (left, result.started)
+        assert ended(result.started)
+    finally:
+        kill_identified(result.started)
     hung = [sys.executable, "-c", GRANDCHILD.replace("time.sleep(1.0)", "time.sleep(600)")]
-    with pytest.raises(subprocess.TimeoutExpired):
+    with pytest.raises(subprocess.TimeoutExpired) as raised:
         run_watched(hung, timeout=3)
+    left = int(raised.value.output.split()[0])  # printed before the timeout
+    deadline = time.monotonic() + 30.0
+    while Path(f"/proc/{left}").exists() and start_time(left) is not None:
+        assert time.monotonic() < deadline, f"{left} still runs"
+        time.sleep(0.05)

@@ -518,7 +518,7 @@ namespace lit
                 iterate();
             }
         }
-        if (goalsGrow_ && atStraightLineBound() && !goalsMayGrow())
+        if (goalsGrow_ && atStraightLineBound() && graph_->goals().size() >= MAX_GOALS)
             OMPL_INFORM("%s: stopped at the straight line to the nearest of its %zu goal samples (the most it takes "
                         "from a goal region or a growing goal set), so a better goal of it may exist",
                         getName().c_str(), graph_->goals().size());
@@ -548,9 +548,15 @@ namespace lit
     {
         if (!goalsGrow_ || graph_->goals().size() >= MAX_GOALS)
             return false;
-        // A goal set grows while its thread samples, or until what it holds is read; a region never runs out.
-        const auto *lazy = dynamic_cast<const ompl::base::GoalLazySamples *>(pdef_->getGoal().get());
-        return lazy == nullptr || lazy->isSampling() || pis_.haveMoreGoalStates();
+        // Only the goal that was read (a replaced or cleared one is not used: solve() warned about it).
+        const std::shared_ptr<ompl::base::Goal> goal = goalRead_.lock();
+        if (goal == nullptr || goal != pdef_->getGoal())
+            return false;
+        // A goal set grows while its thread samples, or until what it holds is read; a region until its samples end.
+        if (const auto *lazy = dynamic_cast<const ompl::base::GoalLazySamples *>(goal.get()))
+            return lazy->isSampling() || pis_.haveMoreGoalStates();
+        const auto *region = goal->as<ompl::base::GoalSampleableRegion>();
+        return region->canSample() && graph_->goals().size() < region->maxSampleCount();
     }
 
     std::size_t LITstar::addGoalSamples()
@@ -563,7 +569,7 @@ namespace lit
         // root of every reverse search (100 batches on NP in R^16 with a small goal box took 8 times as long), while
         // the nearest goals are those that shorten a path that reaches the region in a straight line. A goal set's
         // new members are the user's own goals: each is read.
-        const ompl::base::GoalPtr &goal = pdef_->getGoal();
+        const ompl::base::GoalPtr &goal = pdef_->getGoal();  // the goal read (goalsMayGrow())
         const bool lazy = goal->hasType(ompl::base::GOAL_LAZY_SAMPLES);
         double nearest = lazy ? std::numeric_limits<double>::infinity() : graph_->sampler().minimumCost();
         std::vector<std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>>> owned;
@@ -589,14 +595,13 @@ namespace lit
             for (std::size_t read = 0u; fresh.size() < wanted && read < 10u * wanted && pis_.haveMoreGoalStates();
                  ++read)
             {
-                const ompl::base::State *g = pis_.nextGoal();
-                if (g == nullptr)
-                    break;
-                keep(g, false);
+                if (const ompl::base::State *g = pis_.nextGoal())  // null: a member out of bounds or in collision
+                    keep(g, false);
             }
         }
-        else if (const auto *region = goal->as<ompl::base::GoalSampleableRegion>(); region->canSample())
+        else
         {
+            const auto *region = goal->as<ompl::base::GoalSampleableRegion>();
             std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>> scratch(
                 si_->allocState(), [this](ompl::base::State *state) { si_->freeState(state); });
             for (std::size_t draws = 0u; fresh.size() < wanted && draws < 10u * wanted; ++draws)

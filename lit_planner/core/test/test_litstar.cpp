@@ -1049,6 +1049,43 @@ TEST(LITstar, AGoalReplacedAfterTheProblemWasReadIsNamedInAWarning)
                      0.3);
 }
 
+TEST(LITstar, AGoalRegionClearedOrReplacedIsNotSampledAgain)
+{
+    // A region is sampled again at every batch: a cleared goal was read as null (a crash), and a replaced one had its
+    // states planned to though solve() warned that it is not used.
+    for (const bool cleared : {true, false})
+    {
+        BoxProblem problem = test::narrowPassage(2, 1e-3);
+        auto region = std::make_shared<ompl::base::GoalSpace>(problem.si);
+        auto box = std::make_shared<ompl::base::RealVectorStateSpace>(2);
+        ompl::base::RealVectorBounds bounds(2);
+        bounds.setLow(0.15);
+        bounds.setHigh(0.25);
+        box->setBounds(bounds);
+        region->setSpace(box);
+        problem.pdef->setGoal(region);
+        auto planner = batchLimited(problem, 3u);
+        ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()),
+                  ompl::base::PlannerStatus::EXACT_SOLUTION);
+        const std::size_t goals = planner->graph().goals().size();
+        if (cleared)
+            problem.pdef->clearGoal();
+        else
+        {
+            ompl::base::ScopedState<> other(problem.si);
+            other[0] = -0.3;
+            other[1] = -0.3;
+            problem.pdef->setGoalState(other);
+        }
+        planner->setMaxBatches(6u);
+        const CapturedWarnings messages;
+        planner->solve(ompl::base::plannerNonTerminatingCondition());
+        EXPECT_EQ(planner->graph().goals().size(), goals) << (cleared ? "cleared" : "replaced");
+        for (const litstar::State *goal : planner->graph().goals())
+            EXPECT_GE(goal->raw_->as<ompl::base::RealVectorStateSpace::StateType>()->values[0], 0.15);
+    }
+}
+
 TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
 {
     // OMPL's GoalSpace never runs out of goal samples: reading them all filled memory before the clock started.
@@ -1084,6 +1121,8 @@ TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
     EXPECT_GE(planner->graph().goals().size(), LITstar::MAX_GOAL_SAMPLES);
     EXPECT_LE(planner->graph().goals().size(),
               LITstar::MAX_GOAL_SAMPLES + 30u * LITstar::GOAL_SAMPLES_PER_BATCH);
+    EXPECT_TRUE(std::any_of(messages.lines.begin(), messages.lines.end(), [](const auto &line)
+                            { return line.second.find("planning to 100 goal samples") != std::string::npos; }));
     std::size_t warnings = 0u, goalLines = 0u;
     for (const auto &[lineLevel, text] : messages.lines)
     {
@@ -1104,9 +1143,9 @@ TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
 TEST(LITstar, AGoalRegionIsSampledAgainAsTheSearchGoesOn)
 {
     // An empty R^8 with a goal region x0 in [0.3, 0.45] (the other axes in [-0.45, 0.45]), 0.7 from the start at
-    // its nearest. The straight line to the nearest of its first 100 samples is free, and LIT* stopped there at once
-    // (about 0.85), as if no better path existed. It now draws goals that may improve the path at every batch. A
-    // single goal state reached in a straight line still ends the search at once.
+    // its nearest. The straight line to the nearest of its first 100 samples is free, and LIT* stopped there at once,
+    // as if no better path existed. It now draws goals that may improve the path at every batch. A single goal state
+    // reached in a straight line still ends the search at once.
     BoxWorld world;
     world.lower.assign(8, -0.5);
     world.upper.assign(8, 0.5);
@@ -1137,8 +1176,10 @@ TEST(LITstar, AGoalRegionIsSampledAgainAsTheSearchGoesOn)
               ompl::base::PlannerStatus::EXACT_SOLUTION);
     EXPECT_EQ(planner->counters().batches, 30u);
     ASSERT_GE(recorder->solutions.size(), 2u);
-    EXPECT_GT(recorder->solutions.front().cost, 0.8);  // the nearest of the first samples
-    EXPECT_LT(planner->bestCost(), 0.78);               // 0.764 (a goal nearer than 0.76 is 1 draw in 500)
+    // A goal nearer than 0.8 is about 1 draw in 500 (nearer than 0.76 about 1 in 5000): the first 100 samples hold one
+    // about once in 5 runs, the 30 batches' 3000 or so draws all but always (0.764 on this seed).
+    EXPECT_LT(planner->bestCost(), recorder->solutions.front().cost);
+    EXPECT_LT(planner->bestCost(), 0.8);
     EXPECT_LE(planner->graph().goals().size(), LITstar::MAX_GOALS);
     const auto path = planner->bestPath();
     EXPECT_GE(path.back()[0], 0.3);  // it ends in the region

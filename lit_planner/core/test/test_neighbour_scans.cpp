@@ -137,3 +137,34 @@ TEST(NeighbourScans, ANaNCoordinateTurnsTheSinglePrecisionFilterOff)
     ASSERT_EQ(range.size(), 3u);
     EXPECT_EQ(range[0], y);
 }
+
+TEST(NeighbourScans, GoalsAddedLaterLowerEveryBoundAndTheSamplersMinimumAndJoinTheScans)
+{
+    // RandomGeometricGraph::addGoals (a goal region sampled again): every sample's cost-to-go bound is its distance to
+    // the nearest goal, old or new; the informed sampler's minimum is the new nearest straight line; a new goal is a
+    // goal to the scans (not among another goal's neighbours) and is found by the caches built before it came.
+    BoxProblem problem = test::narrowPassage(4);
+    RandomGeometricGraph graph(problem.si, 1u);
+    ompl::base::ScopedState<> start(problem.si), far(problem.si), near(problem.si);
+    start = std::vector<double>{-0.2, 0.0, 0.0, 0.0};
+    far = std::vector<double>{0.4, 0.4, 0.0, 0.0};
+    near = std::vector<double>{0.2, 0.0, 0.0, 0.0};
+    graph.setTerminals(start.get(), {far.get()});
+    std::mt19937 rng(5u);
+    test::addRandomSamples(graph, rng, 300u, 4u, 0.0);
+    litstar::State *sample = graph.states().back().get();
+    const std::size_t k = 20u;
+    scanned(graph, sample, k);  // a cache from before the new goal
+    graph.addGoals({near.get()});
+    ASSERT_EQ(graph.goals().size(), 2u);
+    const litstar::State *added = graph.goals()[1];
+    EXPECT_TRUE(added->isGoal_);
+    EXPECT_DOUBLE_EQ(graph.sampler().minimumCost(), 0.4);
+    for (const auto &state : graph.states())
+        EXPECT_EQ(state->costToGoLowerBound_,
+                  std::min(graph.distance(state.get(), graph.goals()[0]), graph.distance(state.get(), added)));
+    EXPECT_EQ(added->costToGoLowerBound_, 0.0);
+    ASSERT_EQ(scanned(graph, sample, k), test::nearestByBruteForce(graph, sample, k));
+    for (const auto &[distance, neighbour] : scanned(graph, graph.goals()[0], k))
+        EXPECT_NE(neighbour, added);  // no edge between two goals
+}
