@@ -113,10 +113,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=int,
         metavar="N",
         help="LIT*: stop after N iterations (sent as max_iterations; without --time the query "
-        "stops on this alone, the same answer for the same seed)",
+        "stops on this alone, the same answer for the same seed; default: no limit)",
     )
     plan.add_argument(
-        "--batches", type=int, metavar="N", help="LIT*: stop after N batches (max_batches)"
+        "--batches",
+        type=int,
+        metavar="N",
+        help="LIT*: stop after N batches (max_batches; default: no limit)",
     )
     plan.add_argument(
         "--start",
