@@ -57,11 +57,17 @@ GRACE = 20.0
 _domains = itertools.count()
 
 
-def reserve_domain() -> tuple[int, DomainClaim | None]:
+def reserve_domain() -> tuple[int, DomainClaim]:
     """A ``ROS_DOMAIN_ID`` for one test from :data:`DOMAIN_RANGE`, and the claim reserving it
-    (``lit test``'s own reservation, searched from the PID and a per-process counter)."""
+    (``lit test``'s own reservation, searched from the PID and a per-process counter). The test
+    fails when every one is taken (it used to share one)."""
     low, high = DOMAIN_RANGE
-    return reserve_ros_domain(range(low, high + 1), os.getpid() * 37 + next(_domains))
+    domain, claim = reserve_ros_domain(range(low, high + 1), os.getpid() * 37 + next(_domains))
+    if claim is None:  # a test's processes must not share a domain with another test's
+        import pytest  # here: this module also runs as the recorder script
+
+        pytest.fail(f"no free ROS_DOMAIN_ID in {low}-{high}: every one is claimed on this host")
+    return domain, claim
 
 
 def launcher_domain() -> int:
