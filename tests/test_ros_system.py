@@ -1516,13 +1516,14 @@ def test_learner_stats_wait_for_their_subscribers(ros: RosSystem) -> None:
     _no_traceback(waiting, eager)
 
 
-def test_the_learner_exports_on_request_and_after_max_episodes(
+def test_the_learner_exports_after_max_episodes_and_on_request(
     ros: RosSystem, tmp_path: Path
 ) -> None:
-    """`lit call export`: a folder that cannot be written is answered with success false and its
-    reason (exit 1), the learner going on; once it can be, both tensors are written with the
-    node's provenance (an untrained learner's too), and the answer names them. With
-    max_episodes the learner exports by itself once that many training episodes ended."""
+    """With max_episodes the learner exports by itself once that many training episodes ended;
+    an export folder it cannot write makes that export fail, and it is tried again until it
+    works (it was not, until the shutdown). `lit call export`: success false with the reason
+    (exit 1) while the folder cannot be written, the learner going on; then both tensors with
+    the node's provenance, and the answer names them."""
     exports = tmp_path / "exports"
     exports.write_text("a file where the export folder should be", encoding="utf-8")
     learner = ros.learner(export_dir=str(exports), max_episodes=2)
@@ -1533,7 +1534,17 @@ def test_the_learner_exports_on_request_and_after_max_episodes(
     decided = ros.call("--payload-only", "decide", "--agent", "B", "--measure", "0.3")
     assert decided.returncode == 0 and math.isfinite(decided.json()["value"]), decided
 
+    planner = ros.planner(episodes=2, exit_when_done=True, **TRAINING)
+    assert planner.wait(timeout=300.0) == 0, planner.tail()
+    learner.wait_for_log(r"checkpoint or export is tried again", timeout=120.0)
     exports.unlink()
+    learner.wait_for_log(r"exported tensors to .* \(end of training\)", timeout=120.0)
+    for name in ("b_tensor.npy", "k_tensor.npy"):
+        _, sidecar = tensor_files.read_tensor(exports / name)
+        assert sidecar.provenance["reason"] == "end of training", sidecar.provenance
+        assert sidecar.provenance["episodes"] >= 2, sidecar.provenance
+        assert sidecar.provenance["planners"] == ["/lit_planner"], sidecar.provenance
+
     result = ros.call("export")
     assert result.returncode == 0, result
     paths = json.loads(result.stdout)
@@ -1543,16 +1554,6 @@ def test_the_learner_exports_on_request_and_after_max_episodes(
         values, sidecar = tensor_files.read_tensor(exports / name)
         assert values.shape == (101, 101, 101)
         assert sidecar.provenance["reason"] == "request", sidecar.provenance
-        assert sidecar.provenance["episodes"] == 0, sidecar.provenance
-
-    planner = ros.planner(episodes=2, exit_when_done=True, **TRAINING)
-    assert planner.wait(timeout=300.0) == 0, planner.tail()
-    learner.wait_for_log(r"exported tensors to .* \(end of training\)", timeout=300.0)
-    for name in ("b_tensor.npy", "k_tensor.npy"):
-        _, sidecar = tensor_files.read_tensor(exports / name)
-        assert sidecar.provenance["reason"] == "end of training", sidecar.provenance
-        assert sidecar.provenance["episodes"] >= 2, sidecar.provenance
-        assert sidecar.provenance["planners"] == ["/lit_planner"], sidecar.provenance
     assert learner.running()
     _no_traceback(planner, learner)
 

@@ -216,8 +216,9 @@ class LearnerNode:
         """Guards ``_unapplied`` (held for an append or a pop only), and the open episodes'
         bookkeeping that the idle sweep changes (``_latest_time``, ``_last_seen``,
         ``_open_episode``). Taken after ``_lock`` where both are held."""
-        self._latest_time: dict[str, float] = {}
-        """Planning time of each open episode's latest answered decision (serving thread)."""
+        self._latest_time: dict[str, tuple[float, int]] = {}
+        """Planning time and improvements of each open episode's latest answered decision
+        (serving thread)."""
         self._last_seen: dict[str, tuple[float, float, str]] = {}
         """Each open episode's latest decision: monotonic time, the episode's time budget and
         its planner (written by the serving thread, swept by the stats timer, both under
@@ -226,8 +227,11 @@ class LearnerNode:
         """Each planner's (source's) episode in progress (serving thread). A planner plans one
         episode at a time: its first request of another episode abandons an older one whose end
         never came (see ``LearnerCore.abandon_episode``)."""
-        self._episodes_at_checkpoint = self.core.episodes
-        self._episodes_at_export = self.core.episodes
+        self._at_checkpoint = self._progress()
+        """:meth:`_progress` when the last checkpoint was copied (or at start)."""
+        self._at_export = self._progress()
+        """:meth:`_progress` when the last export was made (or at start: a finished run started
+        again does not export again until it trains)."""
         self._last_checkpoint = time.monotonic()
         self._started = time.monotonic()
         self._last_metrics: dict[str, float] = {}
@@ -330,7 +334,27 @@ class LearnerNode:
         if path.exists() and not p["fresh"]:
             core = LearnerCore.load_checkpoint(path)
             self._checkpoint_done = str(path)
-            self.log.info(f"resumed from {path}: {core.episodes} episodes")
+            config = core.config
+            trains = {(True, True): "both", (True, False): "B", (False, True): "psi_K"}.get(
+                (config.train_b, config.train_k), "neither"
+            )
+            unused = [
+                f"{name}:={value}"
+                for name, value, kept in (
+                    ("train", p["train"], trains),
+                    ("seed", p["seed"], config.seed),
+                )
+                if value != kept
+            ]
+            self.log.info(
+                f"resumed from {path}: {core.episodes} episodes, train {trains} and seed "
+                f"{config.seed} as the checkpoint says"
+                + (
+                    f" (the parameters {', '.join(unused)} are for a fresh start only)"
+                    if unused
+                    else ""
+                )
+            )
             warning = core.load_warning()
             if warning:
                 self.log.warning(f"{path}: {warning}")
@@ -400,7 +424,7 @@ class LearnerNode:
                         self._probes += 1
                     return response
                 with self._queue_lock:  # the idle sweep sees all three or none
-                    self._latest_time[episode] = decision.planning_time
+                    self._latest_time[episode] = (decision.planning_time, decision.improvements)
                     self._last_seen[episode] = (
                         time.monotonic(),
                         decision.time_budget,
@@ -484,15 +508,24 @@ class LearnerNode:
             return response
 
     def _check_order(self, decision: DecisionRequest) -> None:
-        """The pairing's time-order check against this episode's latest decision, including
-        decisions whose commit has not been applied yet (the core's own check sees only the
-        applied ones)."""
+        """The pairing's order checks (time, improvements) against this episode's latest
+        decision, including decisions whose commit has not been applied yet (the core's own
+        check sees only the applied ones: a later decision with fewer improvements was answered,
+        then dropped when its commit failed)."""
         latest = self._latest_time.get(decision.episode_id)
-        if latest is not None and decision.planning_time < latest:
+        if latest is None:
+            return
+        if decision.planning_time < latest[0]:
             raise PairingError(
                 f"episode {decision.episode_id!r}: planning_time {decision.planning_time} is "
-                f"before the previous message's {latest}",
+                f"before the previous message's {latest[0]}",
                 field="planning_time",
+            )
+        if decision.improvements < latest[1]:
+            raise PairingError(
+                f"episode {decision.episode_id!r}: improvements {decision.improvements} is below "
+                f"the {latest[1]} an earlier message reported",
+                field="improvements",
             )
 
     def _queue_commit(
@@ -591,8 +624,8 @@ class LearnerNode:
                     with self._lock:  # per agent, as lit train's (the two overwrote each other)
                         losses = {f"losses/{k}_{name}": float(v) for k, v in record.items()}
                         self._last_metrics.update(losses)
-                else:
-                    self._maintain()
+                # Between steps too: a backlog of owed steps held checkpoints off until it ended.
+                self._maintain()
             except Exception as exc:  # noqa: BLE001 - the thread must outlive a full disk
                 # A checkpoint that cannot be written (full disk, a folder gone) or a failed
                 # step: counted in the stats, logged, tried again after a pause. The thread used
@@ -609,35 +642,46 @@ class LearnerNode:
                 )
             self.apply_commits()  # decisions answered while this thread held the lock
 
+    def _progress(self) -> tuple[int, int]:
+        """(episodes, policy version): what a checkpoint or export saves. The version also moves
+        without new episodes (the gradient steps of abandoned ones)."""
+        return self.core.episodes, self.core.policy_version
+
     def _due(self) -> bool:
         """Whether a checkpoint or the end-of-training export is owed (caller holds the lock);
         not until ``TRAINER_RETRY`` s after one failed (episode ends wake the trainer, and each
         retry copies the whole state under both locks)."""
         if time.monotonic() < self._retry_at:
             return False
-        return self._checkpoint_due(self.core.episodes) or self._export_due(self.core.episodes)
+        progress = self._progress()
+        return self._checkpoint_due(progress) or self._export_due(progress)
 
-    def _checkpoint_due(self, episodes: int) -> bool:
-        new = episodes - self._episodes_at_checkpoint
-        return bool(new) and (
-            new >= self.params["checkpoint_every"]
-            or time.monotonic() - self._last_checkpoint >= self.params["checkpoint_period"]
+    def _checkpoint_due(self, progress: tuple[int, int]) -> bool:
+        new = progress[0] - self._at_checkpoint[0]
+        period = time.monotonic() - self._last_checkpoint >= self.params["checkpoint_period"]
+        return (new > 0 and new >= self.params["checkpoint_every"]) or (
+            progress != self._at_checkpoint and period
         )
 
-    def _export_due(self, episodes: int) -> bool:
+    def _export_due(self, progress: tuple[int, int]) -> bool:
         limit = self.params["max_episodes"]
-        return bool(limit) and episodes >= limit and not self._exported_at_end
+        return (
+            bool(limit)
+            and progress[0] >= limit
+            and not self._exported_at_end
+            and progress != self._at_export
+        )
 
     def _maintain(self) -> None:
         if time.monotonic() < self._retry_at:
             return
         with self._lock:
-            episodes = self.core.episodes
-        if self._checkpoint_due(episodes):
+            progress = self._progress()
+        if self._checkpoint_due(progress):
             self.checkpoint()
-        if self._export_due(episodes):
+        if self._export_due(progress):
+            self.export("end of training")  # a failure raises: tried again after the pause
             self._exported_at_end = True
-            self.export("end of training")
 
     def checkpoint(self) -> None:
         """Write the checkpoint atomically: a consistent copy of the state under both locks, the
@@ -646,32 +690,30 @@ class LearnerNode:
         with self._checkpoint_lock:  # one checkpoint at a time: files written in copy order
             with self._networks, self._lock:
                 state = self.core.checkpoint_state()
-                episodes = self.core.episodes
+                progress = self._progress()
             self.core.write_checkpoint(state, self.params["checkpoint"])
-            self._episodes_at_checkpoint = episodes
+            self._at_checkpoint = progress
             self._checkpoint_done = str(self.params["checkpoint"])
         self._last_checkpoint = time.monotonic()
-        self.log.info(
-            f"checkpoint {self.params['checkpoint']} ({self._episodes_at_checkpoint} episodes)"
-        )
+        self.log.info(f"checkpoint {self.params['checkpoint']} ({progress[0]} episodes)")
 
     def export(self, why: str) -> dict[str, Path]:
         """Write both lookup tensors (and a checkpoint copy) into ``export_dir``."""
-        with self._lock:  # the serving thread adds planners meanwhile
-            planners, episodes = sorted(self._planners), self.core.episodes
-        record = {
-            "exported_by": "lit_learner_node",
-            "reason": why,
-            "run_id": self.run_id,
-            "planners": planners,
-            "episodes": episodes,
-            "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-        }
         # One export at a time, decisions going on meanwhile; and not beside a checkpoint (the
         # export writes a checkpoint copy, perhaps to the same file).
         with self._export_lock, self._checkpoint_lock:
+            with self._lock:  # the serving thread adds planners meanwhile
+                planners, progress = sorted(self._planners), self._progress()
+            record = {
+                "exported_by": "lit_learner_node",
+                "reason": why,
+                "run_id": self.run_id,
+                "planners": planners,
+                "episodes": progress[0],
+                "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            }
             paths = self.core.export_tensors(self.params["export_dir"], record, lock=self._frozen())
-            self._episodes_at_export = record["episodes"]
+            self._at_export = progress
         self.log.info(f"exported tensors to {self.params['export_dir']} ({why})")
         return paths
 
@@ -790,7 +832,7 @@ class LearnerNode:
             raise failures[0]
 
     def _export_at_shutdown(self) -> None:
-        if self.core.episodes != self._episodes_at_export:
+        if self._progress() != self._at_export:
             self.export("shutdown")
 
     def _refuse(self, request: Any, response: Any) -> Any:
