@@ -8,7 +8,6 @@ it fails. Budgets are small and timeouts generous: no assertion depends on the m
 
 from __future__ import annotations
 
-import itertools
 import json
 import math
 import os
@@ -24,6 +23,7 @@ from typing import Any
 import numpy as np
 import pytest
 from lit_msgs_json.envelope import MAX_MESSAGE_BYTES, Publisher
+from lit_planner.testing import longest_chord_inside_boxes
 from ros_helpers import (
     RECORDER_NODE,
     Child,
@@ -74,47 +74,6 @@ def _checkpoint(ros: RosSystem) -> Path:
 def _learned(summary: dict[str, Any]) -> bool:
     """A training episode whose every decision came from the learner."""
     return summary["learner_calls"] > 0 and summary["fallback_decisions"] == 0
-
-
-def _avoids_obstacles(scenario: scenarios.Scenario, path: list[list[float]]) -> bool:
-    """Whether ``path`` runs from start to goal clear of the obstacles, up to the resolution.
-
-    The planner checks motions at its resolution, so a path may clip a box corner by less than a
-    step (it then reports ``path_valid: false``); the dense re-check runs against boxes shrunk by
-    two steps.
-    """
-    margin = 2.0 * scenario.resolution * scenario.max_extent
-    shrunk = scenarios.custom(
-        scenario.lower,
-        scenario.upper,
-        [([x + margin for x in low], [x - margin for x in high]) for low, high in scenario.boxes],
-        scenario.start,
-        scenario.goal,
-        resolution=scenario.resolution,
-    )
-    return scenarios.check_path(shrunk, path).ok
-
-
-def _inside_no_box(world: dict[str, Any], path: list[list[float]]) -> bool:
-    """Whether no segment of ``path`` has a stretch of positive length inside a box of ``world``
-    (exact slab test, corners and edges included; touching a face is allowed): what the exact
-    edge checks of an explicit world promise."""
-    points = np.asarray(path, dtype=np.float64)
-    for a, b in itertools.pairwise(points):
-        d = b - a
-        for box in world["boxes"]:
-            low, high = np.asarray(box["lower"], float), np.asarray(box["upper"], float)
-            first, last = 0.0, 1.0
-            for axis in range(len(a)):
-                if d[axis] == 0.0:
-                    if not low[axis] <= a[axis] <= high[axis]:
-                        first, last = 1.0, 0.0
-                    continue
-                t0, t1 = sorted(((low[axis] - a[axis]) / d[axis], (high[axis] - a[axis]) / d[axis]))
-                first, last = max(first, t0), min(last, t1)
-            if first < last:
-                return False
-    return True
 
 
 # ---------------------------------------------------------------------- 1. the plan service
@@ -168,9 +127,9 @@ def test_plan_service_round_trip(ros: RosSystem, tmp_path: Path) -> None:
         world["goal"],
     )
     assert scenarios.check_path(explicit, response["path"]).ok
-    assert _inside_no_box(world, response["path"])
+    assert longest_chord_inside_boxes(explicit, response["path"]) == 0.0  # exact, corners too
     clipping = [world["start"], [0.39, 0.79], [0.41, 0.99], world["goal"]]  # the wall's corner
-    assert not _inside_no_box(world, clipping)
+    assert longest_chord_inside_boxes(explicit, clipping) > 0.0
     assert response["cost"] > 0.8  # around the wall, never through it
 
     # No path within 0.1 ms: nothing on lit/path (an empty trajectory went out, which a
@@ -193,7 +152,9 @@ def test_plan_service_round_trip(ros: RosSystem, tmp_path: Path) -> None:
     assert response["path"][-1] == pytest.approx(list(scenario.goal))
     assert response["cost"] > 0
     assert response["cost"] >= math.dist(scenario.start, scenario.goal) - 1e-9
-    assert _avoids_obstacles(scenario, response["path"])
+    # Registry scenarios are checked at their resolution: a corner may be clipped by less.
+    clip = scenario.resolution * scenario.max_extent
+    assert longest_chord_inside_boxes(scenario, response["path"]) <= clip
     alone = planning.plan("np4", policy="tensor", max_iterations=2000, seed=1, check_path=False)
     assert 0 < alone["iteration_init"] < 2000 and alone["checks_init"] > 0
     for key in ("checks_init", "iteration_init", "c_init", "counters"):

@@ -16,6 +16,7 @@ and the exit status is non-zero when anything failed, a runner broke, or no test
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import shutil
 import signal
@@ -26,7 +27,7 @@ import threading
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 from xml.etree import ElementTree
 
 from lit_planner.up import DomainBusy, DomainClaim, claim_domain
@@ -241,6 +242,28 @@ def run_watched(args: Sequence[str], *, timeout: float, **options: object) -> Wa
                 process.wait()
             watch.kill()
         return Watched(subprocess.CompletedProcess(args, code, *texts()), watch.seen)
+
+
+def longest_chord_inside_boxes(scenario: Any, path: Any) -> float:
+    """The longest piece of any segment of ``path`` inside any obstacle box of ``scenario`` (a
+    :class:`lit_planner.scenarios.Scenario`), exactly (slab method): 0 for a path that touches
+    boxes at most, corners and edges included."""
+    import numpy as np
+
+    path = np.asarray(path, dtype=np.float64)
+    lower, upper = scenario.boxes[:, 0], scenario.boxes[:, 1]  # (m, dim)
+    longest = 0.0
+    for a, b in itertools.pairwise(path):
+        d = b - a
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1, t2 = (lower - a) / d, (upper - a) / d  # (m, dim); inf/nan where d == 0
+        flat = d == 0
+        inside = np.all(~flat | ((lower <= a) & (a <= upper)), axis=1)  # parallel axes
+        enter = np.where(flat, -np.inf, np.minimum(t1, t2)).max(axis=1).clip(0.0, 1.0)
+        leave = np.where(flat, np.inf, np.maximum(t1, t2)).min(axis=1).clip(0.0, 1.0)
+        chord = np.where(inside, np.maximum(leave - enter, 0.0), 0.0) * np.linalg.norm(d)
+        longest = max(longest, float(chord.max(initial=0.0)))
+    return longest
 
 
 def read_until(stream: IO[str], text: str, timeout: float = 120.0) -> list[str]:

@@ -26,6 +26,7 @@ from lit_planner.planning import (
     query_for,
     resolve_planner,
 )
+from lit_planner.testing import longest_chord_inside_boxes
 
 from lit_planner import scenarios
 from lit_planner import tensor_files as tf
@@ -449,23 +450,6 @@ def test_listener_time_is_not_planning_time() -> None:
 
 
 # --------------------------------------------------------------------------- OMPL baselines
-
-
-def longest_chord_inside_boxes(scenario: scenarios.Scenario, path: np.ndarray) -> float:
-    """The longest piece of any path segment inside any obstacle box (slab method)."""
-    lower, upper = scenario.boxes[:, 0], scenario.boxes[:, 1]  # (m, dim)
-    longest = 0.0
-    for a, b in itertools.pairwise(path):
-        d = b - a
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t1, t2 = (lower - a) / d, (upper - a) / d  # (m, dim); inf/nan where d == 0
-        flat = d == 0
-        inside = np.all(~flat | ((lower <= a) & (a <= upper)), axis=1)  # parallel axes
-        enter = np.where(flat, -np.inf, np.minimum(t1, t2)).max(axis=1).clip(0.0, 1.0)
-        leave = np.where(flat, np.inf, np.maximum(t1, t2)).min(axis=1).clip(0.0, 1.0)
-        chord = np.where(inside, np.maximum(leave - enter, 0.0), 0.0) * np.linalg.norm(d)
-        longest = max(longest, float(chord.max(initial=0.0)))
-    return longest
 
 
 def test_longest_chord_inside_boxes() -> None:
