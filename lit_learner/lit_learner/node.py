@@ -625,7 +625,8 @@ class LearnerNode:
                         losses = {f"losses/{k}_{name}": float(v) for k, v in record.items()}
                         self._last_metrics.update(losses)
                 # Between steps too: a backlog of owed steps held checkpoints off until it ended.
-                self._maintain()
+                if step is None or self._due():
+                    self._maintain()
             except Exception as exc:  # noqa: BLE001 - the thread must outlive a full disk
                 # A checkpoint that cannot be written (full disk, a folder gone) or a failed
                 # step: counted in the stats, logged, tried again after a pause. The thread used

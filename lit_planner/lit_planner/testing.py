@@ -185,25 +185,11 @@ class DescendantWatch:
         kill_identified(self.seen)
 
 
-@dataclass
-class Watched:
-    """What :func:`run_watched` saw: the command's result and every process it started."""
+class Watched(subprocess.CompletedProcess):  # type: ignore[type-arg]
+    """:func:`run_watched`'s result: a ``CompletedProcess`` that also names every process the
+    command started (``started``: each descendant seen while it ran, ended by then)."""
 
-    process: subprocess.CompletedProcess[str]
     started: set[ProcessIdentity]
-    """Every descendant seen while the command ran (each ended by then)."""
-
-    @property
-    def returncode(self) -> int:
-        return self.process.returncode
-
-    @property
-    def stdout(self) -> str:
-        return self.process.stdout
-
-    @property
-    def stderr(self) -> str:
-        return self.process.stderr
 
 
 def run_watched(args: Sequence[str], *, timeout: float, **options: object) -> Watched:
@@ -241,7 +227,9 @@ def run_watched(args: Sequence[str], *, timeout: float, **options: object) -> Wa
                 os.killpg(process.pid, signal.SIGKILL)
                 process.wait()
             watch.kill()
-        return Watched(subprocess.CompletedProcess(args, code, *texts()), watch.seen)
+        result = Watched(args, code, *texts())
+        result.started = watch.seen
+        return result
 
 
 def longest_chord_inside_boxes(scenario: Any, path: Any) -> float:
