@@ -9,10 +9,13 @@ shut down cleanly."""
 from __future__ import annotations
 
 import json
+import os
 import re
+import subprocess
 import sys
 import textwrap
 
+import pytest
 from ros_helpers import RosSystem, reserve_domain
 
 SERVER = textwrap.dedent(
@@ -293,13 +296,24 @@ def test_send_response_retries_an_answer_fast_dds_dropped() -> None:
     assert len(sent) == rosutil.PLAN_SEND_ATTEMPTS > rosutil.SEND_ATTEMPTS
 
 
+def _run_script(script) -> subprocess.CompletedProcess[str]:
+    """Run a Python script in a ROS domain of its own, to the end."""
+    domain, lock = reserve_domain()
+    try:
+        env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain))
+        return subprocess.run(
+            [sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=120,
+            check=False,
+        )  # fmt: skip
+    finally:
+        if lock is not None:
+            lock.close()
+
+
 def test_a_node_run_by_spin_node_has_its_startup_objects_frozen(tmp_path) -> None:
     """A full garbage collection over the ~200 000 objects of a node with rclpy and torch
     loaded holds the GIL for 80 ms (every thread stops); spin_node freezes what the node built
     at startup, so later collections skip it."""
-    import os
-    import subprocess
-
     script = tmp_path / "owner.py"
     script.write_text(
         textwrap.dedent(
@@ -322,16 +336,7 @@ def test_a_node_run_by_spin_node_has_its_startup_objects_frozen(tmp_path) -> Non
             """
         )
     )
-    domain, lock = reserve_domain()
-    try:
-        env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain))
-        process = subprocess.run(
-            [sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=120,
-            check=False,
-        )  # fmt: skip
-    finally:
-        if lock is not None:
-            lock.close()
+    process = _run_script(script)
     assert process.returncode == 0, process.stderr[-2000:]
     frozen = int(process.stdout.split("frozen", 1)[1].split()[0])
     assert frozen > 5000
@@ -412,3 +417,59 @@ def test_the_learner_keys_repeated_requests_by_planner_and_text() -> None:
     assert decoder.decode(second) is message  # not decoded again
     assert message.payload["episode_id"] == "e" and message.source == "/robot1/lit_planner"
     assert decoder.decode(first) is not message
+
+
+_DIES = {
+    # An rcl error in DirectService's serving thread: its service handle destroyed under it.
+    "serving thread": """
+        service = DirectService(self.node, "lit_dies_direct", AddDiagnostics, "/dies", None)
+        service._owner.destroy_service(service._service)  # deferred while the wait holds it
+        service._stop.trigger()  # the wait ends; the next one finds the handle gone
+    """,
+    "worker thread": """
+        def work():
+            raise RuntimeError("the worker failed on purpose")
+
+        essential("worker", work).start()
+    """,
+}
+
+
+@pytest.mark.parametrize("case", sorted(_DIES))
+def test_a_node_whose_thread_dies_shuts_down_and_exits_1(tmp_path, case: str) -> None:
+    """A thread the node needs (DirectService's serving thread, a worker started with
+    ``essential``) that ends on an error made the node serve nothing while it looked alive (exit
+    0 at its eventual stop): spin_node now shuts it down in order and exits 1, saying why."""
+    script = tmp_path / "owner.py"
+    script.write_text(
+        textwrap.dedent(
+            """
+            import sys
+            import rclpy.node
+            from diagnostic_msgs.srv import AddDiagnostics
+            from lit_planner.rosutil import DirectService, essential, spin_node
+
+            class Owner:
+                def __init__(self):
+                    self.node = rclpy.node.Node("lit_dies_probe")
+            {}
+                def shutdown(self):
+                    print("shutdown ran", flush=True)
+
+            sys.exit(spin_node(Owner, sys.argv, threads=1))
+            """
+        ).format(textwrap.indent(textwrap.dedent(_DIES[case]), " " * 8))
+    )
+    process = _run_script(script)
+    assert process.returncode == 1, process.stderr[-2000:]
+    assert "shutdown ran" in process.stdout
+    assert "; the node shuts down (exit 1)" in process.stderr
+    if case == "serving thread":
+        assert "/dies: serving stopped" in process.stderr and "/dies is no longer served" in (
+            process.stderr
+        )
+    else:
+        assert "thread 'worker' ended: RuntimeError: the worker failed on purpose" in (
+            process.stderr
+        )
+        assert "Traceback" in process.stderr

@@ -46,6 +46,17 @@ if ! command -v "$PYTHON" >/dev/null 2>&1; then
   # No pyenv/other 3.11 on PATH: Debian 12's own 3.11 with venv and headers does the job.
   DEB_PACKAGES+=(python3.11 python3.11-venv python3.11-dev)
   PYTHON=python3.11
+elif ! "$PYTHON" -c 'import ensurepip, os, sys, sysconfig
+sys.exit(not os.path.isfile(os.path.join(sysconfig.get_paths()["include"], "Python.h")))' \
+    >/dev/null 2>&1; then
+  # Debian 12's python3.11 comes without venv (ensurepip) and its C headers (Python.h), which the
+  # environments and the core's build need: python3.11-venv and python3.11-dev bring them.
+  if [ "$(readlink -f "$(command -v "$PYTHON")")" = /usr/bin/python3.11 ]; then
+    DEB_PACKAGES+=(python3.11-venv python3.11-dev)
+  else
+    die "$(command -v "$PYTHON") has no venv module (ensurepip) or no C headers (Python.h); \
+install them for that interpreter, or set LIT_PYTHON to one that has both"
+  fi
 fi
 missing=()
 installed="$(dpkg-query -W -f='${Package} ${Status}\n' "${DEB_PACKAGES[@]}" 2>/dev/null || true)"

@@ -60,6 +60,9 @@ class LearnerCore:
         self.pairing = Pairing(config.reward)
         self.episodes = 0
         """Episodes ended so far."""
+        self.sources: set[str] = set()
+        """Who sent the experience (the learner node puts the planners' envelope sources here;
+        an export's provenance names them). Kept in checkpoints."""
         self._policy_version = 0
         self._pending_updates = dict.fromkeys(AGENT_NAMES, 0)
         """Gradient steps owed to the transitions of ended episodes (counted from warm-up on)."""
@@ -353,6 +356,7 @@ class LearnerCore:
             "agents": {name: agent.state_dict() for name, agent in self.agents.items()},
             "pairing": self.pairing.state_dict(),
             "episodes": self.episodes,
+            "sources": sorted(self.sources),
             "policy_version": self._policy_version,
             "pending_updates": dict(self._pending_updates),
             "owed_updates": {e: dict(d) for e, d in self._owed_updates.items()},
@@ -440,6 +444,7 @@ class LearnerCore:
                 raise CheckpointError(f"agent {name}: {exc}") from exc
         core.pairing.load_state_dict(state["pairing"])
         core.episodes = state["episodes"]
+        core.sources = set(state.get("sources", ()))  # checkpoints from before it: none known
         core._policy_version = state["policy_version"]
         core._pending_updates = dict(state["pending_updates"])
         # Checkpoints written before owed updates existed counted them as pending already.

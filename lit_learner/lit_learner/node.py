@@ -20,7 +20,7 @@
 - An episode without a decision for ``episode_timeout`` s, or twice its time budget if that is
   longer (its planner died, or lost its end), is abandoned, as when its planner starts another: its open steps are dropped, its stored
   transitions' gradient steps become due, and it no longer stays in memory and checkpoints.
-- Checkpoints every ``checkpoint_every`` episodes and ``checkpoint_period`` s, and on shutdown;
+- Checkpoints every ``checkpoint_every`` episodes and ``checkpoint_period`` s (0: off), and on shutdown;
   resumes from ``checkpoint`` when the file exists (``fresh: true`` starts over).
 - Exports the B and K lookup tensors to ``export_dir`` on ``/lit/learner/export``
   (``std_srvs/srv/Trigger``), after ``max_episodes`` episodes (the end of training), and on
@@ -50,6 +50,7 @@ from lit_planner.rosutil import (
     DuplicateServerWatch,
     SafeLogger,
     declare_parameters,
+    essential,
     flush_publishers,
     json_qos,
     retry_lost_answers,
@@ -202,7 +203,6 @@ class LearnerNode:
         self._export_stopping = False
         self._export_busy = threading.Lock()
         """The export service stops last: until then it answers that the learner stops."""
-        self._planners: set[str] = set()
         self._decisions = 0
         self._probes = 0
         """Probe requests answered (``probe``: nothing recorded), counted in the stats' decisions."""
@@ -259,16 +259,13 @@ class LearnerNode:
         )
         self._export_executor = SingleThreadedExecutor()
         self._export_executor.add_node(self._export_node)
-        self._export_thread = threading.Thread(
-            target=spin_quietly,
-            args=(self._export_executor, lambda: self._export_stopping),
-            name="export",
-            daemon=True,
+        self._export_thread = essential(
+            "export", spin_quietly, self._export_executor, lambda: self._export_stopping
         )
         self._export_thread.start()
         node.create_timer(p["stats_period"], self._on_stats_timer)
         DuplicateServerWatch(node, p["service"]).start()
-        self._trainer = threading.Thread(target=self._train, name="trainer", daemon=True)
+        self._trainer = essential("trainer", self._train)
         self._trainer.start()
         # Decisions are served from a thread and node of their own, outside the executor: the
         # round trip is on the planner's critical path (see DirectService). The service is made
@@ -470,7 +467,7 @@ class LearnerNode:
                         del self._open_episode[message.source]
                 stored = sum(agent.transitions for agent in self.core.agents.values()) - before
                 self._last_metrics.update(metrics)
-                self._planners.add(message.source)
+                self.core.sources.add(message.source)
                 body = {
                     "episode_id": payload["episode_id"],
                     "transitions_stored": int(stored),
@@ -572,7 +569,7 @@ class LearnerNode:
                 self.log.error(f"commit of a decision of {decision.episode_id} failed: {exc!r}")
                 continue
             self._decisions += 1
-            self._planners.add(source)
+            self.core.sources.add(source)
 
     def _serve_export(self, request: Any, response: Any) -> Any:
         del request
@@ -658,10 +655,15 @@ class LearnerNode:
         return self._checkpoint_due(progress) or self._export_due(progress)
 
     def _checkpoint_due(self, progress: tuple[int, int]) -> bool:
+        """``checkpoint_every`` episodes ended, or ``checkpoint_period`` s passed with progress,
+        since the last checkpoint; either at 0 is off (as ``lit train --checkpoint-every 0``;
+        0 meant every episode, or every trainer wake-up)."""
+        every, period = self.params["checkpoint_every"], self.params["checkpoint_period"]
         new = progress[0] - self._at_checkpoint[0]
-        period = time.monotonic() - self._last_checkpoint >= self.params["checkpoint_period"]
-        return (new > 0 and new >= self.params["checkpoint_every"]) or (
-            progress != self._at_checkpoint and period
+        return (every > 0 and new >= every) or (
+            period > 0
+            and progress != self._at_checkpoint
+            and time.monotonic() - self._last_checkpoint >= period
         )
 
     def _export_due(self, progress: tuple[int, int]) -> bool:
@@ -704,7 +706,7 @@ class LearnerNode:
         # export writes a checkpoint copy, perhaps to the same file).
         with self._export_lock, self._checkpoint_lock:
             with self._lock:  # the serving thread adds planners meanwhile
-                planners, progress = sorted(self._planners), self._progress()
+                planners, progress = sorted(self.core.sources), self._progress()
             record = {
                 "exported_by": "lit_learner_node",
                 "reason": why,
@@ -787,7 +789,7 @@ class LearnerNode:
                 },
                 "pending_updates": int(self.core.pending_updates),
                 "decisions": self._decisions + self._probes,
-                "planners": sorted(self._planners)[:1024],
+                "planners": sorted(self.core.sources)[:1024],
                 "metrics": {
                     k: float(v) for k, v in self._last_metrics.items() if _finite_number(v)
                 },

@@ -378,6 +378,23 @@ def test_resume_from_checkpoint_is_exact(tmp_path: Path) -> None:
     assert_same_state(uninterrupted, resumed)
 
 
+def test_the_sources_of_the_experience_outlive_a_restart(tmp_path: Path) -> None:
+    """The planners that fed a learner are named in its exports' provenance: those of before a
+    restart too (the learner node kept them in memory only, so an export after a resume named the
+    planners heard since). A checkpoint from before they were kept names none."""
+    core = LearnerCore(small_config())
+    core.sources.update({"/robot2/lit_planner", "/robot1/lit_planner"})
+    core.save_checkpoint(tmp_path / "c.pt")
+    assert LearnerCore.load_checkpoint(tmp_path / "c.pt").sources == {
+        "/robot1/lit_planner",
+        "/robot2/lit_planner",
+    }
+    state = core.state_dict()
+    del state["sources"]
+    torch.save(state, tmp_path / "old.pt")
+    assert LearnerCore.load_checkpoint(tmp_path / "old.pt").sources == set()
+
+
 def test_checkpoint_files_hold_the_arrays_as_tensors_and_old_files_still_load(
     tmp_path: Path,
 ) -> None:

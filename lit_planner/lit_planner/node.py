@@ -93,6 +93,7 @@ from lit_planner.rosutil import (
     ServiceCaller,
     declare_parameters,
     episode_budget_limit,
+    essential,
     flush_publishers,
     json_qos,
     retry_lost_answers,
@@ -368,7 +369,7 @@ class PlannerNode:
         """request_ids a CancelRequest named before any plan request carried them, with when
         (time.monotonic()): a plan request that arrives within CANCEL_EARLY s is answered as
         cancelled (a client that gave up just after sending; under the lock)."""
-        self._worker = threading.Thread(target=self._work, name="planner", daemon=True)
+        self._worker = essential("planner", self._work)
         self._worker.start()
         from diagnostic_msgs.srv import AddDiagnostics
 
@@ -397,7 +398,7 @@ class PlannerNode:
             attempts=PLAN_SEND_ATTEMPTS,  # a new `lit call cancel` may match late, as for plans
         )
         DuplicateServerWatch(node, PLAN_SERVICE).start()
-        self._driver = threading.Thread(target=self._drive, name="episodes", daemon=True)
+        self._driver = essential("episodes", self._drive)
         self._driver.start()
         self.log.info(
             f"ready: policy {p['policy']}, {_episodes_shown(p)}, run_id {self.run_id}, "

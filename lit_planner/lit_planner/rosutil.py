@@ -677,6 +677,7 @@ class DirectService:
         except Exception as exc:  # noqa: BLE001 - RCLError when the context shuts down under the wait
             if context.ok() and not self._stopping:
                 self._log.error(f"{service.srv_name}: serving stopped: {exc!r}")
+                fail_process(f"{service.srv_name} is no longer served")
 
     def _answer(self, request: Any, header: Any) -> None:
         """Run the callback (or take a copy's cached answer), send, run the deferred work."""
@@ -766,6 +767,36 @@ class DirectService:
             pass
 
 
+_FAILED = threading.Event()
+"""Set by :func:`fail_process`: :func:`spin_node` shuts the node down and exits 1."""
+
+
+def fail_process(reason: str) -> None:
+    """A thread the node cannot do without has ended (a service's serving thread, the executor,
+    a planner's or learner's worker): say so on stderr and make :func:`spin_node` shut the node
+    down in order and exit 1. Without it the process lived on, serving nothing, and whatever
+    supervised it (``lit up``) saw nothing wrong."""
+    print(f"error: {reason}; the node shuts down (exit 1)", file=sys.stderr, flush=True)
+    _FAILED.set()
+
+
+def essential(name: str, target: Callable[..., object], *args: object) -> threading.Thread:
+    """A daemon thread named ``name`` running ``target(*args)``; an exception that ends it is
+    printed with its traceback and ends the process through :func:`fail_process` (a normal
+    return does not: the thread's work is over)."""
+
+    def run() -> None:
+        try:
+            target(*args)
+        except BaseException as exc:  # noqa: BLE001 - reported, and the process stops
+            import traceback
+
+            traceback.print_exc(file=sys.stderr)
+            fail_process(f"thread {name!r} ended: {type(exc).__name__}: {exc}")
+
+    return threading.Thread(target=run, name=name, daemon=True)
+
+
 def spin_node(
     make_owner: Callable[[], Any],
     args: Sequence[str] | None = None,
@@ -782,8 +813,9 @@ def spin_node(
         threads: executor threads.
 
     Returns:
-        0 after a clean shutdown, 1 when the owner's ``shutdown()`` raised (a checkpoint or
-        export that could not be written: logged, and the exit code says so).
+        0 after a clean shutdown; 1 when the owner's ``shutdown()`` raised (a checkpoint or
+        export that could not be written: logged, and the exit code says so), or when a thread
+        the node needs ended (:func:`fail_process`).
     """
     localhost_environment()
     import rclpy
@@ -816,14 +848,12 @@ def spin_node(
     executor = SingleThreadedExecutor() if threads == 1 else MultiThreadedExecutor(threads)
     executor.add_node(node)
     stopping = threading.Event()
-    spinner = threading.Thread(
-        target=_spin, args=(executor, stop, stopping), name="executor", daemon=True
-    )
+    spinner = essential("executor", _spin, executor, stop, stopping)
     spinner.start()
     code = 0
     try:
         while not stop.wait(0.2):
-            if getattr(owner, "finished", False):
+            if getattr(owner, "finished", False) or _FAILED.is_set():
                 break
     finally:
         if hasattr(owner, "shutdown"):
@@ -844,7 +874,7 @@ def spin_node(
                 rclpy.shutdown()
             except (ExternalShutdownException, RuntimeError):
                 pass
-    return code
+    return 1 if _FAILED.is_set() else code
 
 
 MAX_DOMAIN_ID = 232
