@@ -2,7 +2,8 @@
 # Bring this checkout to a runnable state; fast and silent when nothing changed.
 #
 #   a. Debian packages for the C++ core (apt-get, only the missing ones)
-#   b. a shared third-party venv outside the checkout, keyed by hash(requirements.lock + Python),
+#   b. a shared third-party venv outside the checkout, keyed by hash(requirements.lock + the
+#      interpreter's path, version and ABI),
 #      so heavy dependencies are installed once per machine, not once per clone
 #   c. a per-checkout .venv whose site-packages append the shared env's (via a .pth file)
 #   d. the three ament_python packages installed editable into .venv
@@ -83,8 +84,18 @@ LOCK="$ROOT/requirements.lock"
 [ -f "$LOCK" ] || die "missing $LOCK"
 PY_VERSION="$("$PYTHON" -c 'import sys; print(sys.version)')" \
   || die "$PYTHON does not run"
-DEPS_KEY="$({ cat "$LOCK"; printf '%s' "$PY_VERSION"; } | hash_stdin | cut -c1-16)"
+# The interpreter as the environment depends on it: its file, version and ABI. Not the full
+# sys.version, whose build date changes with every Debian security update of python3.11 (each
+# one made a new 5.8 GB environment).
+PY_IDENTITY="$("$PYTHON" -c 'import os, sys, sysconfig
+print(os.path.realpath(sys.executable), *sys.version_info[:2], sysconfig.get_config_var("SOABI"))')"
+DEPS_KEY="$({ cat "$LOCK"; printf '%s' "$PY_IDENTITY"; } | hash_stdin | cut -c1-16)"
 SHARED="$CACHE/deps-$DEPS_KEY"
+# An environment made under the former key (lock + sys.version) of this same interpreter serves.
+LEGACY="$CACHE/deps-$({ cat "$LOCK"; printf '%s' "$PY_VERSION"; } | hash_stdin | cut -c1-16)"
+if [ ! -e "$SHARED" ] && [ -f "$LEGACY/.complete" ] && [ "$FORCE" != 1 ]; then
+  ln -sfn "$(basename "$LEGACY")" "$SHARED"
+fi
 
 if [ ! -f "$SHARED/.complete" ] || [ "$FORCE" = 1 ]; then
   exec {lock_fd}>"$CACHE/deps-$DEPS_KEY.lock"
@@ -94,7 +105,9 @@ if [ ! -f "$SHARED/.complete" ] || [ "$FORCE" = 1 ]; then
   fi
   # Re-check under the lock: the other setup may have finished it meanwhile.
   if [ ! -f "$SHARED/.complete" ] || [ "$FORCE" = 1 ]; then
-    if [ -e "$SHARED" ]; then
+    if [ -L "$SHARED" ]; then  # a former key's environment, forced: made anew under this key
+      rm -f "$SHARED"
+    elif [ -e "$SHARED" ]; then
       say "removing incomplete or forced shared environment $SHARED"
       rm -rf "$SHARED"
     fi
