@@ -16,6 +16,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import pytest
 from lit_planner.up import Child, System
 from ros_helpers import reserve_domain
 
@@ -194,6 +195,50 @@ def test_recorder_writes_what_it_received_before_it_stops(tmp_path: Path) -> Non
     assert counts["/lit/observation"] == burst
 
 
+def test_a_killed_recorder_of_a_quiet_run_loses_nothing_written_a_second_before(
+    tmp_path: Path,
+) -> None:
+    """Twenty messages, far from a full chunk: the recorder writes its open chunk every second,
+    so the file holds them while it runs and a SIGKILL loses none (only full 64 KiB chunks were
+    written: the .mcap stayed empty, and salvage found nothing)."""
+    import os
+    import signal
+    import sys
+
+    import ros_helpers
+
+    count = 20
+    bag = tmp_path / "bag"
+    with _recording(bag, "quiet") as (system, recorder, _):
+        publisher = system.start(
+            "publisher",
+            [sys.executable, ros_helpers.__file__, "publish", "/lit/observation", str(count)],
+        )
+        deadline = time.monotonic() + 120.0
+        while "acked" not in publisher.lines:
+            assert publisher.process.poll() is None, "\n".join(publisher.lines[-30:])
+            assert time.monotonic() < deadline, "\n".join(publisher.lines[-30:])
+            time.sleep(0.05)
+        found: dict[str, int] = {}
+        attempt = 0
+        while found.get("/lit/observation") != count:  # read while it runs, as after a crash
+            assert recorder.process.poll() is None, "\n".join(recorder.lines[-30:])
+            assert time.monotonic() < deadline, (found, "\n".join(recorder.lines[-30:]))
+            time.sleep(0.2)
+            attempt += 1
+            try:
+                _, results = replay.salvage(bag, tmp_path / f"read-{attempt}")
+            except replay.ReplayError:
+                continue  # nothing in the file yet
+            found = results[0].messages
+        os.kill(recorder.process.pid, signal.SIGKILL)  # our own child, by its PID
+        recorder.process.wait(60)
+    salvaged, results = replay.salvage(bag, tmp_path / "salvaged")
+    assert results[0].messages == {"/lit/observation": count}
+    assert not (bag / "metadata.yaml").exists()  # it did not close the bag: killed
+    assert replay.bag_info(salvaged)["custom_data"]["lit.run_id"] == "quiet"  # its metadata too
+
+
 def test_a_lit_topic_of_a_type_the_recorder_does_not_take_is_named(tmp_path: Path) -> None:
     """An Int32 publisher on /lit/episode went unrecorded without a word."""
     import sys
@@ -217,3 +262,45 @@ def test_a_lit_topic_of_a_type_the_recorder_does_not_take_is_named(tmp_path: Pat
             assert time.monotonic() < deadline, "\n".join(recorder.lines[-30:])
             time.sleep(0.1)
     assert sum(warning in line for line in recorder.lines) == 1  # once, not every scan
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (["-p", "bag:=EXISTING"], "exists already"),
+        (["-p", "chunk_bytes:=0"], "chunk_bytes must be within 1..1048576, got 0"),
+        (["-p", "chunk_bytes:=abc"], "parameter chunk_bytes takes a whole number"),
+        (["-p", "bag:=NEW", "-p"], "Couldn't parse trailing -p flag"),  # rcl's words, one line
+    ],
+)
+def test_the_recorder_refuses_bad_parameters_in_one_line(
+    tmp_path: Path, arguments: list[str], message: str
+) -> None:
+    """A bag folder that exists, a bad chunk size or ROS arguments rcl cannot parse ended `ros2
+    run`'s or compose's recorder in a Python traceback; now one line names the problem (exit 1),
+    as the other nodes do."""
+    import os
+    import subprocess
+    import sys
+
+    arguments = [
+        a.replace("EXISTING", str(tmp_path)).replace("NEW", str(tmp_path / "new"))
+        for a in arguments
+    ]
+    if not any(a.startswith("bag:=") for a in arguments):
+        arguments += ["-p", f"bag:={tmp_path / 'new'}"]
+    domain, lock = reserve_domain()
+    try:
+        result = subprocess.run(
+            [str(Path(sys.executable).parent / "lit_recorder_node"), "--ros-args", *arguments],
+            env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+                     ROS_DOMAIN_ID=str(domain)),
+            capture_output=True, text=True, timeout=120, check=False,
+        )  # fmt: skip
+    finally:
+        if lock is not None:
+            lock.close()
+    assert result.returncode == 1, result.stderr
+    assert message in result.stderr and "lit_recorder_node" in result.stderr, result.stderr
+    assert "Traceback" not in result.stderr
+    assert not (tmp_path / "new").exists()

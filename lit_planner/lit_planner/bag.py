@@ -201,9 +201,12 @@ class ChunkedMcapWriter(McapWriter):
         self.bio.flush()
 
     def flush(self) -> None:
-        """Close the open chunk now if it holds messages."""
+        """Close the open chunk now if it holds messages; either way hand what is written to the
+        operating system (before any message, the header and the topics' records)."""
         if self.chunk.msgs:
             self.close_chunk()
+        else:
+            self.bio.flush()
 
 
 class ChunkedWriter(Writer):

@@ -6,8 +6,9 @@ root namespace's contract topics at start and to every other topic whose name co
 arrive serialized (``raw=True``) and go into the bag unchanged, stamped with their receive time, so
 the recorder never parses or re-encodes anything. The bag (``BagRecorder``: rosbag2 version 9,
 MCAP, run metadata in ``custom_data``) is closed on SIGTERM/SIGINT, which writes its
-``metadata.yaml``; a crash loses at most the last open chunk (``chunk_bytes``), and
-``lit replay salvage`` recovers the rest.
+``metadata.yaml``. The open chunk is written out when it holds ``chunk_bytes`` and every
+``FLUSH_PERIOD`` s, so a crash loses at most one chunk of a busy stream or the last second of a
+quiet one; ``lit replay salvage`` recovers the rest.
 """
 
 from __future__ import annotations
@@ -19,9 +20,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from lit_planner.rosutil import STATS_TOPIC, TOPICS, json_qos, spin_node
+from lit_planner.rosutil import STATS_TOPIC, TOPICS, declare_parameters, json_qos, spin_node
 
 NODE_NAME = "lit_recorder"
+PARAMETERS: dict[str, Any] = {"bag": "", "run_id": "", "chunk_bytes": 64 * 1024}
+"""The node's ROS parameters and their defaults: the bag folder (default
+``bags/<run_id>``), the run id (default ``run-<date>-<time>``), the chunk size in bytes."""
 TYPES = {
     "std_msgs/msg/String": ("std_msgs.msg", "String"),
     "trajectory_msgs/msg/JointTrajectory": ("trajectory_msgs.msg", "JointTrajectory"),
@@ -29,6 +33,9 @@ TYPES = {
 """Topic types the recorder takes (the contract's)."""
 DISCOVERY_PERIOD = 0.5
 """Seconds between scans of the ROS graph for new ``/lit/`` topics."""
+FLUSH_PERIOD = 1.0
+"""Seconds between writes of the open chunk to the file. Only full chunks were written: a killed
+recorder of a quiet run (a few episodes, the learner's stats) lost everything it had received."""
 DRAIN_QUIET = 1.0
 """On shutdown, the bag closes once no message has arrived for this many seconds (the executor
 still delivers what the readers hold: a burst published just before the signal)."""
@@ -44,24 +51,25 @@ class Recorder:
 
         from rclpy.node import Node
 
-        from lit_planner.bag import BagRecorder, default_bag_root, unique_directory
+        from lit_planner.bag import BagError, BagRecorder, default_bag_root, unique_directory
 
         self.node = node = Node(NODE_NAME)
         self.log = node.get_logger()
-        node.declare_parameter("bag", "")
-        node.declare_parameter("run_id", "")
-        node.declare_parameter("chunk_bytes", 64 * 1024)
-        run_id = node.get_parameter("run_id").value or time.strftime("run-%Y%m%d-%H%M%S")
+        p = declare_parameters(node, PARAMETERS, "lit_recorder_node")
+        run_id = p["run_id"] or time.strftime("run-%Y%m%d-%H%M%S")
         # An explicit bag folder that exists is refused (BagRecorder); the default one, named
         # after the run id, takes a free name (<run_id>-2, ...): a second `docker compose up`
         # with the same run id failed at start.
-        bag = node.get_parameter("bag").value or str(unique_directory(default_bag_root(), run_id))
-        self.bag = BagRecorder(
-            Path(bag),
-            run_id=run_id,
-            metadata={"lit.recorder": "lit_recorder_node"},
-            chunk_bytes=int(node.get_parameter("chunk_bytes").value),
-        )
+        bag = p["bag"] or str(unique_directory(default_bag_root(), run_id))
+        try:
+            self.bag = BagRecorder(
+                Path(bag),
+                run_id=run_id,
+                metadata={"lit.recorder": "lit_recorder_node"},
+                chunk_bytes=p["chunk_bytes"],
+            )
+        except (BagError, OSError) as exc:  # a bag folder that exists, a bad chunk size
+            raise SystemExit(f"lit_recorder_node: error: {exc}") from None
         self._importlib = importlib
         self._lock = threading.Lock()
         self._subscriptions: dict[str, Any] = {}
@@ -76,6 +84,7 @@ class Recorder:
             self._subscribe(topic, _topic_type(name))
         self._subscribe(STATS_TOPIC, "std_msgs/msg/String")
         node.create_timer(DISCOVERY_PERIOD, self._discover)
+        node.create_timer(FLUSH_PERIOD, self.bag.flush)
         self.log.info(f"ready: recording /lit/ topics to {self.bag.path}")
 
     def _subscribe(self, topic: str, msgtype: str) -> None:

@@ -819,6 +819,7 @@ def spin_node(
     """
     localhost_environment()
     import rclpy
+    from rclpy._rclpy_pybind11 import RCLError
     from rclpy.executors import (
         ExternalShutdownException,
         MultiThreadedExecutor,
@@ -828,10 +829,14 @@ def spin_node(
 
     # Our own handlers: finish the current work and shut down in order (rclpy's would raise
     # inside whatever thread happens to run).
-    rclpy.init(
-        args=list(args) if args is not None else None,
-        signal_handler_options=SignalHandlerOptions.NO,
-    )
+    try:
+        rclpy.init(
+            args=list(args) if args is not None else None,
+            signal_handler_options=SignalHandlerOptions.NO,
+        )
+    except RCLError as exc:  # ROS arguments rcl cannot parse (`--ros-args -p` and no rule)
+        program = os.path.basename(sys.argv[0])
+        raise SystemExit(f"{program}: error: {exc}") from None
     stop = threading.Event()
 
     def request_stop(*_: object) -> None:

@@ -10,12 +10,13 @@ import yaml
 
 from lit_learner import node as learner_node
 from lit_planner import node as planner_node
+from lit_planner import recorder
 
 ROOT = Path(__file__).resolve().parents[2]
 NODES = {
     ".venv/bin/lit_learner_node": (learner_node.PARAMETERS, learner_node.parameter_problem),
     ".venv/bin/lit_planner_node": (planner_node.PARAMETERS, planner_node.parameter_problem),
-    ".venv/bin/lit_recorder_node": ({"bag": "", "run_id": "", "chunk_bytes": 65536}, None),
+    ".venv/bin/lit_recorder_node": (recorder.PARAMETERS, None),
 }
 
 
