@@ -44,6 +44,25 @@ def _recording(bag: Path, run_id: str) -> Iterator[tuple[System, Child, dict[str
             lock.close()
 
 
+def _publish_acked(system: System, count: int) -> None:
+    """Publish ``count`` messages on /lit/observation from another process (a real publisher
+    with the contract's QoS) and return once every subscriber acknowledged them all."""
+    import sys
+
+    import ros_helpers
+
+    publisher = system.start(
+        "publisher",
+        [sys.executable, ros_helpers.__file__, "publish", "/lit/observation", str(count)],
+    )
+    deadline = time.monotonic() + 120.0
+    while not any(line.startswith(("acked", "not acked")) for line in publisher.lines):
+        assert publisher.process.poll() is None, "\n".join(publisher.lines[-30:])
+        assert time.monotonic() < deadline, "\n".join(publisher.lines[-30:])
+        time.sleep(0.01)
+    assert "acked" in publisher.lines, publisher.lines
+
+
 def test_recorder_keeps_every_message_at_peak_rate(tmp_path: Path) -> None:
     bag = tmp_path / "bag"
     with _recording(bag, "peak") as (system, recorder, codes):
@@ -170,23 +189,11 @@ def test_recorder_writes_what_it_received_before_it_stops(tmp_path: Path) -> Non
     once, so the end of a run was lost."""
     import os
     import signal
-    import sys
-
-    import ros_helpers
 
     burst = 2000
     bag = tmp_path / "bag"
     with _recording(bag, "burst") as (system, recorder, codes):
-        publisher = system.start(
-            "publisher",
-            [sys.executable, ros_helpers.__file__, "publish", "/lit/observation", str(burst)],
-        )
-        deadline = time.monotonic() + 120.0
-        while not any(line.startswith(("acked", "not acked")) for line in publisher.lines):
-            assert publisher.process.poll() is None, "\n".join(publisher.lines[-30:])
-            assert time.monotonic() < deadline, "\n".join(publisher.lines[-30:])
-            time.sleep(0.01)
-        assert "acked" in publisher.lines, publisher.lines
+        _publish_acked(system, burst)
         os.kill(recorder.process.pid, signal.SIGTERM)  # our own child, by its PID
         assert recorder.process.wait(60) == 0, "\n".join(recorder.lines[-30:])
     assert codes["recorder"] == 0
@@ -203,22 +210,12 @@ def test_a_killed_recorder_of_a_quiet_run_loses_nothing_written_a_second_before(
     written: the .mcap stayed empty, and salvage found nothing)."""
     import os
     import signal
-    import sys
-
-    import ros_helpers
 
     count = 20
     bag = tmp_path / "bag"
     with _recording(bag, "quiet") as (system, recorder, _):
-        publisher = system.start(
-            "publisher",
-            [sys.executable, ros_helpers.__file__, "publish", "/lit/observation", str(count)],
-        )
+        _publish_acked(system, count)
         deadline = time.monotonic() + 120.0
-        while "acked" not in publisher.lines:
-            assert publisher.process.poll() is None, "\n".join(publisher.lines[-30:])
-            assert time.monotonic() < deadline, "\n".join(publisher.lines[-30:])
-            time.sleep(0.05)
         found: dict[str, int] = {}
         attempt = 0
         while found.get("/lit/observation") != count:  # read while it runs, as after a crash
