@@ -77,6 +77,23 @@ def _obs(seq: int, source: str = "planner", run_id: str = "r1", **fields: Any) -
     return envelope(OBSERVATION, seq, source, run_id, {"n": seq, **fields}, stamp_ns=seq)
 
 
+def _summary(**fields: Any) -> dict[str, Any]:
+    """A valid EpisodeSummary payload of an np4 query, with ``fields`` changed."""
+    return {
+        "episode_id": "e/0", "mode": "inference", "scenario": "np4", "instance": 0,
+        "dimension": 4, "planner": "litstar", "policy": "fixed", "seed": 1, "status": "exact",
+        "solved": True, "cost": 0.5, "t_init": 0.01, "c_init": 0.5, "optimal_cost": None,
+        "time": 0.12, "time_budget": 0.12, "improvements": 1, "decisions": {"B": 1, "psi_K": 1},
+        "fallback_decisions": 0, "learner_calls": 0, "path_states": 4, "path_valid": None,
+        "counters": {}, **fields,
+    }  # fmt: skip
+
+
+def _bench_run(**fields: Any) -> dict[str, Any]:
+    """A valid BenchRun payload (the sample bag's first), with ``fields`` changed."""
+    return {**_sample_payloads(bag.BENCH_RUN_SCHEMA)[0], **fields}
+
+
 def _mcap(directory: Path) -> Path:
     return directory / f"{directory.name}.mcap"
 
@@ -609,7 +626,7 @@ def test_verify_flags_invalid_paths(tmp_path: Path) -> None:
         list(world.goal),
     ]
     assert scenarios.check_path(world, around).ok
-    record = {"scenario": "np4", "instance": 0, "solved": True, "planner": "x", "run": 0}
+    record = _bench_run(scenario="np4", instance=0, solved=True, planner="x", run=0)
     bench_bag = tmp_path / "bench"
     with BagRecorder(bench_bag, run_id="v") as recorder:
         recorder.add_topic(bag.BENCH_RUN_TOPIC, bag.STRING_TYPE)
@@ -627,7 +644,7 @@ def test_verify_flags_invalid_paths(tmp_path: Path) -> None:
             [(around, True), (through_wall, True), (around, False)]
         ):
             stamp = 1_000_000_000 * (seq + 1)
-            payload = {"episode_id": f"e/{seq}", "scenario": "np4", "instance": 0, "solved": solved}
+            payload = _summary(episode_id=f"e/{seq}", solved=solved)
             text = envelope(replay.EPISODE_SCHEMA, seq, "planner", "e", payload, stamp_ns=stamp)
             recorder.write_string("/robot1/lit/episode", text, stamp)
             recorder.write_trajectory("/robot1/lit/path", path, stamp + 1000, frame_id=f"e/{seq}")
@@ -667,8 +684,7 @@ def test_verify_counts_a_returned_path_the_node_found_invalid(tmp_path: Path) ->
     with BagRecorder(path, run_id="f") as recorder:
         recorder.add_topic("/lit/episode", bag.STRING_TYPE)
         recorder.add_topic("/lit/path", bag.TRAJECTORY_TYPE)
-        payload = {"episode_id": "f/0", "scenario": "np4", "instance": 0, "solved": True,
-                   "path_valid": False}  # fmt: skip
+        payload = _summary(episode_id="f/0", path_valid=False)
         text = envelope(replay.EPISODE_SCHEMA, 0, "planner", "f", payload, stamp_ns=1)
         recorder.write_string("/lit/episode", text, 10)
         # A path of no episode (no frame id) recorded next to it: not its path.
@@ -1230,7 +1246,7 @@ def test_verify_of_a_bag_with_unreadable_lit_messages_is_incomplete(tmp_path: Pa
     unreadable one makes verify exit 1 (not everything was checked); the foreign one does not."""
     world = scenarios.get("np4")
     around = [list(world.start), [-0.15, 0.1, 0.0, 0.0], [0.15, 0.1, 0.0, 0.0], list(world.goal)]
-    record = {"scenario": "np4", "instance": 0, "solved": True, "planner": "x", "run": 0}
+    record = _bench_run(scenario="np4", instance=0, solved=True, planner="x", run=0)
     path = tmp_path / "bench"
     with BagRecorder(path, run_id="v") as recorder:
         recorder.add_topic(bag.BENCH_RUN_TOPIC, bag.STRING_TYPE)
@@ -1426,3 +1442,35 @@ def test_another_programs_topic_under_lit_is_foreign(tmp_path: Path) -> None:
     assert "damaged" not in result.stdout, result.stdout
     info = replay.bag_info(path)
     assert info["skipped"]["reasons"] == {"foreign topic": 6}, info["skipped"]
+
+
+def test_summaries_whose_payload_fails_its_schema_are_damage_not_unsolved_runs(
+    tmp_path: Path,
+) -> None:
+    """EpisodeSummary payloads without ``scenario`` and ``solved``: verify called them runs
+    without a path and exited 0, and bench's episode table stopped with "KeyError: 'scenario'".
+    Now they are counted as damaged messages (verify exits 1, incomplete) and left out of the
+    table with a warning that names them."""
+    path = tmp_path / "bad-summaries"
+    with BagRecorder(path, run_id="b") as recorder:
+        recorder.add_topic("/lit/episode", bag.STRING_TYPE)
+        good = _summary(episode_id="b/0", solved=False, status="timeout", path_states=0)
+        text = envelope(replay.EPISODE_SCHEMA, 0, "planner", "b", good, stamp_ns=1)
+        recorder.write_string("/lit/episode", text, 10)
+        for seq in (1, 2, 3):
+            bad = {k: v for k, v in _summary(episode_id=f"b/{seq}").items()
+                   if k not in ("scenario", "solved")}  # fmt: skip
+            text = envelope(replay.EPISODE_SCHEMA, seq, "planner", "b", bad, stamp_ns=1 + seq)
+            recorder.write_string("/lit/episode", text, 10 + seq)
+    verified = _replay("verify", path)
+    assert verified.returncode == 1, verified.stdout + verified.stderr
+    assert "1 runs without a path (unsolved)" in verified.stdout, verified.stdout
+    assert "3 skipped: 3 payload fails its schema" in verified.stdout, verified.stdout
+    assert "/lit/episode seq 1: payload fails its schema (" in verified.stdout
+    assert "3 LIT* messages are damaged" in verified.stdout
+    table = _replay("bench", path, "--out", tmp_path / "table")
+    assert table.returncode == 0, table.stdout + table.stderr
+    assert "warning: 3 skipped: 3 payload fails its schema" in table.stderr
+    assert "Traceback" not in table.stderr and "KeyError" not in table.stderr
+    rows = json.loads((tmp_path / "table" / "episodes.json").read_text(encoding="utf-8"))
+    assert sum(row["queries"] for row in rows) == 1, rows

@@ -31,6 +31,7 @@ from lit_planner.replay import (
     Skipped,
     decode,
     message_identity,
+    payload_ok,
 )
 
 from lit_learner.errors import ExportError
@@ -318,6 +319,10 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
             for message in reader.messages():
                 item = decode(message, skipped)
                 if not isinstance(item, Envelope) or not isinstance(item.payload, dict):
+                    continue
+                if item.schema in (OBSERVATION, DECISION, SOLUTION, SUMMARY) and not payload_ok(
+                    item, skipped
+                ):
                     continue
                 identity = message_identity(item)
                 if identity in seen:

@@ -17,7 +17,8 @@ numbers before the first recorded one, when a publisher started at 0 before the 
 
 What cannot be used is skipped and counted, never fatal: messages on other topics, envelopes of an
 unknown schema or an unsupported version, text that is not an envelope, undecodable messages, and
-payloads that fail their schema. A bag that cannot be read at all (a missing path, an empty
+payloads that fail their schema (checked by the commands that read payloads: verify, bench,
+tensors; ``info`` accounts for envelopes). A bag that cannot be read at all (a missing path, an empty
 directory or file, a writer killed before ``close()``, a truncated or damaged file) is a one-line
 error with exit status 2; ``salvage`` then recovers what is readable.
 
@@ -183,6 +184,8 @@ class Trajectory:
 READ_TWICE = "message read twice (a bag and its copy?)"
 """Why a message is skipped that one of the bags read before held (:func:`message_identity`: a
 bag given with its compacted or salvaged copy)."""
+PAYLOAD_INVALID = "payload fails its schema"
+"""Skip reason of an envelope whose payload does not pass its schema (damage: verify exits 1)."""
 BENIGN_SKIPS = frozenset({"foreign topic", "unknown schema", "unsupported version", READ_TWICE})
 """Reasons to skip a message that say nothing against the bag: another program's topics,
 messages of a newer LIT* (counted and shown, as a reader of an older version must), and a copy's
@@ -251,13 +254,7 @@ def supported_versions(schema: str) -> frozenset[int]:
 
 @cache
 def _schema_names() -> frozenset[str]:
-    try:
-        from lit_msgs_json import codec
-
-        shipped = set(codec.schema_names())
-    except Exception:  # noqa: BLE001 -- replay must work without the schemas package
-        shipped = set()
-    return MESSAGE_SCHEMAS | shipped
+    return MESSAGE_SCHEMAS | _schema_names_shipped()
 
 
 class BagReader:
@@ -657,6 +654,44 @@ def parse_envelope(text: str, topic: str, log_ns: int, skipped: Skipped) -> Enve
     )
 
 
+def payload_ok(item: Envelope, skipped: Skipped) -> bool:
+    """Whether the envelope's payload passes its schema; a payload that fails is counted in
+    ``skipped`` as :data:`PAYLOAD_INVALID` (damage). The commands that read payloads (verify,
+    bench, tensors) ask this first: a summary without ``scenario`` was a KeyError, or a run
+    "without a path". A schema ``lit_msgs_json`` does not ship (``BenchConfig``) passes. An
+    older version of a message is held to the current schema, which it passes when it lacks
+    only the fields added since (as ``lit_msgs_json.envelope.decode`` takes it)."""
+    codec = _codec()
+    short = item.schema.removeprefix(SCHEMA_PREFIX)
+    if codec is None or short not in _schema_names_shipped():
+        return True
+    try:
+        codec.validate(short, item.payload)
+    except codec.SchemaError as error:
+        problem = str(error)
+    except RecursionError:
+        problem = "nested too deeply to validate"
+    else:
+        return True
+    skipped.add(PAYLOAD_INVALID, f"{item.topic} seq {item.seq}", problem)
+    return False
+
+
+@cache
+def _codec() -> Any:
+    try:
+        from lit_msgs_json import codec
+    except Exception:  # noqa: BLE001 -- replay must work without the schemas package
+        return None
+    return codec
+
+
+@cache
+def _schema_names_shipped() -> frozenset[str]:
+    codec = _codec()
+    return frozenset(codec.schema_names()) if codec is not None else frozenset()
+
+
 def _decode_trajectory(message: RawMessage, skipped: Skipped) -> Trajectory | None:
     try:
         decoded = bag.typestore().deserialize_cdr(message.data, bag.TRAJECTORY_TYPE)
@@ -860,6 +895,10 @@ class VerifyReport:
     """:func:`message_identity` of the records checked (a copy's are checked once)."""
 
 
+VERIFIED_SCHEMAS = frozenset({bag.BENCH_RUN_SCHEMA, EPISODE_SCHEMA})
+"""The envelopes ``verify`` reads (with the ``/lit/path`` trajectories)."""
+
+
 def verify_bag(path: str | Path, report: VerifyReport) -> Skipped:
     """Re-check every path of a bag (BenchRun records; episodes with their ``/lit/path``); a
     record that a bag checked before into ``report`` held is skipped as read twice."""
@@ -877,9 +916,13 @@ def verify_bag(path: str | Path, report: VerifyReport) -> Skipped:
                 report.seen.add(identity)
             if isinstance(item, Trajectory):
                 trajectories.append(item)
-            elif isinstance(item, Envelope) and item.schema == bag.BENCH_RUN_SCHEMA:
+            elif not isinstance(item, Envelope) or item.schema not in VERIFIED_SCHEMAS:
+                continue
+            elif not payload_ok(item, skipped):
+                continue
+            elif item.schema == bag.BENCH_RUN_SCHEMA:
                 _verify_bench_run(item, report)
-            elif isinstance(item, Envelope) and item.schema == EPISODE_SCHEMA:
+            else:
                 episodes.append(item)
     for episode, path_item in _pair_episodes(episodes, trajectories, report):
         payload = episode.payload
@@ -1763,7 +1806,6 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
         NotBenchBagError: a bag without BenchConfig.
         EmptyBenchBagError: BenchConfig but no usable run record.
     """
-    from lit_msgs_json import codec
 
     check_distinct_bags(paths)
     skipped = Skipped()
@@ -1795,12 +1837,7 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
                             f"{item.run_id}, differs from the first); replay each run's bag "
                             "on its own"
                         )
-                elif item.schema == bag.BENCH_RUN_SCHEMA:
-                    try:
-                        codec.validate("BenchRun", item.payload)
-                    except Exception as error:  # noqa: BLE001 -- SchemaError and kin
-                        skipped.add("invalid BenchRun", f"{item.topic} seq {item.seq}", str(error))
-                        continue
+                elif item.schema == bag.BENCH_RUN_SCHEMA and payload_ok(item, skipped):
                     bag_runs.append(item)
         if bag_config is None:
             raise NotBenchBagError(
@@ -2212,9 +2249,12 @@ def _salvage(args: argparse.Namespace) -> int:
     return 0
 
 
-def read_episode_summaries(paths: Sequence[str | Path]) -> list[dict[str, Any]]:
-    """Every EpisodeSummary payload in the bags (a ROS run's queries), in recording order."""
-    skipped = Skipped()
+def read_episode_summaries(
+    paths: Sequence[str | Path], skipped: Skipped | None = None
+) -> list[dict[str, Any]]:
+    """Every EpisodeSummary payload in the bags (a ROS run's queries), in recording order; what
+    was left out is counted in ``skipped``."""
+    skipped = Skipped() if skipped is None else skipped
     summaries = []
     seen: set[tuple[str, str, str, int, int]] = set()
     for path in paths:
@@ -2225,6 +2265,7 @@ def read_episode_summaries(paths: Sequence[str | Path]) -> list[dict[str, Any]]:
                     isinstance(item, Envelope)
                     and item.schema == SCHEMA_PREFIX + "EpisodeSummary"
                     and message_identity(item) not in seen  # a bag given with its copy: once
+                    and payload_ok(item, skipped)
                 ):
                     seen.add(message_identity(item))
                     summaries.append(item.payload)
@@ -2348,7 +2389,15 @@ def _bench(args: argparse.Namespace) -> int:
                 "lit bench bags or the planning queries of ROS runs, not both at once; give "
                 "them in separate calls"
             ) from error
-        summaries = read_episode_summaries(args.bags)
+        skipped = Skipped()
+        summaries = read_episode_summaries(args.bags, skipped)
+        damaged = sum(n for reason, n in skipped.counts.items() if reason not in BENIGN_SKIPS)
+        if damaged:
+            print(
+                f"{PROG} bench: warning: {skipped.line()}; the table leaves them out: "
+                + "; ".join(skipped.examples),
+                file=sys.stderr,
+            )
         if not summaries:
             raise ReplayError(f"{error}; nor any EpisodeSummary of a ROS run") from error
         rows, table = episode_table(summaries)
