@@ -201,6 +201,18 @@ def test_info_accounts_a_restarted_publisher_as_a_process_of_its_own(tmp_path: P
     )
 
 
+def test_an_mcap_file_of_a_bag_folder_has_the_folders_metadata(mixed_bag: Path) -> None:
+    """``info`` of a bag's .mcap file said "no metadata" (and ``bench`` of it showed another
+    duration than of its folder): a BAG is the folder or one of its files, the same run."""
+    folder = replay.bag_info(mixed_bag)
+    file = replay.bag_info(_mcap(mixed_bag))
+    assert file["custom_data"] == folder["custom_data"] and folder["custom_data"]["lit.note"]
+    assert file["rosbag2_version"] == folder["rosbag2_version"] == bag.BAG_VERSION
+    alone = mixed_bag.parent / "alone.mcap"  # the same file outside its folder: no metadata
+    shutil.copyfile(_mcap(mixed_bag), alone)
+    assert replay.bag_info(alone)["rosbag2_version"] is None
+
+
 def test_bag_reads_with_rosbags_mcap_and_metadata(mixed_bag: Path) -> None:
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
@@ -547,6 +559,9 @@ def bad_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     flipped[15] ^= 0x01  # high byte of the MCAP header record's length
     (base / "flipped.mcap").write_bytes(bytes(flipped))
     (base / "notes.txt").write_text("not a bag")
+    gone = base / "file_gone"  # a bag folder whose .mcap file was moved away
+    shutil.copytree(good, gone)
+    (gone / _mcap(good).name).unlink()
     return {
         "missing": base / "missing",
         "empty directory": base / "empty_dir",
@@ -554,6 +569,7 @@ def bad_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         "truncated": base / "cut.mcap",
         "bit flip": base / "flipped.mcap",
         "not a bag": base / "notes.txt",
+        "listed file gone": gone,
     }
 
 
@@ -568,6 +584,7 @@ def test_bad_input_is_one_line_exit_2(
         "truncated": "truncated",
         "bit flip": "its HEADER record at byte 8 claims",
         "not a bag": "not an MCAP file" if command == "salvage" else "is not a bag",
+        "listed file gone": "lists good.mcap, which is not there (no .mcap file is left",
     }
     for case, path in bad_inputs.items():
         out = tmp_path / f"tensors-{case}"
@@ -1213,6 +1230,14 @@ def test_bench_replay_refuses_a_non_empty_output_folder(tmp_path: Path) -> None:
     assert [p.name for p in stale.rglob("*")] == ["plots", "old.png"]
     (tmp_path / "file").write_text("x")
     _assert_clean_error(_replay("bench", SAMPLE, "--out", tmp_path / "file"), "not a folder")
+    # A folder that cannot be made is refused before the work, not after it (tensors trained
+    # for minutes and then failed on "Not a directory").
+    for command in ("bench", "tensors"):
+        beneath_a_file = tmp_path / "file" / command
+        _assert_clean_error(
+            _replay(command, SAMPLE, "--out", beneath_a_file), "file is a file, not a folder"
+        )
+        assert not beneath_a_file.exists()
     (tmp_path / "empty").mkdir()
     assert _replay("bench", SAMPLE, "--out", tmp_path / "empty").returncode == 0
     # The default folder <bag>/replay: written once, then refused rather than mixed.

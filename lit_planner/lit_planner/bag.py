@@ -480,13 +480,15 @@ def unique_directory(parent: Path, name: str) -> Path:
 
 def output_folder_problem(path: Path) -> str | None:
     """Why ``path`` cannot take a new run's outputs (``lit bench --out``, ``lit replay bench
-    --out``): a file is in the way, or it holds files already (new outputs never mix with stale
-    ones, nothing is overwritten); None when it is new or empty."""
+    --out``): a file is in the way, it holds files already (new outputs never mix with stale
+    ones, nothing is overwritten), or it cannot be made or written (:func:`write_problem`: asked
+    before the work, which failed at its end after minutes); None when it is new or empty and
+    writable."""
     if path.exists() and not path.is_dir():
         return "exists and is not a folder"
     if path.is_dir() and any(path.iterdir()):
         return "exists and is not empty"
-    return None
+    return write_problem(path)
 
 
 def write_problem(path: str | Path) -> str | None:

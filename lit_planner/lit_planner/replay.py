@@ -372,6 +372,12 @@ class BagReader:
             custom = dict(info.get("custom_data") or custom)
         elif self.path.suffix == ".mcap":
             storage = "mcap"
+            # One file of a bag folder: the run's metadata is its folder's (info showed "no
+            # metadata", and bench another duration than for the folder).
+            info = _folder_metadata(self.path)
+            if info is not None:
+                version = info.get("version")
+                custom = dict(info.get("custom_data") or custom)
         compression = " ".join(
             filter(None, (reader.compression_mode or "", reader.compression_format or ""))
         ) or _chunk_compression(summaries)
@@ -389,6 +395,20 @@ class BagReader:
             topics=topics,
             messages=reader.message_count,
         )
+
+
+def _folder_metadata(mcap: Path) -> dict[str, Any] | None:
+    """The ``metadata.yaml`` of the bag folder that holds ``mcap`` and lists it among its files;
+    None when there is none (a file on its own) or it cannot be read."""
+    metadata_file = mcap.parent / "metadata.yaml"
+    if not metadata_file.is_file():
+        return None
+    try:
+        info = load_metadata(metadata_file)
+    except ReplayError:
+        return None
+    files = info.get("relative_file_paths") or []
+    return info if isinstance(files, list) and mcap.name in map(str, files) else None
 
 
 def _metadata_mismatch(path: Path, facts: BagFacts, summaries: Sequence[Any]) -> str | None:
@@ -455,13 +475,33 @@ def _check_storage(folder: Path) -> None:
     """A bag folder whose ``metadata.yaml`` names a storage other than MCAP (sqlite3) is named as
     such: it was "its files hold none" with a salvage hint, and salvage found no .mcap file."""
     try:
-        storage = load_metadata(folder / "metadata.yaml").get("storage_identifier")
+        info = load_metadata(folder / "metadata.yaml")
     except ReplayError:
         return  # a damaged or missing metadata.yaml: reported where the bag is read
+    storage = info.get("storage_identifier")
     if storage not in (None, "", "mcap"):
         raise ReplayError(
             f"{folder}: a rosbag2 bag in {storage!r} storage; lit replay reads MCAP bags "
             "(convert it with `ros2 bag convert`, storage_id mcap)"
+        )
+    # Files it lists that are gone: named, with the salvage hint only when another .mcap file is
+    # there to salvage (salvage said "holds no .mcap file" after the hint sent the user to it).
+    files = info.get("relative_file_paths")
+    missing = (
+        [str(f) for f in files if not (folder / str(f)).is_file()]
+        if isinstance(files, list)
+        else []
+    )
+    if missing:
+        rest = any(folder.glob("*.mcap"))
+        raise ReplayError(
+            f"{folder}: its metadata.yaml lists {', '.join(missing)}, which "
+            f"{'is' if len(missing) == 1 else 'are'} not there"
+            + (
+                f"; `lit replay salvage {folder}` recovers what the other files hold"
+                if rest
+                else " (no .mcap file is left in the folder: restore the file)"
+            )
         )
 
 
@@ -916,9 +956,11 @@ def verify_bag(path: str | Path, report: VerifyReport) -> Skipped:
                 report.seen.add(identity)
             if isinstance(item, Trajectory):
                 trajectories.append(item)
-            elif not isinstance(item, Envelope) or item.schema not in VERIFIED_SCHEMAS:
-                continue
-            elif not payload_ok(item, skipped):
+            elif (
+                not isinstance(item, Envelope)
+                or item.schema not in VERIFIED_SCHEMAS
+                or not payload_ok(item, skipped)
+            ):
                 continue
             elif item.schema == bag.BENCH_RUN_SCHEMA:
                 _verify_bench_run(item, report)
