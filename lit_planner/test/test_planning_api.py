@@ -799,6 +799,34 @@ def test_the_core_refuses_a_time_that_is_not_finite() -> None:
                 lit_core.solve(planning.query_for("np4"), planner, time=budget, max_iterations=10)
 
 
+def test_the_core_refuses_a_time_ompl_cannot_count_and_params_that_override_arguments() -> None:
+    """time=1e10 ended OMPL's planners at once (its stop overflows from about 9.2e9 s); a seed,
+    time budget or limit in params silently overrode solve's own argument, while the result
+    reported the argument."""
+    from lit_planner import planning
+
+    query = planning.query_for("np4")
+    with pytest.raises(ValueError, match="solve's time is at most 1e9 s"):
+        lit_core.solve(query, "rrtconnect", time=1e10)
+    for key, argument in planning._ARGUMENT_PARAMS.items():
+        with pytest.raises(ValueError, match=f"give '{key}' as solve's {argument} argument"):
+            lit_core.solve(query, "litstar", max_batches=2, params={key: "5"})
+
+
+def test_a_lookup_tensors_grid_index_outside_its_shape_is_an_index_error(tmp_path: Path) -> None:
+    """LookupTensor.at read any address it was given (a crash at 10**7)."""
+    values = np.full(tf.TENSOR_SHAPE, 50.0, dtype=np.float32)
+    values[100, 100, 100] = 70.0
+    sidecar = tf.write_tensor(tmp_path / "b_tensor.npy", values, "B")
+    tensor = lit_core.LookupTensor.load(
+        str(tmp_path / "b_tensor.npy"), list(sidecar.shape), *sidecar.value_range
+    )
+    assert tensor.at(100, 100, 100) == 70.0
+    for index in ((101, 0, 0), (0, 101, 0), (0, 0, 101), (10**7, 10**7, 10**7)):
+        with pytest.raises(IndexError, match=r"is outside the shape \(101, 101, 101\)"):
+            tensor.at(*index)
+
+
 _AIT_THROWS = """
 import lit_core
 query = lit_core.Query([-0.5] * 4, [0.5] * 4, [], [], [0.2, 0, 0, 0], [0.2, 0, 0, 0], 1e-3)

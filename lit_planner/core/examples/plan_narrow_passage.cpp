@@ -107,8 +107,9 @@ int main(int argc, char **argv)
         const double seconds = argc > 2 ? numberArgument(argv[2], "SECONDS") : 0.4;
         const long long seed = argc > 3 ? wholeArgument(argv[3], "SEED") : 1;
         const long long interval = argc > 4 ? wholeArgument(argv[4], "DECISION_INTERVAL") : 10;
-        if (!(seconds > 0.0))
-            throw std::invalid_argument("SECONDS must be positive, got " + std::string(argv[2]));
+        // OMPL's time-based stop counts nanoseconds in 64 bits: from about 9.2e9 s on it stops at once.
+        if (!(seconds > 0.0 && seconds <= 1e9))
+            throw std::invalid_argument("SECONDS must be positive and at most 1e9, got " + std::string(argv[2]));
         if (seed < 0 || seed > std::numeric_limits<unsigned int>::max())
             throw std::invalid_argument("the seed must be between 0 and " +
                                         std::to_string(std::numeric_limits<unsigned int>::max()));

@@ -204,6 +204,15 @@ namespace
         return "";
     }
 
+    /** \brief The longest time solve() takes, s (as lit_planner.planning.MAX_TIME). */
+    constexpr double maxSolveTime = 1e9;
+    /** \brief Planner parameters that solve() sets from its own arguments: not taken in its params. */
+    const std::map<std::string, std::string> argumentParams{{"seed", "seed"},
+                                                            {"time_budget", "time"},
+                                                            {"policy", "policy"},
+                                                            {"max_iterations", "max_iterations"},
+                                                            {"max_batches", "max_batches"}};
+
     py::dict solveQuery(const Query &query, const std::string &plannerName, double time, ParameterPolicyPtr policy,
                         unsigned int seed, unsigned int maxIterations, unsigned int maxBatches,
                         const std::map<std::string, std::string> &params, py::object listenerObject,
@@ -219,6 +228,12 @@ namespace
             throw py::value_error("solve needs a finite time >= 0 in seconds, got " + std::to_string(time));
         if (!(time > 0.0) && maxIterations == 0u && maxBatches == 0u)
             throw py::value_error("solve needs a positive time, max_iterations or max_batches");
+        // OMPL's time-based stop counts nanoseconds in 64 bits: from about 9.2e9 s on its planners stopped at once.
+        if (time > maxSolveTime)
+            throw py::value_error("solve's time is at most 1e9 s, got " + std::to_string(time));
+        for (const auto &[key, argument] : argumentParams)
+            if (params.count(key) != 0u)  // it would override the argument, which the result reports
+                throw py::value_error("give '" + key + "' as solve's " + argument + " argument, not in params");
         BoxProblem problem = makeBoxProblem(query.world, query.start, query.goal, query.resolution, query.exactEdges);
 
         py::dict result;
@@ -620,7 +635,17 @@ PYBIND11_MODULE(lit_core, m)
                  checkFeatures(x, y, z);
                  return tensor.trilinear(x, y, z);
              }, py::arg("x"), py::arg("y"), py::arg("z"))
-        .def("at", &LookupTensor::at)
+        .def(
+            "at",
+            [](const LookupTensor &tensor, std::size_t i, std::size_t j, std::size_t k) {
+                const auto &shape = tensor.shape();
+                if (i >= shape[0] || j >= shape[1] || k >= shape[2])
+                    throw py::index_error("grid index (" + std::to_string(i) + ", " + std::to_string(j) + ", " +
+                                          std::to_string(k) + ") is outside the shape (" + std::to_string(shape[0]) +
+                                          ", " + std::to_string(shape[1]) + ", " + std::to_string(shape[2]) + ")");
+                return tensor.at(i, j, k);
+            },
+            py::arg("i"), py::arg("j"), py::arg("k"), "The value at grid indices i, j, k (IndexError outside).")
         .def_property_readonly("shape", &LookupTensor::shape);
 
     py::class_<TskActor>(m, "TskActor",

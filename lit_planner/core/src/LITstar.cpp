@@ -250,10 +250,12 @@ namespace lit
     // ------------------------------------------------------------------------------------------ setup, clear
     void LITstar::setup()
     {
-        Planner::setup();
+        // Checked before Planner::setup() marks the planner as set up: solve() calls setup() only while it is not,
+        // and a second solve() after the exception planned in an SO(2) or SE(2) space (a heap overflow).
         if (si_->getStateSpace()->getType() != ompl::base::STATE_SPACE_REAL_VECTOR)
             throw ompl::Exception("LITstar: needs a RealVectorStateSpace (its informed sampler and features are R^n)");
         checkObjective();
+        Planner::setup();
     }
 
     void LITstar::checkObjective()

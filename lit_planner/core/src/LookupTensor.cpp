@@ -7,6 +7,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <optional>
 #include <regex>
 #include <sstream>
@@ -38,6 +39,20 @@ namespace lit
             weight = n >= 2u ? scaled - static_cast<double>(lower) : 0.0;
         }
 
+        /** \brief The number of values of a grid of \e shape, or none when their bytes would not fit in a size_t (a
+         *  product that wrapped around passed the size checks). */
+        std::optional<std::size_t> valueCount(const std::array<std::size_t, 3> &shape)
+        {
+            std::size_t count = 1u;
+            for (const std::size_t n : shape)
+            {
+                if (n != 0u && count > std::numeric_limits<std::size_t>::max() / sizeof(float) / n)
+                    return std::nullopt;
+                count *= n;
+            }
+            return count;
+        }
+
         std::size_t nearestIndex(double x, std::size_t n)
         {
             const double scaled = std::clamp(std::isfinite(x) ? x : 0.0, 0.0, 1.0) * static_cast<double>(n - 1u);
@@ -48,8 +63,8 @@ namespace lit
     LookupTensor::LookupTensor(std::array<std::size_t, 3> shape, std::vector<float> values)
       : shape_(shape), values_(std::move(values))
     {
-        if (shape_[0] == 0u || shape_[1] == 0u || shape_[2] == 0u ||
-            values_.size() != shape_[0] * shape_[1] * shape_[2])
+        const std::optional<std::size_t> count = valueCount(shape_);
+        if (shape_[0] == 0u || shape_[1] == 0u || shape_[2] == 0u || !count || values_.size() != *count)
             throw TensorError(std::string(valuePrefix) + "value count does not match the shape");
         // Lookups would interpolate a NaN into B or psi_K (load() adds the file's name).
         for (std::size_t i = 0; i < values_.size(); ++i)
@@ -137,7 +152,10 @@ namespace lit
         if (shape.size() != 3u || shape[0] != spec.shape[0] || shape[1] != spec.shape[1] || shape[2] != spec.shape[2])
             fail(path, "shape " + shapeText(shape) + " does not match the sidecar's " + shapeText(spec.shape));
 
-        const std::size_t count = shape[0] * shape[1] * shape[2];
+        const std::optional<std::size_t> counted = valueCount({shape[0], shape[1], shape[2]});
+        if (!counted)
+            fail(path, "shape " + shapeText(shape) + " holds more values than memory can");
+        const std::size_t count = *counted;
         const std::size_t dataOffset = 10u + headerLength;
         if (bytes.size() - dataOffset != count * sizeof(float))
             fail(path, "data holds " + std::to_string(bytes.size() - dataOffset) + " bytes, expected " +

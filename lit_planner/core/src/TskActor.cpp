@@ -38,6 +38,8 @@ namespace lit
             checkLayer(layers[i], inputs, "layer " + std::to_string(i));
             inputs = layers[i].first.rows();
         }
+        if (inputs == 0)  // the softmax over no rule outputs: maxCoeff() of an empty vector
+            throw std::invalid_argument("the last layer has no outputs: the TSK rules need at least one");
         if (consequents_.size() != inputs)
             throw std::invalid_argument("consequents: " + std::to_string(consequents_.size()) +
                                         " entries, expected one per rule output (" + std::to_string(inputs) + ")");

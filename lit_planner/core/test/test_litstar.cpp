@@ -12,6 +12,7 @@
 #include <ompl/base/goals/GoalSpace.h>
 #include <ompl/base/goals/GoalStates.h>
 #include <ompl/base/spaces/RealVectorStateSpace.h>
+#include <ompl/base/spaces/SO2StateSpace.h>
 #include <ompl/base/PlannerTerminationCondition.h>
 #include <ompl/base/ProblemDefinition.h>
 #include <ompl/geometric/PathGeometric.h>
@@ -1293,4 +1294,27 @@ TEST(LITstar, AResolutionTooFineForTheEdgeChecksIsAnError)
     EXPECT_TRUE(test::throwsWith<ompl::Exception>(
         [&] { planner->solve(ompl::base::plannerNonTerminatingCondition()); },
         "collision checks at this state validity checking resolution, more than 2^31"));
+}
+
+TEST(LITstar, ASpaceThatIsNotRnIsRefusedAtEverySolve)
+{
+    // setup() marked the planner as set up before it threw; a second solve() then planned in SO(2) (a heap
+    // overflow under ASan, a crash without).
+    auto space = std::make_shared<ompl::base::SO2StateSpace>();
+    auto si = std::make_shared<ompl::base::SpaceInformation>(space);
+    si->setStateValidityChecker([](const ompl::base::State *) { return true; });
+    si->setup();
+    auto pdef = std::make_shared<ompl::base::ProblemDefinition>(si);
+    ompl::base::ScopedState<ompl::base::SO2StateSpace> start(space), goal(space);
+    start->value = 0.0;
+    goal->value = 1.0;
+    pdef->setStartAndGoalStates(start, goal);
+    auto planner = std::make_shared<LITstar>(si);
+    planner->setProblemDefinition(pdef);
+    for (int attempt = 0; attempt < 2; ++attempt)
+    {
+        EXPECT_THROW(planner->solve(ompl::base::timedPlannerTerminationCondition(0.05)), ompl::Exception)
+            << "attempt " << attempt;
+        EXPECT_FALSE(planner->isSetup());
+    }
 }

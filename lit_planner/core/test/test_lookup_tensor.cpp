@@ -119,6 +119,26 @@ TEST(LookupTensor, RejectsEachDefectWithItsOwnMessage)
                   .find("header is not a dict"), std::string::npos);  // numpy refuses it too
 }
 
+TEST(LookupTensor, AShapeWhoseValuesOverflowTheByteCountIsRefused)
+{
+    // 2^21 * 2^21 * 2^22 = 2^64 values wrapped around to 0: a header-only file passed the size check, and the
+    // first lookup read memory that was never there.
+    const std::array<std::size_t, 3> shape{2097152u, 2097152u, 4194304u};
+    const std::string path =
+        writeNpy("wraps.npy", "{'descr': '<f4', 'fortran_order': False, 'shape': (2097152, 2097152, 4194304), }", "");
+    try
+    {
+        LookupTensor::load(path, TensorSpec{shape, 20.0, 200.0});
+        ADD_FAILURE() << "the shape was taken";
+    }
+    catch (const TensorError &error)
+    {
+        EXPECT_NE(std::string(error.what()).find("holds more values than memory can"), std::string::npos)
+            << error.what();
+    }
+    EXPECT_THROW(LookupTensor(shape, {}), TensorError);
+}
+
 TEST(LookupTensor, AnInMemoryTensorMustBeFinite)
 {
     // Built in memory, a NaN reached TensorPolicy's clamps as an empty optional (B = 1, psi_K = 0.14 in a review).

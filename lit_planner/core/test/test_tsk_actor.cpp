@@ -66,4 +66,11 @@ TEST(TskActor, RejectsShapesThatDoNotChain)
     EXPECT_TRUE(throwsWith<std::invalid_argument>(
         [&] { TskActor({0.0, 0.5, 1.0}, std::nan(""), trunk, {rules}, consequents); },
         "sigma must be finite and positive"));
+    // No rule outputs: taken, and the softmax then read the maximum of an empty vector (a crash).
+    EXPECT_TRUE(throwsWith<std::invalid_argument>(
+        [&] {
+            TskActor({0.0, 0.5, 1.0}, 1.0, {Eigen::MatrixXd::Zero(0, 9), Eigen::VectorXd::Zero(0)}, {},
+                     Eigen::VectorXd::Zero(0));
+        },
+        "the last layer has no outputs"));
 }

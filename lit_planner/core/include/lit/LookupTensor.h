@@ -62,7 +62,7 @@ namespace lit
             return shape_;
         }
 
-        /** \brief Value at grid indices. */
+        /** \brief Value at grid indices, each below its shape entry (not checked: the lookups' inner loop). */
         double at(std::size_t i, std::size_t j, std::size_t k) const
         {
             return values_[(i * shape_[1] + j) * shape_[2] + k];

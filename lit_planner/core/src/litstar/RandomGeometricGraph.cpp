@@ -163,33 +163,32 @@ namespace lit::litstar
         std::size_t added = 0u;
         std::size_t failures = 0u;
         std::size_t draws = 0u;
-        ompl::base::State *raw = nullptr;  // reused until a valid sample takes it
+        // Reused until a valid sample takes it; freed however the loop ends (a user's validity checker may throw).
+        const auto freeState = [this](ompl::base::State *state) { si_->freeState(state); };
+        std::unique_ptr<ompl::base::State, decltype(freeState)> raw(nullptr, freeState);
         while (added < batchSize && failures < 10u)
         {
             if (stop && ++draws % STOP_CHECK_INTERVAL == 0u && stop())
                 break;
-            if (raw == nullptr)
-                raw = si_->allocState();
-            if (!sampler_.sample(maxCost, raw))
+            if (!raw)
+                raw.reset(si_->allocState());
+            if (!sampler_.sample(maxCost, raw.get()))
             {
                 ++failures;  // the informed set is (numerically) empty inside the bounds
                 continue;
             }
-            if (si_->isValid(raw))
+            if (si_->isValid(raw.get()))
             {
-                computeLowerBounds(createState(raw));
-                raw = nullptr;
+                computeLowerBounds(createState(raw.release()));
                 ++added;
                 ++validDraws_;
             }
             else
             {
-                appendPacked(packedInvalid_, coordinatesOf(raw));
+                appendPacked(packedInvalid_, coordinatesOf(raw.get()));
                 ++invalidDraws_;
             }
         }
-        if (raw != nullptr)
-            si_->freeState(raw);
         ++version_;
         return added;
     }
