@@ -75,7 +75,9 @@ PAPER_RR_BUDGETS: tuple[tuple[int, float], ...] = ((4, 0.15), (8, 0.3), (16, 2.0
 
 _CHUNK_ELEMENTS = 1 << 22  # bounds the temporaries of is_valid to a few MiB
 _CHUNK_POINTS = 1 << 16  # interpolated points generated at once by check_path
-_NAME_PATTERN = re.compile(r"(?P<family>[a-z]+)(?P<dim>\d+)(?:/(?P<instance>\d+))?")
+_NAME_PATTERN = re.compile(r"(?P<family>[a-z]+)(?P<dim>[1-9]\d*)(?:/(?P<instance>0|[1-9]\d*))?")
+"""A scenario name; numbers without leading zeros, so that each scenario has one name (np04 was
+np4 under another name: past the duplicate checks, twice in a training distribution)."""
 
 
 @dataclass(frozen=True)
@@ -489,7 +491,8 @@ def get(name: str, instance: int | None = None) -> Scenario:
     if match is None or match["family"] not in FAMILIES:
         raise ScenarioError(
             f"unknown scenario {name!r}: expected <family><dim>[/<instance>] with family one of "
-            f"{sorted(FAMILIES)}, e.g. {DEFAULT_SCENARIO!r} or 'rrd8/3'"
+            f"{sorted(FAMILIES)} and numbers without leading zeros, e.g. {DEFAULT_SCENARIO!r} or "
+            "'rrd8/3'"
         )
     family, dim = match["family"], int(match["dim"])
     if not MIN_DIM <= dim <= MAX_DIM:

@@ -580,6 +580,21 @@ def test_the_note_says_what_made_the_tensors_it_played(tmp_path) -> None:
     assert report.tensors_note(tensors) == (
         f"constant lookup tensors in `{folder}`: B constant 120; ψ_K constant 4.5"
     )
+    # A learner's export: trained once its agent made gradient updates, UNTRAINED before (an
+    # export of a run stopped in the B phase called its psi_K tensor trained).
+    from lit_planner.bench.runner import tensor_origin
+
+    from lit_planner import tensor_files
+
+    values = np.full(tensor_files.TENSOR_SHAPE, 5.0, dtype=np.float32)
+    for updates, origin in ((0, "UNTRAINED (initial weights), policy version 58"),
+                            (12, "trained, policy version 58")):  # fmt: skip
+        path = tmp_path / f"updates-{updates}" / "k_tensor.npy"
+        path.parent.mkdir()
+        tensor_files.write_tensor(
+            path, values, "psi_K", training={"updates": updates}, policy_version=58
+        )
+        assert tensor_origin(path) == origin
     trained = {**tensors, "psi_K": None, "origins": {"B": "trained, policy version 7"}}
     assert (
         report.tensors_note(trained, str(tmp_path))

@@ -135,3 +135,12 @@ def test_bad_arguments_exit_2() -> None:
     )  # fmt: skip
     assert process.returncode == 2
     assert "OMPL 2.0.1 planners must be among bitstar, irrtstar" in process.stderr
+    process = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "crosscheck", "--runs", "5000000000"],
+        capture_output=True, text=True, timeout=60, check=False,
+    )  # fmt: skip
+    # Refused at once (a check per seed ran for minutes before it reached the largest seed).
+    assert process.returncode == 2, process.stderr
+    assert "--runs 5000000000 from seed 1 reaches seed 5000000000, beyond the largest" in (
+        process.stderr
+    )

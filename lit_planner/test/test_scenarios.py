@@ -341,6 +341,9 @@ def test_boxes_are_read_only() -> None:
         ("wg4", 2, r"family 'wg' has only instance 0, not 2"),
         ("rr8/2", 3, r"names instance 2 but instance=3"),
         ("rr8", -1, r"instance -1 is negative"),
+        # One name per scenario: np04 was np4 under another (past the duplicate checks).
+        ("np04", None, r"unknown scenario 'np04'.*without leading zeros"),
+        ("rrd8/03", None, r"unknown scenario 'rrd8/03'"),
     ],
 )
 def test_get_rejects_bad_names(name: str, instance: int | None, message: str) -> None:

@@ -257,7 +257,9 @@ def planner_setup(
 
 def tensor_origin(path: Path) -> str | None:
     """What made the tensor at ``path``, from its sidecar: ``constant <value>`` (``lit tensors
-    constant``) or ``trained, policy version <n>``; None when the sidecar does not read."""
+    constant``), ``trained, policy version <n>``, or ``UNTRAINED (initial weights), policy
+    version <n>`` for a learner's export whose agent made no gradient update (an export of a run
+    stopped before that agent's phase was called trained); None when the sidecar does not read."""
     from lit_planner import tensor_files
 
     try:
@@ -267,6 +269,9 @@ def tensor_origin(path: Path) -> str | None:
     constant = sidecar.provenance.get("constant")
     if isinstance(constant, int | float) and not isinstance(constant, bool):
         return f"constant {constant:g}"
+    updates = sidecar.training.get("updates") if isinstance(sidecar.training, dict) else None
+    if updates == 0:
+        return f"UNTRAINED (initial weights), policy version {sidecar.policy_version}"
     return f"trained, policy version {sidecar.policy_version}"
 
 
