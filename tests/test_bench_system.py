@@ -138,6 +138,16 @@ def test_bench_rejects_bad_input(tmp_path: Path) -> None:
     )  # fmt: skip
     assert result.returncode == 2, result.stderr
     assert f"found no lookup tensors in {tmp_path / 'empty'} (given)" in result.stderr
+    # Skipped (the folder was not given), and nothing else to run: the reason comes with the
+    # refusal (it was printed only once a configuration stood: never here).
+    result = _lit(
+        "bench", "--planners", "litstar-tensor", "--out", str(tmp_path / "z"),
+        env={"LIT_TENSORS": str(tmp_path / "empty")},
+    )  # fmt: skip
+    assert result.returncode == 2, result.stderr
+    assert "none of the requested planners can run: litstar-tensor skipped: no trained" in (
+        result.stderr
+    )
     result = _lit(
         "bench", "--planners", "litstar-fit,rrtconnect", "--tensors", str(tmp_path / "empty"),
         "--out", str(tmp_path / "t"),
@@ -151,7 +161,8 @@ def test_bench_rejects_bad_input(tmp_path: Path) -> None:
     assert result.returncode == 2 and "--instance must be 0 or more" in result.stderr
     (tmp_path / "file").write_text("")
     result = _lit("bench", "--scenarios", "np4", "--out", str(tmp_path / "file" / "sub"))
-    assert result.returncode == 2 and "Not a directory" in result.stderr, result.stderr
+    assert result.returncode == 2, result.stderr
+    assert f"{tmp_path / 'file'} is a file, not a folder" in result.stderr
     assert "Traceback" not in result.stderr
 
 

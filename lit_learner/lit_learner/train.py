@@ -810,7 +810,9 @@ def run(args: argparse.Namespace) -> int:
             signal.signal(sig, _request_stop)
     try:
         result = train(args, hooks=None)
-    except (TrainingError, LearnerError, LitPlannerError) as error:
+    except (TrainingError, LearnerError, LitPlannerError, OSError) as error:
+        # OSError: a metrics, checkpoint or bag file that could not be written (a full disk, a
+        # folder in the way), after what could be saved was (_save_after_failure).
         print(f"lit train: {error}", file=sys.stderr)
         return 2
     finally:
@@ -1226,6 +1228,10 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         histogram_column(agent, index) for agent in ranges for index in range(HISTOGRAM_BINS)
     ]
     log = MetricsLog(run_dir / METRICS_FILE, columns)
+    # No bag for a resume that only exports (its episodes are done): it would stay empty.
+    record_bag = state.record_bag and not _finished(state)
+    if record_bag:  # before anything of the run changes: a --rollback dropped the metrics rows
+        _check_bag_parent(state)  # first, and then refused the bag folder
     dropped = log.keep_episodes_before(state.episode)
     if dropped:  # resumed from an earlier checkpoint: those episodes are trained again
         print(
@@ -1233,8 +1239,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             f"the checkpoint (episode {state.episode}); they run again",
             file=sys.stderr,
         )
-    # No bag for a resume that only exports (its episodes are done): it would stay empty.
-    recording = _open_bag(state, run_dir) if state.record_bag and not _finished(state) else None
+    recording = _open_bag(state, run_dir) if record_bag else None
     progress = _progress(state, disable=args.no_progress)
     session_start = time.perf_counter() - state.elapsed
     periodic = _earlier_checkpoints(run_dir, state.episode)  # a resumed run prunes them too
@@ -1493,11 +1498,29 @@ def export(core: Any, directory: Path, record: dict[str, Any], curves: Path | No
     return core.export_tensors(directory, record, extra=extra)
 
 
+def _bag_parent(state: DriverState) -> Path:
+    """The folder the run's bags go into."""
+    from lit_planner.bag import default_bag_root
+
+    return Path(state.bag_dir) if state.bag_dir is not None else default_bag_root()
+
+
+def _check_bag_parent(state: DriverState) -> None:
+    """Raise :class:`TrainingError` when the run's bag folder cannot be made or written (a
+    resumed run's stored one, which ``--bag-dir``'s check does not see)."""
+    from lit_planner.bag import write_problem
+
+    parent = _bag_parent(state)
+    problem = write_problem(parent)
+    if problem is not None:
+        raise TrainingError(f"bag folder {parent}: {problem}")
+
+
 def _open_bag(state: DriverState, run_dir: Path) -> Any:
     """The run's bag (a resumed run records a new one beside the first: ``<name>-2``, ...)."""
-    from lit_planner.bag import EpisodeRecording, default_bag_root, unique_directory
+    from lit_planner.bag import EpisodeRecording, unique_directory
 
-    parent = Path(state.bag_dir) if state.bag_dir is not None else default_bag_root()
+    parent = _bag_parent(state)
     try:
         parent.mkdir(parents=True, exist_ok=True)
     except OSError as error:  # a resumed run's --bag-dir replaced by a file, say

@@ -544,6 +544,28 @@ def test_ctrl_c_exits_with_130(
     assert train.run(arguments(tmp_path / "again", episodes=1, scenarios="np4")) == 0
 
 
+def test_a_rollback_refused_for_its_bag_folder_changes_nothing(tmp_path: Path) -> None:
+    """The run's stored bag folder is checked before --rollback drops anything: it dropped the
+    metrics rows first and then refused the folder, and the later checkpoints no longer resumed
+    ("holds 6 episodes and metrics.csv 3 rows")."""
+    run_dir, bags = tmp_path / "run", tmp_path / "bags"
+    hooks = train.TrainingHooks(learner_config=small_config())
+    train.train(
+        arguments(run_dir, episodes=6, scenarios="np4", checkpoint_every=3, bag_dir=str(bags)),
+        hooks,
+    )
+    rows = (run_dir / METRICS_FILE).read_text()
+    shutil.rmtree(bags)
+    bags.write_text("a file where the run's bag folder was")
+    earlier = run_dir / train.CHECKPOINT_DIR / "episode-0000003.ckpt"
+    with pytest.raises(train.TrainingError, match=f"bag folder {bags}: .* is a file"):
+        train.train(
+            arguments(run_dir, episodes=5, resume=earlier, rollback=True, bag_dir=None), hooks
+        )
+    assert (run_dir / METRICS_FILE).read_text() == rows  # nothing dropped
+    assert (run_dir / train.CHECKPOINT_DIR / "episode-0000006.ckpt").is_file()  # nor removed
+
+
 def test_resume_from_an_earlier_checkpoint_trains_its_episodes_again_once(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -667,6 +689,23 @@ def test_a_final_checkpoint_past_the_metrics_rows_is_not_resumed(
     err = capsys.readouterr().err
     assert "episode-0000006.ckpt (--rollback)" in err and "(past the metrics rows)" in err
     assert train.DriverState.load(train.state_path(final)).episode == 5
+
+
+def test_a_file_that_cannot_be_written_ends_lit_train_in_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A full disk (or a folder where metrics.csv was) ended `lit train` in a traceback (exit 1):
+    now one line, exit 2, after what could be saved was."""
+    from lit_learner.core import LearnerCore
+
+    def full_disk(self: LearnerCore, end: Any) -> Any:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(LearnerCore, "close_episode", full_disk)
+    code = train.run(arguments(tmp_path / "run", episodes=2, scenarios="np4", no_bag=True))
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.rstrip().splitlines()[-1] == "lit train: [Errno 28] No space left on device"
 
 
 def test_an_error_in_an_episode_saves_the_episodes_before_it(

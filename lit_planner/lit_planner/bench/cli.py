@@ -154,13 +154,24 @@ def run(args: argparse.Namespace) -> int:
         print(f"lit bench: recording the bag {recording.recorder.path}", file=sys.stderr)
 
     def append(records: list[dict[str, Any]]) -> None:
+        """A scenario's records into runs.jsonl and the bag: each tried even when the other
+        fails (a full disk, a folder in the way), so they are kept where they can be."""
         from lit_msgs_json import codec
 
-        with runs_path.open("a", encoding="utf-8") as handle:
-            for record in records:
-                handle.write(codec.dumps(runner.RUN_SCHEMA, record) + "\n")
+        errors: list[Exception] = []
+        try:
+            with runs_path.open("a", encoding="utf-8") as handle:
+                for record in records:
+                    handle.write(codec.dumps(runner.RUN_SCHEMA, record) + "\n")
+        except OSError as error:
+            errors.append(error)
         if recording is not None:
-            recording.add_runs(records)
+            try:
+                recording.add_runs(records)
+            except (bag.BagError, OSError) as error:
+                errors.append(error)
+        if errors:
+            raise errors[0]
 
     # `kill PID` stops like Ctrl-C: the bag gets its summary and metadata.yaml on the way out.
     main_thread = threading.current_thread() is threading.main_thread()  # signals: main only
@@ -177,7 +188,9 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 130
-    except LitPlannerError as error:  # a --t-init-repeats rerun that did not repeat its run
+    except (LitPlannerError, OSError) as error:
+        # A --t-init-repeats rerun that did not repeat its run; records that could not be
+        # written (a full disk, a folder in the way): one line, not a traceback.
         print(
             f"lit bench: {error}; {runs_path} holds the runs of the finished scenarios",
             file=sys.stderr,
@@ -444,8 +457,11 @@ def _config(
             f"({', '.join(planners)})"
         )
     running, skipped, made = runner.select_planners(planners, args.tensors)
-    if not running:
-        raise ValueError("none of the requested planners can run")
+    if not running:  # with the reasons, which are printed only once a configuration stands
+        raise ValueError(
+            "none of the requested planners can run: "
+            + "; ".join(f"{skip.planner} {skip.reason} ({skip.detail})" for skip in skipped)
+        )
     config = runner.BenchConfig(  # checks --t-init-repeats against the planners
         scenarios=tuple(scenario_names),
         planners=tuple(running),
