@@ -34,6 +34,8 @@ import shlex
 import sys
 import threading
 import time
+import types
+import typing
 import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -585,12 +587,46 @@ class DriverState:
                 "needs the checkpoint and its .driver.json written by `lit train`"
             )
         try:
-            return cls(**json.loads(path.read_text()))
-        except (ValueError, TypeError) as exc:  # bad JSON or UTF-8; not this object's fields
+            state = cls(**json.loads(path.read_text()))
+            # A field of another type ("episode": "six") was taken and failed later, confusingly.
+            hints = typing.get_type_hints(cls)
+            wrong = [f.name for f in dataclasses.fields(cls)
+                     if not _fits(getattr(state, f.name), hints[f.name])]  # fmt: skip
+            if wrong:
+                raise TypeError(f"wrong type of {', '.join(wrong)}")
+            np.random.default_rng().bit_generator.state = state.rng_state
+        except (ValueError, TypeError) as exc:  # bad JSON or UTF-8; fields, types; the RNG state
             raise TrainingError(
                 f"{path}: not a readable driver state of `lit train` ({exc}); restore it or "
                 "resume from another checkpoint of the run"
             ) from exc
+        return state
+
+
+def _fits(value: object, hint: Any) -> bool:
+    """Whether a JSON value fits a :class:`DriverState` field's type (the types it uses)."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if hint is Any:
+        return True
+    if origin in (typing.Union, types.UnionType):
+        return any(_fits(value, arg) for arg in args)
+    if hint is type(None):
+        return value is None
+    if hint is bool:
+        return isinstance(value, bool)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if hint is float:
+        return isinstance(value, int | float) and not isinstance(value, bool)
+    if hint is str:
+        return isinstance(value, str)
+    if origin is list:
+        return isinstance(value, list) and all(_fits(item, args[0]) for item in value)
+    if origin is dict:
+        return isinstance(value, dict) and all(
+            _fits(key, args[0]) and _fits(item, args[1]) for key, item in value.items()
+        )
+    return True
 
 
 def state_path(checkpoint: Path) -> Path:

@@ -960,6 +960,33 @@ def test_a_driver_state_of_another_checkpoint_is_named_before_a_rollback_is_offe
     assert "--rollback" not in err, err
 
 
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"episode": "six"}, "wrong type of episode"),
+        ({"scenarios": "np4"}, "wrong type of scenarios"),
+        ({"rng_state": {}}, "not a readable driver state"),  # a traceback from numpy
+    ],
+)
+def test_a_damaged_driver_state_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], change: dict, message: str
+) -> None:
+    """A .driver.json whose fields have the wrong types or whose RNG state is gone: a numpy
+    traceback, or a confusing refusal later; now one line naming the file."""
+    run = tmp_path / "run"
+    assert train.run(arguments(run, episodes=1, scenarios="np4", max_iterations=200,
+                               no_bag=True)) == 0  # fmt: skip
+    final = run / "checkpoints" / "final.ckpt"
+    document = json.loads(train.state_path(final).read_text())
+    train.state_path(final).write_text(json.dumps({**document, **change}))
+    capsys.readouterr()
+    resumed = arguments(run, episodes=2, resume=final, max_iterations=200, no_bag=True)
+    assert train.run(resumed) == 2
+    err = capsys.readouterr().err
+    assert f"{train.state_path(final)}: not a readable driver state" in err and message in err
+    assert "Traceback" not in err
+
+
 def _bags(folder: Path) -> set[Path]:
     return {path.parent for path in folder.glob("*/metadata.yaml")}
 
