@@ -126,7 +126,8 @@ def _check_cpp_consumer(install: Path, tmp_path: Path, env: dict[str, str]) -> N
     for arguments, message in (
         ("0.2x", "SECONDS must be a number, got '0.2x'"),
         ("0.2 1.5", "SEED must be a whole number, got '1.5'"),
-        ("-1", "SECONDS must be positive, got -1"),
+        ("-1", "SECONDS must be positive and at most 1e9, got -1"),
+        ("2e9", "SECONDS must be positive and at most 1e9, got 2e9"),  # OMPL's stop overflows
     ):
         bad = subprocess.run(
             ["sh", "-c", f". {install}/setup.sh && {build}/plan_narrow_passage {ROOT / 'tensors'} {arguments}"],

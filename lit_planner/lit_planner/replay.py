@@ -211,6 +211,11 @@ class Skipped:
         """Messages skipped."""
         return sum(self.counts.values())
 
+    @property
+    def damaged(self) -> int:
+        """Messages skipped for a reason that speaks against the bag (not :data:`BENIGN_SKIPS`)."""
+        return sum(n for reason, n in self.counts.items() if reason not in BENIGN_SKIPS)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON form."""
         return {"total": self.total, "reasons": dict(self.counts), "examples": self.examples}
@@ -2244,7 +2249,7 @@ def _verify(args: argparse.Namespace) -> int:
     )
     for example in report.unchecked.examples + skipped.examples[: skipped.max_examples]:
         print(f"  {example}")
-    damaged = sum(n for reason, n in skipped.counts.items() if reason not in BENIGN_SKIPS)
+    damaged = skipped.damaged
     if not report.invalid and (damaged or report.unchecked.total):
         print(
             f"{PROG} verify: incomplete: {report.unchecked.total} recorded runs could not be "
@@ -2433,7 +2438,7 @@ def _bench(args: argparse.Namespace) -> int:
             ) from error
         skipped = Skipped()
         summaries = read_episode_summaries(args.bags, skipped)
-        damaged = sum(n for reason, n in skipped.counts.items() if reason not in BENIGN_SKIPS)
+        damaged = skipped.damaged
         if damaged:
             print(
                 f"{PROG} bench: warning: {skipped.line()}; the table leaves them out: "

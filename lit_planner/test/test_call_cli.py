@@ -41,7 +41,8 @@ def test_plan_refuses_an_unknown_scenario_as_lit_plan_does(tmp_path: Path, name:
     line = refusal(lit_call("plan", "--scenario", name, cwd=tmp_path))
     assert line == (
         f"lit call: error: unknown scenario {name!r}: expected <family><dim>[/<instance>] with "
-        "family one of ['np', 'rr', 'rrd', 'wg'], e.g. 'np8' or 'rrd8/3'"
+        "family one of ['np', 'rr', 'rrd', 'wg'] and numbers without leading zeros, e.g. 'np8' "
+        "or 'rrd8/3'"
     )
 
 
