@@ -1,7 +1,8 @@
 """System test: `lit bench` as a user runs it, through the repository's `./lit` wrapper.
 
 A tiny real benchmark (np4, two planners, two runs, np4's full 0.12 s budget) must write every
-output; no assertion depends on how fast the machine is.
+output. One assertion depends on speed, with a wide margin: a LIT* run solves np4 (in a few ms of
+LIT*'s own clock, which leaves out the time it is not running, against the 0.12 s budget).
 """
 
 from __future__ import annotations
