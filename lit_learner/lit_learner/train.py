@@ -151,6 +151,8 @@ class TrainingDistribution:
             )
         self.names = list(scenario_names)
         self.randomised = {}
+        self.longest_budget = 0.0
+        """The longest time budget of the scenarios, in seconds (an instance keeps its family's)."""
         for name in self.names:
             try:
                 problem = scenarios.get(name)
@@ -162,6 +164,7 @@ class TrainingDistribution:
                     "instance is drawn from the training distribution"
                 )
             self.randomised[name] = problem.family_spec.randomised
+            self.longest_budget = max(self.longest_budget, problem.time_budget)
         self.rng = rng
 
     def draw(self, index: int) -> EpisodeSpec:
@@ -1244,6 +1247,13 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         core = LearnerCore(config)
         rng = draw_generator(seed)
     distribution = TrainingDistribution(state.scenarios, rng)  # checks the names first
+    if distribution.longest_budget * state.budget_scale > planning.MAX_TIME:
+        # Refused here, not by the first episode's planner after the learner has started.
+        raise TrainingError(
+            f"--budget-scale {state.budget_scale:g} gives budgets up to "
+            f"{distribution.longest_budget * state.budget_scale:g} s, more than the "
+            f"{planning.MAX_TIME:g} s a planner can be given"
+        )
     if args.export is not None and Path(args.export).resolve() == run_dir.resolve():
         # Its provenance.json and curves would be copied onto themselves after the whole run.
         raise TrainingError(

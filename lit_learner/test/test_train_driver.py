@@ -876,6 +876,11 @@ def test_episode_limits_apply_to_every_episode_and_carry_over_a_resume(tmp_path:
         ({"limit_terminates": True, "no_bag": True}, "--limit-terminates needs --max-iterations"),
         ({"max_iterations": 10, "effort_clock": float("nan"), "no_bag": True}, "finite and >= 0"),
         ({"budget_scale": 0.0}, "--budget-scale must be finite and positive, got 0.0"),
+        # np4's budget times 1e12 is beyond what the planner accepts: refused before the learner
+        (
+            {"budget_scale": 1e12, "no_bag": True},
+            r"--budget-scale 1e\+12 gives budgets up to .* more than the 1e\+09 s",
+        ),
         ({"max_iterations": 10}, "cannot be recorded .* add --no-bag"),
     ],
 )
