@@ -350,3 +350,38 @@ def test_bench_refuses_a_bag_dir_with_no_bag(tmp_path: Path) -> None:
     ]
     assert result.stdout == ""
     assert not out.exists() and not bags.exists()
+
+
+def test_runs_that_cannot_be_appended_still_reach_the_bag(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A ``runs.jsonl`` that cannot be appended to (here a folder where the file was) ends the
+    benchmark in one line with exit 1, and the scenario's records still reach the bag."""
+    import argparse
+
+    from lit_planner.bench import cli, runner
+
+    from lit_planner import replay
+
+    out, bags = tmp_path / "out", tmp_path / "bags"
+    real_run = runner.run_benchmark
+
+    def run_with_a_folder_in_the_way(*args: object, **kwargs: object) -> object:
+        (out / "runs.jsonl").unlink()
+        (out / "runs.jsonl").mkdir()
+        return real_run(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "run_benchmark", run_with_a_folder_in_the_way)
+    parser = argparse.ArgumentParser()
+    cli.add_arguments(parser)
+    args = parser.parse_args(
+        ["--scenarios", "np4", "--planners", "litstar-fit", "--runs", "2", "--time-scale", "0.5",
+         "--out", str(out), "--bag-dir", str(bags)]
+    )  # fmt: skip
+    assert cli.run(args) == 1
+    errors = [line for line in capsys.readouterr().err.splitlines() if "Is a directory" in line]
+    assert len(errors) == 1 and "holds the runs of the finished scenarios" in errors[0], errors
+    (bag_path,) = bags.iterdir()
+    recorded = replay.read_bench([bag_path])
+    assert [run.payload["seed"] for run in recorded.runs] == [1, 2]
+    assert not (out / "summary.json").exists()  # no tables from a run that lost its records
