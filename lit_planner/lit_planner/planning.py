@@ -415,6 +415,7 @@ def plan(
     interpolation: str | None = None,
     check_path: bool = True,
     cancel: lit_core.CancelFlag | None = None,
+    features: bool = True,
 ) -> dict[str, Any]:
     """Plan ``scenario`` with ``planner`` and return the core's result plus scenario facts.
 
@@ -441,6 +442,9 @@ def plan(
             False and checks all paths afterwards, in parallel, while no planner is timing.
         cancel: a ``lit_core.CancelFlag``; setting it from another thread ends the query early
             (the result is what the planner had by then: a node that is stopping uses it).
+        features: False spares a policy that needs no features (fixed, fit) the path feature
+            rho_local_b that only the result's decisions would show (NaN there): a scan around the
+            path at every improvement, with LIT*'s clock paused (a few ms a run on np16 and rrd8).
 
     Returns:
         The dict of ``lit_core.solve`` (``status``, ``solved``, ``message``, ``cost``, ``t_init``,
@@ -509,6 +513,7 @@ def plan(
             params={key: _param_text(value) for key, value in params.items()},
             listener=listener,
             cancel=cancel,
+            features=features,
         )
     except ValueError as error:
         # The core's checks of its arguments (an unknown parameter, a value it rejects, ...)

@@ -157,6 +157,33 @@ def test_same_seed_same_result() -> None:
 
 
 @pytest.mark.parametrize("policy", ["fixed", "fit", "tensor"])
+def test_features_false_leaves_out_only_the_path_feature_a_policy_does_not_use(
+    policy: str,
+) -> None:
+    """``features=False`` (what ``lit bench`` passes) plans the same search; for the policies
+    that need no features (fixed, fit) the B decisions then report NaN for rho_local_b instead of
+    paying for it, and the tensor policy, which decides with it, still has it."""
+    full, spared = (
+        plan("np8", policy=policy, seed=5, max_iterations=ITERATIONS, features=features)
+        for features in (True, False)
+    )
+    assert full["solved"] and len(full["improvements"]) > 1  # several B decisions
+    for key in ("path", "cost", "checks_init"):
+        assert spared[key] == full[key], key
+    assert [c for _, c in spared["improvements"]] == [c for _, c in full["improvements"]]
+    assert full["counters"] == spared["counters"]
+    b_full, b_spared = (
+        [d["rho_local_b"] for d in run["decisions"] if d["kind"] == "B"] for run in (full, spared)
+    )
+    assert len(b_spared) == len(b_full) > 1
+    assert all(0.0 <= value <= 1.0 for value in b_full)
+    if policy == "tensor":
+        assert b_spared == b_full
+    else:
+        assert all(math.isnan(value) for value in b_spared)
+
+
+@pytest.mark.parametrize("policy", ["fixed", "fit", "tensor"])
 def test_a_free_straight_line_is_the_first_solution(policy: str) -> None:
     """In an empty R^16 world LIT* stayed at 2.55 for its whole budget (the start was never among
     the goal's k nearest) while BIT* and AIT* returned the straight line, 2.0, at once: it now

@@ -123,9 +123,14 @@ namespace
     class RecordingListener : public PlannerListener
     {
     public:
-        RecordingListener(py::object listener, std::shared_ptr<const BoxWorldValidityChecker> checker)
-          : listener_(std::move(listener)), checker_(std::move(checker))
+        RecordingListener(py::object listener, std::shared_ptr<const BoxWorldValidityChecker> checker,
+                          bool observesFeatures)
+          : listener_(std::move(listener)), checker_(std::move(checker)), observesFeatures_(observesFeatures)
         {
+        }
+        bool observesFeatures() const override
+        {
+            return observesFeatures_;
         }
         void onSolution(const SolutionEvent &event) override
         {
@@ -162,6 +167,7 @@ namespace
         py::object listener_;
         bool hasListener_{!listener_.is_none()};
         std::shared_ptr<const BoxWorldValidityChecker> checker_;
+        bool observesFeatures_;
     };
 
     py::dict decisionDict(const DecisionEvent &event)
@@ -216,7 +222,7 @@ namespace
     py::dict solveQuery(const Query &query, const std::string &plannerName, double time, ParameterPolicyPtr policy,
                         unsigned int seed, unsigned int maxIterations, unsigned int maxBatches,
                         const std::map<std::string, std::string> &params, py::object listenerObject,
-                        const CancelFlag *cancel)
+                        const CancelFlag *cancel, bool features)
     {
         // Asked by LIT* every iteration and while it draws a batch, by OMPL's planners as they do.
         const std::shared_ptr<std::atomic<bool>> cancelled = cancel != nullptr ? cancel->flag : nullptr;
@@ -252,7 +258,7 @@ namespace
 
         ompl::base::PlannerPtr planner;
         std::shared_ptr<LITstar> litstar;
-        auto recorder = std::make_shared<RecordingListener>(listenerObject, problem.checker);
+        auto recorder = std::make_shared<RecordingListener>(listenerObject, problem.checker, features);
         std::vector<Improvement> improvements;
         double elapsed = 0.0;
         if (status.empty())
@@ -714,10 +720,12 @@ PYBIND11_MODULE(lit_core, m)
     m.def("solve", &solveQuery, py::arg("query"), py::arg("planner"), py::arg("time") = 0.0,
           py::arg("policy") = nullptr, py::arg("seed") = 1u, py::arg("max_iterations") = 0u,
           py::arg("max_batches") = 0u, py::arg("params") = std::map<std::string, std::string>{},
-          py::arg("listener") = py::none(), py::arg("cancel") = nullptr,
+          py::arg("listener") = py::none(), py::arg("cancel") = nullptr, py::kw_only(), py::arg("features") = true,
           "Plans \e query with \e planner. LIT* stops on its own clock (time), iterations or batches; OMPL planners on "
           "wall time. Returns a dict: status, solved, message, cost, t_init, c_init, "
           "checks_init (validity checks up to the first solution, None without one), improvements, path, time, "
           "counters, decisions; for LIT* also policy, iteration_init (the iteration of the first solution, None "
-          "without one) and final_features.");
+          "without one) and final_features. features=False: a policy that needs no features (fixed, fit) is not "
+          "given the path feature rho_local_b either (a scan around the path at every improvement, with the clock "
+          "paused); its B decisions report NaN for it.");
 }

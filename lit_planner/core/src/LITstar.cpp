@@ -1285,7 +1285,11 @@ namespace lit
     void LITstar::adaptiveBatchsize()
     {
         DecisionContext context = makeContext(DecisionKind::BatchSize);
-        if (policy_->needsFeatures() || !listeners_.empty())
+        const bool observed = std::any_of(listeners_.begin(), listeners_.end(),
+                                          [](const auto &listener) { return listener->observesFeatures(); });
+        if (!policy_->needsFeatures() && !observed)
+            context.features.rhoLocalB = std::numeric_limits<double>::quiet_NaN();  // not computed
+        else
         {
             // A policy that ignores the features (fixed, fit) does not pay for them: they are
             // computed only for the listeners then, with the clock paused.

@@ -386,6 +386,7 @@ def time_first_solution(
             seed=seed,
             max_iterations=int(result["iteration_init"]),
             check_path=False,
+            features=False,
         )
         if not rerun["solved"]:
             raise PlannerError(
@@ -504,6 +505,7 @@ def run_benchmark(
                         time=budget,
                         seed=seed,
                         check_path=False,
+                        features=False,  # no record keeps the decisions
                     )
                     wall = time.perf_counter() - started
                     t_init_runs = time_first_solution(

@@ -61,5 +61,13 @@ namespace lit
         virtual void onBatch(const BatchEvent & /*event*/)
         {
         }
+        /** \brief Whether this listener reads the features of B decisions. The path feature
+         *  rho_local,B costs a scan around every path state at every improvement; when the policy
+         *  needs no features and no listener reads them, LIT* leaves it out and its decision events
+         *  carry NaN for it. */
+        virtual bool observesFeatures() const
+        {
+            return true;
+        }
     };
 }  // namespace lit
