@@ -357,8 +357,6 @@ def test_runs_that_cannot_be_appended_still_reach_the_bag(
 ) -> None:
     """A ``runs.jsonl`` that cannot be appended to (here a folder where the file was) ends the
     benchmark in one line with exit 1, and the scenario's records still reach the bag."""
-    import argparse
-
     from lit_planner.bench import cli, runner
 
     from lit_planner import replay
@@ -372,16 +370,45 @@ def test_runs_that_cannot_be_appended_still_reach_the_bag(
         return real_run(*args, **kwargs)
 
     monkeypatch.setattr(runner, "run_benchmark", run_with_a_folder_in_the_way)
-    parser = argparse.ArgumentParser()
-    cli.add_arguments(parser)
-    args = parser.parse_args(
-        ["--scenarios", "np4", "--planners", "litstar-fit", "--runs", "2", "--time-scale", "0.5",
-         "--out", str(out), "--bag-dir", str(bags)]
-    )  # fmt: skip
-    assert cli.run(args) == 1
+    assert cli.run(_np4_fit_args(out, bags)) == 1
     errors = [line for line in capsys.readouterr().err.splitlines() if "Is a directory" in line]
     assert len(errors) == 1 and "holds the runs of the finished scenarios" in errors[0], errors
     (bag_path,) = bags.iterdir()
     recorded = replay.read_bench([bag_path])
     assert [run.payload["seed"] for run in recorded.runs] == [1, 2]
     assert not (out / "summary.json").exists()  # no tables from a run that lost its records
+
+
+def _np4_fit_args(out: Path, bags: Path) -> object:
+    """``lit bench``'s arguments for two np4 runs of LIT* (fit), recorded into ``bags``."""
+    import argparse
+
+    from lit_planner.bench import cli
+
+    parser = argparse.ArgumentParser()
+    cli.add_arguments(parser)
+    return parser.parse_args(
+        ["--scenarios", "np4", "--planners", "litstar-fit", "--runs", "2", "--time-scale", "0.5",
+         "--out", str(out), "--bag-dir", str(bags)]
+    )  # fmt: skip
+
+
+def test_ctrl_c_while_the_outputs_are_written_says_the_runs_are_kept(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Ctrl-C after the planning, while the tables are written: exit 130 with a line that says
+    every run is in ``runs.jsonl`` and which ``lit replay bench`` writes the tables."""
+    from lit_planner.bench import cli
+
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "write_outputs", interrupted)
+    out, bags = tmp_path / "out", tmp_path / "bags"
+    assert cli.run(_np4_fit_args(out, bags)) == 130
+    (bag_path,) = bags.iterdir()
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        f"lit bench: interrupted while writing the outputs; {out / 'runs.jsonl'} holds every run;"
+        f" `lit replay bench {bag_path}` writes them"
+    )
+    assert len((out / "runs.jsonl").read_text(encoding="utf-8").splitlines()) == 2

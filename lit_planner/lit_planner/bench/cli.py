@@ -202,24 +202,24 @@ def run(args: argparse.Namespace) -> int:
         if recording is not None:
             recording.close()
 
-    write_outputs(
-        out,
-        records,
-        config,
-        preset=preset,
-        requested=requested,
-        started=started,
-        finished=finished,
-        duration=duration,
-        estimate=(estimate, formula),
-        planners=setups,
-        environment_facts=facts,
-    )
-    print((out / SUMMARY_MD).read_text(encoding="utf-8"))
     # Planner Arena database from OMPL benchmark logs (PyPI ompl, in its own process).
     from lit_planner import arena, ompl2
 
     try:
+        write_outputs(
+            out,
+            records,
+            config,
+            preset=preset,
+            requested=requested,
+            started=started,
+            finished=finished,
+            duration=duration,
+            estimate=(estimate, formula),
+            planners=setups,
+            environment_facts=facts,
+        )
+        print((out / SUMMARY_MD).read_text(encoding="utf-8"))
         export = arena.export_arena(out, records)
         print(
             f"lit bench: Planner Arena database {export.database} ({len(export.logs)} OMPL logs)",
@@ -228,6 +228,18 @@ def run(args: argparse.Namespace) -> int:
     except (arena.ArenaError, ompl2.Ompl2Error) as error:
         print(f"lit bench: Planner Arena export failed: {error}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:  # every run is recorded: only the tables and plots are missing
+        again = (
+            f"; `lit replay bench {recording.recorder.path}` writes them"
+            if recording is not None
+            else ""
+        )
+        print(
+            f"lit bench: interrupted while writing the outputs; {runs_path} holds every run"
+            + again,
+            file=sys.stderr,
+        )
+        return 130
     invalid = sum(1 for r in records if r["solved"] and r["path_valid"] is False)
     print(
         f"lit bench: {len(records)} runs in "
