@@ -298,8 +298,8 @@ namespace lit
         firstSolutionMeasure_ = 0.0;
         warnedUnusableBatchSize_ = false;
         warnedUnusableFactor_ = false;
-        warnedReplacedGoal_ = false;
         goalRead_.reset();
+        startsRead_.clear();
         goalsGrow_ = false;
     }
 
@@ -310,9 +310,27 @@ namespace lit
         return std::all_of(reals.begin(), reals.end(), [](double x) { return std::isfinite(x); });
     }
 
+    std::vector<std::vector<double>> LITstar::problemStarts() const
+    {
+        std::vector<std::vector<double>> starts(pdef_->getStartStateCount());
+        for (std::size_t i = 0u; i < starts.size(); ++i)
+            si_->getStateSpace()->copyToReals(starts[i], pdef_->getStartState(i));
+        return starts;
+    }
+
+    std::string LITstar::problemChange() const
+    {
+        if (goalRead_.lock() != pdef_->getGoal())  // SimpleSetup::setGoalState replaces the goal object
+            return "the goal was replaced";
+        if (problemStarts() != startsRead_)  // added, removed or replaced (SimpleSetup::setStartState)
+            return "the start states changed";
+        return {};
+    }
+
     ompl::base::PlannerStatus LITstar::initializeProblem(const ompl::base::PlannerTerminationCondition &ptc)
     {
         statusMessage_.clear();
+        startsRead_ = problemStarts();
         checkObjective();  // a problem set after setup() may have none (setup() is not called again)
         const ompl::base::GoalPtr &goal = pdef_->getGoal();
         if (!goal || !goal->hasType(ompl::base::GOAL_SAMPLEABLE_REGION))
@@ -460,6 +478,18 @@ namespace lit
             statusMessage_ = "no problem definition is set";
             return ompl::base::PlannerStatus::ABORT;
         }
+        if (problemInitialized_)
+        {
+            // The search belongs to the start and goal it read: a changed problem is solved anew, as a new problem
+            // definition is (it went on with the old ones and filed their path as an exact solution).
+            const std::string change = problemChange();
+            if (!change.empty())
+            {
+                OMPL_INFORM("%s: %s since the problem was read: the search starts over", getName().c_str(),
+                            change.c_str());
+                clear();
+            }
+        }
         if (!problemInitialized_)
         {
             const ompl::base::PlannerStatus status = initializeProblem(ptc);
@@ -470,29 +500,14 @@ namespace lit
                 return status;
             }
         }
-        else if (pis_.haveMoreStartStates())
-        {
-            // Read once, when the problem is first solved (as the goals are): a start added later is not a root.
-            OMPL_WARN("%s: start states added after the problem was read are not used; clear() the planner to plan "
-                      "from them",
-                      getName().c_str());
-            while (pis_.nextStart() != nullptr)
-            {
-            }
-        }
-        if (problemInitialized_ && goalRead_.lock() != pdef_->getGoal() && !warnedReplacedGoal_)
-        {
-            // The goal object replaced in the same problem definition (SimpleSetup::setGoalState does that).
-            warnedReplacedGoal_ = true;
-            OMPL_WARN("%s: the goal was replaced after the problem was read and is not used; clear() the planner to "
-                      "plan to it",
-                      getName().c_str());
-        }
         // At every solve(): the checker may have been replaced since the last one (and is held while used).
+        // Exactly our checker: a subclass may override isValid(), which the fast path would not call on edges.
         const ompl::base::StateSpace *space = si_->getStateSpace().get();
-        boxChecker_ = typeid(*space) == typeid(ompl::base::RealVectorStateSpace)
-                          ? std::dynamic_pointer_cast<const BoxWorldValidityChecker>(si_->getStateValidityChecker())
-                          : nullptr;
+        const ompl::base::StateValidityChecker *checker = si_->getStateValidityChecker().get();
+        boxChecker_ = typeid(*space) == typeid(ompl::base::RealVectorStateSpace) && checker != nullptr &&
+                              typeid(*checker) == typeid(BoxWorldValidityChecker) ?
+                          std::static_pointer_cast<const BoxWorldValidityChecker>(si_->getStateValidityChecker()) :
+                          nullptr;
         batchLimitReached_ = false;
         statusMessage_.clear();
         struct Running  // the termination condition and the clock belong to this call, also if it throws

@@ -992,68 +992,95 @@ TEST(LITstar, EveryStartStateIsARootOfTheForwardTree)
 
 namespace
 {
-    /** \brief A planner of \e problem after two batches, \e change (of the problem), then two more solves; and the
-     *  warnings of those two solves. */
-    std::pair<std::shared_ptr<LITstar>, std::vector<std::string>> warningsAfter(const BoxProblem &problem,
-                                                                                 const std::function<void()> &change)
+    /** \brief A planner of \e problem solved (up to five batches), then \e change (of the problem), then solved again;
+     *  and the path of that second solve. */
+    std::pair<std::shared_ptr<LITstar>, std::vector<std::vector<double>>>
+    solvedAfter(const BoxProblem &problem, const std::function<void()> &change)
     {
-        auto planner = batchLimited(problem, 2u);
+        auto planner = batchLimited(problem, 5u);
         planner->setSeed(3u);
-        planner->solve(ompl::base::plannerNonTerminatingCondition());
+        EXPECT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()),
+                  ompl::base::PlannerStatus::EXACT_SOLUTION);
         change();
-        planner->setMaxBatches(4u);
-        const CapturedWarnings messages;
-        planner->solve(ompl::base::plannerNonTerminatingCondition());
-        planner->solve(ompl::base::plannerNonTerminatingCondition());  // said once
-        return {planner, messages.warnings};
+        problem.pdef->clearSolutionPaths();
+        EXPECT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()),
+                  ompl::base::PlannerStatus::EXACT_SOLUTION);
+        return {planner, planner->bestPath()};
     }
 }  // namespace
 
-TEST(LITstar, AStartAddedAfterTheProblemWasReadIsNamedInAWarning)
+TEST(LITstar, AStartAddedOrReplacedAfterTheProblemWasReadStartsTheSearchOver)
 {
-    // Starts are read when the problem is first solved; one added later was ignored without a word.
+    // Starts were read when the problem was first solved: one added later was ignored (with a warning), and one
+    // replaced the way SimpleSetup::setStartState does (clear, then add) was ignored silently, the old start's path
+    // filed as an exact solution.
     BoxProblem problem = test::narrowPassage(2, 1e-3);
     ompl::base::ScopedState<> later(problem.si);
     later[0] = 0.15;
     later[1] = 0.3;
-    const auto [planner, warnings] = warningsAfter(problem, [&] { problem.pdef->addStartState(later); });
-    ASSERT_EQ(warnings.size(), 1u);
-    EXPECT_NE(warnings[0].find("start states added after the problem was read are not used"), std::string::npos)
-        << warnings[0];
+    {
+        const auto [planner, path] = solvedAfter(problem, [&] { problem.pdef->addStartState(later); });
+        EXPECT_EQ(planner->graph().starts().size(), 2u);
+        EXPECT_DOUBLE_EQ(planner->bestCost(), std::hypot(0.05, 0.3));  // the later start's free line
+        EXPECT_EQ(path.front(), (std::vector<double>{0.15, 0.3}));
+    }
+    const auto replace = [&]
+    {
+        problem.pdef->clearStartStates();
+        problem.pdef->addStartState(later);
+    };
+    const auto [planner, path] = solvedAfter(problem, replace);
     EXPECT_EQ(planner->graph().starts().size(), 1u);
-    planner->clear();  // read again: the later start's free line
-    planner->solve(ompl::base::plannerNonTerminatingCondition());
-    EXPECT_EQ(planner->graph().starts().size(), 2u);
+    EXPECT_EQ(path.front(), (std::vector<double>{0.15, 0.3}));
     EXPECT_DOUBLE_EQ(planner->bestCost(), std::hypot(0.05, 0.3));
 }
 
-TEST(LITstar, AGoalReplacedAfterTheProblemWasReadIsNamedInAWarning)
+TEST(LITstar, AGoalReplacedAfterTheProblemWasReadStartsTheSearchOver)
 {
     // SimpleSetup::setGoalState replaces the goal object of the same problem definition: LIT* kept planning to the
-    // old goal without a word (as OMPL's RRT* does), and reported its path as an exact solution.
+    // old goal (with a warning) and reported its path as an exact solution.
     BoxProblem problem = test::narrowPassage(2, 1e-3);
     ompl::base::ScopedState<> other(problem.si);
-    other[0] = 0.2;
+    other[0] = -0.2;
     other[1] = 0.3;
-    const auto [planner, warnings] = warningsAfter(problem, [&] { problem.pdef->setGoalState(other); });
-    ASSERT_EQ(warnings.size(), 1u);
-    EXPECT_NE(warnings[0].find("the goal was replaced after the problem was read and is not used"), std::string::npos)
-        << warnings[0];
-    planner->clear();  // read again: planned to the new goal, without a warning
-    {
-        const CapturedWarnings messages;
-        planner->solve(ompl::base::plannerNonTerminatingCondition());
-        EXPECT_TRUE(messages.warnings.empty());
-    }
+    const auto [planner, path] = solvedAfter(problem, [&] { problem.pdef->setGoalState(other); });
     ASSERT_EQ(planner->graph().goals().size(), 1u);
-    EXPECT_DOUBLE_EQ(planner->graph().goals()[0]->raw_->as<ompl::base::RealVectorStateSpace::StateType>()->values[1],
-                     0.3);
+    EXPECT_EQ(path.back(), (std::vector<double>{-0.2, 0.3}));
+    EXPECT_DOUBLE_EQ(planner->bestCost(), 0.3);  // the free line up from the start (-0.2, 0)
+    ASSERT_TRUE(problem.pdef->hasExactSolution());
+    const auto *filed = problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>();
+    EXPECT_TRUE(problem.pdef->getGoal()->isSatisfied(filed->getState(filed->getStateCount() - 1u)));
+}
+
+TEST(LITstar, ASubclassOfTheBoxCheckerIsAskedOnEdges)
+{
+    // The fast path for edges calls BoxWorldValidityChecker's own test, not a subclass's isValid(): with a wall added
+    // by an override, the straight line through it was returned.
+    struct WallChecker : BoxWorldValidityChecker
+    {
+        using BoxWorldValidityChecker::BoxWorldValidityChecker;
+        bool isValid(const ompl::base::State *state) const override
+        {
+            const double *x = state->as<ompl::base::RealVectorStateSpace::StateType>()->values;
+            return !(std::abs(x[0]) < 0.05 && x[1] < 0.3) && BoxWorldValidityChecker::isValid(state);
+        }
+    };
+    BoxWorld world;
+    world.lower = {-0.5, -0.5};
+    world.upper = {0.5, 0.5};
+    BoxProblem problem = makeBoxProblem(world, {-0.3, 0.0}, {0.3, 0.0}, 1e-3);
+    problem.si->setStateValidityChecker(std::make_shared<WallChecker>(problem.si, world));
+    auto planner = batchLimited(problem, 20u);
+    planner->setSeed(1u);
+    ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    EXPECT_GT(planner->bestCost(), 0.6);  // around the wall, not through it
+    EXPECT_TRUE(problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>()->check());
 }
 
 TEST(LITstar, AGoalRegionClearedOrReplacedIsNotSampledAgain)
 {
     // A region is sampled again at every batch: a cleared goal was read as null (a crash), and a replaced one had its
-    // states planned to though solve() warned that it is not used.
+    // states planned to though solve() warned that it is not used. Now either starts the search over.
     for (const bool cleared : {true, false})
     {
         BoxProblem problem = test::narrowPassage(2, 1e-3);
@@ -1068,7 +1095,6 @@ TEST(LITstar, AGoalRegionClearedOrReplacedIsNotSampledAgain)
         auto planner = batchLimited(problem, 3u);
         ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()),
                   ompl::base::PlannerStatus::EXACT_SOLUTION);
-        const std::size_t goals = planner->graph().goals().size();
         if (cleared)
             problem.pdef->clearGoal();
         else
@@ -1079,11 +1105,15 @@ TEST(LITstar, AGoalRegionClearedOrReplacedIsNotSampledAgain)
             problem.pdef->setGoalState(other);
         }
         planner->setMaxBatches(6u);
-        const CapturedWarnings messages;
-        planner->solve(ompl::base::plannerNonTerminatingCondition());
-        EXPECT_EQ(planner->graph().goals().size(), goals) << (cleared ? "cleared" : "replaced");
-        for (const litstar::State *goal : planner->graph().goals())
-            EXPECT_GE(goal->raw_->as<ompl::base::RealVectorStateSpace::StateType>()->values[0], 0.15);
+        const ompl::base::PlannerStatus status = planner->solve(ompl::base::plannerNonTerminatingCondition());
+        if (cleared)
+        {
+            EXPECT_EQ(status, ompl::base::PlannerStatus::UNRECOGNIZED_GOAL_TYPE);
+            continue;
+        }
+        EXPECT_EQ(status, ompl::base::PlannerStatus::EXACT_SOLUTION);
+        ASSERT_EQ(planner->graph().goals().size(), 1u);
+        EXPECT_EQ(planner->bestPath().back(), (std::vector<double>{-0.3, -0.3}));
     }
 }
 

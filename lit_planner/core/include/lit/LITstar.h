@@ -174,6 +174,11 @@ namespace lit
         std::size_t addGoalSamples();
         /** \brief Every coordinate of \e state is a finite number. */
         bool finiteState(const ompl::base::State *state) const;
+        /** \brief The problem definition's start states, as coordinates. */
+        std::vector<std::vector<double>> problemStarts() const;
+        /** \brief What changed in the problem definition since the problem was read (its start states, or its goal
+         *  object replaced), or an empty string. */
+        std::string problemChange() const;
         bool continueReverseSearch() const;
         bool continueForwardSearch() const;
         void reverseStep();
@@ -311,7 +316,8 @@ namespace lit
         bool warnedUnusableBatchSize_{false};
         /** \brief The goal read when the problem was initialised, and whether its replacement was warned about. */
         std::weak_ptr<ompl::base::Goal> goalRead_;
-        bool warnedReplacedGoal_{false};
+        /** \brief The problem definition's start states (coordinates) when the problem was read. */
+        std::vector<std::vector<double>> startsRead_;
         /** \brief The goal is a region to sample or a goal set that may grow: more goals are read at every batch (up to
          *  MAX_GOALS), and until then the straight line to those read is no lower bound. */
         bool goalsGrow_{false};
