@@ -1331,7 +1331,8 @@ def test_learner_trains_at_a_lower_priority_than_it_answers(ros: RosSystem) -> N
 
 
 def test_domains_are_isolated(ros: RosSystem) -> None:
-    """A planner in one ROS domain is invisible from another one."""
+    """A planner in one ROS domain is invisible from another one; ``lit call --domain-id``
+    reaches it from a shell whose ``$ROS_DOMAIN_ID`` is the other one."""
     planner = ros.planner()
     _ready(planner)
     other = ros.other_domain()
@@ -1342,6 +1343,9 @@ def test_domains_are_isolated(ros: RosSystem) -> None:
     result = ros.call(
         "--wait", "30", "--payload-only", "plan", "--scenario", "np4", "--time", "0.1"
     )
+    assert result.returncode == 0, result
+    chosen = ("--domain-id", str(ros.domain), "--wait", "30", "--payload-only")
+    result = ros.call(*chosen, "plan", "--scenario", "np4", "--time", "0.1", domain=other)
     assert result.returncode == 0, result
 
 

@@ -44,14 +44,16 @@ from lit_planner import argtypes
 from lit_planner.rosutil import (
     CANCEL_SERVICE,
     DECIDE_SERVICE,
+    DEFAULT_DOMAIN_ID,
     EXPORT_SERVICE,
     MAX_REQUEST_TIME,
     PLAN_SERVICE,
     ServiceCaller,
-    domain_id,
+    add_domain_option,
     freeze_startup_objects,
     localhost_environment,
     native_output_to_stderr,
+    resolve_domain_id,
     spin_quietly,
 )
 
@@ -89,6 +91,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--payload-only", action="store_true", help="print only the response's payload"
     )
+    add_domain_option(parser, DEFAULT_DOMAIN_ID)  # lit up's default: its nodes answer
     commands = parser.add_subparsers(dest="service", required=True)
     plan = commands.add_parser("plan", help="call <namespace>/lit/planner/plan")
     where = plan.add_mutually_exclusive_group(required=True)
@@ -229,12 +232,8 @@ def run(args: argparse.Namespace) -> int:
             if isinstance(value, str) and not _is_utf8(value):
                 label = option.upper() if option in ("name", "text") else f"--{option}"
                 raise ValueError(f"{label.replace('_', '-')}: not valid UTF-8 text: {value!r}")
-        text = os.environ.get("ROS_DOMAIN_ID", "").strip()
-        if text:  # rclpy's traceback, or Fast DDS's port errors and exit 1, otherwise
-            try:
-                domain_id(text)
-            except argparse.ArgumentTypeError as error:
-                raise ValueError(f"$ROS_DOMAIN_ID: {error}") from None
+        # Checked here: rclpy's traceback, or Fast DDS's port errors and exit 1, otherwise.
+        os.environ["ROS_DOMAIN_ID"] = str(resolve_domain_id(args.domain_id, DEFAULT_DOMAIN_ID))
         name, text = _request(args)
         if args.timeout is None:  # a long plan must not time out on the client's side for sure
             payload = json.loads(text)["payload"] if args.service == "plan" else {}
