@@ -412,3 +412,24 @@ def test_ctrl_c_while_the_outputs_are_written_says_the_runs_are_kept(
         f" `lit replay bench {bag_path}` writes them"
     )
     assert len((out / "runs.jsonl").read_text(encoding="utf-8").splitlines()) == 2
+
+
+def test_ctrl_c_while_planning_names_the_replay_that_makes_tables(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Ctrl-C during the planning: exit 130, and the line says what is kept and which ``lit
+    replay bench`` makes tables of it."""
+    from lit_planner.bench import cli, runner
+
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "run_benchmark", interrupted)
+    out, bags = tmp_path / "out", tmp_path / "bags"
+    assert cli.run(_np4_fit_args(out, bags)) == 130
+    (bag_path,) = bags.iterdir()
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        f"lit bench: interrupted; {out / 'runs.jsonl'} holds the runs of the finished scenarios "
+        f"(not those of the scenario it was planning); `lit replay bench {bag_path}` makes tables"
+        " of them"
+    )

@@ -557,6 +557,12 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
     if args.service == "export":
         return EXPORT_SERVICE, ""
     text = sys.stdin.read() if args.text == "-" else args.text
+    if args.text != "-" and not args.text.lstrip().startswith("{") and Path(args.text).is_file():
+        # Sent as is, the node would answer "not valid JSON" about the file's name.
+        raise ValueError(
+            f"{args.text} is a file, and TEXT is sent as it is; send the file's contents with "
+            f"`lit call raw {args.name} - < {args.text}`"
+        )
     if not _is_utf8(text):  # bytes read as surrogates: rclpy failed with a traceback
         raise ValueError("the request is not valid UTF-8 (a ROS string carries UTF-8 text)")
     return args.name, text

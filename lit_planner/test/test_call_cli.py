@@ -210,6 +210,24 @@ def test_a_bad_namespace_or_non_utf8_raw_text_is_one_line(tmp_path: Path) -> Non
     )
 
 
+def test_raw_given_a_file_name_says_how_to_send_the_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``lit call raw NAME req.json`` sent the text ``req.json``, which the node called "not
+    valid JSON"; the client now says how to send the file."""
+    from lit_planner import cli
+
+    (tmp_path / "req.json").write_text("{}", encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    args = cli.build_parser("call")[0].parse_args(["call", "raw", "/lit/planner/plan", "req.json"])
+    with pytest.raises(ValueError) as refused:
+        call._request(args)
+    assert str(refused.value) == (
+        "req.json is a file, and TEXT is sent as it is; send the file's contents with "
+        "`lit call raw /lit/planner/plan - < req.json`"
+    )
+
+
 @pytest.mark.parametrize("command", ["plan", "cancel"])
 def test_an_argument_that_is_not_utf8_is_one_line(tmp_path: Path, command: str) -> None:
     """rclpy.init() read sys.argv and failed on it with a UnicodeEncodeError traceback, exit 1

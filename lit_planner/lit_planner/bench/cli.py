@@ -183,8 +183,14 @@ def run(args: argparse.Namespace) -> int:
         if recording is not None:  # for `lit replay bench`: the stamps do not span all of it
             recording.finish(finished, duration)
     except KeyboardInterrupt:
+        tables = (
+            f"; `lit replay bench {recording.recorder.path}` makes tables of them"
+            if recording is not None
+            else ""
+        )
         print(
-            f"lit bench: interrupted; {runs_path} holds the runs of the finished scenarios",
+            f"lit bench: interrupted; {runs_path} holds the runs of the finished scenarios (not "
+            f"those of the scenario it was planning){tables}",
             file=sys.stderr,
         )
         return 130

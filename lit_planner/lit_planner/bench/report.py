@@ -438,6 +438,13 @@ def fmt_ms(value: float | str | None) -> str:
     return fmt(value, 3, 1e3)
 
 
+def _seeds(runs: int, first: int) -> str:
+    """``100 runs per scenario and planner; seeds 1…100``, or for one run ``... seed 1``."""
+    if runs == 1:
+        return f"1 run per scenario and planner; seed {first}"
+    return f"{runs} runs per scenario and planner; seeds {first}…{first + runs - 1}"
+
+
 def _duration(seconds: float) -> str:
     return f"{seconds:.1f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
 
@@ -470,8 +477,7 @@ def markdown(summary: dict[str, Any]) -> str:
         f"`{' '.join(summary['command']['argv'])}`",
         "",
         (
-            f"{config['runs']} runs per scenario and planner; seeds {config['first_seed']}…"
-            f"{config['first_seed'] + config['runs'] - 1}; instance {config['instance']} of the random "
+            f"{_seeds(config['runs'], config['first_seed'])}; instance {config['instance']} of the random "
             f"scenarios; time budgets {config['time_scale']:g} × the paper's; "
             f"{summary['started']} → {summary['finished']} ({_duration(summary['duration_s'])}) on "
             f"{summary['machine']['cpu_model']} ({summary['machine']['cores']} cores)."
