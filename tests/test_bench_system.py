@@ -393,43 +393,35 @@ def _np4_fit_args(out: Path, bags: Path) -> object:
     )  # fmt: skip
 
 
-def test_ctrl_c_while_the_outputs_are_written_says_the_runs_are_kept(
-    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+@pytest.mark.parametrize("stage", ["planning", "writing"])
+def test_ctrl_c_says_what_is_kept_and_names_the_replay_that_makes_tables(
+    monkeypatch: pytest.MonkeyPatch,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    stage: str,
 ) -> None:
-    """Ctrl-C after the planning, while the tables are written: exit 130 with a line that says
-    every run is in ``runs.jsonl`` and which ``lit replay bench`` writes the tables."""
-    from lit_planner.bench import cli
-
-    def interrupted(*args: object, **kwargs: object) -> None:
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(cli, "write_outputs", interrupted)
-    out, bags = tmp_path / "out", tmp_path / "bags"
-    assert cli.run(_np4_fit_args(out, bags)) == 130
-    (bag_path,) = bags.iterdir()
-    assert capsys.readouterr().err.splitlines()[-1] == (
-        f"lit bench: interrupted while writing the outputs; {out / 'runs.jsonl'} holds every run;"
-        f" `lit replay bench {bag_path}` writes them"
-    )
-    assert len((out / "runs.jsonl").read_text(encoding="utf-8").splitlines()) == 2
-
-
-def test_ctrl_c_while_planning_names_the_replay_that_makes_tables(
-    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """Ctrl-C during the planning: exit 130, and the line says what is kept and which ``lit
-    replay bench`` makes tables of it."""
+    """Ctrl-C while it plans, or after the planning while the tables are written: exit 130 with
+    a line that says which runs ``runs.jsonl`` holds and which ``lit replay bench`` makes the
+    tables."""
     from lit_planner.bench import cli, runner
 
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(runner, "run_benchmark", interrupted)
+    if stage == "planning":
+        monkeypatch.setattr(runner, "run_benchmark", interrupted)
+    else:
+        monkeypatch.setattr(cli, "write_outputs", interrupted)
     out, bags = tmp_path / "out", tmp_path / "bags"
     assert cli.run(_np4_fit_args(out, bags)) == 130
     (bag_path,) = bags.iterdir()
-    assert capsys.readouterr().err.splitlines()[-1] == (
-        f"lit bench: interrupted; {out / 'runs.jsonl'} holds the runs of the finished scenarios "
-        f"(not those of the scenario it was planning); `lit replay bench {bag_path}` makes tables"
-        " of them"
-    )
+    runs = out / "runs.jsonl"
+    expected = {
+        "planning": f"lit bench: interrupted; {runs} holds the runs of the finished scenarios (not"
+        f" those of the scenario it was planning); `lit replay bench {bag_path}` makes tables of"
+        " them",
+        "writing": f"lit bench: interrupted while writing the outputs; {runs} holds every run; "
+        f"`lit replay bench {bag_path}` writes them",
+    }[stage]
+    assert capsys.readouterr().err.splitlines()[-1] == expected
+    assert len(runs.read_text(encoding="utf-8").splitlines()) == (2 if stage == "writing" else 0)
