@@ -44,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from lit_learner.config import AGENT_NAMES
 from lit_learner.errors import ExportError
 from lit_learner.metrics import (
     CURVES_FILE,
@@ -1410,6 +1411,14 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 f"{state.episode} --export {args.export}` exports it without training"
             ) from None
         lines.append(f"  tensors {', '.join(str(path) for path in written.values())}")
+        for name in AGENT_NAMES:  # said here, not only by `lit tensors info`
+            agent = core.agents.get(name)
+            if name in written and agent is not None and agent.updates == 0:
+                lines.append(
+                    f"  {name}: UNTRAINED, the actor's initial weights (no gradient update yet: "
+                    f"{agent.transitions} of the {agent.config.warmup} transitions its updates "
+                    "wait for)"
+                )
         if replaced:
             lines.append(
                 f"  (replaced the tensors written to {args.export} during this run; other files "

@@ -784,6 +784,10 @@ def test_export_into_the_run_folder_is_refused_and_an_export_records_no_bag(
         hooks_writing,
     )
     assert f"replaced the tensors written to {meanwhile} during this run" in crossed.summary
+    # One episode is far below the warm-up: the summary says the tensors are the initial actors'.
+    for name, warmup in (("B", 24), ("psi_K", 32)):
+        untrained = rf"  {name}: UNTRAINED, the actor's initial weights \(no gradient update yet: "
+        assert re.search(rf"{untrained}\d+ of the {warmup} transitions", crossed.summary), name
     other = tmp_path / "other"
     train.train(arguments(other, episodes=1, scenarios="np4", no_bag=True), hooks)
     with pytest.raises(train.TrainingError, match="exists and is not empty"):
