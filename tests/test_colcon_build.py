@@ -135,3 +135,12 @@ def _check_cpp_consumer(install: Path, tmp_path: Path, env: dict[str, str]) -> N
         )  # fmt: skip
         assert bad.returncode == 2, bad.stdout + bad.stderr
         assert bad.stderr.strip() == f"plan_narrow_passage: {message}", bad.stderr
+    # A folder without tensors is named by its first file (GCC's argument order named the second).
+    empty = tmp_path / "no-tensors"
+    empty.mkdir()
+    missing = subprocess.run(
+        ["sh", "-c", f". {install}/setup.sh && {build}/plan_narrow_passage {empty} 0.2"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600, check=False,
+    )  # fmt: skip
+    assert missing.returncode == 2, missing.stdout + missing.stderr
+    assert f"'{empty}/b_tensor.npy': cannot be opened" in missing.stderr, missing.stderr

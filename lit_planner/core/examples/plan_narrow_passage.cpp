@@ -31,6 +31,7 @@
 #include <stdexcept>
 #include <memory>
 #include <string>
+#include <utility>
 
 namespace ob = ompl::base;
 namespace og = ompl::geometric;
@@ -67,8 +68,11 @@ namespace
             return std::make_shared<const lit::LookupTensor>(
                 lit::LookupTensor::load(folder + "/" + file, lit::TensorSpec{{{101u, 101u, 101u}}, low, high}));
         };
-        return std::make_shared<lit::TensorPolicy>(load("b_tensor.npy", 20.0, 200.0),
-                                                   load("k_tensor.npy", 3.0, 15.0),
+        // In this order (the order of a call's arguments is unspecified): a folder without tensors is named by
+        // its first file, b_tensor.npy.
+        auto batchSize = load("b_tensor.npy", 20.0, 200.0);
+        auto neighbourFactor = load("k_tensor.npy", 3.0, 15.0);
+        return std::make_shared<lit::TensorPolicy>(std::move(batchSize), std::move(neighbourFactor),
                                                    lit::Interpolation::Trilinear);
     }
 
