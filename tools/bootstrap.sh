@@ -129,6 +129,14 @@ for d in m.distributions():
     [ -z "$unpinned" ] || say "WARNING: requirements.lock does not pin: $(echo $unpinned)"
     cp "$LOCK" "$SHARED/requirements.lock"
     touch "$SHARED/.complete"
+    # Not removed here: another checkout (an older requirements.lock, another interpreter) may use
+    # them. Named, with their size, so a full disk is not a mystery.
+    for other in "$CACHE"/deps-*/; do
+      other="${other%/}"
+      [ "$(readlink -f "$other")" = "$(readlink -f "$SHARED")" ] || [ -L "$other" ] \
+        || say "another shared environment: $other ($(du -sh "$other" 2>/dev/null | cut -f1));" \
+               "remove it with rm -rf when no checkout uses it"
+    done
   fi
   exec {lock_fd}>&-
 fi
