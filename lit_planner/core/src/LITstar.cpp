@@ -485,9 +485,11 @@ namespace lit
             const std::string change = problemChange();
             if (!change.empty())
             {
-                OMPL_INFORM("%s: %s since the problem was read: the search starts over", getName().c_str(),
-                            change.c_str());
+                OMPL_INFORM("%s: %s since the problem was read: the search starts over (the problem definition's "
+                            "solutions, of the former problem, are cleared)",
+                            getName().c_str(), change.c_str());
                 clear();
+                pdef_->clearSolutionPaths();  // else the former, possibly cheaper, path stayed its best solution
             }
         }
         if (!problemInitialized_)
