@@ -467,6 +467,20 @@ def test_a_changed_digit_fails_the_chunk_checksum(tmp_path: Path) -> None:
     assert 250 < recovered < 300
     info = replay.bag_info(tmp_path / "salvaged")["publishers"][0]
     assert info["count"] == recovered and info["gaps"] == 1
+    # Asked for, the messages of that chunk that read are kept too, said to be unverified: the
+    # changed one among them.
+    result = _replay("salvage", changed, "-o", tmp_path / "unverified", "--keep-unverified")
+    assert result.returncode == 0, result.stderr
+    assert f"{300 - recovered} of its messages kept UNVERIFIED" in result.stdout, result.stdout
+    assert _recovered(result.stdout) == 300
+    assert b'"n": 950,' in _mcap(tmp_path / "unverified").read_bytes()
+    # A bag of one chunk: nothing to salvage, and the error says why and what to do (it gave
+    # only "stopped at byte ...: complete file", while info and verify sent the user to salvage).
+    small = _numbered_bag(tmp_path / "small", 5)
+    _mcap(small).write_bytes(_mcap(small).read_bytes().replace(b'"n": 3,', b'"n": 9,'))
+    result = _replay("salvage", small, "-o", tmp_path / "small-salvaged")
+    assert result.returncode == 2 and "nothing to salvage" in result.stderr, result.stderr
+    assert "does not match its records" in result.stderr and "--keep-unverified" in result.stderr
 
 
 @pytest.mark.parametrize("command", ["compact", "bench"])

@@ -1220,7 +1220,9 @@ class _Salvaged:
             self.messages.append((result, record.channel_id, record.log_time, record.data))
 
 
-def salvage(source: str | Path, out: str | Path | None = None) -> tuple[Path, list[SalvageResult]]:
+def salvage(
+    source: str | Path, out: str | Path | None = None, keep_unverified: bool = False
+) -> tuple[Path, list[SalvageResult]]:
     """Read everything readable from a bag's MCAP file(s) and write it as a new, valid bag.
 
     Each file is read with ``mcap``'s ``StreamReader`` up to the first record that cannot be
@@ -1230,6 +1232,8 @@ def salvage(source: str | Path, out: str | Path | None = None) -> tuple[Path, li
     present decode to). Chunks that the summary's chunk index lists and that were not read (after
     the record that stopped the reading, or behind a damaged record header) are then read at the
     index's offsets. Every message must belong to a known channel and deserialize as its type.
+    A chunk whose CRC-32 does not match loses its messages, unless ``keep_unverified``: then
+    those that read are kept, and the result's ``damaged_chunks`` say how many.
 
     Returns:
         The new bag and, per file, where reading stopped and the messages recovered per topic.
@@ -1250,7 +1254,7 @@ def salvage(source: str | Path, out: str | Path | None = None) -> tuple[Path, li
     gathered = _Salvaged()
     results = [SalvageResult(path, path.stat().st_size) for path in files]
     for result in results:
-        _read_mcap(result, gathered)
+        _read_mcap(result, gathered, keep_unverified)
     kept: list[tuple[Any, Any, int, bytes]] = []
     for result, channel_id, log_ns, data in gathered.messages:
         channel = gathered.channels.get((result.file, channel_id))
@@ -1263,7 +1267,11 @@ def salvage(source: str | Path, out: str | Path | None = None) -> tuple[Path, li
         kept.append((channel, schema, log_ns, data))
         result.messages[channel.topic] = result.messages.get(channel.topic, 0) + 1
     if not kept:
-        where = "; ".join(f"{r.file}: stopped at byte {r.stopped_at}: {r.reason}" for r in results)
+        where = "; ".join(
+            f"{r.file}: stopped at byte {r.stopped_at}: {r.reason}"
+            + "".join(f"; damaged {damage}" for damage in r.damaged_chunks)
+            for r in results
+        )
         raise ReplayError(f"nothing to salvage from {source} ({where})")
     _write_salvaged(target, source, kept, results)
     return target, results
@@ -1326,7 +1334,7 @@ def _salvage_reader(stream: _StrictStream, size: int) -> Any:
     return reader
 
 
-def _read_mcap(result: SalvageResult, gathered: _Salvaged) -> None:
+def _read_mcap(result: SalvageResult, gathered: _Salvaged, keep_unverified: bool = False) -> None:
     """Gather every readable record of ``result.file``; note where and why reading stopped.
     Chunks that the summary's chunk index lists but that were not read (a damaged record header,
     or reading stopped before them) are read through the index afterwards."""
@@ -1342,7 +1350,7 @@ def _read_mcap(result: SalvageResult, gathered: _Salvaged) -> None:
                 if isinstance(record, Chunk):
                     reader.chunk_starts.add(reader.last_start)
                     try:
-                        for inner in _chunk_records(record):
+                        for inner in _chunk_records(record, keep_unverified):
                             gathered.take(inner, result)
                     except Exception as error:  # noqa: BLE001 -- damaged chunk content
                         result.damaged_chunks.append(
@@ -1369,7 +1377,7 @@ def _read_mcap(result: SalvageResult, gathered: _Salvaged) -> None:
         )
     if not footer:
         indexes = _summary_chunk_indexes(result, gathered)
-    _read_indexed_chunks(result, gathered, indexes, reader.chunk_starts)
+    _read_indexed_chunks(result, gathered, indexes, reader.chunk_starts, keep_unverified)
 
 
 def _summary_chunk_indexes(result: SalvageResult, gathered: _Salvaged) -> list[Any]:
@@ -1407,7 +1415,11 @@ def _summary_chunk_indexes(result: SalvageResult, gathered: _Salvaged) -> list[A
 
 
 def _read_indexed_chunks(
-    result: SalvageResult, gathered: _Salvaged, indexes: Sequence[Any], read: set[int]
+    result: SalvageResult,
+    gathered: _Salvaged,
+    indexes: Sequence[Any],
+    read: set[int],
+    keep_unverified: bool = False,
 ) -> None:
     """Read each chunk that ``indexes`` list and that was not read as a chunk (``read``: the
     chunk records' starts), at its indexed offset and length."""
@@ -1427,7 +1439,7 @@ def _read_indexed_chunks(
         messages = 0
         try:
             chunk = Chunk.read(ReadDataStream(_StrictStream(_Bytes(body))))  # type: ignore[arg-type]
-            for inner in _chunk_records(chunk):
+            for inner in _chunk_records(chunk, keep_unverified):
                 gathered.take(inner, result)
                 messages += isinstance(inner, Message)
         except Exception as error:  # noqa: BLE001 -- the chunk itself is damaged too
@@ -1573,9 +1585,10 @@ def _magic_length(path: Path) -> int:
         return len(_MCAP_MAGIC) if handle.read(len(_MCAP_MAGIC)) == _MCAP_MAGIC else 0
 
 
-def _chunk_records(chunk: Any) -> Iterator[object]:
-    """The schema, channel and message records of a chunk, checked as they are read; none of a
-    chunk whose CRC-32 (when written: 0 means none) does not match its records."""
+def _chunk_records(chunk: Any, keep_unverified: bool = False) -> Iterator[object]:
+    """The schema, channel and message records of a chunk, checked as they are read; of a chunk
+    whose CRC-32 (when written: 0 means none) does not match its records, none of its messages,
+    or with ``keep_unverified`` those that read (a changed digit still reads: unverified)."""
     import zlib
 
     from mcap.records import Message
@@ -1583,16 +1596,24 @@ def _chunk_records(chunk: Any) -> Iterator[object]:
     data = _chunk_data(chunk)
     if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
         # Its schema and channel records are kept when they read (a later chunk's messages may
-        # need them when the file has no summary to repeat them); none of its messages.
+        # need them when the file has no summary to repeat them).
+        kept = 0
         try:
             for _, record in _inner_records(data, chunk):
-                if not isinstance(record, Message):
+                if keep_unverified or not isinstance(record, Message):
+                    kept += isinstance(record, Message)
                     yield record
         except ValueError:
             pass
         raise ValueError(
             f"its CRC-32 {chunk.uncompressed_crc:#010x} does not match its records "
-            f"({zlib.crc32(data):#010x}): damaged, none of its messages kept"
+            f"({zlib.crc32(data):#010x}): damaged, "
+            + (
+                f"{kept} of its messages kept UNVERIFIED (--keep-unverified; any of them may "
+                "hold a changed byte)"
+                if keep_unverified
+                else "none of its messages kept (--keep-unverified keeps those that read)"
+            )
         )
     for _, record in _inner_records(data, chunk):
         yield record
@@ -2110,6 +2131,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="OUT",
         help=f"new bag (default: BAG{SALVAGED_SUFFIX})",
     )
+    rescue.add_argument(
+        "--keep-unverified",
+        action="store_true",
+        help="also keep the messages that read of a chunk whose CRC-32 does not match (any of "
+        "them may hold a changed byte: a digit changed in a number still reads)",
+    )
     squeeze = sub.add_parser(
         "compact", help="rewrite a bag with zstd-compressed MCAP chunks (smaller, same messages)"
     )
@@ -2273,7 +2300,7 @@ def _compact(args: argparse.Namespace) -> int:
 
 
 def _salvage(args: argparse.Namespace) -> int:
-    target, results = salvage(args.bag, args.out)
+    target, results = salvage(args.bag, args.out, args.keep_unverified)
     total = 0
     for result in results:
         print(
