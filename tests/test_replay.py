@@ -969,14 +969,19 @@ def test_bench_replay_counts_only_records_of_its_configuration(tmp_path: Path) -
     assert not (tmp_path / "o2").exists() and not (tmp_path / "o3").exists()
 
 
-@pytest.mark.parametrize("lie", ["unlisted topic", "wrong count"])
+@pytest.mark.parametrize("lie", ["unlisted topic", "wrong count", "file listed twice"])
 def test_metadata_that_disagrees_with_the_files_is_refused(lie: str, tmp_path: Path) -> None:
     """rosbags reads the topics metadata.yaml lists: a topic it left out lost its messages
-    without a word (info counted 1 message, verify checked 0 paths, compact dropped them)."""
+    without a word (info counted 1 message, verify checked 0 paths, compact dropped them); a file
+    it lists twice was read twice (info counted every message twice, compact kept both)."""
     copy = _sample_copy(tmp_path, "lying")
     metadata = copy / "metadata.yaml"
     text = metadata.read_text()
-    if lie == "unlisted topic":
+    if lie == "file listed twice":
+        (name,) = (path.name for path in copy.glob("*.mcap"))
+        changed = text.replace(f"- {name}\n", f"- {name}\n  - {name}\n")
+        fragment = f"it lists {name} more than once"
+    elif lie == "unlisted topic":
         changed = text.replace(f"name: {bag.BENCH_RUN_TOPIC}", "name: /lit/episode")
         fragment = f"2 messages of {bag.BENCH_RUN_TOPIC} in the files, a topic it does not list"
     else:
@@ -1513,3 +1518,18 @@ def test_summaries_whose_payload_fails_its_schema_are_damage_not_unsolved_runs(
     assert "Traceback" not in table.stderr and "KeyError" not in table.stderr
     rows = json.loads((tmp_path / "table" / "episodes.json").read_text(encoding="utf-8"))
     assert sum(row["queries"] for row in rows) == 1, rows
+
+
+def test_a_message_nested_deeper_than_the_stack_is_one_skipped_message(tmp_path: Path) -> None:
+    """JSON nested 100 000 deep raised RecursionError, and info, verify and bench failed for the
+    whole bag (exit 2); it is one message that is not JSON."""
+    path = tmp_path / "deep"
+    with BagRecorder(path, run_id="deep") as recorder:
+        recorder.add_topic("/lit/observation", bag.STRING_TYPE)
+        recorder.write_string("/lit/observation", _obs(0), 10**9)
+        recorder.write_string("/lit/observation", "[" * 100_000, 10**9 + 1)
+        recorder.write_string("/lit/observation", _obs(1), 10**9 + 2)
+    result = _replay("info", path)
+    assert result.returncode == 0, result.stderr
+    assert "not JSON" in result.stdout + result.stderr, result.stdout
+    assert "RecursionError" not in result.stdout + result.stderr

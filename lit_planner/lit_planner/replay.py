@@ -425,6 +425,9 @@ def _metadata_mismatch(path: Path, facts: BagFacts, summaries: Sequence[Any]) ->
         return None
     listed = load_metadata(path / "metadata.yaml").get("relative_file_paths") or []
     listed_files = {Path(str(name)).name for name in listed}  # as rosbags reads them
+    if len(listed_files) < len(listed):  # every reader read such a file twice
+        twice = sorted({str(n) for n in listed if list(map(str, listed)).count(str(n)) > 1})
+        return f"it lists {', '.join(twice)} more than once"
     for file in sorted(path.glob("*.mcap")):
         if file.name not in listed_files:
             return f"{file.name} is in the folder, not in the files it lists"
@@ -663,7 +666,7 @@ def parse_envelope(text: str, topic: str, log_ns: int, skipped: Skipped) -> Enve
     """Check an envelope's fields, schema name and version; None (counted) when it does not fit."""
     try:
         document = json.loads(text)
-    except ValueError:
+    except (ValueError, RecursionError):  # nested deeper than Python's stack: one message
         skipped.add("not JSON", topic)
         return None
     if not isinstance(document, dict) or any(key not in document for key in ENVELOPE_KEYS):
