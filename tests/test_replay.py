@@ -621,7 +621,9 @@ def test_an_extra_argument_is_named_with_the_subcommands_usage(tmp_path: Path) -
     """`lit replay salvage BAG OUT` (OUT needs -o) printed lit's top-level usage."""
     result = _replay("salvage", tmp_path / "bag", tmp_path / "out")
     assert result.returncode == 2
-    assert result.stderr.startswith("usage: lit replay salvage [-h] [-o OUT] BAG"), result.stderr
+    assert result.stderr.startswith(
+        "usage: lit replay salvage [-h] [-o OUT] [--keep-unverified] BAG"
+    ), result.stderr
     assert f"lit replay salvage: error: unrecognized arguments: {tmp_path / 'out'}" in result.stderr
 
 
@@ -1312,6 +1314,18 @@ def test_verify_of_a_bag_with_unreadable_lit_messages_is_incomplete(tmp_path: Pa
         "verify: incomplete: 0 recorded runs could not be checked and 1 LIT* messages are damaged"
         in (result.stdout)
     )
+    # A different record under the first one's topic, source, run, seq and stamp is no copy of it
+    # (verify filed it as "read twice", harmless, and never checked it): damage.
+    with BagRecorder(tmp_path / "conflict", run_id="v") as recorder:
+        recorder.add_topic(bag.BENCH_RUN_TOPIC, bag.STRING_TYPE)
+        recorder.write_string(bag.BENCH_RUN_TOPIC, text, 10)
+        other = envelope(
+            bag.BENCH_RUN_SCHEMA, 0, "lit_bench", "v", dict(payload, seed=2), stamp_ns=0
+        )
+        recorder.write_string(bag.BENCH_RUN_TOPIC, other, 11)
+    result = _replay("verify", tmp_path / "conflict")
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert replay.CONFLICTING in result.stdout + result.stderr, result.stdout
 
 
 def test_episode_table_groups_the_instances_of_a_random_family() -> None:

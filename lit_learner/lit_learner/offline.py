@@ -24,14 +24,13 @@ from pathlib import Path
 from typing import Any
 
 from lit_planner.replay import (
-    READ_TWICE,
     BagReader,
     Envelope,
     ReplayError,
     Skipped,
     decode,
-    message_identity,
     payload_ok,
+    read_before,
 )
 
 from lit_learner.errors import ExportError
@@ -312,7 +311,7 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
     skipped = Skipped()
     found: dict[tuple[str, str, str, int], RecordedEpisode] = {}
     order: list[tuple[str, str, str, int]] = []
-    seen: set[tuple[str, str, str, int, int]] = set()
+    seen: dict[tuple[str, str, str, int, int], int] = {}
     sessions = _Sessions()
     for path in paths:
         with BagReader(path) as reader:
@@ -324,11 +323,10 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
                     item, skipped
                 ):
                     continue
-                identity = message_identity(item)
-                if identity in seen:
-                    skipped.counts[READ_TWICE] += 1
+                again = read_before(seen, item, message.data)
+                if again is not None:
+                    skipped.counts[again] += 1
                     continue
-                seen.add(identity)
                 session = sessions.of(item)
                 episode_id = item.payload.get("episode_id")
                 if episode_id is None:

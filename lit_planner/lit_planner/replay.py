@@ -169,6 +169,21 @@ def message_identity(item: Envelope | Trajectory) -> tuple[str, str, str, int, i
     return (item.topic, item.source, item.run_id, item.seq, item.stamp_ns)
 
 
+def read_before(
+    seen: dict[tuple[str, str, str, int, int], int], item: Envelope | Trajectory, data: bytes
+) -> str | None:
+    """None for a message not read before (noted in ``seen``: its :func:`message_identity` and a
+    hash of its serialized ``data``, which a compacted or salvaged copy keeps byte for byte);
+    :data:`READ_TWICE` for a copy of one read before, :data:`CONFLICTING` for a different message
+    under the same identity."""
+    identity, digest = message_identity(item), hash(bytes(data))
+    first = seen.get(identity)
+    if first is None:
+        seen[identity] = digest
+        return None
+    return READ_TWICE if first == digest else CONFLICTING
+
+
 @dataclass(frozen=True)
 class Trajectory:
     """A decoded ``/lit/path`` message."""
@@ -184,6 +199,9 @@ class Trajectory:
 READ_TWICE = "message read twice (a bag and its copy?)"
 """Why a message is skipped that one of the bags read before held (:func:`message_identity`: a
 bag given with its compacted or salvaged copy)."""
+CONFLICTING = "another message under the topic, source, run, seq and stamp of one read before"
+"""Why a message is skipped whose identity (:func:`message_identity`) a different message read
+before had: not a copy, and which one is right cannot be told (damage: verify exits 1)."""
 PAYLOAD_INVALID = "payload fails its schema"
 """Skip reason of an envelope whose payload does not pass its schema (damage: verify exits 1)."""
 BENIGN_SKIPS = frozenset({"foreign topic", "unknown schema", "unsupported version", READ_TWICE})
@@ -939,8 +957,8 @@ class VerifyReport:
     disagreements: list[str] = field(default_factory=list)
     unsolved: int = 0
     unchecked: Skipped = field(default_factory=Skipped)
-    seen: set[tuple[str, str, str, int, int]] = field(default_factory=set)
-    """:func:`message_identity` of the records checked (a copy's are checked once)."""
+    seen: dict[tuple[str, str, str, int, int], int] = field(default_factory=dict)
+    """The records checked (:func:`read_before`: a copy's are checked once)."""
 
 
 VERIFIED_SCHEMAS = frozenset({bag.BENCH_RUN_SCHEMA, EPISODE_SCHEMA})
@@ -957,11 +975,10 @@ def verify_bag(path: str | Path, report: VerifyReport) -> Skipped:
         for message in reader.messages():
             item = decode(message, skipped)
             if isinstance(item, Envelope | Trajectory):
-                identity = message_identity(item)
-                if identity in report.seen:
-                    skipped.counts[READ_TWICE] += 1
+                again = read_before(report.seen, item, message.data)
+                if again is not None:
+                    skipped.counts[again] += 1
                     continue
-                report.seen.add(identity)
             if isinstance(item, Trajectory):
                 trajectories.append(item)
             elif (
@@ -2333,19 +2350,23 @@ def read_episode_summaries(
     was left out is counted in ``skipped``."""
     skipped = Skipped() if skipped is None else skipped
     summaries = []
-    seen: set[tuple[str, str, str, int, int]] = set()
+    seen: dict[tuple[str, str, str, int, int], int] = {}
     for path in paths:
         with BagReader(path) as reader:
             for message in reader.messages():
                 item = decode(message, skipped)
                 if (
-                    isinstance(item, Envelope)
-                    and item.schema == SCHEMA_PREFIX + "EpisodeSummary"
-                    and message_identity(item) not in seen  # a bag given with its copy: once
-                    and payload_ok(item, skipped)
+                    not isinstance(item, Envelope)
+                    or item.schema != SCHEMA_PREFIX + "EpisodeSummary"
+                    or not payload_ok(item, skipped)
                 ):
-                    seen.add(message_identity(item))
-                    summaries.append(item.payload)
+                    continue
+                again = read_before(seen, item, message.data)  # a bag given with its copy: once
+                if again == CONFLICTING:  # a copy's are not counted here (the tables' readers do)
+                    skipped.counts[again] += 1
+                if again is not None:
+                    continue
+                summaries.append(item.payload)
     return summaries
 
 
