@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
         f"policy version {core.policy_version}"
     )
     episodes_left_out = {
-        reason: skipped.counts.pop(reason) for reason in (RECORDED_AGAIN, INCOMPLETE)
+        reason: skipped.counts.pop(reason) for reason in (RECORDED_AGAIN, INCOMPLETE, NO_SUMMARY)
         if skipped.counts.get(reason)
     }  # fmt: skip
     if episodes_left_out:
@@ -278,6 +278,9 @@ RECORDED_AGAIN = "training episode recorded again (the later recording is used)"
 """Why an episode's earlier recording is left out: a ``lit train`` run resumed from an earlier
 checkpoint (``--rollback``, or after a second Ctrl-C) ran it again under the same id."""
 INCOMPLETE = "incomplete training episode"
+NO_SUMMARY = "episode without its summary (cut off, or the summary lost)"
+"""Why an episode whose decisions are there and whose EpisodeSummary is not is left out: its
+mode, scenario and end are unknown (a bag cut off in its last episode, a lost chunk)."""
 
 
 class _Sessions:
@@ -343,6 +346,10 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
                     episode.summary = item.payload
                     episode.summary_stamp_ns = item.stamp_ns
                     order.append(key)
+    # Counted, not dropped without a word (the replay's "messages" line showed nothing of them).
+    cut_off = sum(1 for e in found.values() if e.summary is None and e.decisions)
+    if cut_off:
+        skipped.counts[NO_SUMMARY] += cut_off
     # Each episode once, at its first recording's place, as its latest recording holds it.
     latest: dict[tuple[str, str, str], RecordedEpisode] = {}
     for key in order:
