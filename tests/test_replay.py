@@ -1326,6 +1326,15 @@ def test_verify_of_a_bag_with_unreadable_lit_messages_is_incomplete(tmp_path: Pa
     result = _replay("verify", tmp_path / "conflict")
     assert result.returncode == 1, result.stdout + result.stderr
     assert replay.CONFLICTING in result.stdout + result.stderr, result.stdout
+    # A solved run without its path was counted as unsolved (exit 0): it cannot be checked.
+    with BagRecorder(tmp_path / "pathless", run_id="v") as recorder:
+        recorder.add_topic(bag.BENCH_RUN_TOPIC, bag.STRING_TYPE)
+        pathless = dict(payload, path=[])
+        text = envelope(bag.BENCH_RUN_SCHEMA, 0, "lit_bench", "v", pathless, stamp_ns=0)
+        recorder.write_string(bag.BENCH_RUN_TOPIC, text, 10)
+    result = _replay("verify", tmp_path / "pathless")
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "0 runs without a path (unsolved); 1 not checkable" in result.stdout, result.stdout
 
 
 def test_episode_table_groups_the_instances_of_a_random_family() -> None:

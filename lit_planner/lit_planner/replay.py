@@ -1016,8 +1016,11 @@ def _verify_bench_run(item: Envelope, report: VerifyReport) -> None:
     if not isinstance(record, dict):
         report.unchecked.add("payload not an object", where)
         return
-    if not record.get("solved") or not record.get("path"):
+    if not record.get("solved"):
         report.unsolved += 1
+        return
+    if not record.get("path"):  # was counted as unsolved: verify passed a run it never checked
+        report.unchecked.add("solved without a path", where)
         return
     label = f"{where} ({record.get('planner')} run {record.get('run')})"
     _check(
