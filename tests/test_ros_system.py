@@ -964,6 +964,32 @@ BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
     ),
     ("plan: oversize", ["raw", PLAN, "-"], OVERSIZE, "oversize", "$", "more than the limit"),
     (
+        # An integer too large for a double: the world's arrays overflowed (OverflowError), the
+        # executor ended and the node with it; the learner answered an empty message.
+        "plan: a 401-digit integer in start",
+        [
+            "raw",
+            PLAN,
+            json.dumps(_envelope("PlanRequest", {"scenario": "np4", "start": [10**400] * 4})),
+        ],
+        None,
+        "payload",
+        "$.payload.start[0]",
+        "is not a finite number",
+    ),
+    (
+        "decide: a 401-digit integer in minimum_cost",
+        [
+            "raw",
+            DECIDE,
+            json.dumps(_envelope("DecideRequest", _decide_payload(minimum_cost=10**400))),
+        ],
+        None,
+        "payload",
+        "$.payload.minimum_cost",
+        "is not a finite number",
+    ),
+    (
         # Valid JSON (json.dumps escapes it) whose string is not Unicode text: the planner's
         # logger raised on it and its worker thread ended; no plan request was answered again.
         "plan: a lone surrogate in request_id",

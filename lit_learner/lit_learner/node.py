@@ -490,7 +490,7 @@ class LearnerNode:
             response.success = True
             response.message = self.reply.encode("EpisodeEndResponse", body)
             return response
-        except (CoreMessageError, PairingError, ReplayError, ValueError) as exc:
+        except (CoreMessageError, PairingError, ReplayError, ValueError, ArithmeticError) as exc:
             response.success = False
             response.message = self.reply.error(
                 MessageError(

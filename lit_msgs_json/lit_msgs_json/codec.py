@@ -151,7 +151,7 @@ def loads(name: str, text: str | bytes) -> Any:
         SchemaError: the text is not JSON (rule ``json``) or violates the schema.
     """
     try:
-        obj = json.loads(text, parse_constant=_reject_constant)
+        obj = json.loads(text, parse_constant=_reject_constant, parse_int=_double_int)
     except (ValueError, TypeError) as exc:  # JSONDecodeError and UnicodeDecodeError are ValueErrors
         raise SchemaError(
             name.removeprefix("lit_msgs_json/"), "$", "json", f"not valid JSON: {exc}"
@@ -267,3 +267,14 @@ def _non_finite_numbers(obj: object, path: str) -> Iterator[tuple[str, float]]:
 
 def _reject_constant(constant: str) -> float:
     raise ValueError(f"{constant} is not allowed in JSON")
+
+
+def _double_int(spelling: str) -> int:
+    """An integer a double can hold (a larger one overflowed where it was used as a number)."""
+    value = int(spelling)
+    if len(spelling) > 300:
+        try:
+            float(value)
+        except OverflowError:
+            raise ValueError(f"the integer {spelling[:20]}... is too large for a double") from None
+    return value

@@ -455,11 +455,22 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
                 overflowed.append(spelling)
             return value
 
+        def parse_int(spelling: str) -> int | float:
+            value = int(spelling)
+            if len(spelling) > 300:  # maybe too large for a double, as 1e400 is: the same check
+                try:
+                    float(value)
+                except OverflowError:  # a planner node converting it ended with this (exit 1)
+                    overflowed.append(spelling)
+                    return math.inf if value > 0 else -math.inf
+            return value
+
         try:
             obj = json.loads(
                 text,  # type: ignore[arg-type]
                 parse_constant=_reject_constant,
                 parse_float=parse_float,
+                parse_int=parse_int,
             )
         except RecursionError:
             raise MessageError(

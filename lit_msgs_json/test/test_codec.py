@@ -180,6 +180,8 @@ def test_dumps_and_loads_round_trip_and_reject_nan() -> None:
     assert info.value.rule == "json"
     with pytest.raises(SchemaError, match="not valid JSON"):
         loads("TensorSidecar", "{")
+    with pytest.raises(SchemaError, match=r"not valid JSON: the integer 1000.* too large"):
+        loads("TensorSidecar", text.replace("0.2123", "1" + "0" * 400))
     with pytest.raises(SchemaError, match=r"\$.fuzzification.sigma: inf is not a finite number"):
         dumps(
             "TensorSidecar",

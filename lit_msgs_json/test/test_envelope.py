@@ -1210,3 +1210,16 @@ def test_version_1_is_decoded_without_the_fields_version_2_added(
     assert (error.request_schema, error.request_seq) == (name, 3)
     assert f"{field} is not a field of version 1 of {name}" in str(error)
     assert decode(envelope_text({**payload, field: value}, name, version=2)).payload[field] == value
+
+
+def test_an_integer_too_large_for_a_double_is_refused_as_1e400_is() -> None:
+    """A 401-digit integer passed as a number and overflowed where a node used it (a planner
+    node's world: OverflowError, the node down; the learner's reward: an empty answer)."""
+    for sign in ("", "-"):
+        with pytest.raises(MessageError) as spelled_as_float:
+            decode(GOOD.replace("0.42", f"{sign}1e400"))
+        with pytest.raises(MessageError) as spelled_as_integer:
+            decode(GOOD.replace("0.42", f"{sign}1" + "0" * 400))
+        first, second = spelled_as_float.value, spelled_as_integer.value
+        assert (second.code, second.field, second.rule) == (first.code, first.field, first.rule)
+    assert decode(envelope_text(with_(DR, cost=10**300))).payload["cost"] == 10**300  # a double

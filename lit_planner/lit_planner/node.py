@@ -458,7 +458,9 @@ class PlannerNode:
             response.success, response.message = False, reply.error(exc)
             self.log.warning(f"plan request rejected: {exc}")
             return response
-        except ValueError as exc:  # ScenarioError, PlannerError: the request names bad things
+        except (ValueError, ArithmeticError) as exc:
+            # ScenarioError, PlannerError: the request names bad things; an OverflowError from a
+            # number a world cannot hold ended the executor, and with it the node (exit 1).
             response.success = False
             response.message = reply.error(
                 MessageError(
