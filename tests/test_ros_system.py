@@ -1267,6 +1267,21 @@ def test_bad_input_is_answered_with_errors(ros: RosSystem) -> None:
     _no_traceback(planner, learner)
 
 
+def test_a_path_too_long_for_a_trajectory_is_answered_and_not_published(ros: RosSystem) -> None:
+    """A world 3e9 wide: its path takes more seconds at unit speed than a JointTrajectory's int32
+    can say. The message could not be built (the request was answered with an internal error),
+    or its times wrapped; now the plan is answered and the path is not published."""
+    planner = ros.planner()
+    _ready(planner)
+    world = {"lower": [0, 0], "upper": [3e9, 3e9], "boxes": []}
+    payload = {"world": world, "start": [3e7, 3e7], "goal": [2.97e9, 2.97e9], "time": 0.2}
+    result = ros.call("--payload-only", "raw", PLAN, json.dumps(_envelope("PlanRequest", payload)))
+    assert result.returncode == 0 and result.json()["solved"] is True, result
+    planner.wait_for_log(r"more than a JointTrajectory's time can say; not published on lit/path")
+    assert planner.running()
+    _no_traceback(planner)
+
+
 def test_an_episode_without_decisions_for_episode_timeout_is_abandoned(ros: RosSystem) -> None:
     """A planner that died mid-episode left its episode in the learner's memory and checkpoints
     for good; after ``episode_timeout`` s without a decision it is abandoned with a warning."""

@@ -1180,11 +1180,20 @@ class PlannerNode:
             # No path (unsolved): nothing to publish. An empty JointTrajectory went out, which a
             # joint_trajectory_controller takes as "stop the current motion".
             return
+        timing = path_timing(result["path"])
+        if not timing[-1] < 2**31 - 1:
+            # builtin_interfaces/Duration's sec is an int32: the message could not be built (the
+            # plan request was then answered with an internal error) or wrapped silently.
+            self.log.warning(
+                f"episode {job.episode_id}: its path takes {timing[-1]:.3g} s at unit speed, more "
+                "than a JointTrajectory's time can say; not published on lit/path"
+            )
+            return
         trajectory = self._trajectory()
         trajectory.header.stamp = self.node.get_clock().now().to_msg()
         trajectory.header.frame_id = job.episode_id
         trajectory.joint_names = [f"q{i}" for i in range(job.scenario.dim)]
-        for state, elapsed in zip(result["path"], path_timing(result["path"]), strict=True):
+        for state, elapsed in zip(result["path"], timing, strict=True):
             point = JointTrajectoryPoint()
             point.positions = [float(x) for x in state]
             seconds = int(elapsed)
