@@ -57,11 +57,18 @@ def episode_budget_limit(policy: str) -> float:
     return MAX_EPISODE_BUDGET if policy == "training" else MAX_INFERENCE_BUDGET
 
 
+_CONTROL_ESCAPES = {code: f"\\x{code:02x}" for code in (*range(0x20), 0x7F) if code != ord("\t")}
+"""Control characters as ``\\x0a``, ``\\x1b``, ...: text from a client (a request id, a
+source) split one log line into forged ones, coloured them with ANSI escapes, or cut them at a
+NUL."""
+
+
 class SafeLogger:
     """An rclpy logger that logs any text: rclpy raises for a str that is not Unicode text (a lone
     surrogate), and a log call in a worker thread's ``except`` clause then ended the thread (the
     planner node answered no more plan requests). Such characters are logged escaped
-    (``\\ud800``); other attributes are the logger's own."""
+    (``\\ud800``), and so are control characters (each record one line, as written); other
+    attributes are the logger's own."""
 
     def __init__(self, logger: Any) -> None:
         self._logger = logger
@@ -84,7 +91,7 @@ class SafeLogger:
         """``message`` as text that encodes to UTF-8."""
         from lit_msgs_json.envelope import unicode_text
 
-        return unicode_text(str(message))
+        return unicode_text(str(message)).translate(_CONTROL_ESCAPES)
 
     def debug(self, message: object, **kwargs: Any) -> Any:
         return self._logger.debug(self.text(message), **kwargs)

@@ -139,10 +139,14 @@ def test_the_nodes_logger_logs_text_that_is_not_unicode() -> None:
     log.info("plan request \ud800 started")
     log.warning("ψ_K é")
     log.error(ValueError("x\udfff"))
+    # A client's text with a newline, a carriage return, an ANSI colour and a NUL forged log
+    # lines or cut them short: one line, escaped (a tab stays).
+    log.info("plan request a\x00b\nforged\r\x1b[31mred\tend")
     assert strict.lines == [
         ("info", "plan request \\ud800 started"),
         ("warning", "ψ_K é"),
         ("error", "x\\udfff"),
+        ("info", "plan request a\\x00b\\x0aforged\\x0d\\x1b[31mred\tend"),
     ]
     assert log.name == "strict"
 
