@@ -1301,6 +1301,27 @@ def test_an_episode_without_decisions_for_episode_timeout_is_abandoned(ros: RosS
     _no_traceback(learner)
 
 
+def test_open_episodes_and_named_planners_are_bounded(ros: RosSystem) -> None:
+    """A client sending each decision under a new source and episode grew the learner's memory
+    (about 2 KB an episode until the idle sweep, hours later) and the provenance of every
+    checkpoint and export without bound: beyond ``max_open_episodes`` the episode idle the
+    longest is abandoned, and beyond ``max_sources`` planners the provenance names no more."""
+    learner = ros.learner(max_open_episodes=2, max_sources=2, stats_period=0.2)
+    _ready(learner)
+    for n in range(3):
+        payload = _decide_payload(episode_id=f"crowd-{n}")
+        text = json.dumps(_envelope("DecideRequest", payload, source=f"/planner_{n}"))
+        result = ros.call("--payload-only", "raw", DECIDE, text)
+        assert result.returncode == 0, result
+    learner.wait_for_log(
+        r"episode /planner_0\|\S*\|crowd-0 never ended \(more than max_open_episodes 2 "
+        r"episodes are open\)"
+    )
+    learner.wait_for_log(r"more than max_sources 2 planners sent experience")
+    assert learner.running()
+    _no_traceback(learner)
+
+
 def test_a_learner_leaves_out_old_transitions_not_finite_and_refuses_networks_not_finite(
     ros: RosSystem,
 ) -> None:

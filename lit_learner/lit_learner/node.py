@@ -86,6 +86,8 @@ PARAMETERS: dict[str, Any] = {
     "stats_period": 1.0,
     "wait_for_subscribers": 0,
     "episode_timeout": 3600.0,
+    "max_open_episodes": 256,
+    "max_sources": 64,
     "run_id": "",
     "service": DECIDE_SERVICE,
     "trainer_nice": TRAINER_NICE,
@@ -112,6 +114,9 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
     for name in ("checkpoint_every", "max_episodes", "seed", "wait_for_subscribers"):
         if p[name] < 0:
             return f"{name} must be 0 or more, got {p[name]}"
+    for name in ("max_open_episodes", "max_sources"):
+        if p[name] < 1:
+            return f"{name} must be 1 or more, got {p[name]}"
     if not p["checkpoint_period"] >= 0:  # also NaN
         return f"checkpoint_period must be 0 or more seconds, got {p['checkpoint_period']}"
     if not (math.isfinite(p["episode_timeout"]) and p["episode_timeout"] >= 0):
@@ -223,6 +228,8 @@ class LearnerNode:
         """Each open episode's latest decision: monotonic time, the episode's time budget and
         its planner (written by the serving thread, swept by the stats timer, both under
         ``_queue_lock``: ``episode_timeout``)."""
+        self._sources_full = False
+        """Whether a planner beyond ``max_sources`` was left out of the provenance (warned once)."""
         self._open_episode: dict[str, str] = {}
         """Each planner's (source's) episode in progress (serving thread). A planner plans one
         episode at a time: its first request of another episode abandons an older one whose end
@@ -422,11 +429,18 @@ class LearnerNode:
                     return response
                 with self._queue_lock:  # the idle sweep sees all three or none
                     self._latest_time[episode] = (decision.planning_time, decision.improvements)
+                    self._last_seen.pop(episode, None)  # in order of their latest decisions
                     self._last_seen[episode] = (
                         time.monotonic(),
                         decision.time_budget,
                         message.source,
                     )
+                    if len(self._last_seen) > self.params["max_open_episodes"]:
+                        self._abandon_locked(
+                            next(iter(self._last_seen)),  # the one idle the longest
+                            f"more than max_open_episodes {self.params['max_open_episodes']} "
+                            "episodes are open",
+                        )
                     abandoned = self._open_episode.get(message.source)
                     if abandoned == episode:
                         abandoned = None
@@ -467,7 +481,7 @@ class LearnerNode:
                         del self._open_episode[message.source]
                 stored = sum(agent.transitions for agent in self.core.agents.values()) - before
                 self._last_metrics.update(metrics)
-                self.core.sources.add(message.source)
+                self._note_source(message.source)
                 body = {
                     "episode_id": payload["episode_id"],
                     "transitions_stored": int(stored),
@@ -569,7 +583,7 @@ class LearnerNode:
                 self.log.error(f"commit of a decision of {decision.episode_id} failed: {exc!r}")
                 continue
             self._decisions += 1
-            self.core.sources.add(source)
+            self._note_source(source)
 
     def _serve_export(self, request: Any, response: Any) -> Any:
         del request
@@ -742,20 +756,40 @@ class LearnerNode:
             now = time.monotonic()
             idle = []
             with self._queue_lock:  # no decision of these lands between the look and the pop
-                for episode, (seen, budget, source) in list(self._last_seen.items()):
+                for episode, (seen, budget, _) in list(self._last_seen.items()):
                     limit = max(timeout, 2.0 * budget)
                     if now - seen > limit:
-                        del self._last_seen[episode]
-                        self._latest_time.pop(episode, None)  # should it go on: anew
-                        if self._open_episode.get(source) == episode:
-                            del self._open_episode[source]
-                        why = f"no decision for {limit:g} s"
-                        self._unapplied.append((None, None, None, (episode, why)))
+                        self._abandon_locked(episode, f"no decision for {limit:g} s")
                         idle.append(episode)
             if idle:
                 self.apply_commits(block=False)
         except Exception as exc:  # noqa: BLE001 - the timer's error would stop the node
             self.log.error(f"idle episode sweep failed: {exc!r}")
+
+    def _abandon_locked(self, episode: str, why: str) -> None:
+        """Forget an open episode's bookkeeping and queue its abandonment (applied in order with
+        the decisions); ``_queue_lock`` held. Should it go on, its next decision starts it anew."""
+        _, _, source = self._last_seen.pop(episode)
+        self._latest_time.pop(episode, None)
+        if self._open_episode.get(source) == episode:
+            del self._open_episode[source]
+        self._unapplied.append((None, None, None, (episode, why)))
+
+    def _note_source(self, source: str) -> None:
+        """Name ``source`` in the provenance (``LearnerCore.sources``, kept in checkpoints): at
+        most ``max_sources`` of them (a client sending under ever new names grew the checkpoint
+        and every export's sidecar without bound); ``_lock`` held."""
+        sources = self.core.sources
+        if source in sources:
+            return
+        if len(sources) < self.params["max_sources"]:
+            sources.add(source)
+        elif not self._sources_full:
+            self._sources_full = True
+            self.log.warning(
+                f"more than max_sources {self.params['max_sources']} planners sent experience: "
+                "the provenance names the first ones only"
+            )
 
     def _publish_stats(self, final: bool = False) -> None:
         """Publish the stats now: a timer tick (held back until ``wait_for_subscribers`` matched),
