@@ -905,19 +905,28 @@ def test_bench_replay_of_a_damaged_record_says_the_tables_are_incomplete(tmp_pat
     assert incomplete["note"].startswith("1 of the 2 planned run records")
 
 
-def _with_records(target: Path, records: Sequence[tuple[str, dict[str, Any]]]) -> Path:
-    """The sample's config message and then ``records`` (schema, payload), as one new bag."""
+def _with_records(
+    target: Path, records: Sequence[tuple[str, dict[str, Any]]], topics: Sequence[str] = ()
+) -> Path:
+    """The sample's config message and then ``records`` (schema, payload), as one new bag; on
+    their kind's topics, or on ``topics`` (one per record) when given."""
     from rosbags.rosbag2 import Reader
 
     with Reader(SAMPLE) as reader, BagRecorder(target, run_id="x") as recorder:
         for connection in reader.connections:
             recorder.add_topic(connection.topic, connection.msgtype)
+        for topic in set(topics) - {connection.topic for connection in reader.connections}:
+            recorder.add_topic(topic, bag.STRING_TYPE)
         for connection, stamp, raw in reader.messages():
             if connection.topic == bag.BENCH_CONFIG_TOPIC:
                 recorder.write_raw(connection.topic, raw, stamp)
         for seq, (schema, payload) in enumerate(records):
             topic = (
-                bag.BENCH_CONFIG_TOPIC if schema == bag.BENCH_CONFIG_SCHEMA else bag.BENCH_RUN_TOPIC
+                topics[seq]
+                if topics
+                else bag.BENCH_CONFIG_TOPIC
+                if schema == bag.BENCH_CONFIG_SCHEMA
+                else bag.BENCH_RUN_TOPIC
             )
             text = envelope(schema, seq, "lit_bench", "x", payload, stamp_ns=stamp + 1 + seq)
             recorder.write_string(topic, text, stamp + 1 + seq)
@@ -952,6 +961,19 @@ def test_bench_replay_counts_only_records_of_its_configuration(tmp_path: Path) -
     assert summary["incomplete"]["planned"] == 2 and summary["incomplete"]["read"] == 1
     assert [r["scenario"] for r in summary["runs"]] == ["np4"]
     lines = (tmp_path / "out" / "runs.jsonl").read_text().splitlines()
+    assert [json.loads(line)["run"] for line in lines] == [first["run"]]
+
+    # A run record on another topic than its own was tabulated (and its topic's seq showed a
+    # gap): left out, as damage.
+    astray = _with_records(
+        tmp_path / "astray",
+        [(bag.BENCH_RUN_SCHEMA, first), (bag.BENCH_RUN_SCHEMA, second)],
+        topics=[bag.BENCH_RUN_TOPIC, "/lit/episode"],
+    )
+    result = _replay("bench", astray, "--out", tmp_path / "astray-out")
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert replay.WRONG_TOPIC in result.stderr, result.stderr
+    lines = (tmp_path / "astray-out" / "runs.jsonl").read_text().splitlines()
     assert [json.loads(line)["run"] for line in lines] == [first["run"]]
 
     twice = _with_records(

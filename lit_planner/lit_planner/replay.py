@@ -169,6 +169,22 @@ def message_identity(item: Envelope | Trajectory) -> tuple[str, str, str, int, i
     return (item.topic, item.source, item.run_id, item.seq, item.stamp_ns)
 
 
+_BENCH_TOPICS = {
+    bag.BENCH_CONFIG_SCHEMA: bag.BENCH_CONFIG_TOPIC,
+    bag.BENCH_RUN_SCHEMA: bag.BENCH_RUN_TOPIC,
+}
+
+
+def on_its_topic(item: Envelope, skipped: Skipped) -> bool:
+    """Whether a ``lit bench`` envelope is on its kind's topic (other envelopes: True); counted
+    in ``skipped`` as :data:`WRONG_TOPIC` when not."""
+    topic = _BENCH_TOPICS.get(item.schema)
+    if topic is None or item.topic == topic:
+        return True
+    skipped.add(WRONG_TOPIC, f"{item.topic} seq {item.seq}", f"{item.schema} belongs on {topic}")
+    return False
+
+
 def read_before(
     seen: dict[tuple[str, str, str, int, int], int], item: Envelope | Trajectory, data: bytes
 ) -> str | None:
@@ -202,6 +218,9 @@ bag given with its compacted or salvaged copy)."""
 CONFLICTING = "another message under the topic, source, run, seq and stamp of one read before"
 """Why a message is skipped whose identity (:func:`message_identity`) a different message read
 before had: not a copy, and which one is right cannot be told (damage: verify exits 1)."""
+WRONG_TOPIC = "on another topic than its kind's"
+"""Why a ``lit bench`` record on a topic not its own (a BenchRun on ``/lit/episode``) is left out
+(damage); it was tabulated, and its own topic's seq then showed a gap."""
 PAYLOAD_INVALID = "payload fails its schema"
 """Skip reason of an envelope whose payload does not pass its schema (damage: verify exits 1)."""
 BENIGN_SKIPS = frozenset({"foreign topic", "unknown schema", "unsupported version", READ_TWICE})
@@ -984,6 +1003,7 @@ def verify_bag(path: str | Path, report: VerifyReport) -> Skipped:
             elif (
                 not isinstance(item, Envelope)
                 or item.schema not in VERIFIED_SCHEMAS
+                or not on_its_topic(item, skipped)
                 or not payload_ok(item, skipped)
             ):
                 continue
@@ -1914,7 +1934,7 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
                 custom_data = dict(reader.facts.custom_data)
             for message in reader.messages():
                 item = decode(message, skipped)
-                if not isinstance(item, Envelope):
+                if not isinstance(item, Envelope) or not on_its_topic(item, skipped):
                     continue
                 if item.schema == bag.BENCH_CONFIG_SCHEMA:
                     if bag_config is None:
