@@ -14,6 +14,7 @@
 #include <ompl/util/Exception.h>
 
 #include <algorithm>
+#include <cstring>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -320,9 +321,18 @@ namespace lit
 
     std::string LITstar::problemChange() const
     {
-        if (goalRead_.lock() != pdef_->getGoal())  // SimpleSetup::setGoalState replaces the goal object
-            return "the goal was replaced";
-        if (problemStarts() != startsRead_)  // added, removed or replaced (SimpleSetup::setStartState)
+        // SimpleSetup::setGoalState replaces the goal object; a cleared one that only the problem held is gone.
+        if (goalRead_.expired() || goalRead_.lock() != pdef_->getGoal())
+            return "the goal was replaced or cleared";
+        // Added, removed or replaced (SimpleSetup::setStartState); bit for bit, so that a start with a NaN
+        // coordinate (left out when read) is the same start at the next solve().
+        const std::vector<std::vector<double>> starts = problemStarts();
+        const auto sameBits = [](const std::vector<double> &a, const std::vector<double> &b)
+        {
+            return a.size() == b.size() &&
+                   (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0);
+        };
+        if (!std::equal(starts.begin(), starts.end(), startsRead_.begin(), startsRead_.end(), sameBits))
             return "the start states changed";
         return {};
     }
@@ -567,7 +577,7 @@ namespace lit
     {
         if (!goalsGrow_ || graph_->goals().size() >= MAX_GOALS)
             return false;
-        // Only the goal that was read (a replaced or cleared one is not used: solve() warned about it).
+        // Only the goal that was read (solve() starts over for a replaced or cleared one).
         const std::shared_ptr<ompl::base::Goal> goal = goalRead_.lock();
         if (goal == nullptr || goal != pdef_->getGoal())
             return false;

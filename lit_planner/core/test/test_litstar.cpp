@@ -1027,12 +1027,13 @@ TEST(LITstar, AStartAddedOrReplacedAfterTheProblemWasReadStartsTheSearchOver)
         EXPECT_DOUBLE_EQ(planner->bestCost(), std::hypot(0.05, 0.3));  // the later start's free line
         EXPECT_EQ(path.front(), (std::vector<double>{0.15, 0.3}));
     }
+    BoxProblem fresh = test::narrowPassage(2, 1e-3);  // solved from its own start first
     const auto replace = [&]
     {
-        problem.pdef->clearStartStates();
-        problem.pdef->addStartState(later);
+        fresh.pdef->clearStartStates();
+        fresh.pdef->addStartState(later);
     };
-    const auto [planner, path] = solvedAfter(problem, replace);
+    const auto [planner, path] = solvedAfter(fresh, replace);
     EXPECT_EQ(planner->graph().starts().size(), 1u);
     EXPECT_EQ(path.front(), (std::vector<double>{0.15, 0.3}));
     EXPECT_DOUBLE_EQ(planner->bestCost(), std::hypot(0.05, 0.3));
@@ -1052,6 +1053,28 @@ TEST(LITstar, AGoalReplacedAfterTheProblemWasReadStartsTheSearchOver)
     EXPECT_DOUBLE_EQ(planner->bestCost(), 0.3);  // the free line up from the start (-0.2, 0)
     const auto *filed = problem.pdef->getSolutionPath()->as<ompl::geometric::PathGeometric>();
     EXPECT_TRUE(problem.pdef->getGoal()->isSatisfied(filed->getState(filed->getStateCount() - 1u)));
+}
+
+TEST(LITstar, AStartLeftOutForANaNCoordinateDoesNotRestartTheSearch)
+{
+    // The starts are compared with those read: a NaN coordinate never equals itself, and every solve() started over.
+    BoxProblem problem = test::narrowPassage(2, 1e-3);
+    ompl::base::ScopedState<> broken(problem.si);
+    broken[0] = std::numeric_limits<double>::quiet_NaN();
+    broken[1] = 0.0;
+    problem.pdef->addStartState(broken);
+    auto planner = batchLimited(problem, 2u);
+    auto recorder = std::make_shared<Recorder>();
+    planner->addListener(recorder);
+    planner->setSeed(3u);
+    planner->solve(ompl::base::plannerNonTerminatingCondition());
+    ASSERT_EQ(planner->counters().batches, 2u);
+    planner->setMaxBatches(4u);
+    planner->solve(ompl::base::plannerNonTerminatingCondition());
+    std::vector<std::size_t> numbers;
+    for (const BatchEvent &batch : recorder->batches)
+        numbers.push_back(batch.batch);
+    EXPECT_EQ(numbers, (std::vector<std::size_t>{1u, 2u, 3u, 4u}));  // went on (1, 2, 1, 2, 3, 4 after a restart)
 }
 
 TEST(LITstar, ASubclassOfTheBoxCheckerIsAskedOnEdges)
@@ -1098,7 +1121,10 @@ TEST(LITstar, AGoalRegionClearedOrReplacedIsNotSampledAgain)
         ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()),
                   ompl::base::PlannerStatus::EXACT_SOLUTION);
         if (cleared)
+        {
+            region.reset();  // the problem definition held the only other reference
             problem.pdef->clearGoal();
+        }
         else
         {
             ompl::base::ScopedState<> other(problem.si);

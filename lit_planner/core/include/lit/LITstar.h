@@ -70,6 +70,12 @@ namespace lit
         /** \brief A new problem also clears the graph, trees and solution of the previous one (OMPL's base class
          *  keeps them, and solve() then went on with the old start and goal). */
         void setProblemDefinition(const ompl::base::ProblemDefinitionPtr &pdef) override;
+        /** \brief Plans until \e ptc, the iteration, batch or time limit, or an optimal solution; a later call goes on
+         *  with the same search. When the problem definition's start states changed since they were read (added,
+         *  removed or replaced, compared coordinate for coordinate) or its goal object was replaced or cleared, the
+         *  search starts over as after clear(), and the problem definition's solutions, which belong to the former
+         *  problem, are cleared too (also any the caller added since). A goal changed in place (a state added to the
+         *  same GoalStates) is not seen: replace the goal, or clear(). */
         ompl::base::PlannerStatus solve(const ompl::base::PlannerTerminationCondition &ptc) override;
         void getPlannerData(ompl::base::PlannerData &data) const override;
 
