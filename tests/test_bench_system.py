@@ -420,8 +420,8 @@ def test_ctrl_c_says_what_is_kept_and_names_the_replay_that_makes_tables(
         "planning": f"lit bench: interrupted; {runs} holds the runs of the finished scenarios (not"
         f" those of the scenario it was planning); `lit replay bench {bag_path}` makes tables of"
         " them",
-        "writing": f"lit bench: interrupted while writing the outputs; {runs} holds every run; "
-        f"`lit replay bench {bag_path}` writes them",
+        "writing": f"lit bench: interrupted while writing the outputs (those in {out} may be "
+        f"partial); {runs} holds every run; `lit replay bench {bag_path}` writes them",
     }[stage]
     assert capsys.readouterr().err.splitlines()[-1] == expected
     assert len(runs.read_text(encoding="utf-8").splitlines()) == (2 if stage == "writing" else 0)

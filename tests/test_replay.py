@@ -474,6 +474,9 @@ def test_a_changed_digit_fails_the_chunk_checksum(tmp_path: Path) -> None:
     assert f"{300 - recovered} of its messages kept UNVERIFIED" in result.stdout, result.stdout
     assert _recovered(result.stdout) == 300
     assert b'"n": 950,' in _mcap(tmp_path / "unverified").read_bytes()
+    # ... and the new bag's metadata says so (lit replay info shows it).
+    salvage_note = replay.bag_info(tmp_path / "unverified")["custom_data"]["lit.salvage"]
+    assert f"{300 - recovered} of its messages kept UNVERIFIED" in salvage_note, salvage_note
     # A bag of one chunk: nothing to salvage, and the error says why and what to do (it gave
     # only "stopped at byte ...: complete file", while info and verify sent the user to salvage).
     small = _numbered_bag(tmp_path / "small", 5)

@@ -1315,7 +1315,7 @@ def test_open_episodes_and_named_planners_are_bounded(ros: RosSystem) -> None:
         assert result.returncode == 0, result
     learner.wait_for_log(
         r"episode /planner_0\|\S*\|crowd-0 never ended \(more than max_open_episodes 2 "
-        r"episodes are open\)"
+        r"episodes are open; 1 crowded out so far\)"
     )
     learner.wait_for_log(r"more than max_sources 2 planners sent experience")
     assert learner.running()

@@ -228,6 +228,8 @@ class LearnerNode:
         """Each open episode's latest decision: monotonic time, the episode's time budget and
         its planner (written by the serving thread, swept by the stats timer, both under
         ``_queue_lock``: ``episode_timeout``)."""
+        self._crowded_out = 0
+        """Open episodes abandoned because ``max_open_episodes`` were open (serving thread)."""
         self._sources_full = False
         """Whether a planner beyond ``max_sources`` was left out of the provenance (warned once)."""
         self._open_episode: dict[str, str] = {}
@@ -436,10 +438,14 @@ class LearnerNode:
                         message.source,
                     )
                     if len(self._last_seen) > self.params["max_open_episodes"]:
+                        self._crowded_out += 1  # said for the 1st, 10th, 100th, ...: a flood
+                        said = math.log10(self._crowded_out).is_integer()  # logs no line each
                         self._abandon_locked(
                             next(iter(self._last_seen)),  # the one idle the longest
                             f"more than max_open_episodes {self.params['max_open_episodes']} "
-                            "episodes are open",
+                            f"episodes are open; {self._crowded_out} crowded out so far"
+                            if said
+                            else "",
                         )
                     abandoned = self._open_episode.get(message.source)
                     if abandoned == episode:
@@ -504,7 +510,7 @@ class LearnerNode:
             response.success = True
             response.message = self.reply.encode("EpisodeEndResponse", body)
             return response
-        except (CoreMessageError, PairingError, ReplayError, ValueError, ArithmeticError) as exc:
+        except (CoreMessageError, PairingError, ReplayError, ValueError, OverflowError) as exc:
             response.success = False
             response.message = self.reply.error(
                 MessageError(
@@ -571,10 +577,11 @@ class LearnerNode:
             if abandoned is not None and self.core.abandon_episode(abandoned[0]):
                 self._work.notify_all()  # its stored transitions' gradient steps are due
                 episode, why = abandoned
-                self.log.warning(
-                    f"episode {episode} never ended ({why}): its open steps are dropped, the "
-                    "gradient steps of its stored transitions are due"
-                )
+                if why:  # not said again for every crowded-out episode (see _serve)
+                    self.log.warning(
+                        f"episode {episode} never ended ({why}): its open steps are dropped, the "
+                        "gradient steps of its stored transitions are due"
+                    )
             if decision is None:  # an abandonment alone (_sweep_idle_episodes)
                 continue
             try:

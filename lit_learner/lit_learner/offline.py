@@ -314,7 +314,7 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
     skipped = Skipped()
     found: dict[tuple[str, str, str, int], RecordedEpisode] = {}
     order: list[tuple[str, str, str, int]] = []
-    seen: dict[tuple[str, str, str, int, int], int] = {}
+    seen: dict[tuple[str, str, str, int, int], bytes] = {}
     sessions = _Sessions()
     for path in paths:
         with BagReader(path) as reader:
@@ -347,7 +347,10 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
                     episode.summary_stamp_ns = item.stamp_ns
                     order.append(key)
     # Counted, not dropped without a word (the replay's "messages" line showed nothing of them).
-    cut_off = sum(1 for e in found.values() if e.summary is None and e.decisions)
+    summarized = {e.key for e in found.values() if e.summary is not None}  # e.g. run again
+    cut_off = sum(
+        1 for e in found.values() if e.summary is None and e.decisions and e.key not in summarized
+    )
     if cut_off:
         skipped.counts[NO_SUMMARY] += cut_off
     # Each episode once, at its first recording's place, as its latest recording holds it.

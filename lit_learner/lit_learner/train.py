@@ -1413,12 +1413,16 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         lines.append(f"  tensors {', '.join(str(path) for path in written.values())}")
         for name in AGENT_NAMES:  # said here, not only by `lit tensors info`
             agent = core.agents.get(name)
-            if name in written and agent is not None and agent.updates == 0:
-                lines.append(
-                    f"  {name}: UNTRAINED, the actor's initial weights (no gradient update yet: "
-                    f"{agent.transitions} of the {agent.config.warmup} transitions its updates "
-                    "wait for)"
-                )
+            if name not in written or agent is None or agent.updates:
+                continue
+            if not core.trains(name):
+                lines.append(f"  {name}: the actor's initial weights (this run does not train it)")
+                continue
+            lines.append(
+                f"  {name}: UNTRAINED, the actor's initial weights (no gradient update yet: "
+                f"{agent.transitions} of the {agent.config.warmup} transitions its updates "
+                "wait for)"
+            )
         if replaced:
             lines.append(
                 f"  (replaced the tensors written to {args.export} during this run; other files "

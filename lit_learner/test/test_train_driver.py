@@ -624,8 +624,10 @@ def test_resume_from_an_earlier_checkpoint_trains_its_episodes_again_once(
     _copy_bag(first, stopped, after_the_cut)
     episodes, skipped = offline.read_episodes([stopped, again])
     assert [e.key[2] for e in episodes] == ids[:5] and not skipped.counts[offline.INCOMPLETE]
-    # ... and the cut-off recording is counted as left out (it was dropped without a word).
-    assert skipped.counts[offline.NO_SUMMARY] == 1
+    # ... and the cut-off recording is not counted as left out: the resumed run's is used. Alone,
+    # it is (it was dropped without a word).
+    assert not skipped.counts[offline.NO_SUMMARY]
+    assert offline.read_episodes([stopped])[1].counts[offline.NO_SUMMARY] == 1
 
     final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
     with pytest.raises(train.TrainingError, match="has 5 episodes already"):

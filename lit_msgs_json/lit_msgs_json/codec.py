@@ -269,12 +269,21 @@ def _reject_constant(constant: str) -> float:
     raise ValueError(f"{constant} is not allowed in JSON")
 
 
+def beyond_double(spelling: str, value: int) -> bool:
+    """Whether a JSON integer (its ``spelling`` and ``value``) is too large for a double, as 1e400
+    is (a node that used it as a number ended with OverflowError)."""
+    if len(spelling) <= 300:  # below 1e300: a double holds it
+        return False
+    try:
+        float(value)
+    except OverflowError:
+        return True
+    return False
+
+
 def _double_int(spelling: str) -> int:
-    """An integer a double can hold (a larger one overflowed where it was used as a number)."""
+    """An integer a double can hold: ``json.loads``'s ``parse_int`` of :func:`loads`."""
     value = int(spelling)
-    if len(spelling) > 300:
-        try:
-            float(value)
-        except OverflowError:
-            raise ValueError(f"the integer {spelling[:20]}... is too large for a double") from None
+    if beyond_double(spelling, value):
+        raise ValueError(f"the integer {spelling[:20]}... is too large for a double")
     return value

@@ -35,7 +35,7 @@ from typing import Any
 
 import orjson
 
-from lit_msgs_json.codec import plain_json, valid_envelope, validate
+from lit_msgs_json.codec import beyond_double, plain_json, valid_envelope, validate
 from lit_msgs_json.errors import SchemaError
 
 MAX_MESSAGE_BYTES = 1_048_576
@@ -457,12 +457,9 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
 
         def parse_int(spelling: str) -> int | float:
             value = int(spelling)
-            if len(spelling) > 300:  # maybe too large for a double, as 1e400 is: the same check
-                try:
-                    float(value)
-                except OverflowError:  # a planner node converting it ended with this (exit 1)
-                    overflowed.append(spelling)
-                    return math.inf if value > 0 else -math.inf
+            if beyond_double(spelling, value):  # then checked as 1e400 is
+                overflowed.append(spelling)
+                return math.inf if value > 0 else -math.inf
             return value
 
         try:

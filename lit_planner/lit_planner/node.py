@@ -458,7 +458,7 @@ class PlannerNode:
             response.success, response.message = False, reply.error(exc)
             self.log.warning(f"plan request rejected: {exc}")
             return response
-        except (ValueError, ArithmeticError) as exc:
+        except (ValueError, OverflowError) as exc:
             # ScenarioError, PlannerError: the request names bad things; an OverflowError from a
             # number a world cannot hold ended the executor, and with it the node (exit 1).
             response.success = False

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import bisect
+import hashlib
 import itertools
 import json
 import math
@@ -186,13 +187,13 @@ def on_its_topic(item: Envelope, skipped: Skipped) -> bool:
 
 
 def read_before(
-    seen: dict[tuple[str, str, str, int, int], int], item: Envelope | Trajectory, data: bytes
+    seen: dict[tuple[str, str, str, int, int], bytes], item: Envelope | Trajectory, data: bytes
 ) -> str | None:
     """None for a message not read before (noted in ``seen``: its :func:`message_identity` and a
     hash of its serialized ``data``, which a compacted or salvaged copy keeps byte for byte);
     :data:`READ_TWICE` for a copy of one read before, :data:`CONFLICTING` for a different message
     under the same identity."""
-    identity, digest = message_identity(item), hash(bytes(data))
+    identity, digest = message_identity(item), hashlib.blake2b(data, digest_size=16).digest()
     first = seen.get(identity)
     if first is None:
         seen[identity] = digest
@@ -463,7 +464,8 @@ def _metadata_mismatch(path: Path, facts: BagFacts, summaries: Sequence[Any]) ->
     listed = load_metadata(path / "metadata.yaml").get("relative_file_paths") or []
     listed_files = {Path(str(name)).name for name in listed}  # as rosbags reads them
     if len(listed_files) < len(listed):  # every reader read such a file twice
-        twice = sorted({str(n) for n in listed if list(map(str, listed)).count(str(n)) > 1})
+        names = [Path(str(name)).name for name in listed]
+        twice = sorted({name for name in names if names.count(name) > 1})
         return f"it lists {', '.join(twice)} more than once"
     for file in sorted(path.glob("*.mcap")):
         if file.name not in listed_files:
@@ -976,7 +978,7 @@ class VerifyReport:
     disagreements: list[str] = field(default_factory=list)
     unsolved: int = 0
     unchecked: Skipped = field(default_factory=Skipped)
-    seen: dict[tuple[str, str, str, int, int], int] = field(default_factory=dict)
+    seen: dict[tuple[str, str, str, int, int], bytes] = field(default_factory=dict)
     """The records checked (:func:`read_before`: a copy's are checked once)."""
 
 
@@ -1754,6 +1756,7 @@ def _write_salvaged(
     custom["lit.salvage"] = "; ".join(
         f"{r.file.name}: {r.reason}, read {r.stopped_at} of {r.size} bytes"
         + "".join(f"; {note}" for note in r.notes)
+        + "".join(f"; damaged {damage}" for damage in r.damaged_chunks)  # UNVERIFIED kept ones
         for r in results
     )
 
@@ -2373,7 +2376,7 @@ def read_episode_summaries(
     was left out is counted in ``skipped``."""
     skipped = Skipped() if skipped is None else skipped
     summaries = []
-    seen: dict[tuple[str, str, str, int, int], int] = {}
+    seen: dict[tuple[str, str, str, int, int], bytes] = {}
     for path in paths:
         with BagReader(path) as reader:
             for message in reader.messages():

@@ -57,10 +57,22 @@ def episode_budget_limit(policy: str) -> float:
     return MAX_EPISODE_BUDGET if policy == "training" else MAX_INFERENCE_BUDGET
 
 
-_CONTROL_ESCAPES = {code: f"\\x{code:02x}" for code in (*range(0x20), 0x7F) if code != ord("\t")}
-"""Control characters as ``\\x0a``, ``\\x1b``, ...: text from a client (a request id, a
-source) split one log line into forged ones, coloured them with ANSI escapes, or cut them at a
-NUL."""
+_CONTROL_ESCAPES = {
+    code: f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}"
+    for code in (
+        *range(0x20),
+        *range(0x7F, 0xA0),
+        0x2028,
+        0x2029,
+        *range(0x202A, 0x202F),
+        *range(0x2066, 0x206A),
+    )
+    if code != ord("\t")
+}
+"""Control characters (C0 but the tab, DEL, C1), the Unicode line and paragraph separators and
+the bidirectional overrides as ``\\x0a``, ``\\x1b``, ``\\u202e``, ...: text from a client (a
+request id, a source) split one log line into forged ones, coloured them with ANSI escapes,
+cut them at a NUL, or could reorder what a terminal shows."""
 
 
 class SafeLogger:

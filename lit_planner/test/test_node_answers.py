@@ -142,11 +142,13 @@ def test_the_nodes_logger_logs_text_that_is_not_unicode() -> None:
     # A client's text with a newline, a carriage return, an ANSI colour and a NUL forged log
     # lines or cut them short: one line, escaped (a tab stays).
     log.info("plan request a\x00b\nforged\r\x1b[31mred\tend")
+    log.info("C1 \x85\x9b, separators \u2028\u2029, an override \u202e: ψ é")
     assert strict.lines == [
         ("info", "plan request \\ud800 started"),
         ("warning", "ψ_K é"),
         ("error", "x\\udfff"),
         ("info", "plan request a\\x00b\\x0aforged\\x0d\\x1b[31mred\tend"),
+        ("info", "C1 \\x85\\x9b, separators \\u2028\\u2029, an override \\u202e: ψ é"),
     ]
     assert log.name == "strict"
 

@@ -241,8 +241,8 @@ def run(args: argparse.Namespace) -> int:
             else ""
         )
         print(
-            f"lit bench: interrupted while writing the outputs; {runs_path} holds every run"
-            + again,
+            f"lit bench: interrupted while writing the outputs (those in {out} may be partial); "
+            f"{runs_path} holds every run" + again,
             file=sys.stderr,
         )
         return 130
