@@ -93,7 +93,7 @@ def test_bad_options_start_nothing(tmp_path: Path, options: list[str], message: 
         (["demo", "--training-budget", "0"], "--training-budget must be a positive number"),
         (["demo", "--training-budget", "inf"], "--training-budget must be a positive number"),
         (["demo", "--domain-id", "300"], "300 is not a ROS domain id Fast DDS can use"),
-        (["demo", "--local", "--plans", "5"], "--local plans once in this process, without ROS"),
+        (["demo", "--local", "--plans", "5"], "without ROS: --plans applies to the ROS demo only"),
         (["demo", "--out", "/proc/nope"], "--out /proc/nope: cannot write in /proc"),
         (["crosscheck", "--json", "/proc/x.json"], "--json /proc/x.json: cannot write in /proc"),
         (["train", "--episodes", "1", "--export", "/proc/x"], "--export /proc/x: cannot write"),

@@ -91,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
         if args.local and given:  # they were ignored
             raise LitPlannerError(
                 f"--local plans once in this process, without ROS: {', '.join(given)} "
-                "apply to the ROS demo only"
+                f"{'applies' if len(given) == 1 else 'apply'} to the ROS demo only"
             )
         for name, default in DISTRIBUTED_DEFAULTS.items():
             if getattr(args, name) is None:
@@ -218,7 +218,9 @@ def run_distributed(args: argparse.Namespace, scenario: Scenario) -> int:
             system.wait_ready("learner")
             print(
                 f"  training: {args.training_episodes} episodes over ROS "
-                f"({args.training_budget:g} s planner time each) ...",
+                f"({args.training_budget:g} s planner time each) ..."
+                if args.training_episodes
+                else "  training: none (--training-episodes 0)",
                 flush=True,
             )
             training = client.wait_episodes(args.training_episodes, timeout=600.0)
