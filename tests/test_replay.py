@@ -638,6 +638,29 @@ def test_an_empty_metadata_file_is_named(tmp_path: Path) -> None:
         _assert_clean_error(_replay(command, copy), "its metadata.yaml is empty")
 
 
+def test_custom_data_that_is_not_a_mapping_is_named(tmp_path: Path) -> None:
+    """A list there failed every reader with "dictionary update sequence element #0 ..."."""
+    copy = _sample_copy(tmp_path, "listed")
+    metadata = copy / "metadata.yaml"
+    text = metadata.read_text()
+    assert "  custom_data:\n    " in text
+    metadata.write_text(
+        text.replace("  custom_data:\n    ", "  custom_data:\n    - x\n  was:\n    ", 1)
+    )
+    for command in ("info", "verify", "bench"):
+        _assert_clean_error(_replay(command, copy), "its custom_data is a list, not a mapping")
+
+
+def test_salvage_of_an_mcap_that_is_no_file_is_named(tmp_path: Path) -> None:
+    """IsADirectoryError's and FileNotFoundError's own words before."""
+    folder = tmp_path / "odd"
+    (folder / "run.mcap").mkdir(parents=True)
+    _assert_clean_error(_replay("salvage", folder), "run.mcap is not a file")
+    (tmp_path / "linked").mkdir()
+    (tmp_path / "linked" / "run.mcap").symlink_to(tmp_path / "nowhere.mcap")
+    _assert_clean_error(_replay("salvage", tmp_path / "linked"), "run.mcap is not a file")
+
+
 def test_killed_bag_without_mcap_or_metadata(tmp_path: Path) -> None:
     (tmp_path / "x").mkdir()
     (tmp_path / "x" / "readme").write_text("hi")

@@ -405,7 +405,8 @@ class BagReader:
     def _facts(self, summaries: Sequence[Any]) -> BagFacts:
         reader = self._reader
         meta = getattr(reader.storage, "metadata", None)
-        custom = dict(getattr(meta, "custom", None) or {})
+        custom = getattr(meta, "custom", None)
+        custom = dict(custom) if isinstance(custom, dict) else {}  # else load_metadata says why
         version, storage = None, None
         metadata_file = self.path / "metadata.yaml"
         if self.path.is_dir() and metadata_file.is_file():
@@ -669,6 +670,12 @@ def load_metadata(path: Path) -> dict[str, Any]:
         raise ReplayError(f"{path}: not a rosbag2 metadata file: {_describe(error)}") from None
     if not isinstance(info, dict):
         raise ReplayError(f"{path}: not a rosbag2 metadata file")
+    custom = info.get("custom_data")
+    if custom is not None and not isinstance(custom, dict):  # every reader of it failed vaguely
+        raise ReplayError(
+            f"{path}: its custom_data is a {type(custom).__name__}, not a mapping of names to "
+            "values"
+        )
     return info
 
 
@@ -1343,6 +1350,8 @@ def _mcap_files(source: Path) -> list[Path]:
     else:
         files = [source]
     for path in files:
+        if not path.is_file():  # a folder named *.mcap, a dangling link: raw OSError text before
+            raise ReplayError(f"{path} is not a file (a folder, or a link to nothing)")
         if path.stat().st_size == 0:
             raise ReplayError(f"{path} is an empty file")
     return files
