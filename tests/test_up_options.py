@@ -244,6 +244,22 @@ def test_lit_up_keeps_only_the_last_output_lines(tmp_path: Path) -> None:
     assert up.System(0, tmp_path, echo=None).keep_lines is None  # bounded runs keep all
 
 
+def test_a_closed_stdout_stops_the_echo_not_the_draining(tmp_path: Path) -> None:
+    """``lit up | head -1``: the echo raised BrokenPipeError in each output thread, which ended,
+    and the children's pipes were no longer read (a full pipe blocks a node's logging)."""
+    from lit_planner import up
+
+    def closed(line: str) -> None:
+        raise BrokenPipeError(32, "Broken pipe")
+
+    system = up.System(0, tmp_path, echo=closed)
+    script = "for i in range(20000):\n    print(i)"  # far more than a 64 KiB pipe holds
+    child = system.start("counter", [sys.executable, "-c", script])
+    assert child.process.wait(timeout=60) == 0  # it would block on a full pipe
+    child.drain()
+    assert child.lines[-1] == "19999" and system.echo is None
+
+
 _INTERRUPTS_ITS_PARENT = """
 import os, signal, time
 def stop(*_):
@@ -357,3 +373,32 @@ def test_sigterm_stops_system_bench_in_order(tmp_path: Path) -> None:
             process.kill()
             process.wait()
         nodes.kill()
+
+
+def test_sighup_stops_lit_up_in_order(tmp_path: Path) -> None:
+    """The terminal closing (SIGHUP) ended lit up at once: its nodes, orphaned, stopped all at one
+    moment, and its domain lock was free while they still ran. It stops them as Ctrl-C does."""
+    import signal
+    import subprocess
+
+    from lit_planner.testing import read_until
+
+    domain = launcher_domain()
+    process = subprocess.Popen(
+        [sys.executable, "-m", "lit_planner.cli", "up", "--domain-id", str(domain),
+         "--no-record", "--policy", "fixed", "--episodes", "0"],
+        cwd=tmp_path, env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+    )  # fmt: skip
+    try:
+        assert process.stdout is not None
+        while not read_until(process.stdout, "ready:", timeout=120.0)[-1].startswith("[planner]"):
+            pass  # another node's ready line
+        process.send_signal(signal.SIGHUP)
+        out, _ = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert "lit up: stopped planner (exit 0)" in out, out
+    assert "Traceback" not in out, out

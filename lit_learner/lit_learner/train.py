@@ -845,7 +845,8 @@ def run(args: argparse.Namespace) -> int:
     FINISHING.clear()
     previous: dict[int, Any] = {}
     if threading.current_thread() is threading.main_thread():  # signals: main thread only
-        previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+        stops = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)  # SIGHUP: the terminal closed
+        previous = {sig: signal.getsignal(sig) for sig in stops}
         for sig in previous:
             signal.signal(sig, _request_stop)
     try:

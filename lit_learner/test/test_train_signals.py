@@ -54,7 +54,9 @@ def _wait_for_episodes(process: subprocess.Popen[str], run: Path, count: int) ->
         time.sleep(0.02)
 
 
-@pytest.mark.parametrize(("sig", "after"), [(signal.SIGINT, 1), (signal.SIGTERM, 3)])
+@pytest.mark.parametrize(
+    ("sig", "after"), [(signal.SIGINT, 1), (signal.SIGTERM, 3), (signal.SIGHUP, 2)]
+)  # SIGHUP (the terminal closed) ended the run at once, without its final checkpoint
 def test_a_signal_stops_after_the_episode_with_a_checkpoint_that_resumes(
     tmp_path: Path, sig: signal.Signals, after: int
 ) -> None:

@@ -143,7 +143,10 @@ class System:
             if "ready:" in line:
                 child.ready.set()
             if self.echo is not None:
-                self.echo(f"[{child.name}] {line}")
+                try:
+                    self.echo(f"[{child.name}] {line}")
+                except (BrokenPipeError, ValueError):  # our stdout closed (`lit up | head`)
+                    self.echo = None  # the children's pipes are still drained: they never block
 
     def wait_ready(self, name: str, timeout: float = 60.0) -> None:
         """Block until the child logs ``ready:``; RuntimeError if it exits or times out."""
@@ -170,7 +173,7 @@ class System:
         interrupts = [0]
         previous = {}
         if threading.current_thread() is threading.main_thread():
-            for number in (signal.SIGINT, signal.SIGTERM):
+            for number in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
                 previous[number] = signal.signal(
                     number, lambda *_: interrupts.__setitem__(0, interrupts[0] + 1)
                 )
@@ -491,6 +494,7 @@ def run(args: argparse.Namespace) -> int:
     stop = threading.Event()
     signal.signal(signal.SIGINT, lambda *_: stop.set())
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGHUP, lambda *_: stop.set())  # the terminal closed: stop in order
     print(
         f"lit up: run {run_id} on ROS_DOMAIN_ID={args.domain_id} (localhost discovery); "
         "Ctrl-C stops everything",
@@ -562,12 +566,15 @@ def _terminate_with_parent() -> None:
 
 
 def stop_on_sigterm() -> None:
-    """Turn SIGTERM into KeyboardInterrupt, so ``finally`` blocks stop the children in order."""
+    """Turn SIGTERM and SIGHUP (the terminal closed) into KeyboardInterrupt, so ``finally``
+    blocks stop the children in order (SIGHUP ended the launcher at once: its nodes, orphaned,
+    stopped all at one moment, and its domain lock was free while they still ran)."""
 
     def interrupt(*_: object) -> None:
         raise KeyboardInterrupt
 
     signal.signal(signal.SIGTERM, interrupt)
+    signal.signal(signal.SIGHUP, interrupt)
 
 
 def _params(items: Sequence[str]) -> dict[str, str]:

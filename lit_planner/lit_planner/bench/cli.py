@@ -173,9 +173,15 @@ def run(args: argparse.Namespace) -> int:
         if errors:
             raise errors[0]
 
-    # `kill PID` stops like Ctrl-C: the bag gets its summary and metadata.yaml on the way out.
+    # `kill PID`, or the terminal closing (SIGHUP), stops like Ctrl-C: the bag gets its summary
+    # and metadata.yaml on the way out.
     main_thread = threading.current_thread() is threading.main_thread()  # signals: main only
-    previous = signal.signal(signal.SIGTERM, signal.default_int_handler) if main_thread else None
+    stops = (signal.SIGTERM, signal.SIGHUP)
+    previous = (
+        {sig: signal.signal(sig, signal.default_int_handler) for sig in stops}
+        if main_thread
+        else {}
+    )
     try:
         records = runner.run_benchmark(config, on_scenario_done=append, policies=policies)
         duration = time.perf_counter() - clock
@@ -203,8 +209,9 @@ def run(args: argparse.Namespace) -> int:
         )
         return 1
     finally:
-        if main_thread and previous is not None:  # None: set outside Python, not restorable
-            signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            if handler is not None:  # None: set outside Python, not restorable
+                signal.signal(sig, handler)
         if recording is not None:
             recording.close()
 
