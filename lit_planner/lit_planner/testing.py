@@ -349,7 +349,7 @@ def run_ctest(root: Path, env: dict[str, str], report_dir: Path, regex: str | No
     if regex:
         command += ["-R", regex]
     print(f"lit test: ctest in {build_dir.relative_to(root)}", flush=True)
-    returncode = subprocess.run(command, env=env, cwd=build_dir, check=False).returncode
+    returncode = _run_runner(command, env, build_dir)
     if not report.is_file():
         result.error = f"ctest exited with {returncode} and wrote no report"
         return result
@@ -381,6 +381,34 @@ def _pytest_targets(root: Path, passthrough: list[str]) -> tuple[list[str], list
     return defaults, rewritten
 
 
+def _run_runner(command: list[str], env: dict[str, str], cwd: Path) -> int:
+    """``subprocess.run(command)``, except that a SIGTERM or SIGHUP to ``lit test`` reaches the
+    runner as the Ctrl-C it handles (pytest's fixtures then stop the nodes their tests started),
+    and ``lit test`` waits for it: it ended at once, and pytest with its nodes ran on, orphaned.
+    A Ctrl-C at the terminal reaches the runner itself; ``lit test`` waits for it then too."""
+    process = subprocess.Popen(command, env=env, cwd=cwd)
+    interrupted: list[int] = []
+
+    def pass_on(signum: int, frame: object) -> None:
+        interrupted.append(signum)
+        if signum != signal.SIGINT and process.poll() is None:
+            process.send_signal(signal.SIGINT)
+
+    previous = {}
+    if threading.current_thread() is threading.main_thread():  # signals: main thread only
+        for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            previous[signum] = signal.signal(signum, pass_on)
+    try:
+        returncode = process.wait()
+    finally:
+        for signum, handler in previous.items():
+            if handler is not None:  # None: set outside Python, not restorable
+                signal.signal(signum, handler)
+    if interrupted:  # no next runner: stopped as a Ctrl-C stops it
+        raise KeyboardInterrupt
+    return returncode
+
+
 def run_pytest(
     root: Path, env: dict[str, str], report_dir: Path, keyword: str | None, passthrough: list[str]
 ) -> RunnerResult:
@@ -408,7 +436,7 @@ def run_pytest(
         command += ["-k", keyword]
     command += targets + extra
     print(f"lit test: pytest {' '.join(targets + extra)}", flush=True)
-    returncode = subprocess.run(command, env=env, cwd=root, check=False).returncode
+    returncode = _run_runner(command, env, root)
     if returncode == 5:  # pytest: no tests collected
         return result
     if not report.is_file():

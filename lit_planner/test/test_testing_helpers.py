@@ -3,6 +3,8 @@ without blocking the run when the line never comes (real child processes)."""
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import sys
 import time
@@ -100,3 +102,48 @@ def test_run_watched_ends_what_the_command_left_behind() -> None:
     while Path(f"/proc/{left}").exists() and start_time(left) is not None:
         assert time.monotonic() < deadline, f"{left} still runs"
         time.sleep(0.05)
+
+
+_SLEEPING_TEST = """
+import pathlib, time
+import pytest
+
+MARKS = pathlib.Path(__file__).parent
+
+@pytest.fixture
+def cleanup():
+    yield
+    (MARKS / "teardown").write_text("done")
+
+def test_sleeps(cleanup):
+    (MARKS / "started").write_text("yes")
+    time.sleep(120)
+"""
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
+def test_lit_test_stopped_by_a_signal_lets_pytest_tear_down(tmp_path: Path, signum: int) -> None:
+    """``kill PID`` of ``lit test`` (or its terminal closing) ended it at once, and pytest ran on,
+    orphaned, with the nodes its tests had started; now pytest gets the Ctrl-C it handles, its
+    fixtures tear down, and lit test exits 130 after it."""
+    (tmp_path / "test_sleeping.py").write_text(_SLEEPING_TEST)
+    root = Path(__file__).resolve().parents[2]
+    process = subprocess.Popen(
+        [sys.executable, "-m", "lit_planner.cli", "test", "--no-ctest", "--",
+         str(tmp_path / "test_sleeping.py"), "-p", "no:cacheprovider"],
+        cwd=root, env=dict(os.environ, LIT_SKIP_SETUP="1", ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+    )  # fmt: skip
+    try:
+        deadline = time.monotonic() + 120
+        while not (tmp_path / "started").exists():
+            assert process.poll() is None and time.monotonic() < deadline, process.returncode
+            time.sleep(0.1)
+        process.send_signal(signum)
+        out, _ = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 130, out
+    assert (tmp_path / "teardown").read_text() == "done", out
