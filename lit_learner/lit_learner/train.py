@@ -53,7 +53,7 @@ from lit_learner.metrics import (
     histogram_column,
     plot_training_curves,
 )
-from lit_planner import argtypes
+from lit_planner import argtypes, signals
 
 TRAINING_SEEDS = (1_000_000, 2**32 - 1)
 """Inclusive range of planner seeds for training episodes (benchmarks use 1..100)."""
@@ -833,7 +833,6 @@ def _request_stop(signum: int, frame: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Train, checkpoint, plot and (with ``--export``) export; returns the exit code."""
-    import signal
 
     from lit_planner.errors import LitPlannerError
 
@@ -843,23 +842,15 @@ def run(args: argparse.Namespace) -> int:
     # when a non-interactive shell started us in the background with SIGINT ignored.
     STOP_REQUESTED.clear()
     FINISHING.clear()
-    previous: dict[int, Any] = {}
-    if threading.current_thread() is threading.main_thread():  # signals: main thread only
-        stops = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)  # SIGHUP: the terminal closed
-        previous = {sig: signal.getsignal(sig) for sig in stops}
-        for sig in previous:
-            signal.signal(sig, _request_stop)
     try:
-        result = train(args, hooks=None)
+        with signals.handling(signals.STOPS, _request_stop):  # SIGHUP: the terminal closed
+            result = train(args, hooks=None)
     except (TrainingError, LearnerError, LitPlannerError, OSError) as error:
         # OSError: a metrics, checkpoint or bag file that could not be written (a full disk, a
         # folder in the way), after what could be saved was (_save_after_failure).
         print(f"lit train: {error}", file=sys.stderr)
         return 2
     finally:
-        for sig, handler in previous.items():
-            if handler is not None:  # None: installed outside Python, cannot be restored
-                signal.signal(sig, handler)
         STOP_REQUESTED.clear()  # a later train() in this process starts afresh
         FINISHING.clear()
     print(result.summary)

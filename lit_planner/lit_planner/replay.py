@@ -41,7 +41,6 @@ import re
 import shutil
 import signal
 import sys
-import threading
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -52,7 +51,7 @@ from typing import Any, Self
 
 import numpy as np
 
-from lit_planner import argtypes, bag, rosutil, scenarios
+from lit_planner import argtypes, bag, rosutil, scenarios, signals
 from lit_planner.errors import LitPlannerError
 
 PROG = "lit replay"
@@ -2231,11 +2230,11 @@ def run(args: argparse.Namespace) -> int:
         "measure": _measure,
         "tensors": _tensors,
     }
-    # `kill PID` stops like Ctrl-C: the same clean-up (no half-written bag or output folder).
-    main_thread = threading.current_thread() is threading.main_thread()  # signals: main only
-    previous = signal.signal(signal.SIGTERM, signal.default_int_handler) if main_thread else None
+    # `kill PID`, or the terminal closing, stops like Ctrl-C: the same clean-up (no half-written
+    # bag or output folder).
     try:
-        return commands[args.replay_command](args)
+        with signals.handling((signal.SIGTERM, signal.SIGHUP), signal.default_int_handler):
+            return commands[args.replay_command](args)
     except ReplayError as error:
         print(f"{PROG}: error: {error}", file=sys.stderr)
         return 2
@@ -2249,9 +2248,6 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    finally:
-        if previous is not None:  # None: not set from Python, not restorable
-            signal.signal(signal.SIGTERM, previous)
 
 
 def _offline() -> Any:

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import IO, Any
 from xml.etree import ElementTree
 
+from lit_planner import signals
 from lit_planner.up import DomainBusy, DomainClaim, claim_domain
 
 PYTHON_TEST_DIRS = ("tests", "lit_planner/test", "lit_learner/test", "lit_msgs_json/test")
@@ -394,16 +395,8 @@ def _run_runner(command: list[str], env: dict[str, str], cwd: Path) -> int:
         if signum != signal.SIGINT and process.poll() is None:
             process.send_signal(signal.SIGINT)
 
-    previous = {}
-    if threading.current_thread() is threading.main_thread():  # signals: main thread only
-        for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-            previous[signum] = signal.signal(signum, pass_on)
-    try:
+    with signals.handling(signals.STOPS, pass_on):
         returncode = process.wait()
-    finally:
-        for signum, handler in previous.items():
-            if handler is not None:  # None: set outside Python, not restorable
-                signal.signal(signum, handler)
     if interrupted:  # no next runner: stopped as a Ctrl-C stops it
         raise KeyboardInterrupt
     return returncode

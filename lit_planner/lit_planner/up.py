@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any, Self
 
-from lit_planner import argtypes
+from lit_planner import argtypes, signals
 from lit_planner.rosutil import (
     DEFAULT_DOMAIN_ID,
     LOCALHOST_ENV,
@@ -171,17 +171,12 @@ class System:
         through the handling of another.)
         """
         interrupts = [0]
-        previous = {}
-        if threading.current_thread() is threading.main_thread():
-            for number in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-                previous[number] = signal.signal(
-                    number, lambda *_: interrupts.__setitem__(0, interrupts[0] + 1)
-                )
         try:
-            return self._stop_all(interrupts)
+            with signals.handling(
+                signals.STOPS, lambda *_: interrupts.__setitem__(0, interrupts[0] + 1)
+            ):
+                return self._stop_all(interrupts)
         finally:
-            for number, handler in previous.items():
-                signal.signal(number, handler)
             self.stop_interrupts += interrupts[0]
 
     def _stop_all(self, interrupts: list[int]) -> dict[str, int | None]:

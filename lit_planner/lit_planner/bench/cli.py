@@ -23,13 +23,12 @@ import os
 import shutil
 import signal
 import sys
-import threading
 import time
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from lit_planner import argtypes, bag, planning, scenarios
+from lit_planner import argtypes, bag, planning, scenarios, signals
 from lit_planner.bench import runner
 from lit_planner.errors import LitPlannerError
 
@@ -175,19 +174,13 @@ def run(args: argparse.Namespace) -> int:
 
     # `kill PID`, or the terminal closing (SIGHUP), stops like Ctrl-C: the bag gets its summary
     # and metadata.yaml on the way out.
-    main_thread = threading.current_thread() is threading.main_thread()  # signals: main only
-    stops = (signal.SIGTERM, signal.SIGHUP)
-    previous = (
-        {sig: signal.signal(sig, signal.default_int_handler) for sig in stops}
-        if main_thread
-        else {}
-    )
     try:
-        records = runner.run_benchmark(config, on_scenario_done=append, policies=policies)
-        duration = time.perf_counter() - clock
-        finished = datetime.now(UTC)
-        if recording is not None:  # for `lit replay bench`: the stamps do not span all of it
-            recording.finish(finished, duration)
+        with signals.handling((signal.SIGTERM, signal.SIGHUP), signal.default_int_handler):
+            records = runner.run_benchmark(config, on_scenario_done=append, policies=policies)
+            duration = time.perf_counter() - clock
+            finished = datetime.now(UTC)
+            if recording is not None:  # for `lit replay bench`: the stamps do not span all of it
+                recording.finish(finished, duration)
     except KeyboardInterrupt:
         tables = (
             f"; `lit replay bench {recording.recorder.path}` makes tables of them"
@@ -209,9 +202,6 @@ def run(args: argparse.Namespace) -> int:
         )
         return 1
     finally:
-        for sig, handler in previous.items():
-            if handler is not None:  # None: set outside Python, not restorable
-                signal.signal(sig, handler)
         if recording is not None:
             recording.close()
 

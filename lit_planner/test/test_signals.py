@@ -1,0 +1,45 @@
+"""``lit_planner.signals.handling``: the commands' Ctrl-C, ``kill PID`` and hang-up handling."""
+
+from __future__ import annotations
+
+import signal
+import threading
+
+from lit_planner import signals
+
+
+def test_handlers_hold_for_the_block_and_the_previous_ones_come_back() -> None:
+    def before(signum: int, frame: object) -> None: ...
+
+    def during(signum: int, frame: object) -> None: ...
+
+    saved = {signum: signal.signal(signum, before) for signum in signals.STOPS}
+    try:
+        try:
+            with signals.handling(signals.STOPS, during):
+                assert all(signal.getsignal(s) is during for s in signals.STOPS)
+                raise KeyError  # also when the block fails
+        except KeyError:
+            pass
+        assert all(signal.getsignal(s) is before for s in signals.STOPS)
+    finally:
+        for signum, handler in saved.items():
+            signal.signal(signum, handler)
+
+
+def test_another_thread_installs_nothing() -> None:
+    """signal.signal raises ValueError off the main thread; the block runs without handlers."""
+    outcome: list[object] = []
+
+    def worker() -> None:
+        try:
+            with signals.handling(signals.STOPS, lambda *_: None):
+                outcome.append(signal.getsignal(signal.SIGTERM))
+        except ValueError as error:
+            outcome.append(error)
+
+    before = signal.getsignal(signal.SIGTERM)
+    thread = threading.Thread(target=worker)
+    thread.start()
+    thread.join()
+    assert outcome == [before]
