@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
+import json
 import os
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -287,38 +290,22 @@ def test_an_interrupt_while_the_nodes_stop_is_counted(tmp_path: Path) -> None:
     assert system.stop_interrupts == 1
 
 
-def test_lit_call_names_a_service_of_another_type() -> None:
-    """A service that exists with a type lit call does not speak was reported as not found."""
-    import time
-
+@contextlib.contextmanager
+def _server(code: str) -> Iterator[dict[str, str]]:
+    """Run ``code`` (a Python program that prints "ready" once its service is up) in a domain of
+    its own; yields the environment for clients of that domain, stops the server afterwards."""
     from ros_helpers import reserve_domain
 
     domain, lock = reserve_domain()
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain))
-    server_code = (
-        "import rclpy, sys\n"
-        "from std_srvs.srv import Trigger\n"
-        "rclpy.init()\n"
-        "node = rclpy.create_node('trigger_server')\n"
-        "node.create_service(Trigger, '/other/trigger', lambda request, response: response)\n"
-        "print('ready', flush=True)\n"
-        "rclpy.spin(node)\n"
-    )
     server = subprocess.Popen(
-        [sys.executable, "-c", server_code], env=env, stdout=subprocess.PIPE, text=True
+        [sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, text=True
     )
     try:
         assert server.stdout is not None
         assert read_until(server.stdout, "ready") == ["ready\n"]
         time.sleep(1.0)  # discovery
-        process = subprocess.run(
-            [sys.executable, "-m", "lit_planner.cli", "call", "--wait", "5", "raw",
-             "other/trigger", "{}"],
-            env=env, capture_output=True, text=True, timeout=120, check=False,
-        )  # fmt: skip
-        assert process.returncode == 2, process.stderr
-        assert "service other/trigger has type std_srvs/srv/Trigger" in process.stderr
-        assert "not found" not in process.stderr and "Traceback" not in process.stderr
+        yield env
     finally:
         server.terminate()
         try:
@@ -328,6 +315,76 @@ def test_lit_call_names_a_service_of_another_type() -> None:
             server.wait()
         if lock is not None:
             lock.close()
+
+
+def _lit_call(env: dict[str, str], *arguments: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "call", *arguments],
+        env=env, capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+
+
+def test_lit_call_names_a_service_of_another_type() -> None:
+    """A service that exists with a type lit call does not speak was reported as not found."""
+    server_code = (
+        "import rclpy, sys\n"
+        "from std_srvs.srv import Trigger\n"
+        "rclpy.init()\n"
+        "node = rclpy.create_node('trigger_server')\n"
+        "node.create_service(Trigger, '/other/trigger', lambda request, response: response)\n"
+        "print('ready', flush=True)\n"
+        "rclpy.spin(node)\n"
+    )
+    with _server(server_code) as env:
+        process = _lit_call(env, "--wait", "5", "raw", "other/trigger", "{}")
+    assert process.returncode == 2, process.stderr
+    assert "service other/trigger has type std_srvs/srv/Trigger" in process.stderr
+    assert "not found" not in process.stderr and "Traceback" not in process.stderr
+
+
+_LOSES_FIRST_ANSWERS = """
+import rclpy
+from diagnostic_msgs.srv import AddDiagnostics
+rclpy.init()
+node = rclpy.create_node('lossy_server')
+answered = set()
+def echo(request, response):
+    response.success, response.message = True, request.load_namespace
+    return response
+service = node.create_service(AddDiagnostics, '/lossy/service', echo)
+send = service.send_response
+def lose_first(response, header):  # the first answer to each text is lost on the way
+    if response.message in answered:
+        send(response, header)
+    answered.add(response.message)
+service.send_response = lose_first
+print('ready', flush=True)
+rclpy.spin(node)
+"""
+
+
+@pytest.mark.parametrize(
+    ("schema", "resent"),
+    [
+        ("DecideRequest", True),
+        ("EpisodeEnd", True),
+        ("CancelRequest", True),
+        ("PlanRequest", False),
+    ],
+)
+def test_lit_call_sends_again_what_its_service_answers_as_a_copy(schema: str, resent: bool) -> None:
+    """A decide request whose answer was lost waited out lit call's whole timeout (seen in CI: 60
+    s). lit call sends again the requests whose services answer a copy as the request it
+    repeats (the learner's, a cancel); a plan request is sent once, as a copy would plan again."""
+    text = json.dumps({"schema": f"lit_msgs_json/{schema}", "version": 1, "payload": {}})
+    with _server(_LOSES_FIRST_ANSWERS) as env:
+        process = _lit_call(env, "--wait", "30", "--timeout", "5", "raw", "/lossy/service", text)
+    if resent:
+        assert process.returncode == 0, process.stderr
+        assert json.loads(process.stdout) == json.loads(text)
+    else:
+        assert process.returncode == 2, process.stderr
+        assert "did not answer within 5 s" in process.stderr
 
 
 def test_sigterm_stops_system_bench_in_order(tmp_path: Path) -> None:

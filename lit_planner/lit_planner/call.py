@@ -67,9 +67,16 @@ about 3 s by its own timeouts) before the process exits without it: :func:`_exit
 CANCEL_WAIT = 5.0
 """Seconds a plan call that gave up waits for the cancel service to appear, and then for its
 answer."""
-CANCEL_RESEND = 1.0
-"""Seconds without an answer after which a cancel request is sent again (then after 2, 4, ...
-s): the planner node answers a copy as the request it repeats."""
+RESEND = 1.0
+"""Seconds without an answer after which a request is sent again (then after 2, 4, ... s), if its
+service answers a copy as the request it repeats (:func:`_resend_after`)."""
+
+ANSWERS_COPIES = frozenset(
+    f"lit_msgs_json/{name}" for name in ("DecideRequest", "EpisodeEnd", "CancelRequest")
+)
+"""Requests whose services answer a client's copy of its latest text as that request: the
+learner's decide service from its cache, the planner's cancel service by repeating its answer.
+A plan request is not among them: a copy would be planned again."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -274,6 +281,19 @@ def run(args: argparse.Namespace) -> int:
         disarm()
 
 
+def _resend_after(text: str) -> float | None:
+    """:data:`RESEND` for a request whose service answers a copy as the request it repeats
+    (:data:`ANSWERS_COPIES`), else None (sent once). A request or its answer can be lost while a
+    new client is still being matched, with no error on either side (in CI: a cancel, and a
+    decide request the learner had answered, each followed by 60 s of silence); a copy sent
+    then gets the answer."""
+    try:
+        schema = json.loads(text).get("schema")
+    except (ValueError, AttributeError, RecursionError):  # not JSON, not an object: sent once
+        return None
+    return RESEND if schema in ANSWERS_COPIES else None
+
+
 def _call(
     node: Any, args: argparse.Namespace, name: str, text: str, callers: list[ServiceCaller]
 ) -> int:
@@ -312,13 +332,9 @@ def _call(
             return _repeat(caller, text, args)
         started = time.perf_counter()
         args.sent = True
-        # A Ctrl-C or SIGTERM shuts the context down; the wait notices it within 0.1 s. A cancel
-        # is sent again without an answer (a request or answer lost while the new client was
-        # still being matched: once in CI, 60 s of silence); the node answers a copy as the
-        # request it repeats.
-        resend = CANCEL_RESEND if args.service == "cancel" else None
+        # A Ctrl-C or SIGTERM shuts the context down; the wait notices it within 0.1 s.
         answer = caller.call(
-            text, args.timeout, resend_after=resend, interrupted=lambda: not rclpy.ok()
+            text, args.timeout, resend_after=_resend_after(text), interrupted=lambda: not rclpy.ok()
         )
         elapsed = time.perf_counter() - started
         if answer is None:
@@ -426,7 +442,7 @@ def _cancel_plan(node: Any, args: argparse.Namespace) -> None:
             answer = caller.call(
                 text,
                 CANCEL_WAIT,
-                resend_after=CANCEL_RESEND,
+                resend_after=RESEND,
                 interrupted=lambda: not node.context.ok(),
             )
             if answer is None:
