@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sqlite3
 import subprocess
 from pathlib import Path
@@ -132,6 +133,9 @@ def test_bench_rejects_bad_input(tmp_path: Path) -> None:
     for option in ("--scenarios", "--planners"):
         result = _lit("bench", option, " ", "--out", str(tmp_path / "y"))
         assert result.returncode == 2 and "need at least one scenario" in result.stderr
+    result = _lit("bench", "--time-scale", "1e12", "--out", str(tmp_path / "w"))
+    assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
+    assert re.search(r"--time-scale 1e\+12 gives budgets up to .* the 1e\+09 s", result.stderr)
     (tmp_path / "empty").mkdir()
     result = _lit(
         "bench", "--planners", "litstar-tensor", "--tensors", str(tmp_path / "empty"),

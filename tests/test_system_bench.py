@@ -92,3 +92,39 @@ def test_parts_switched_off_and_ctrl_c_stops_every_child() -> None:
             process.kill()
             process.wait()
         kill_identified(children)  # by PID, and only the processes seen (a PID may be reused)
+
+
+# lit system-bench whose recorder is killed (SIGKILL) 2 s after the first planner starts.
+_RECORDER_KILLED = """
+import sys, threading
+from lit_planner import cli, up
+
+original = up.System.start
+
+def start(self, name, *args, **kwargs):
+    child = original(self, name, *args, **kwargs)
+    if name == "planner":
+        threading.Timer(2.0, self.children["recorder"].process.kill).start()
+    return child
+
+up.System.start = start
+sys.exit(cli.main(sys.argv[1:]))
+"""
+
+
+def test_a_recorder_that_died_is_named_instead_of_a_traceback() -> None:
+    """A killed recorder left a bag without its metadata, and lit system-bench ended with a
+    traceback from reading it; now it names the recorder's exit and stops the other nodes."""
+    domain = launcher_domain()
+    process = run_watched(
+        [
+            sys.executable, "-c", _RECORDER_KILLED, "system-bench", "--episodes", "20",
+            "--calls", "0", "--kills", "0", "--budget", "0.2", "--domain-id", str(domain),
+        ],
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+        timeout=600,
+    )  # fmt: skip
+    assert process.returncode == 1, process.stdout[-2000:] + process.stderr[-2000:]
+    assert "the training run's bag" in process.stderr, process.stderr
+    assert "cannot be measured: the recorder exited with code -9" in process.stderr
+    assert "Traceback" not in process.stderr, process.stderr

@@ -132,3 +132,68 @@ def test_two_quick_interrupts_kill_without_a_traceback(tmp_path: Path) -> None:
         launcher.killed_everything()
     finally:
         launcher.clean_up()
+
+
+# lit up whose recorder is replaced by the program argv[1] (the launcher's own options follow).
+_UP_WITH_FAKE_RECORDER = textwrap.dedent(
+    """
+    import sys
+    from lit_planner import cli, up
+
+    fake, original = sys.argv.pop(1), up.System.start
+
+    def start(self, name, executable, *args, **kwargs):
+        if name == "recorder":
+            executable = [sys.executable, "-c", fake]
+        return original(self, name, executable, *args, **kwargs)
+
+    up.System.start = start
+    sys.exit(cli.main(sys.argv[1:]))
+    """
+)
+
+
+def _lit_up(tmp_path: Path, fake_recorder: str) -> subprocess.Popen[str]:
+    from ros_helpers import launcher_domain
+
+    return subprocess.Popen(
+        [sys.executable, "-c", _UP_WITH_FAKE_RECORDER, fake_recorder, "up", "--domain-id",
+         str(launcher_domain()), "--bag", str(tmp_path / "bag"), "--run-id", "up-test"],
+        cwd=tmp_path,
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True,
+    )  # fmt: skip
+
+
+def test_a_stop_before_the_recorder_is_ready_starts_nothing_more(tmp_path: Path) -> None:
+    """Ctrl-C while lit up waited for its recorder: the wait went on (up to 60 s, then a
+    traceback), and the learner and planner were started before the stop."""
+    process = _lit_up(tmp_path, "import time\nprint('starting', flush=True)\ntime.sleep(600)")
+    try:
+        _read_until(process.stdout, "[recorder] starting")
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=40)  # the wait for "ready:" alone took 60 s
+        assert "lit up: stopped recorder (exit -15)" in out, out + err
+        assert "[learner]" not in out and "[planner]" not in out, out
+        assert "Traceback" not in err, err
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+
+
+def test_a_recorder_that_exits_before_it_is_ready_is_named(tmp_path: Path) -> None:
+    """It ended lit up with a traceback; now one line says so, and exit 1."""
+    process = _lit_up(tmp_path, "import sys\nprint('no bag for me', flush=True)\nsys.exit(3)")
+    try:
+        out, err = process.communicate(timeout=60)
+        assert process.returncode == 1, out + err
+        assert "lit up: recorder exited with code 3 before it was ready:" in err, err
+        assert "no bag for me" in err and "Traceback" not in err, err
+        assert "lit up: stopped recorder (exit 3)" in out, out
+        assert "[learner]" not in out and "[planner]" not in out, out
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()

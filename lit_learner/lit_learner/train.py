@@ -1240,13 +1240,12 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         core = LearnerCore(config)
         rng = draw_generator(seed)
     distribution = TrainingDistribution(state.scenarios, rng)  # checks the names first
-    if distribution.longest_budget * state.budget_scale > planning.MAX_TIME:
-        # Refused here, not by the first episode's planner after the learner has started.
-        raise TrainingError(
-            f"--budget-scale {state.budget_scale:g} gives budgets up to "
-            f"{distribution.longest_budget * state.budget_scale:g} s, more than the "
-            f"{planning.MAX_TIME:g} s a planner can be given"
-        )
+    # Refused here, not by the first episode's planner after the learner has started.
+    problem = planning.scale_problem(
+        "--budget-scale", state.budget_scale, distribution.longest_budget
+    )
+    if problem is not None:
+        raise TrainingError(problem)
     if args.export is not None and Path(args.export).resolve() == run_dir.resolve():
         # Its provenance.json and curves would be copied onto themselves after the whole run.
         raise TrainingError(

@@ -348,10 +348,16 @@ class _Client:
     def plan(self, payload: dict[str, Any]) -> tuple[dict[str, Any] | None, str]:
         from lit_msgs_json.envelope import Publisher, decode
 
+        from lit_planner.rosutil import CallInterrupted
+
         if not self.caller.wait(30.0):
             raise RuntimeError("the plan service did not appear")
         text = Publisher("lit_demo", "demo").encode("PlanRequest", payload)
-        answer = self.caller.call(text, 600.0)
+        planner = self.system.children["planner"].process
+        try:  # a planner that died will not answer: no need to wait out the timeout
+            answer = self.caller.call(text, 600.0, interrupted=lambda: planner.poll() is not None)
+        except CallInterrupted:
+            raise RuntimeError("the planner node exited while planning") from None
         if answer is None:
             return None, "no answer"
         success, message = answer

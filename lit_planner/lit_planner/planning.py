@@ -75,6 +75,19 @@ MAX_TIME = 1e9
 """Longest planning time, s (about 32 years): OMPL's time-based stop counts nanoseconds in 64
 bits, and from about 9.2e9 s on it overflowed, so OMPL's planners stopped at once (timeout)."""
 
+
+def scale_problem(option: str, scale: float, longest: float) -> str | None:
+    """What is wrong with the time budgets of up to ``longest`` s scaled by ``scale`` (the value
+    of the command's ``option``), or None: a scaled budget must be one a planner can be given
+    (:data:`MAX_TIME`)."""
+    if longest * scale > MAX_TIME:
+        return (
+            f"{option} {scale:g} gives budgets up to {longest * scale:g} s, more than the "
+            f"{MAX_TIME:g} s a planner can be given"
+        )
+    return None
+
+
 DecisionCallback = Callable[[lit_core.DecisionContext], float]
 
 

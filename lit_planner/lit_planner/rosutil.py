@@ -389,18 +389,24 @@ class ServiceCaller:
         """Send ``request``; the response, or None after ``timeout``. ``resend_after`` (private
         mode only; ignored otherwise): without an answer after that many seconds send the same
         request again, then after twice as long, and so on until the deadline, and take the
-        first answer to any of them (the others are dropped when they come). ``interrupted``
-        (private mode only): looked at every :data:`INTERRUPT_POLL` s while waiting; once true
-        the call raises :class:`CallInterrupted` (a signal handler that shut the context down
-        does not wake the wait set, which would wait out the whole timeout)."""
+        first answer to any of them (the others are dropped when they come). ``interrupted``:
+        looked at every :data:`INTERRUPT_POLL` s while waiting; once true the call raises
+        :class:`CallInterrupted` (a signal handler that shut the context down does not wake the
+        wait set, which would wait out the whole timeout; a server process that died will not
+        answer)."""
         if self._owner is not None:
             return self._request_waiting(request, timeout, resend_after, interrupted)
         done = threading.Event()
         future = self.client.call_async(request)
         future.add_done_callback(lambda _: done.set())
-        if not done.wait(timeout):
-            self.client.remove_pending_request(future)
-            return None
+        deadline = time.monotonic() + timeout
+        while not done.wait(max(0.0, min(deadline - time.monotonic(), INTERRUPT_POLL))):
+            gave_up = interrupted is not None and interrupted()
+            if gave_up or time.monotonic() >= deadline:
+                self.client.remove_pending_request(future)
+                if gave_up:
+                    raise CallInterrupted(f"the call of {self.name} was interrupted")
+                return None
         return future.result()
 
     def _request_waiting(

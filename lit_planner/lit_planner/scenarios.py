@@ -76,8 +76,9 @@ PAPER_RR_BUDGETS: tuple[tuple[int, float], ...] = ((4, 0.15), (8, 0.3), (16, 2.0
 _CHUNK_ELEMENTS = 1 << 22  # bounds the temporaries of is_valid to a few MiB
 _CHUNK_POINTS = 1 << 16  # interpolated points generated at once by check_path
 _NAME_PATTERN = re.compile(r"(?P<family>[a-z]+)(?P<dim>[1-9]\d*)(?:/(?P<instance>0|[1-9]\d*))?")
-"""A scenario name; numbers without leading zeros, so that each scenario has one name (np04 was
-np4 under another name: past the duplicate checks, twice in a training distribution)."""
+"""A scenario name; numbers without leading zeros (np04 was np4 under another name: past the
+duplicate checks, twice in a training distribution). Instance 0 has a second name, ``np8/0``;
+training distributions and ``lit bench`` take no ``/instance``, so it cannot come in twice there."""
 
 
 @dataclass(frozen=True)

@@ -278,8 +278,17 @@ def _throughput(system: System, work: Path, policy: str, args: argparse.Namespac
     planner.drain()
     if code != 0:
         raise SystemExit("lit system-bench: the planner failed:\n" + "\n".join(planner.lines[-20:]))
-    _stop(system, "recorder")
-    envelopes = _envelopes(replay, bag)
+    recorder = system.children["recorder"]
+    code = _stop(system, "recorder")
+    try:
+        if code != 0:  # its bag lacks at least what it held when it ended: no numbers from it
+            raise replay.ReplayError(f"the recorder exited with code {code}")
+        envelopes = _envelopes(replay, bag)
+    except replay.ReplayError as error:
+        raise SystemExit(
+            f"lit system-bench: the {policy} run's bag {bag} cannot be measured: {error}\n"
+            + "\n".join(recorder.lines[-20:])
+        ) from None
     summaries = [e.payload for e in envelopes if e.schema == "lit_msgs_json/EpisodeSummary"]
     latencies = [
         e.payload["latency_ms"]
@@ -381,8 +390,15 @@ def _wait_for_warning(child: Any, start: int, timeout: float) -> float | None:
     return None if line is None else float(_LOG_STAMP.search(line).group(1))  # type: ignore[union-attr]
 
 
-def _stop(system: System, name: str) -> None:
+def _stop(system: System, name: str) -> int:
+    """SIGTERM the child ``name`` (SIGKILL after 60 s); its exit code."""
     child = system.children.pop(name)
     if child.process.poll() is None:
         child.process.send_signal(signal.SIGTERM)
-        child.process.wait(60)
+        try:
+            child.process.wait(60)
+        except subprocess.TimeoutExpired:
+            child.process.kill()
+    code = child.process.wait()
+    child.drain()
+    return code

@@ -148,11 +148,16 @@ class System:
                 except (BrokenPipeError, ValueError):  # our stdout closed (`lit up | head`)
                     self.echo = None  # the children's pipes are still drained: they never block
 
-    def wait_ready(self, name: str, timeout: float = 60.0) -> None:
-        """Block until the child logs ``ready:``; RuntimeError if it exits or times out."""
+    def wait_ready(
+        self, name: str, timeout: float = 60.0, stopping: Callable[[], bool] | None = None
+    ) -> None:
+        """Block until the child logs ``ready:``, or ``stopping()`` (looked at every 0.1 s) is
+        true; RuntimeError if it exits or times out."""
         child = self.children[name]
         deadline = time.monotonic() + timeout
         while not child.ready.wait(0.1):
+            if stopping is not None and stopping():
+                return
             if child.process.poll() is not None:
                 raise RuntimeError(
                     f"{name} exited with code {child.process.returncode} before it was ready:\n"
@@ -495,10 +500,12 @@ def run(args: argparse.Namespace) -> int:
         "Ctrl-C stops everything",
         flush=True,
     )
+    failure = None
     try:
         if bag is not None:
             system.start("recorder", "lit_recorder_node", {"bag": str(bag), "run_id": run_id})
-            system.wait_ready("recorder")
+            # A stop requested meanwhile starts nothing more (the nodes used to start anyway).
+            system.wait_ready("recorder", stopping=stop.is_set)
         learner = {
             "checkpoint": args.checkpoint or str(runs / "learner" / "checkpoint.pt"),
             "export_dir": str(runs / "learner" / "tensors"),
@@ -507,8 +514,9 @@ def run(args: argparse.Namespace) -> int:
             "wait_for_subscribers": 0 if bag is None else 1,
             **_typed_params(args.learner_param, learner_node.PARAMETERS),
         }
-        system.start("learner", "lit_learner_node", learner)
-        if args.policy == "training":
+        if not stop.is_set():
+            system.start("learner", "lit_learner_node", learner)
+        if args.policy == "training" and "learner" in system.children:
             # Training episodes ask the learner from their first decision: the planner waits
             # only learner_wait (10 s) for it, and torch's start-up on a loaded machine can take
             # longer, which turned the first decisions into fallbacks.
@@ -518,7 +526,10 @@ def run(args: argparse.Namespace) -> int:
             while not child.ready.wait(0.2) and child.process.poll() is None:
                 if stop.is_set() or time.monotonic() > deadline:
                     break
-        learner_gone = system.children["learner"].process.poll() is not None
+        learner_gone = (
+            "learner" not in system.children
+            or system.children["learner"].process.poll() is not None
+        )
         planner = {
             "policy": args.policy,
             "episodes": args.episodes,
@@ -541,13 +552,17 @@ def run(args: argparse.Namespace) -> int:
                 dead = [n for n, c in system.children.items() if c.process.poll() is not None]
                 print(f"lit up: {', '.join(dead)} exited; stopping the others", flush=True)
                 break
+    except RuntimeError as error:  # the recorder exited, or hung, before it was ready
+        failure = error
+        print(f"lit up: {error}", file=sys.stderr, flush=True)
     finally:
         try:
             codes = system.stop()  # counts the interrupts that come while it waits
         finally:
             claim.close()
-    print("lit up: stopped " + ", ".join(f"{n} (exit {c})" for n, c in codes.items()), flush=True)
-    return 0 if all(code == 0 for code in codes.values()) else 1
+    stopped = ", ".join(f"{n} (exit {c})" for n, c in codes.items())
+    print(f"lit up: stopped {stopped or 'before any process started'}", flush=True)
+    return 0 if failure is None and all(code == 0 for code in codes.values()) else 1
 
 
 _PRCTL = ctypes.CDLL(None, use_errno=True).prctl

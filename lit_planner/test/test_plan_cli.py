@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -9,6 +10,7 @@ import re
 import signal
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -250,21 +252,38 @@ def test_demo_solves_the_default_scenario(tmp_path: Path) -> None:
                      re.MULTILINE), process.stdout  # fmt: skip
 
 
-def test_ctrl_c_stops_the_demo_and_reports_what_it_kept(tmp_path: Path) -> None:
-    """Ctrl-C during training: the nodes are stopped in order, the bag is summarised and the
-    processes' exits printed, exit 130 (it used to print 'lit demo: ; stopping the nodes')."""
+@contextlib.contextmanager
+def _demo(
+    tmp_path: Path, *options: str, program: str | None = None
+) -> Iterator[tuple[subprocess.Popen[str], DescendantWatch]]:
+    """``lit demo --out tmp_path OPTIONS`` (``program``, run with ``python -c``, in place of the
+    ``lit`` command if given) in a free domain and a session of its own, and a watch over the
+    processes it starts (its nodes run in sessions of their own); all ended afterwards."""
     domain, claim = reserve_ros_domain(range(101, 233))
     if claim is not None:
         claim.close()
+    command = ["-m", "lit_planner.cli"] if program is None else ["-c", program]
     process = subprocess.Popen(
-        [sys.executable, "-m", "lit_planner.cli", "demo", "--out", str(tmp_path),
-         "--domain-id", str(domain), "--training-episodes", "100000"],
+        [sys.executable, *command, "demo", "--out", str(tmp_path), "--domain-id", str(domain),
+         *options],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
         start_new_session=True,
     )  # fmt: skip
-    watch = DescendantWatch(process.pid)  # its nodes run in sessions of their own
+    watch = DescendantWatch(process.pid)
     try:
+        yield process, watch
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+        watch.kill()
+
+
+def test_ctrl_c_stops_the_demo_and_reports_what_it_kept(tmp_path: Path) -> None:
+    """Ctrl-C during training: the nodes are stopped in order, the bag is summarised and the
+    processes' exits printed, exit 130 (it used to print 'lit demo: ; stopping the nodes')."""
+    with _demo(tmp_path, "--training-episodes", "100000") as (process, watch):
         assert process.stdout is not None
         # training under way: the first episode's progress line
         seen = read_until(process.stdout, "    episode 1/100000:", timeout=300)
@@ -279,11 +298,6 @@ def test_ctrl_c_stops_the_demo_and_reports_what_it_kept(tmp_path: Path) -> None:
         ], out  # fmt: skip
         assert re.search(r"0 messages missing", out), out
         assert len(watch.seen) >= 3 and not watch.alive(), watch.alive()  # no node left behind
-    finally:
-        if process.poll() is None:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
-        watch.kill()
 
 
 # A demo whose client fails with an error the demo does not expect, once training is under way.
@@ -306,18 +320,8 @@ def test_an_unexpected_error_in_the_demo_still_stops_the_nodes_in_order(tmp_path
     """Not one of the errors the demo reports (a bug, say): it surfaces as a traceback, and the
     nodes are still stopped in order: the learner saves its checkpoint, the recorder closes the
     bag, and no process is left behind."""
-    domain, claim = reserve_ros_domain(range(101, 233))
-    if claim is not None:
-        claim.close()
-    process = subprocess.Popen(
-        [sys.executable, "-c", _FAILING_DEMO, "demo", "--out", str(tmp_path),
-         "--domain-id", str(domain), "--training-episodes", "100000"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
-        start_new_session=True,
-    )  # fmt: skip
-    watch = DescendantWatch(process.pid)  # its nodes run in sessions of their own
-    try:
+    demo = _demo(tmp_path, "--training-episodes", "100000", program=_FAILING_DEMO)
+    with demo as (process, watch):
         out, err = process.communicate(timeout=300)
         assert process.returncode == 1, out + err
         assert "ValueError: injected by the test" in err, err
@@ -329,8 +333,36 @@ def test_an_unexpected_error_in_the_demo_still_stops_the_nodes_in_order(tmp_path
         info = lit("replay", "info", str(bag))  # closed: its metadata written
         assert info.returncode == 0 and (bag / "metadata.yaml").is_file(), info.stderr
         assert re.search(r"/lit/episode from /lit_planner .*no gaps", info.stdout), info.stdout
-    finally:
-        if process.poll() is None:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
-        watch.kill()
+
+
+# A demo whose planner node is killed (SIGKILL) 3 s into its first inference plan.
+_PLANNER_DIES_DEMO = """
+import sys, threading
+from lit_planner import cli, demo
+
+original = demo._Client.plan
+
+def plan_while_the_planner_is_killed(self, payload):
+    planner = self.system.children["planner"].process
+    threading.Timer(3.0, planner.kill).start()
+    return original(self, payload)
+
+demo._Client.plan = plan_while_the_planner_is_killed
+sys.exit(cli.main(sys.argv[1:]))
+"""
+
+
+def test_a_planner_that_dies_while_planning_ends_the_demo(tmp_path: Path) -> None:
+    """The demo waited 600 s for the answer of a planner node that had died mid-plan; now it
+    notices within a moment, says so and stops the other nodes in order."""
+    demo = _demo(tmp_path, "--training-episodes", "0", "--time", "300", program=_PLANNER_DIES_DEMO)
+    with demo as (process, watch):
+        out, err = process.communicate(timeout=240)  # the planner's plan alone would take 300 s
+        assert process.returncode == 1, out + err
+        assert "lit demo: the planner node exited while planning; stopping" in err, err
+        assert "Traceback" not in err, err
+        (stopped,) = re.findall(r"^Processes stopped: (.*);", out, re.MULTILINE)
+        assert sorted(stopped.split(", ")) == [
+            "learner exit 0", "planner exit -9", "recorder exit 0",
+        ], out  # fmt: skip
+        assert len(watch.seen) >= 3 and not watch.alive(), watch.alive()

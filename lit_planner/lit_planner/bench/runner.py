@@ -122,11 +122,9 @@ class BenchConfig:
             )
         except ValueError:  # an unknown scenario: named where it is used
             longest = 0.0
-        if longest * self.time_scale > planning.MAX_TIME:
-            raise ValueError(
-                f"--time-scale {self.time_scale:g} gives budgets up to {longest * self.time_scale:g}"
-                f" s, more than the {planning.MAX_TIME:g} s a planner can be given"
-            )
+        problem = planning.scale_problem("--time-scale", self.time_scale, longest)
+        if problem is not None:
+            raise ValueError(problem)
         if self.t_init_repeats < 1:
             raise ValueError(f"--t-init-repeats must be at least 1, got {self.t_init_repeats}")
         others = [p for p in self.planners if planning.resolve_planner(p)[0] != planning.LITSTAR]
