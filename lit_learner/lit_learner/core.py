@@ -13,6 +13,7 @@ import copy
 import hashlib
 import os
 import random
+import shutil
 import threading
 from collections.abc import Mapping, Sequence
 from contextlib import AbstractContextManager, nullcontext
@@ -388,7 +389,14 @@ class LearnerCore:
         path.parent.mkdir(parents=True, exist_ok=True)
         temporary = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
         try:
-            torch.save(_arrays_as_tensors(state), temporary)
+            try:
+                torch.save(_arrays_as_tensors(state), temporary)
+            except RuntimeError as error:  # torch's writer: a full disk is "unexpected pos ..."
+                free = shutil.disk_usage(path.parent).free
+                raise OSError(
+                    f"{path}: the checkpoint could not be written ({error}; {free} bytes free "
+                    "on its file system)"
+                ) from error
             os.replace(temporary, path)
         except BaseException:
             temporary.unlink(missing_ok=True)  # a full disk left it, beside the checkpoints

@@ -375,6 +375,13 @@ def run_episode(
         and result["counters"]["iterations"] >= max_iterations
         and not limit_terminates
     )
+    # Recorded before the learner closes the episode: a bag that cannot be written (a full disk)
+    # stops the run while the checkpoint can still match the episodes done (the rerun of this
+    # one is recorded again, which the replay tools count).
+    if recording is not None:
+        recording.write_query(
+            episode_id, "training", problem, spec.seed, "training", result, events, sources
+        )
     ended = time.perf_counter()
     metrics = (core.end_episode if learn else core.close_episode)(
         EpisodeEnd(
@@ -394,10 +401,6 @@ def run_episode(
         )
     )
     finished = time.perf_counter()
-    if recording is not None:
-        recording.write_query(
-            episode_id, "training", problem, spec.seed, "training", result, events, sources
-        )
     return EpisodeOutcome(
         spec=spec,
         phase=phase,
@@ -599,7 +602,9 @@ class DriverState:
             if wrong:
                 raise TypeError(f"wrong type of {', '.join(wrong)}")
             np.random.default_rng().bit_generator.state = state.rng_state
-        except (ValueError, TypeError) as exc:  # bad JSON or UTF-8; fields, types; the RNG state
+        # Bad JSON or UTF-8; fields, types; an RNG state numpy refuses (a number too large for
+        # its integers is an OverflowError, a missing entry a KeyError).
+        except (ValueError, TypeError, OverflowError, KeyError) as exc:
             raise TrainingError(
                 f"{path}: not a readable driver state of `lit train` ({exc}); restore it or "
                 "resume from another checkpoint of the run"
@@ -969,6 +974,7 @@ def _check_folders(args: argparse.Namespace) -> None:
     """Refuse, before any training, folders that cannot be written (a file in the way, no write
     permission): found after the training, they cost the run's export."""
     from lit_planner.bag import write_problem
+    from lit_planner.tensor_files import holds_files
 
     for label, value in (
         ("--out", args.out),
@@ -983,7 +989,7 @@ def _check_folders(args: argparse.Namespace) -> None:
     if (
         args.export is not None
         and Path(args.export).is_dir()
-        and any(Path(args.export).iterdir())
+        and holds_files(Path(args.export))  # what a killed export left is not
         and not _own_export(Path(args.export), args.resume)
     ):
         # Found now, not after an hour of training; an export never replaces another one (the
@@ -1293,6 +1299,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             print(f"lit train: removed {stale} (past the metrics rows)", file=sys.stderr)
     interrupted = broke_off = False
     failure: Exception | None = None
+    failed = "the run"  # where ``failure`` came, said with the final checkpoint saved after it
     episode_id: str | None = None
     try:
         while not (_finished(state) or interrupted or STOP_REQUESTED.is_set()):
@@ -1306,6 +1313,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             state.phase = phase
             spec = distribution.draw(state.episode)
             episode_id = f"{state.run_id}-{spec.index:07d}"
+            failed = f"episode {state.episode}"
             outcome = run_episode(
                 core,
                 spec,
@@ -1329,6 +1337,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             _advance(progress, state, outcome)
             interrupted = outcome.interrupted or STOP_REQUESTED.is_set()
             if state.checkpoint_every > 0 and state.episode % state.checkpoint_every == 0:
+                failed = f"the checkpoint after {state.episode} episodes"
                 periodic.append(
                     _checkpoint(core, state, rng, run_dir, f"episode-{state.episode:07d}")
                 )
@@ -1346,9 +1355,13 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
     finally:
         progress.close()
         if recording is not None:
-            recording.close()
+            try:
+                recording.close()
+            except Exception as error:  # noqa: BLE001 - a full disk: saved below, raised again
+                if failure is None:  # the first error is the one raised
+                    failure, failed = error, "closing the bag"
     if failure is not None:
-        _save_after_failure(core, state, rng, run_dir, episode_id, failure)
+        _save_after_failure(core, state, rng, run_dir, episode_id, failure, failed)
         lock.close()
         raise failure
     interrupted = interrupted or STOP_REQUESTED.is_set()
@@ -1430,10 +1443,12 @@ def _save_after_failure(
     run_dir: Path,
     episode_id: str | None,
     failure: Exception,
+    failed: str,
 ) -> None:
-    """An error stopped the run inside an episode: drop that episode's open steps and save the
-    episodes done as the final checkpoint (up to --checkpoint-every episodes would be lost
-    otherwise); the resumed run goes on with the next query (the failed one's was drawn)."""
+    """An error stopped the run (``failed``: where, as "episode 3" or "closing the bag"): drop
+    the running episode's open steps and save the episodes done as the final checkpoint (up to
+    --checkpoint-every episodes would be lost otherwise); the resumed run goes on with the next
+    query (the failed one's was drawn)."""
     if core.episodes != state.episode:  # the learner closed it before the error: no match
         print(
             f"lit train: episode {state.episode} failed after the learner had closed it; no "
@@ -1448,14 +1463,13 @@ def _save_after_failure(
         final = _checkpoint(core, state, rng, run_dir, "final")
     except Exception as error:  # noqa: BLE001 - the first error is the one raised
         print(
-            f"lit train: episode {state.episode} failed, and so did saving the final checkpoint "
-            f"({error})",
+            f"lit train: {failed} failed, and so did saving the final checkpoint ({error})",
             file=sys.stderr,
         )
         return
     print(
-        f"lit train: episode {state.episode} failed ({type(failure).__name__}); the "
-        f"{state.episode} episodes before it are in {final}: --resume it to continue",
+        f"lit train: {failed} failed ({type(failure).__name__}); the {state.episode} episodes "
+        f"done are in {final}: --resume it to continue",
         file=sys.stderr,
     )
 

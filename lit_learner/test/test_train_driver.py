@@ -10,6 +10,7 @@ import argparse
 import csv
 import json
 import math
+import os
 import re
 import shutil
 from collections.abc import Callable
@@ -712,6 +713,92 @@ def test_a_file_that_cannot_be_written_ends_lit_train_in_one_line(
     assert err.rstrip().splitlines()[-1] == "lit train: [Errno 28] No space left on device"
 
 
+def _full_disk_for(path: Path) -> None:
+    """Make the temporary file that :meth:`LearnerCore.write_checkpoint` writes ``path`` through
+    (from this process's main thread) a link to /dev/full: every write to it fails as on a full
+    disk, and torch reports that as a RuntimeError."""
+    import threading
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    temporary.symlink_to("/dev/full")
+
+
+def test_a_checkpoint_that_cannot_be_written_is_an_os_error(tmp_path: Path) -> None:
+    """torch reports a full disk as RuntimeError ("unexpected pos ..."), which the callers'
+    handling of OSError let through as a traceback."""
+    from lit_learner.core import LearnerCore
+
+    path = tmp_path / "final.ckpt"
+    _full_disk_for(path)
+    core = LearnerCore(small_config())
+    with pytest.raises(OSError, match=r"final.ckpt: the checkpoint could not be written \("):
+        core.save_checkpoint(path)
+    assert list(tmp_path.iterdir()) == []  # neither the checkpoint nor the link left
+
+
+def test_a_full_disk_at_a_periodic_checkpoint_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """It was a traceback (exit 1) that blamed episode 2, which had finished."""
+    run_dir = tmp_path / "run"
+    checkpoints = run_dir / train.CHECKPOINT_DIR
+
+    def disk_fills(outcome: Any) -> None:  # after the first episode: both checkpoints fail
+        if outcome.spec.index == 0:
+            for name in ("episode-0000002.ckpt", "final.ckpt"):
+                _full_disk_for(checkpoints / name)
+
+    hooks = train.TrainingHooks(learner_config=small_config(), on_episode=disk_fills)
+    options = {"episodes": 4, "scenarios": "np4", "no_bag": True, "checkpoint_every": 2}
+    with pytest.raises(OSError, match="the checkpoint could not be written"):
+        train.train(arguments(run_dir, **options), hooks)
+    err = capsys.readouterr().err
+    assert "lit train: the checkpoint after 2 episodes failed, and so did saving the final" in err
+    assert not list(checkpoints.glob("*.ckpt"))
+
+
+def test_a_bag_that_cannot_be_written_saves_the_episodes_done(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The bag was written after the learner had closed the episode, so a full bag disk never
+    left a final checkpoint; and a bag that failed to close replaced the error and skipped it."""
+    from lit_planner.bag import EpisodeRecording
+
+    original = EpisodeRecording.write_query
+    calls = {"count": 0}
+
+    def failing_second(self: EpisodeRecording, *args: Any) -> Any:
+        calls["count"] += 1
+        if calls["count"] == 2:
+            raise OSError(28, "No space left on device")
+        return original(self, *args)
+
+    monkeypatch.setattr(EpisodeRecording, "write_query", failing_second)
+    run_dir = tmp_path / "run"
+    hooks = train.TrainingHooks(learner_config=small_config())
+    with pytest.raises(OSError, match="No space left"):
+        train.train(arguments(run_dir, episodes=4, scenarios="np4"), hooks)
+    final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
+    assert "episode 1 failed (OSError); the 1 episodes done are in" in capsys.readouterr().err
+    assert train.DriverState.load(train.state_path(final)).episode == 1
+
+    monkeypatch.setattr(EpisodeRecording, "write_query", original)
+
+    def failing_close(self: EpisodeRecording) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(EpisodeRecording, "close", failing_close)
+    again = tmp_path / "again"
+    with pytest.raises(OSError, match="No space left"):
+        train.train(arguments(again, episodes=2, scenarios="np4"), hooks)
+    final = again / train.CHECKPOINT_DIR / "final.ckpt"
+    assert "closing the bag failed (OSError); the 2 episodes done are in" in (
+        capsys.readouterr().err
+    )
+    assert train.DriverState.load(train.state_path(final)).episode == 2
+
+
 def test_an_error_in_an_episode_saves_the_episodes_before_it(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -734,7 +821,7 @@ def test_an_error_in_an_episode_saves_the_episodes_before_it(
     with pytest.raises(OSError, match="No space left"):
         train.train(arguments(run_dir, episodes=6, scenarios="np4", no_bag=True), hooks)
     final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
-    assert "episode 2 failed (OSError); the 2 episodes before it are in" in capsys.readouterr().err
+    assert "episode 2 failed (OSError); the 2 episodes done are in" in capsys.readouterr().err
     assert train.DriverState.load(train.state_path(final)).episode == 2
     monkeypatch.setattr(LearnerCore, "close_episode", original)
     # Exported as it is: --episodes at the checkpoint's count trains nothing (it was refused, and
@@ -799,6 +886,14 @@ def test_export_into_the_run_folder_is_refused_and_an_export_records_no_bag(
             arguments(other, resume=other / train.CHECKPOINT_DIR / "final.ckpt",
                       export=tmp_path / "tensors", no_bag=True)
         )  # fmt: skip
+    # What an export killed mid-way left (its staging folder) does not refuse the retry.
+    stale = tmp_path / "after-a-kill" / ".staged-older"
+    stale.mkdir(parents=True)
+    train.train(
+        arguments(other, resume=other / train.CHECKPOINT_DIR / "final.ckpt",
+                  export=stale.parent, no_bag=True)
+    )  # fmt: skip
+    assert (stale.parent / "b_tensor.npy").is_file() and not stale.exists()
 
 
 def test_a_checkpoint_and_driver_state_of_different_writes_are_refused(tmp_path: Path) -> None:
@@ -973,12 +1068,20 @@ def test_a_driver_state_of_another_checkpoint_is_named_before_a_rollback_is_offe
     assert "--rollback" not in err, err
 
 
+def _pcg64(**state: int) -> dict[str, Any]:
+    return {"bit_generator": "PCG64", "state": state, "has_uint32": 0, "uinteger": 0}
+
+
 @pytest.mark.parametrize(
     ("change", "message"),
     [
         ({"episode": "six"}, "wrong type of episode"),
         ({"scenarios": "np4"}, "wrong type of scenarios"),
         ({"rng_state": {}}, "not a readable driver state"),  # a traceback from numpy
+        # A wrong digit: numpy's OverflowError was a traceback, also from a checkpoint of the
+        # run that was not the one resumed (the newer ones are read to warn of them).
+        ({"rng_state": _pcg64(state=10**40, inc=1)}, "Python int too large to convert"),
+        ({"rng_state": _pcg64(state=1)}, "'inc'"),  # numpy's KeyError
     ],
 )
 def test_a_damaged_driver_state_is_one_line(

@@ -484,9 +484,11 @@ def output_folder_problem(path: Path) -> str | None:
     ones, nothing is overwritten), or it cannot be made or written (:func:`write_problem`: asked
     before the work, which failed at its end after minutes); None when it is new or empty and
     writable."""
+    from lit_planner import tensor_files
+
     if path.exists() and not path.is_dir():
         return "exists and is not a folder"
-    if path.is_dir() and any(path.iterdir()):
+    if path.is_dir() and tensor_files.holds_files(path):  # what a killed export left is not
         return "exists and is not empty"
     return write_problem(path)
 

@@ -280,15 +280,18 @@ def _throughput(system: System, work: Path, policy: str, args: argparse.Namespac
         raise SystemExit("lit system-bench: the planner failed:\n" + "\n".join(planner.lines[-20:]))
     recorder = system.children["recorder"]
     code = _stop(system, "recorder")
-    try:
-        if code != 0:  # its bag lacks at least what it held when it ended: no numbers from it
-            raise replay.ReplayError(f"the recorder exited with code {code}")
-        envelopes = _envelopes(replay, bag)
-    except replay.ReplayError as error:
+    # A recorder that failed lacks at least what it held when it ended: no numbers from its bag.
+    problem = None if code == 0 else f"the recorder exited with code {code}"
+    if problem is None:
+        try:
+            envelopes = _envelopes(replay, bag)
+        except replay.ReplayError as error:
+            problem = str(error)
+    if problem is not None:
         raise SystemExit(
-            f"lit system-bench: the {policy} run's bag {bag} cannot be measured: {error}\n"
+            f"lit system-bench: the {policy} run's bag {bag} cannot be measured: {problem}\n"
             + "\n".join(recorder.lines[-20:])
-        ) from None
+        )
     summaries = [e.payload for e in envelopes if e.schema == "lit_msgs_json/EpisodeSummary"]
     latencies = [
         e.payload["latency_ms"]

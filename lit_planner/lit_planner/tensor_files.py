@@ -291,17 +291,58 @@ def write_tensor(
     return sidecar
 
 
+STAGE_PREFIX = ".staged-"
+"""Names of :func:`staged_folder`'s folders: ``.staged-<pid>-<random>``."""
+
+
+def stale_stages(directory: Path) -> list[Path]:
+    """The staging folders of :func:`staged_folder` in ``directory`` whose process is gone: an
+    export killed (SIGKILL, a power cut) before its end left them, and they kept the folder from
+    counting as empty, which refused the export's own retry. One named without a process id (by
+    an older version) counts as gone."""
+    if not directory.is_dir():
+        return []
+    stale = []
+    for entry in directory.iterdir():
+        if not (entry.name.startswith(STAGE_PREFIX) and entry.is_dir()):
+            continue
+        pid = entry.name[len(STAGE_PREFIX) :].split("-", 1)[0]
+        if pid.isdigit() and _running(int(pid)):
+            continue
+        stale.append(entry)
+    return stale
+
+
+def holds_files(directory: Path) -> bool:
+    """Whether the folder ``directory`` holds anything besides :func:`stale_stages`."""
+    stale = set(stale_stages(directory))
+    return any(entry not in stale for entry in directory.iterdir())
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's
+        return True
+    return True
+
+
 @contextmanager
 def staged_folder(directory: Path) -> Iterator[Path]:
     """A staging folder inside ``directory`` (created if needed) for files that replace those of
     the same names in ``directory``, one rename each, once the block has written them all: a
     reader of ``directory`` sees each file whole, and a block that fails (a full disk) leaves
     nothing of itself. The staging folder goes in any case, and ``directory`` too on an error if
-    it was created here; the error goes on (OSError for a folder that cannot be made)."""
+    it was created here; the error goes on (OSError for a folder that cannot be made). Staging
+    folders that killed processes left there (:func:`stale_stages`) are removed first."""
     created = not directory.exists()
     directory.mkdir(parents=True, exist_ok=True)
     try:
-        stage = Path(tempfile.mkdtemp(prefix=".staged-", dir=directory))
+        for stale in stale_stages(directory):
+            shutil.rmtree(stale, ignore_errors=True)
+        stage = Path(tempfile.mkdtemp(prefix=f"{STAGE_PREFIX}{os.getpid()}-", dir=directory))
         try:
             yield stage
             for item in sorted(stage.iterdir()):

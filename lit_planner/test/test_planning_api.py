@@ -580,6 +580,7 @@ def corrupt(path: Path, defect: str) -> None:
     header_edits = {  # the header's text changed in place, its length kept
         "shape not a number": (b"(101, 101, 101)", b"(101, abc, 101)"),
         "header not a dict": (b"}", b" "),
+        "dtype not UTF-8": (b"'<f4'", b"'\x88f4'"),
     }
     if defect in header_edits:
         old, new = header_edits[defect]
@@ -613,6 +614,8 @@ def corrupt(path: Path, defect: str) -> None:
         ("shape not a number", "shape entry 'abc' is not a whole number"),
         ("header not a dict", r"header is not a dict"),  # numpy's reader raised a TokenError
         ("wrong dtype", "dtype is '<f8', expected '<f4'"),
+        # The file's byte in the C++ reader's message: a UnicodeDecodeError with a traceback
+        ("dtype not UTF-8", r"dtype is '\\x88f4', expected '<f4'"),
         ("wrong shape", r"shape \(101, 101, 100\) does not match the sidecar's \(101, 101, 101\)"),
         ("NaN", r"value nan at index \(3, 4, 5\) is not finite"),
         ("out of range", r"value 500\.0+ at index \(1, 2, 3\) is out of range \[20\.0+, 200\.0+\]"),

@@ -26,9 +26,25 @@ namespace lit
                    ", " + std::to_string(flat % shape[2]) + ")";
         }
 
+        /** \brief \e text with every byte outside printable ASCII written as \\xNN: the file's own bytes (a dtype,
+         *  say) in a message that Python must decode as UTF-8 (a byte such as 0x88 made the error itself fail). */
+        std::string printable(const std::string &text)
+        {
+            static const char *hex = "0123456789abcdef";
+            std::string out;
+            for (const unsigned char c : text)
+            {
+                if (c >= 0x20u && c < 0x7fu)
+                    out += static_cast<char>(c);
+                else
+                    out += std::string("\\x") + hex[c >> 4u] + hex[c & 0xfu];
+            }
+            return out;
+        }
+
         [[noreturn]] void fail(const std::string &path, const std::string &problem)
         {
-            throw TensorError("tensor file '" + path + "': " + problem);
+            throw TensorError("tensor file '" + path + "': " + printable(problem));
         }
 
         /** \brief Index and weight of x in [0, 1] on a node-centred grid of n points. */

@@ -94,6 +94,10 @@ TEST(LookupTensor, RejectsEachDefectWithItsOwnMessage)
     EXPECT_NE(loadError(writeNpy("version.npy", goodDict, payload(good), "\x93NUMPY", 3)).find("NPY version"), std::string::npos);
     EXPECT_NE(loadError(writeNpy("dtype.npy", "{'descr': '<f8', 'fortran_order': False, 'shape': (101, 101, 101), }", payload(good)))
                   .find("dtype is '<f8'"), std::string::npos);
+    // The file's own bytes are escaped: Python decodes the message as UTF-8, and 0x88 failed that.
+    EXPECT_NE(loadError(writeNpy("bytes.npy", "{'descr': '\x88" "f4', 'fortran_order': False, 'shape': (101, 101, 101), }",
+                                 payload(good)))
+                  .find("dtype is '\\x88f4'"), std::string::npos);
     EXPECT_NE(loadError(writeNpy("order.npy", "{'descr': '<f4', 'fortran_order': True, 'shape': (101, 101, 101), }", payload(good)))
                   .find("Fortran order"), std::string::npos);
     EXPECT_NE(loadError(writeNpy("shape.npy", "{'descr': '<f4', 'fortran_order': False, 'shape': (101, 101), }", payload(good)))
