@@ -574,6 +574,15 @@ def test_a_failing_checkpoint_leaves_the_trainer_running_and_probes_train_nothin
     assert "Exception in thread" not in learner.text(), learner.tail(60)
 
 
+def test_a_planner_whose_episodes_failed_exits_1(ros: RosSystem, tmp_path: Path) -> None:
+    """With exit_when_done the node exited 0 although every episode had failed."""
+    planner = ros.planner(policy="tensor", tensors_dir=str(tmp_path), scenario="np4",
+                          time_budget=0.2, episodes=1, exit_when_done=True)  # fmt: skip
+    assert planner.wait(timeout=120.0) == 1, planner.tail()
+    assert "1 tensor episodes done (1 of them failed)" in planner.text(), planner.tail()
+    assert "the tensor policy found no lookup tensors in" in planner.text()
+
+
 def test_two_planners_train_one_learner(ros: RosSystem) -> None:
     """Planners in ``/robot1`` and ``/robot2`` train the same learner at the same time, on
     problems of their own although their training seeds are the same (the default)."""

@@ -57,6 +57,11 @@ from ros_helpers import launcher_domain
         (["--learner-param", "service:=/lit/x~y"], "is not a ROS service name"),
         (["--planner-param", "run_id:=" + "r" * 200], "run_id 'rrrr"),
         (["--learner-param", "run_id:=" + "r" * 200], "is too long"),
+        # The planner's episode ids "<run_id>/<index>" (128 characters at most): every message
+        # of episodes 10 and later was refused (the episodes failed, and the node exited 0).
+        (["--episodes", "11", "--run-id", "r" + "1" * 125], "run_id of 126 characters: with 11"),
+        # Stored as 1 by the core, then every LIT* query was refused as the client's fault.
+        (["--planner-param", "decision_interval:=4294967296"], "up to 4294967295, got 429"),
         (["--checkpoint", "EXISTING"], "a folder; give the checkpoint file"),
         (["--bag", "EXISTING"], "exists already"),
         # The recorder and the learner failed after everything had started (the learner only at

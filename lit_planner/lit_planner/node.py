@@ -170,19 +170,28 @@ def _cancel_repeat_key(
     return (message.source, message.run_id), (hash(text), generation)
 
 
+MAX_EPISODE_ID = 128
+"""Longest ``episode_id`` the messages take (``maxLength`` in their schemas)."""
+
+
+def episode_id(run_id: str, index: int) -> str:
+    """The id of the node's own episode ``index`` (``episodes``) in run ``run_id``."""
+    return f"{run_id}/{index}"
+
+
 def parameter_problem(p: Mapping[str, Any]) -> str | None:
     """What is wrong with the node's parameter values (``p`` holds every parameter), None when
     they are usable. The node exits with it at start; ``lit up`` asks before it starts anything."""
     from lit_planner import scenarios
     from lit_planner.errors import LitPlannerError
-    from lit_planner.planning import MAX_SEED
+    from lit_planner.planning import MAX_DECISION_INTERVAL, MAX_SEED
 
     if p["policy"] not in MODES:
         return f"policy must be one of {MODES}, got {p['policy']!r}"
-    if p["decision_interval"] < 0:
+    if not 0 <= p["decision_interval"] <= MAX_DECISION_INTERVAL:  # beyond: every query refused
         return (
             "decision_interval must be 0 (training: 1; the tensor policy: the psi_K tensor's "
-            f"training interval) or more, got {p['decision_interval']}"
+            f"training interval) up to {MAX_DECISION_INTERVAL}, got {p['decision_interval']}"
         )
     if p["episodes_from"] not in ("", "training", "scenario"):
         return f"episodes_from must be training, scenario or empty, got {p['episodes_from']!r}"
@@ -217,6 +226,13 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
     if problem:
         return problem
     if p["episodes"] > 0:  # the only use of scenario and training_scenarios
+        last = episode_id(p["run_id"], p["episodes"] - 1)
+        if len(last) > MAX_EPISODE_ID:  # each such episode's messages were refused
+            return (
+                f"run_id of {len(p['run_id'])} characters: with {p['episodes']} episodes the "
+                f"last one's id has {len(last)}, more than the {MAX_EPISODE_ID} the messages "
+                "allow"
+            )
         from lit_learner.train import TrainingDistribution, TrainingError
 
         drawn = _episodes_drawn(p)
@@ -306,6 +322,9 @@ class PlannerNode:
         self.run_id = p["run_id"] or f"{time.strftime('%Y%m%d-%H%M%S')}-{uuid.uuid4().hex[:6]}"
         self.source = node.get_fully_qualified_name()
         self.finished = False
+        self.exit_code = 0
+        """The process's exit code once ``finished`` (``exit_when_done``): 1 when an episode
+        failed."""
         self.threads = max(EXECUTOR_THREADS, int(p["queue_limit"]) + SPARE_THREADS + 1)
         """Executor threads (spin_node): each plan request in progress or waiting holds one, and
         busy answers, cancels, parameter services and timers need their own (with 8 threads a
@@ -765,7 +784,7 @@ class PlannerNode:
                 problem, seed = scenarios.get(p["scenario"]), p["seed"] + index
             job = Job(mode, problem, p["policy"], seed=seed)
             job.time = p["time_budget"] or None
-            job.episode_id = f"{self.run_id}/{index}"
+            job.episode_id = episode_id(self.run_id, index)
             with self._queue_lock:
                 if self._stopping.is_set():  # shutdown() began: its None is queued already
                     return
@@ -786,6 +805,7 @@ class PlannerNode:
         )
         if p["exit_when_done"]:
             self.log.info(done)
+            self.exit_code = 1 if failed else 0
             self.finished = True
         else:
             self.log.info(f"{done}; still serving plan requests until stopped (Ctrl-C or SIGTERM)")

@@ -831,16 +831,17 @@ def spin_node(
 
     Args:
         make_owner: builds the object that owns the node (called after ``rclpy.init``); it has a
-            ``node`` attribute, optionally a ``finished`` flag, a ``threads`` count (instead of
-            ``threads``) and a ``shutdown()`` method, which runs after the signal and before the
-            executor stops.
+            ``node`` attribute, optionally a ``finished`` flag (with an ``exit_code``), a
+            ``threads`` count (instead of ``threads``) and a ``shutdown()`` method, which runs
+            after the signal and before the executor stops.
         args: command line (ROS arguments after ``--ros-args``).
         threads: executor threads.
 
     Returns:
         0 after a clean shutdown; 1 when the owner's ``shutdown()`` raised (a checkpoint or
         export that could not be written: logged, and the exit code says so), or when a thread
-        the node needs ended (:func:`fail_process`).
+        the node needs ended (:func:`fail_process`); else the owner's ``exit_code`` once it
+        ``finished``.
     """
     localhost_environment()
     import rclpy
@@ -883,7 +884,10 @@ def spin_node(
     code = 0
     try:
         while not stop.wait(0.2):
-            if getattr(owner, "finished", False) or _FAILED.is_set():
+            if getattr(owner, "finished", False):
+                code = int(getattr(owner, "exit_code", 0))
+                break
+            if _FAILED.is_set():
                 break
     finally:
         if hasattr(owner, "shutdown"):

@@ -449,10 +449,12 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
         "policy": args.policy,
         "episodes": args.episodes,
         "time_budget": args.time_budget,
+        "run_id": run_id,
         **_given_values(args.planner_param, planner_node.PARAMETERS),
     }
     learner = {
         **learner_node.PARAMETERS,
+        "run_id": run_id,
         **_given_values(args.learner_param, learner_node.PARAMETERS),
     }
     for option, problem in (
