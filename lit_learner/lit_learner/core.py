@@ -15,6 +15,7 @@ import os
 import random
 import shutil
 import threading
+import zipfile
 from collections.abc import Mapping, Sequence
 from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
@@ -413,6 +414,11 @@ class LearnerCore:
         path = Path(path)
         if not path.is_file():
             raise CheckpointError(f"{path}: checkpoint not found")
+        damaged = _failed_crc(path)
+        if damaged is not None:  # torch.load does not check: a flipped bit was trained on
+            raise CheckpointError(
+                f"{path}: damaged checkpoint: its entry {damaged} does not match its CRC"
+            )
         try:
             # Not weights_only: the replay buffer and RNG states are numpy objects and tuples.
             state = _arrays_from_tensors(torch.load(path, map_location="cpu", weights_only=False))
@@ -569,6 +575,16 @@ _ARRAY_TAG = "__numpy_array__"
 _TENSOR_DTYPES = frozenset(
     np.dtype(t) for t in (np.float32, np.float64, np.int32, np.int64, np.uint8, np.bool_)
 )
+
+
+def _failed_crc(path: Path) -> str | None:
+    """The first entry of the checkpoint archive (torch.save writes a zip) whose bytes do not
+    match their CRC, or None (also for a file that is no zip: torch.load names that)."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return archive.testzip()
+    except (zipfile.BadZipFile, OSError, EOFError):
+        return None
 
 
 def _arrays_as_tensors(value: Any) -> Any:

@@ -565,6 +565,10 @@ class DriverState:
     started_utc: str = ""
     resumed_with: list[list[str]] = field(default_factory=list)
     """Commands that resumed the run, in order."""
+    commits: list[str | None] = field(default_factory=list)
+    """The checkout's commit (:func:`git_commit`) of the session that started the run and of
+    each that resumed it, in order: the code that trained (empty for a run of an older
+    version)."""
     checkpoint_every: int = DEFAULT_CHECKPOINT_EVERY
     """``--checkpoint-every`` of the run (a resume keeps it unless given again)."""
     max_iterations: int = 0
@@ -657,7 +661,8 @@ def provenance(state: DriverState, run_dir: Path) -> dict[str, Any]:
         "resumed_with": [shlex.join(command) for command in state.resumed_with],
         "run_folder": str(run_dir.resolve()),
         "run_id": state.run_id,
-        "git_commit": git_commit(),
+        "git_commit": git_commit(),  # the export's
+        "session_commits": state.commits,  # the training's: the first session's, each resume's
         "started_utc": state.started_utc,
         "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "wall_time_s": round(state.elapsed, 1),
@@ -1193,6 +1198,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 file=sys.stderr,
             )
         state.resumed_with.append(command)
+        state.commits.append(git_commit())
         if state.phase == PHASE_K and state.schedule != "joint" and not _finished(state):
             print(
                 f"lit train: the psi_K phase began at episode {state.episodes_per_phase.get(PHASE_B, 0)}"
@@ -1232,6 +1238,7 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             episodes=episodes,
             minutes=args.minutes,
             command=command,
+            commits=[git_commit()],
             started_utc=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
             checkpoint_every=(
                 DEFAULT_CHECKPOINT_EVERY if args.checkpoint_every is None else args.checkpoint_every
@@ -1656,8 +1663,13 @@ def _row(outcome: EpisodeOutcome, core: Any, ranges: dict[str, tuple[float, floa
 
 
 class _NoProgress:
+    """``--no-progress``: no bar; its notes are printed all the same (the B phase's end was
+    silent)."""
+
     def update(self, *_: object) -> None: ...
-    def write(self, *_: object, **__: object) -> None: ...
+    def write(self, text: str, file: Any = None, **_: object) -> None:
+        print(text, file=sys.stdout if file is None else file, flush=True)
+
     def set_postfix(self, *_: object, **__: object) -> None: ...
     def close(self) -> None: ...
 

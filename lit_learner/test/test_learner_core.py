@@ -324,6 +324,25 @@ def test_a_checkpoint_with_parts_missing_is_one_error(tmp_path: Path) -> None:
         LearnerCore.load_checkpoint(path)
 
 
+def test_a_flipped_bit_in_a_checkpoint_is_refused(tmp_path: Path) -> None:
+    """torch.load does not check the archive's CRCs: a checkpoint with a bit flipped in an
+    actor's weights was loaded and trained on without a word."""
+    import struct
+    import zipfile
+
+    path = tmp_path / "core.pt"
+    LearnerCore(LearnerConfig(seed=0)).save_checkpoint(path)
+    with zipfile.ZipFile(path) as archive:
+        entry = max(archive.infolist(), key=lambda info: info.file_size)  # a tensor's bytes
+    data = bytearray(path.read_bytes())
+    names, extra = struct.unpack("<HH", data[entry.header_offset + 26 : entry.header_offset + 30])
+    start = entry.header_offset + 30 + names + extra  # where the (stored) bytes begin
+    data[start + entry.file_size // 2] ^= 0x10
+    path.write_bytes(bytes(data))
+    with pytest.raises(CheckpointError, match=f"its entry {entry.filename} does not match"):
+        LearnerCore.load_checkpoint(path)
+
+
 def flat_state(core: LearnerCore) -> dict[str, object]:
     state: dict[str, object] = {}
     for name, agent in core.agents.items():

@@ -96,7 +96,9 @@ def test_training_distribution_rejects_an_instance_suffix() -> None:
         train.TrainingDistribution(["rrd8/3"], np.random.default_rng(0))
 
 
-def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path) -> None:
+def test_short_run_writes_metrics_checkpoints_resumes_and_exports(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     run_dir = tmp_path / "run"
     export_dir = tmp_path / "tensors"
     phases: list[str] = []
@@ -110,6 +112,8 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path
 
     # b-then-k: B first (psi_K fixed), then psi_K with B from the exported B tensor.
     assert phases == [train.PHASE_B] * 6 + [train.PHASE_K] * 6
+    # Said also with --no-progress (the arguments' default here), where it was silent.
+    assert "lit train: B phase done; exporting its B tensor" in capsys.readouterr().err
 
     # The run's bag holds every episode's messages, unbroken, in the planner node's format.
     from lit_learner.offline import read_episodes
@@ -214,6 +218,9 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(tmp_path: Path
     assert record["episodes"] == 14
     assert record["scenarios"] == ["np4"]
     assert record["command"].startswith("lit train")
+    # The code of each session that trained (it named only the export's commit).
+    commit = train.git_commit()
+    assert record["session_commits"] == [commit, commit] and record["git_commit"] == commit
     assert (export_dir / CURVES_FILE).exists()
     policy = planning.make_policy("tensor", export_dir)
     assert policy.decision_interval == 10  # used as trained
