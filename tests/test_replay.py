@@ -1286,6 +1286,9 @@ def test_tensors_and_measure_reject_bad_arguments(tmp_path: Path) -> None:
         out = tmp_path / f"bad{option}"
         _assert_clean_error(_replay("tensors", SAMPLE, "--out", out, option, value), option)
         assert not out.exists()
+    # A combination the learner refuses, said before the bags are read (this one is no bag).
+    refused = _replay("tensors", tmp_path / "file", "--out", tmp_path / "w", "--warmup", "10")
+    _assert_clean_error(refused, "refuses these options: B: warmup 10 must be >= batch_size 64")
     _assert_clean_error(_replay("measure", "--messages", "0"), "--messages")
     _assert_clean_error(_replay("measure", "--kills", "-1"), "--kills")
     _assert_clean_error(_replay("measure", "--chunk-bytes", "0"), "--chunk-bytes")

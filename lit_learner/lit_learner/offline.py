@@ -88,14 +88,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Read, train, export; print what was used."""
+    from lit_learner.errors import ConfigError
+
+    try:  # refused before the bags are read (seconds each), not after
+        config = offline_config(args.seed, args.train, args.warmup, args.batch_size)
+    except ConfigError as error:
+        raise ReplayError(
+            f"the learner refuses these options: {error} (--warmup and --batch-size apply to "
+            "both agents; the learner's own are warm-up 500 / 10000, batches of 64 / 256)"
+        ) from None
     interval = recorded_decision_interval(args.bags, args.decision_interval)
     episodes, skipped = read_episodes(args.bags)
     if not episodes:
         raise ReplayError("no complete training episode in the given bags")
-    core = train_offline(episodes, args.seed, args.train, args.warmup, args.batch_size)
+    core = train_offline(episodes, config)
     provenance = {
         "exported_by": "lit replay tensors",
-        "bags": [str(path) for path in args.bags],
+        "bags": [str(Path(path).resolve()) for path in args.bags],
         "seed": args.seed,
         "train": args.train,
         "warmup": args.warmup,
@@ -388,29 +397,36 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
     return complete, skipped
 
 
-def train_offline(
-    episodes: list[RecordedEpisode],
-    seed: int,
-    train: str,
-    warmup: int | None = None,
-    batch_size: int | None = None,
+def offline_config(
+    seed: int, train: str, warmup: int | None = None, batch_size: int | None = None
 ) -> Any:
-    """A :class:`~lit_learner.core.LearnerCore` trained on ``episodes``."""
+    """The learner's configuration for ``lit replay tensors``: its defaults, with ``warmup`` and
+    ``batch_size`` (when given) for both agents.
+
+    Raises:
+        ConfigError: a combination the learner refuses (a warm-up below the batch size, say).
+    """
     from lit_learner.config import AgentConfig, LearnerConfig
-    from lit_learner.core import LearnerCore
 
     overrides = {
         key: value
         for key, value in (("warmup", warmup), ("batch_size", batch_size))
         if value is not None
     }
-    config = LearnerConfig(
+    return LearnerConfig(
         b=AgentConfig.batch_size_agent(**overrides),
         k=AgentConfig.neighbour_agent(**overrides),
         seed=seed,
         train_b=train in ("both", "B"),
         train_k=train in ("both", "psi_K"),
     )
+
+
+def train_offline(episodes: list[RecordedEpisode], config: Any) -> Any:
+    """A :class:`~lit_learner.core.LearnerCore` of ``config`` (:func:`offline_config`) trained
+    on ``episodes``."""
+    from lit_learner.core import LearnerCore
+
     core = LearnerCore(config)
     for episode in episodes:
         _replay_episode(core, episode)
