@@ -393,6 +393,8 @@ class LearnerCore:
             try:
                 torch.save(_arrays_as_tensors(state), temporary)
             except RuntimeError as error:  # torch's writer: a full disk is "unexpected pos ..."
+                if not any(words in str(error) for words in _WRITE_FAILED):
+                    raise
                 free = shutil.disk_usage(path.parent).free
                 raise OSError(
                     f"{path}: the checkpoint could not be written ({error}; {free} bytes free "
@@ -414,11 +416,9 @@ class LearnerCore:
         path = Path(path)
         if not path.is_file():
             raise CheckpointError(f"{path}: checkpoint not found")
-        damaged = _failed_crc(path)
-        if damaged is not None:  # torch.load does not check: a flipped bit was trained on
-            raise CheckpointError(
-                f"{path}: damaged checkpoint: its entry {damaged} does not match its CRC"
-            )
+        damage = _archive_damage(path)
+        if damage is not None:  # torch.load does not check: a flipped bit was trained on
+            raise CheckpointError(f"{path}: damaged checkpoint: {damage}")
         try:
             # Not weights_only: the replay buffer and RNG states are numpy objects and tuples.
             state = _arrays_from_tensors(torch.load(path, map_location="cpu", weights_only=False))
@@ -577,14 +577,23 @@ _TENSOR_DTYPES = frozenset(
 )
 
 
-def _failed_crc(path: Path) -> str | None:
-    """The first entry of the checkpoint archive (torch.save writes a zip) whose bytes do not
-    match their CRC, or None (also for a file that is no zip: torch.load names that)."""
+_WRITE_FAILED = ("unexpected pos", "failed writing")
+"""Words of torch's writer when the file could not be written (a full disk: "unexpected pos 64 vs
+0"; "PytorchStreamWriter failed writing file ...")."""
+
+
+def _archive_damage(path: Path) -> str | None:
+    """What is damaged in the checkpoint archive (torch.save writes a zip): an entry whose bytes
+    do not match their CRC, or a directory zipfile cannot follow; None when every entry checks
+    (also for a file that is no zip: torch.load names that)."""
     try:
         with zipfile.ZipFile(path) as archive:
-            return archive.testzip()
+            bad = archive.testzip()
     except (zipfile.BadZipFile, OSError, EOFError):
         return None
+    except Exception as error:  # noqa: BLE001 - a flipped flag bit reads as encryption, say
+        return f"its directory ({type(error).__name__}: {error})"
+    return None if bad is None else f"its entry {bad} does not match its CRC"
 
 
 def _arrays_as_tensors(value: Any) -> Any:

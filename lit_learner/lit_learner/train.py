@@ -567,8 +567,8 @@ class DriverState:
     """Commands that resumed the run, in order."""
     commits: list[str | None] = field(default_factory=list)
     """The checkout's commit (:func:`git_commit`) of the session that started the run and of
-    each that resumed it, in order: the code that trained (empty for a run of an older
-    version)."""
+    each that resumed it, in order: the code that trained (None for the sessions of a run
+    begun by an older version, which kept none)."""
     checkpoint_every: int = DEFAULT_CHECKPOINT_EVERY
     """``--checkpoint-every`` of the run (a resume keeps it unless given again)."""
     max_iterations: int = 0
@@ -1197,6 +1197,8 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
                 ),
                 file=sys.stderr,
             )
+        # A run of an older version has none: its first session's and earlier resumes' unknown.
+        state.commits += [None] * (len(state.resumed_with) + 1 - len(state.commits))
         state.resumed_with.append(command)
         state.commits.append(git_commit())
         if state.phase == PHASE_K and state.schedule != "joint" and not _finished(state):
@@ -1310,12 +1312,14 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
     episode_id: str | None = None
     try:
         while not (_finished(state) or interrupted or STOP_REQUESTED.is_set()):
+            failed = f"the run after {state.episode} episodes"
             phase = _phase_for(state)
             if phase == PHASE_K and state.phase != PHASE_K:
                 progress.write(
                     "lit train: B phase done; exporting its B tensor (a few seconds)",
                     file=sys.stderr,
                 )
+                failed = "the B phase's export of its B tensor"
                 b_tensor = _switch_to_k(core, state, run_dir)
             state.phase = phase
             spec = distribution.draw(state.episode)

@@ -341,6 +341,15 @@ def test_a_flipped_bit_in_a_checkpoint_is_refused(tmp_path: Path) -> None:
     path.write_bytes(bytes(data))
     with pytest.raises(CheckpointError, match=f"its entry {entry.filename} does not match"):
         LearnerCore.load_checkpoint(path)
+    # A bit of the central directory's flags: zipfile takes the entry as encrypted (a
+    # RuntimeError, which ended the load in a traceback).
+    LearnerCore(LearnerConfig(seed=0)).save_checkpoint(path)
+    data = bytearray(path.read_bytes())
+    directory = data.rindex(b"PK\x01\x02")  # the last entry's central directory header
+    data[directory + 8] ^= 0x01
+    path.write_bytes(bytes(data))
+    with pytest.raises(CheckpointError, match=r"damaged checkpoint: its directory \(RuntimeError"):
+        LearnerCore.load_checkpoint(path)
 
 
 def flat_state(core: LearnerCore) -> dict[str, object]:

@@ -221,6 +221,14 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(
     # The code of each session that trained (it named only the export's commit).
     commit = train.git_commit()
     assert record["session_commits"] == [commit, commit] and record["git_commit"] == commit
+    # A run begun by an older version kept no commits: its sessions' are unknown, in place.
+    final = checkpoints / "final.ckpt"
+    document = json.loads(train.state_path(final).read_text())
+    del document["commits"]
+    train.state_path(final).write_text(json.dumps(document))
+    train.train(arguments(run_dir, episodes=14, resume=final, export=export_dir))
+    record = json.loads((export_dir / train.PROVENANCE_FILE).read_text())
+    assert record["session_commits"] == [None, None, commit]
     assert (export_dir / CURVES_FILE).exists()
     policy = planning.make_policy("tensor", export_dir)
     assert policy.decision_interval == 10  # used as trained
@@ -803,6 +811,27 @@ def test_a_bag_that_cannot_be_written_saves_the_episodes_done(
     assert "closing the bag failed (OSError); the 2 episodes done are in" in (
         capsys.readouterr().err
     )
+    assert train.DriverState.load(train.state_path(final)).episode == 2
+
+
+def test_a_failed_b_phase_export_is_named_and_the_episodes_kept(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An error between episodes was blamed on the last place that had been named (the
+    checkpoint after them, which had been written)."""
+
+    def full_disk(*_: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(train, "_switch_to_k", full_disk)
+    run_dir = tmp_path / "run"
+    hooks = train.TrainingHooks(learner_config=small_config())
+    options = {"episodes": 4, "scenarios": "np4", "no_bag": True, "checkpoint_every": 2}
+    with pytest.raises(OSError, match="No space left"):
+        train.train(arguments(run_dir, **options), hooks)
+    err = capsys.readouterr().err
+    assert "lit train: the B phase's export of its B tensor failed (OSError); the 2 episodes" in err
+    final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
     assert train.DriverState.load(train.state_path(final)).episode == 2
 
 

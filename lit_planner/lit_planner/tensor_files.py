@@ -17,6 +17,7 @@ header).
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import itertools
 import math
@@ -292,24 +293,21 @@ def write_tensor(
 
 
 STAGE_PREFIX = ".staged-"
-"""Names of :func:`staged_folder`'s folders: ``.staged-<pid>-<random>``."""
+"""Names of :func:`staged_folder`'s folders: ``.staged-<random>``."""
 
 
 def stale_stages(directory: Path) -> list[Path]:
-    """The staging folders of :func:`staged_folder` in ``directory`` whose process is gone: an
-    export killed (SIGKILL, a power cut) before its end left them, and they kept the folder from
-    counting as empty, which refused the export's own retry. One named without a process id (by
-    an older version) counts as gone."""
+    """The staging folders of :func:`staged_folder` in ``directory`` that no export holds: one
+    killed (SIGKILL, a power cut) before its end left them, and they kept the folder from
+    counting as empty, which refused the export's own retry. An export holds a lock on its
+    staging folder while it writes (``flock``: released by the kernel when the process ends,
+    whatever its process id becomes), so a folder whose lock can be taken is stale."""
     if not directory.is_dir():
         return []
     stale = []
     for entry in directory.iterdir():
-        if not (entry.name.startswith(STAGE_PREFIX) and entry.is_dir()):
-            continue
-        pid = entry.name[len(STAGE_PREFIX) :].split("-", 1)[0]
-        if pid.isdigit() and _running(int(pid)):
-            continue
-        stale.append(entry)
+        if entry.name.startswith(STAGE_PREFIX) and entry.is_dir() and not _held(entry):
+            stale.append(entry)
     return stale
 
 
@@ -319,14 +317,19 @@ def holds_files(directory: Path) -> bool:
     return any(entry not in stale for entry in directory.iterdir())
 
 
-def _running(pid: int) -> bool:
+def _held(stage: Path) -> bool:
+    """Whether an export holds the lock of its staging folder ``stage``."""
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # another user's
+        descriptor = os.open(stage, os.O_RDONLY)
+    except OSError:
+        return False  # gone meanwhile
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
         return True
-    return True
+    finally:
+        os.close(descriptor)  # and with it a lock this took
+    return False
 
 
 @contextmanager
@@ -342,13 +345,16 @@ def staged_folder(directory: Path) -> Iterator[Path]:
     try:
         for stale in stale_stages(directory):
             shutil.rmtree(stale, ignore_errors=True)
-        stage = Path(tempfile.mkdtemp(prefix=f"{STAGE_PREFIX}{os.getpid()}-", dir=directory))
+        stage = Path(tempfile.mkdtemp(prefix=STAGE_PREFIX, dir=directory))
+        lock = os.open(stage, os.O_RDONLY)
         try:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # held while this export writes (stale_stages)
             yield stage
             for item in sorted(stage.iterdir()):
                 os.replace(item, directory / item.name)
         finally:
             shutil.rmtree(stage, ignore_errors=True)
+            os.close(lock)
     except BaseException:
         if created:
             shutil.rmtree(directory, ignore_errors=True)

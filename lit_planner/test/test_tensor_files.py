@@ -375,30 +375,38 @@ def test_lookup_rejects_bad_input(
 
 def test_what_a_killed_export_left_does_not_block_its_retry(tmp_path: Path) -> None:
     """An export killed mid-way (SIGKILL) left DIR/.staged-*, and the retry into DIR was refused
-    as "exists and is not empty". Staging folders of processes that are gone (or named by an
-    older version, without a process id) no longer count, and the next export removes them; one
-    of a running export still counts."""
-    import os
+    as "exists and is not empty". Staging folders no export holds no longer count, and the next
+    export removes them; one an export is writing still counts."""
+    import signal
     import subprocess
     import sys
 
     from lit_planner import bag
 
-    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
-                          capture_output=True, text=True, check=True)  # fmt: skip
     folder = tmp_path / "export"
-    stale = [folder / f".staged-{int(gone.stdout)}-x1", folder / ".staged-older"]
-    for stage in stale:
-        stage.mkdir(parents=True)
-        (stage / "checkpoint.pt").write_bytes(b"half")
-    assert sorted(tf.stale_stages(folder)) == sorted(stale)
-    assert not tf.holds_files(folder) and bag.output_folder_problem(folder) is None
-    running = folder / f".staged-{os.getpid()}-x2"
-    running.mkdir()
-    assert tf.holds_files(folder) and bag.output_folder_problem(folder) == (
-        "exists and is not empty"
+    # An export that is killed while it writes into its staging folder.
+    export = (
+        "import sys, time\n"
+        "from pathlib import Path\n"
+        "from lit_planner import tensor_files\n"
+        "with tensor_files.staged_folder(Path(sys.argv[1])) as stage:\n"
+        "    (stage / 'checkpoint.pt').write_bytes(b'half')\n"
+        "    print('writing', flush=True)\n"
+        "    time.sleep(600)\n"
     )
-    running.rmdir()
-    with tf.staged_folder(folder) as stage:
-        (stage / "b_tensor.npy").write_bytes(b"whole")
+    writer = subprocess.Popen(
+        [sys.executable, "-c", export, str(folder)], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert writer.stdout is not None and writer.stdout.readline() == "writing\n"
+        (stage,) = folder.iterdir()
+        assert tf.stale_stages(folder) == [] and tf.holds_files(folder)  # held: not stale
+        assert bag.output_folder_problem(folder) == "exists and is not empty"
+    finally:
+        writer.send_signal(signal.SIGKILL)
+        writer.wait()
+    assert tf.stale_stages(folder) == [stage] and not tf.holds_files(folder)
+    assert bag.output_folder_problem(folder) is None
+    with tf.staged_folder(folder) as retry:
+        (retry / "b_tensor.npy").write_bytes(b"whole")
     assert [p.name for p in folder.iterdir()] == ["b_tensor.npy"]
