@@ -324,6 +324,29 @@ def test_a_checkpoint_with_parts_missing_is_one_error(tmp_path: Path) -> None:
         LearnerCore.load_checkpoint(path)
 
 
+def test_a_killed_writers_temporary_checkpoint_is_removed(tmp_path: Path) -> None:
+    """A process killed while it wrote a checkpoint left ``<name>.<pid>.<thread>.tmp`` beside it,
+    and nothing removed it. One that a writer still holds (its flock) is left alone."""
+    import fcntl
+    import os
+
+    path = tmp_path / "final.ckpt"
+    left = tmp_path / "final.ckpt.4242.17.tmp"
+    left.write_bytes(b"half a checkpoint")
+    held = tmp_path / "final.ckpt.4243.18.tmp"
+    held.write_bytes(b"being written")
+    other = tmp_path / "episode-0000010.ckpt.4242.17.tmp"  # another checkpoint's: not looked at
+    other.write_bytes(b"half")
+    holder = os.open(held, os.O_RDONLY)
+    try:
+        fcntl.flock(holder, fcntl.LOCK_EX)
+        LearnerCore(LearnerConfig(seed=0)).save_checkpoint(path)
+    finally:
+        os.close(holder)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([path.name, held.name, other.name])
+    LearnerCore.load_checkpoint(path)
+
+
 def test_a_flipped_bit_in_a_checkpoint_is_refused(tmp_path: Path) -> None:
     """torch.load does not check the archive's CRCs: a checkpoint with a bit flipped in an
     actor's weights was loaded and trained on without a word."""

@@ -306,7 +306,7 @@ def stale_stages(directory: Path) -> list[Path]:
         return []
     stale = []
     for entry in directory.iterdir():
-        if entry.name.startswith(STAGE_PREFIX) and entry.is_dir() and not _held(entry):
+        if entry.name.startswith(STAGE_PREFIX) and entry.is_dir() and not lock_held(entry):
             stale.append(entry)
     return stale
 
@@ -317,10 +317,11 @@ def holds_files(directory: Path) -> bool:
     return any(entry not in stale for entry in directory.iterdir())
 
 
-def _held(stage: Path) -> bool:
-    """Whether an export holds the lock of its staging folder ``stage``."""
+def lock_held(path: Path) -> bool:
+    """Whether a process holds an ``flock`` on ``path`` (a file or folder that its writer locks
+    while it writes: an export's staging folder, a checkpoint's temporary file)."""
     try:
-        descriptor = os.open(stage, os.O_RDONLY)
+        descriptor = os.open(path, os.O_RDONLY)
     except OSError:
         return False  # gone meanwhile
     try:
