@@ -170,8 +170,11 @@ def _cancel_repeat_key(
     return (message.source, message.run_id), (hash(text), generation)
 
 
-MAX_EPISODE_ID = 128
-"""Longest ``episode_id`` the messages take (``maxLength`` in their schemas)."""
+def max_episode_id() -> int:
+    """Longest ``episode_id`` the messages take (``maxLength`` in their schemas)."""
+    from lit_msgs_json.codec import load_schema
+
+    return int(load_schema("DecideRequest")["properties"]["episode_id"]["maxLength"])
 
 
 def episode_id(run_id: str, index: int) -> str:
@@ -226,12 +229,11 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
     if problem:
         return problem
     if p["episodes"] > 0:  # the only use of scenario and training_scenarios
-        last = episode_id(p["run_id"], p["episodes"] - 1)
-        if len(last) > MAX_EPISODE_ID:  # each such episode's messages were refused
+        last, longest = episode_id(p["run_id"], p["episodes"] - 1), max_episode_id()
+        if len(last) > longest:  # each such episode's messages were refused
             return (
                 f"run_id of {len(p['run_id'])} characters: with {p['episodes']} episodes the "
-                f"last one's id has {len(last)}, more than the {MAX_EPISODE_ID} the messages "
-                "allow"
+                f"last one's id has {len(last)}, more than the {longest} the messages allow"
             )
         from lit_learner.train import TrainingDistribution, TrainingError
 

@@ -494,9 +494,8 @@ def run(args: argparse.Namespace) -> int:
     runs.mkdir(parents=True, exist_ok=True)
     system = System(args.domain_id, Path.cwd(), keep_lines=KEEP_LINES)
     stop = threading.Event()
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    signal.signal(signal.SIGHUP, lambda *_: stop.set())  # the terminal closed: stop in order
+    for number in signals.STOPS:  # SIGHUP too: the terminal closed, stop in order
+        signal.signal(number, lambda *_: stop.set())
     print(
         f"lit up: run {run_id} on ROS_DOMAIN_ID={args.domain_id} (localhost discovery); "
         "Ctrl-C stops everything",
