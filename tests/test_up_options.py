@@ -392,6 +392,52 @@ def test_lit_call_sends_again_what_its_service_answers_as_a_copy(schema: str, re
         assert "did not answer within 5 s" in process.stderr
 
 
+_STOPS_UNANSWERED = """
+import threading
+import rclpy
+from {module} import {kind}
+rclpy.init()
+node = rclpy.create_node('stopping_server')
+taken = threading.Event()
+def take(request, response):  # a request taken just as the node stops: never answered
+    taken.set()
+    raise SystemExit
+node.create_service({kind}, '{service}', take)
+print('ready', flush=True)
+try:
+    rclpy.spin(node)
+except SystemExit:
+    pass
+node.destroy_node()
+print('stopped', flush=True)
+"""
+
+
+@pytest.mark.parametrize(
+    ("service", "arguments"),
+    [
+        ("/lit/planner/plan", ("raw", "/lit/planner/plan", '{"schema": "x"}')),
+        ("/lit/planner/plan", ("plan", "--scenario", "np4", "--time", "1")),
+        ("/lit/learner/export", ("export",)),
+    ],
+    ids=["raw", "plan", "export"],
+)
+def test_lit_call_stops_waiting_when_the_service_goes_away(
+    service: str, arguments: tuple[str, ...]
+) -> None:
+    """A request sent just as the planner node stopped (SIGTERM) was never answered, and lit call
+    waited out its whole timeout. It now stops once the service has been gone for a second."""
+    kind = ("std_srvs.srv", "Trigger") if arguments[0] == "export" else (
+        "diagnostic_msgs.srv", "AddDiagnostics")  # fmt: skip
+    code = _STOPS_UNANSWERED.format(module=kind[0], kind=kind[1], service=service)
+    with _server(code) as env:
+        process = _lit_call(env, "--wait", "30", "--timeout", "100", *arguments)
+    assert process.returncode == 2, process.stderr
+    assert f"{service} went away before it answered" in process.stderr
+    assert "did not answer" not in process.stderr and "Traceback" not in process.stderr
+    assert "cancel of plan request" not in process.stderr  # nobody left to ask
+
+
 def test_sigterm_stops_system_bench_in_order(tmp_path: Path) -> None:
     """SIGTERM killed lit system-bench at once (exit 143), leaving its folder and, for a moment,
     its nodes; now it stops them as Ctrl-C does."""

@@ -11,8 +11,8 @@ Examples::
 
 Prints the response as JSON on stdout (the envelope's payload with ``--payload-only``). Exit code
 0 for a successful response, 1 for an Error response, 2 when the service is not found (for plan,
-decide and raw also: has another type than ``AddDiagnostics``) or does not answer in time, or the
-arguments are wrong.
+decide and raw also: has another type than ``AddDiagnostics``), does not answer in time or goes
+away before it answers (no server for :data:`SERVER_GONE` s), or the arguments are wrong.
 
 ``plan`` gives its request a ``request_id`` (``call-<hex>`` unless ``--request-id`` or the world
 file names one). When it stops waiting (``--timeout``, Ctrl-C, SIGTERM) it asks the planner
@@ -48,6 +48,7 @@ from lit_planner.rosutil import (
     EXPORT_SERVICE,
     MAX_REQUEST_TIME,
     PLAN_SERVICE,
+    ServerGone,
     ServiceCaller,
     add_domain_option,
     freeze_startup_objects,
@@ -67,6 +68,10 @@ about 3 s by its own timeouts) before the process exits without it: :func:`_exit
 CANCEL_WAIT = 5.0
 """Seconds a plan call that gave up waits for the cancel service to appear, and then for its
 answer."""
+SERVER_GONE = 1.0
+"""Seconds the graph may show no server of the called service before a call stops waiting for
+its answer (:class:`~lit_planner.rosutil.ServerGone`): its node stopped, and a request sent just
+as it stopped is never answered."""
 RESEND = 1.0
 """Seconds without an answer after which a request is sent again (then after 2, 4, ... s), if its
 service answers a copy as the request it repeats (:func:`_resend_after`)."""
@@ -334,7 +339,11 @@ def _call(
         args.sent = True
         # A Ctrl-C or SIGTERM shuts the context down; the wait notices it within 0.1 s.
         answer = caller.call(
-            text, args.timeout, resend_after=_resend_after(text), interrupted=lambda: not rclpy.ok()
+            text,
+            args.timeout,
+            resend_after=_resend_after(text),
+            interrupted=lambda: not rclpy.ok(),
+            server_gone=SERVER_GONE,
         )
         elapsed = time.perf_counter() - started
         if answer is None:
@@ -363,6 +372,9 @@ def _call(
             )
             return PATH_INVALID_EXIT
         return 0 if success else 1
+    except ServerGone as exc:  # nobody left to cancel a plan request in
+        print(f"lit call: error: {exc}", file=sys.stderr)
+        return 2
     except (Exception, KeyboardInterrupt) as exc:  # filtered below
         if not isinstance(exc, KeyboardInterrupt) and rclpy.ok():
             raise
@@ -425,7 +437,7 @@ def _service_name(namespace: str, service: str) -> str:
 def _cancel_plan(node: Any, args: argparse.Namespace) -> None:
     """Ask the planner node to cancel the plan request this call gave up on; say on stderr
     what it answered."""
-    from lit_msgs_json.envelope import MessageError, Publisher, decode
+    from lit_msgs_json.envelope import MessageError, Publisher
 
     name = _service_name(args.namespace, CANCEL_SERVICE)
     request_id = args.sent_request_id
@@ -439,23 +451,33 @@ def _cancel_plan(node: Any, args: argparse.Namespace) -> None:
         if not caller.wait(CANCEL_WAIT):
             outcome = f"{name} not found within {CANCEL_WAIT:g} s; the query may go on in the node"
         else:
-            answer = caller.call(
-                text,
-                CANCEL_WAIT,
-                resend_after=RESEND,
-                interrupted=lambda: not node.context.ok(),
-            )
-            if answer is None:
-                outcome = f"{name} did not answer within {CANCEL_WAIT:g} s"
-            else:
-                try:
-                    reply = decode(answer[1], accept=("CancelResponse", "Error"))
-                    outcome = str(reply.payload["message"])
-                except MessageError as exc:
-                    outcome = f"unreadable answer from {name}: {exc}"
+            try:
+                answer = caller.call(
+                    text,
+                    CANCEL_WAIT,
+                    resend_after=RESEND,
+                    interrupted=lambda: not node.context.ok(),
+                    server_gone=SERVER_GONE,
+                )
+                outcome = _cancel_outcome(answer, name)
+            except ServerGone as exc:
+                outcome = str(exc)
     finally:
         caller.destroy()
     print(f"lit call: cancel of plan request {request_id!r}: {outcome}", file=sys.stderr)
+
+
+def _cancel_outcome(answer: tuple[bool, str] | None, name: str) -> str:
+    """What the cancel service ``name`` answered, in words."""
+    from lit_msgs_json.envelope import MessageError, decode
+
+    if answer is None:
+        return f"{name} did not answer within {CANCEL_WAIT:g} s"
+    try:
+        reply = decode(answer[1], accept=("CancelResponse", "Error"))
+    except MessageError as exc:
+        return f"unreadable answer from {name}: {exc}"
+    return str(reply.payload["message"])
 
 
 def _cancel_plan_in_new_context(args: argparse.Namespace) -> None:
@@ -628,7 +650,9 @@ def _repeat(caller: ServiceCaller, text: str, args: argparse.Namespace) -> int:
         started = time.perf_counter()
         if request is not None:
             text = publisher.encode("DecideRequest", request["payload"])
-        answer = caller.call(text, args.timeout, interrupted=lambda: not rclpy.ok())
+        answer = caller.call(
+            text, args.timeout, interrupted=lambda: not rclpy.ok(), server_gone=SERVER_GONE
+        )
         if answer is not None and answer[0] and request is not None:
             try:
                 decode(answer[1], accept="DecideResponse")
@@ -674,7 +698,7 @@ def _call_export(node: Any, args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    response = caller.request(Trigger.Request(), args.timeout)
+    response = caller.request(Trigger.Request(), args.timeout, server_gone=SERVER_GONE)
     if response is None:
         print(f"lit call: error: {EXPORT_SERVICE} did not answer", file=sys.stderr)
         return 2

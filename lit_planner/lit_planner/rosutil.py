@@ -293,6 +293,11 @@ class CallInterrupted(RuntimeError):
     """A :class:`ServiceCaller` call stopped waiting because its ``interrupted`` became true."""
 
 
+class ServerGone(CallInterrupted):
+    """A :class:`ServiceCaller` call stopped waiting because the graph showed no server of its
+    service for its ``server_gone`` seconds: the node stopped (or crashed) before it answered."""
+
+
 SETTLE_SECONDS = 0.1
 """Pause of :meth:`ServiceCaller.wait` after the service appeared (endpoint matching)."""
 
@@ -385,6 +390,7 @@ class ServiceCaller:
         timeout: float,
         resend_after: float | None = None,
         interrupted: Callable[[], bool] | None = None,
+        server_gone: float | None = None,
     ) -> Any:
         """Send ``request``; the response, or None after ``timeout``. ``resend_after`` (private
         mode only; ignored otherwise): without an answer after that many seconds send the same
@@ -393,7 +399,12 @@ class ServiceCaller:
         looked at every :data:`INTERRUPT_POLL` s while waiting; once true the call raises
         :class:`CallInterrupted` (a signal handler that shut the context down does not wake the
         wait set, which would wait out the whole timeout; a server process that died will not
-        answer)."""
+        answer). ``server_gone``: once the graph has shown no server of the service for that
+        many seconds in a row while waiting, the call raises :class:`ServerGone` (a node that
+        stops removes its service at once; one killed outright, after Fast DDS's lease of
+        about 20 s), rather than wait out ``timeout`` for an answer nobody will send."""
+        if server_gone is not None:
+            interrupted = self._unless_gone(interrupted, server_gone)
         if self._owner is not None:
             return self._request_waiting(request, timeout, resend_after, interrupted)
         done = threading.Event()
@@ -401,13 +412,42 @@ class ServiceCaller:
         future.add_done_callback(lambda _: done.set())
         deadline = time.monotonic() + timeout
         while not done.wait(max(0.0, min(deadline - time.monotonic(), INTERRUPT_POLL))):
-            gave_up = interrupted is not None and interrupted()
+            try:
+                gave_up = interrupted is not None and interrupted()
+            except ServerGone:
+                self.client.remove_pending_request(future)
+                raise
             if gave_up or time.monotonic() >= deadline:
                 self.client.remove_pending_request(future)
                 if gave_up:
                     raise CallInterrupted(f"the call of {self.name} was interrupted")
                 return None
         return future.result()
+
+    def _unless_gone(
+        self, interrupted: Callable[[], bool] | None, grace: float
+    ) -> Callable[[], bool]:
+        """``interrupted``, which also raises :class:`ServerGone` once no server of the service
+        has been seen for ``grace`` seconds in a row."""
+        missing_since: float | None = None
+
+        def check() -> bool:
+            nonlocal missing_since
+            if interrupted is not None and interrupted():
+                return True
+            now = time.monotonic()
+            if self.client.service_is_ready():
+                missing_since = None
+            elif missing_since is None:
+                missing_since = now
+            elif now - missing_since >= grace:
+                raise ServerGone(
+                    f"{self.name} went away before it answered (no server for {grace:g} s: "
+                    "its node stopped)"
+                )
+            return False
+
+        return check
 
     def _request_waiting(
         self,
@@ -504,12 +544,13 @@ class ServiceCaller:
         timeout: float,
         resend_after: float | None = None,
         interrupted: Callable[[], bool] | None = None,
+        server_gone: float | None = None,
     ) -> tuple[bool, str] | None:
         """Send ``text`` as ``load_namespace``; ``(success, message)``, or None after ``timeout``
-        (``resend_after``, ``interrupted``: see :meth:`request`)."""
+        (``resend_after``, ``interrupted``, ``server_gone``: see :meth:`request`)."""
         request = self.srv_type.Request()
         request.load_namespace = text
-        response = self.request(request, timeout, resend_after, interrupted)
+        response = self.request(request, timeout, resend_after, interrupted, server_gone)
         if response is None:
             return None
         return bool(response.success), str(response.message)
