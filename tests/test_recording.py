@@ -26,16 +26,16 @@ EPISODES = 4
 
 
 @contextlib.contextmanager
-def _recording(bag: Path, run_id: str) -> Iterator[tuple[System, Child, dict[str, int | None]]]:
-    """A real recorder into ``bag`` on a domain of its own, ready; on the way out every process
-    is stopped by its PID and the exit codes go into the dict it yields."""
+def _recording(
+    bag: Path, run_id: str, command: str | list[str] = "lit_recorder_node"
+) -> Iterator[tuple[System, Child, dict[str, int | None]]]:
+    """A real recorder (``command``) into ``bag`` on a domain of its own, ready; on the way out
+    every process is stopped by its PID and the exit codes go into the dict it yields."""
     domain, lock = reserve_domain()
     system = System(domain, bag.parent, echo=None)
     codes: dict[str, int | None] = {}
     try:
-        recorder = system.start(
-            "recorder", "lit_recorder_node", {"bag": str(bag), "run_id": run_id}
-        )
+        recorder = system.start("recorder", command, {"bag": str(bag), "run_id": run_id})
         system.wait_ready("recorder")
         yield system, recorder, codes
     finally:
@@ -259,6 +259,39 @@ def test_a_lit_topic_of_a_type_the_recorder_does_not_take_is_named(tmp_path: Pat
             assert time.monotonic() < deadline, "\n".join(recorder.lines[-30:])
             time.sleep(0.1)
     assert sum(warning in line for line in recorder.lines) == 1  # once, not every scan
+
+
+_FILE_SIZE_LIMIT = (
+    "import os, resource, signal, sys\n"
+    "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # the write fails instead of killing\n"
+    "limit = int(sys.argv[1])\n"
+    "resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))\n"
+    "os.execv(sys.argv[2], sys.argv[2:])\n"
+)
+"""Runs ``argv[2:]`` with writes beyond ``argv[1]`` bytes of a file failing: a full disk."""
+
+
+def test_a_full_disk_stops_the_recorder_with_one_line(tmp_path: Path) -> None:
+    """A bag write that failed (a full disk) ended the recorder's executor in a long traceback,
+    a second one from closing the bag and "exception was never retrieved"; now one line names the
+    bag and `lit replay salvage`, and the recorder exits 1."""
+    import sys
+
+    import ros_helpers
+    from lit_planner.up import _script
+
+    limit = [sys.executable, "-c", _FILE_SIZE_LIMIT, str(16 * 1024), _script("lit_recorder_node")]
+    bag = tmp_path / "bag"
+    with _recording(bag, "full", limit) as (system, recorder, codes):
+        system.start(
+            "publisher",
+            [sys.executable, ros_helpers.__file__, "publish", "/lit/observation", "2000"],
+        )
+        assert recorder.process.wait(120) == 1, "\n".join(recorder.lines[-30:])
+    output = "\n".join(recorder.lines)
+    assert f"cannot write the bag {bag}: File too large; recording stopped" in output, output
+    assert "Traceback" not in output and "never retrieved" not in output, output
+    assert codes["recorder"] == 1
 
 
 @pytest.mark.parametrize(

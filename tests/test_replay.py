@@ -10,13 +10,14 @@ from __future__ import annotations
 import json
 import os
 import re
+import resource
 import shutil
 import signal
 import subprocess
 import sys
 import textwrap
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -510,6 +511,82 @@ def test_sigterm_leaves_no_half_written_output(command: str, tmp_path: Path) -> 
     assert process.returncode == 130, stderr
     assert "lit replay: interrupted" in stderr and "Traceback" not in stderr, stderr
     assert not out.exists()
+
+
+def _file_size_limited(limit: int) -> Callable[[], None]:
+    """A ``preexec_fn``: writes beyond ``limit`` bytes of a file fail with EFBIG (a full disk,
+    for the process alone)."""
+
+    def limit_files() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # the write fails instead of killing
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    return limit_files
+
+
+@pytest.mark.parametrize("command", ["compact", "salvage", "bench"])
+def test_a_write_failure_leaves_no_half_written_output(command: str, tmp_path: Path) -> None:
+    """A full disk in the middle of the output left a half-written bag or a cut runs.jsonl,
+    which then blocked the rerun ("exists already"), with an error that named no file."""
+    source = _numbered_bag(tmp_path / "source", 300)
+    if command == "salvage":
+        _mcap(source).write_bytes(_mcap(source).read_bytes()[:200_000])
+    elif command == "bench":
+        source = SAMPLE
+    out = tmp_path / "out"
+    args = [source, "--out", out] if command == "bench" else [source, "-o", out]
+    if command == "compact":
+        args = [source, out]
+    result = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "replay", command, *map(str, args)],
+        cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120, check=False,
+        preexec_fn=_file_size_limited(8192),
+    )  # fmt: skip
+    _assert_clean_error(result, f"cannot write {'into ' if command == 'bench' else ''}{out}")
+    assert "File too large" in result.stderr
+    assert not out.exists()
+
+
+def _catches_sigint(pid: int) -> bool:
+    """Whether process ``pid`` has a handler of its own for SIGINT (``SigCgt`` in ``/proc``)."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:  # gone
+        return False
+    found = re.search(r"^SigCgt:\s*([0-9a-f]+)$", status, re.MULTILINE)
+    return found is not None and bool(int(found.group(1), 16) >> (signal.SIGINT - 1) & 1)
+
+
+def test_ctrl_c_during_measure_prints_no_writers_traceback(tmp_path: Path) -> None:
+    """A Ctrl-C (SIGINT to the terminal's process group) during the crash trials reached the
+    writer process too, which printed its own KeyboardInterrupt traceback."""
+    from ros_helpers import children_of
+
+    process = subprocess.Popen(
+        [sys.executable, "-m", "lit_planner.cli", "replay", "measure", "--messages", "2000",
+         "--kills", "1000"],
+        cwd=ROOT, env=dict(ENV, TMPDIR=str(tmp_path)), stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True, start_new_session=True,  # its own process group
+    )  # fmt: skip
+    try:
+        assert process.stdout is not None
+        for line in process.stdout:
+            if line.startswith("crash 3/"):  # the trials run
+                break
+        deadline = time.monotonic() + 60.0
+        # A writer runs, with Python's own SIGINT handler (before it, a SIGINT ends it quietly).
+        while not any(_catches_sigint(pid) for pid in children_of(process.pid)):
+            assert process.poll() is None and time.monotonic() < deadline
+            time.sleep(0.001)
+        os.killpg(process.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the whole group
+        _, stderr = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 130, stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
+    assert "lit replay: interrupted" in stderr
 
 
 def test_measure_counts_a_writer_killed_before_its_first_chunk(tmp_path: Path) -> None:
@@ -1019,7 +1096,9 @@ def test_bench_replay_counts_only_records_of_its_configuration(tmp_path: Path) -
     assert not (tmp_path / "o2").exists() and not (tmp_path / "o3").exists()
 
 
-@pytest.mark.parametrize("lie", ["unlisted topic", "wrong count", "file listed twice"])
+@pytest.mark.parametrize(
+    "lie", ["unlisted topic", "wrong count", "wrong total", "file listed twice"]
+)
 def test_metadata_that_disagrees_with_the_files_is_refused(lie: str, tmp_path: Path) -> None:
     """rosbags reads the topics metadata.yaml lists: a topic it left out lost its messages
     without a word (info counted 1 message, verify checked 0 paths, compact dropped them); a file
@@ -1034,6 +1113,12 @@ def test_metadata_that_disagrees_with_the_files_is_refused(lie: str, tmp_path: P
     elif lie == "unlisted topic":
         changed = text.replace(f"name: {bag.BENCH_RUN_TOPIC}", "name: /lit/episode")
         fragment = f"2 messages of {bag.BENCH_RUN_TOPIC} in the files, a topic it does not list"
+    elif lie == "wrong total":  # every topic's count right, the bag's own wrong
+        total = replay.bag_info(copy)["messages"]
+        changed = re.sub(
+            rf"^  message_count: {total}$", "  message_count: 999", text, flags=re.MULTILINE
+        )
+        fragment = f"it says 999 messages in all, the files hold {total}"
     else:
         listed = f"- message_count: 2\n    topic_metadata:\n      name: {bag.BENCH_RUN_TOPIC}\n"
         changed = text.replace(listed, listed.replace(": 2", ": 30"))
@@ -1471,6 +1556,39 @@ def test_a_reader_that_left_is_not_an_error(tmp_path: Path) -> None:
         os.close(write_end)
     assert result.returncode == 141, result.stderr
     assert "error" not in result.stderr and "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize("compression", ["lz4", "zstd"])
+def test_salvage_reads_the_compressions_rosbag2_writes(compression: str, tmp_path: Path) -> None:
+    """An lz4-compressed MCAP file (a rosbag2 storage option) that every other subcommand reads
+    was refused by salvage as "damaged" ("chunk compression 'lz4' is not supported"), intact or
+    cut off."""
+    from mcap.writer import CompressionType, Writer
+
+    string = bag.typestore().types[bag.STRING_TYPE]
+    folder = tmp_path / "foreign"
+    folder.mkdir()
+    with (folder / "foreign.mcap").open("wb") as handle:
+        writer = Writer(handle, chunk_size=4096, compression=CompressionType[compression.upper()])
+        writer.start(profile="ros2", library="test")
+        schema = writer.register_schema(
+            name=bag.STRING_TYPE, encoding="ros2msg", data=b"string data"
+        )
+        channel = writer.register_channel(
+            topic="/lit/observation", message_encoding="cdr", schema_id=schema
+        )
+        for stamp in range(1, 201):
+            data = bag.typestore().serialize_cdr(string(data=_obs(stamp)), bag.STRING_TYPE)
+            writer.add_message(channel, log_time=stamp, data=bytes(data), publish_time=stamp)
+        writer.finish()
+    result = _replay("salvage", folder, "-o", tmp_path / "whole")
+    assert result.returncode == 0, result.stderr
+    assert _recovered(result.stdout) == 200
+    data = (folder / "foreign.mcap").read_bytes()
+    (folder / "foreign.mcap").write_bytes(data[: len(data) // 2])  # a writer killed midway
+    result = _replay("salvage", folder, "-o", tmp_path / "half")
+    assert result.returncode == 0, result.stderr
+    assert 50 < _recovered(result.stdout) < 200, result.stdout
 
 
 def test_salvage_keeps_each_files_channels_apart(tmp_path: Path) -> None:

@@ -122,6 +122,9 @@ def crash_trial(path: Path, target: int, chunk_bytes: int) -> tuple[int, int]:
         stdout=subprocess.PIPE,
         text=True,
         env=dict(os.environ, LIT_CHUNK_BYTES=str(chunk_bytes)),
+        # Out of the terminal's process group: a Ctrl-C reaches the measurement, which kills
+        # the writer, instead of printing the writer's own KeyboardInterrupt traceback.
+        start_new_session=True,
     )
     confirmed = 0
     try:
@@ -167,10 +170,13 @@ def _writer(path: str) -> None:
     recorder = BagRecorder(path, run_id="killed", chunk_bytes=int(os.environ["LIT_CHUNK_BYTES"]))
     recorder.add_topic("/lit/observation", "std_msgs/msg/String")
     seq = 0
-    while True:
-        recorder.write_string("/lit/observation", _text(seq), time.time_ns())
-        seq += 1
-        print(seq, flush=True)
+    try:
+        while True:
+            recorder.write_string("/lit/observation", _text(seq), time.time_ns())
+            seq += 1
+            print(seq, flush=True)
+    except BrokenPipeError:  # the measurement ended (a Ctrl-C while it started this writer)
+        os._exit(0)  # without Python's flush of the broken pipe at exit
 
 
 if __name__ == "__main__":

@@ -76,7 +76,13 @@ class Recorder:
         self._closing = False
         self.counts: dict[str, int] = {}
         self.dropped = 0
-        """Messages that arrived after the bag was closed (after the drain: not recorded)."""
+        """Messages that arrived after the bag was closed (after the drain: not recorded), or
+        after a write failed."""
+        self.write_error: OSError | None = None
+        """The first write of the bag that failed (a full disk): recording stopped there, and the
+        node stops (``finished``, exit 1)."""
+        self.finished = False
+        self.exit_code = 0
         self._foreign: set[tuple[str, str]] = set()
         """(topic, type) pairs under /lit/ of a type not recorded (warned of once)."""
         for name in TOPICS.values():
@@ -84,7 +90,7 @@ class Recorder:
             self._subscribe(topic, _topic_type(name))
         self._subscribe(STATS_TOPIC, "std_msgs/msg/String")
         node.create_timer(DISCOVERY_PERIOD, self._discover)
-        node.create_timer(FLUSH_PERIOD, self.bag.flush)
+        node.create_timer(FLUSH_PERIOD, self._flush)
         self.log.info(f"ready: recording /lit/ topics to {self.bag.path}")
 
     def _subscribe(self, topic: str, msgtype: str) -> None:
@@ -116,6 +122,10 @@ class Recorder:
     def _write(self, topic: str, data: bytes) -> None:
         from lit_planner.bag import BagError
 
+        if self.write_error is not None:
+            with self._lock:
+                self.dropped += 1
+            return
         try:
             self.bag.write_raw(topic, bytes(data), time.time_ns())
         except BagError:
@@ -124,8 +134,36 @@ class Recorder:
             with self._lock:
                 self.dropped += 1  # after the drain: counted, not a traceback in the executor
             return
+        except OSError as exc:
+            self._write_failed(exc)
+            return
         with self._lock:
             self.counts[topic] += 1
+
+    def _flush(self) -> None:
+        if self.write_error is not None:
+            return
+        try:
+            self.bag.flush()
+        except OSError as exc:
+            self._write_failed(exc)
+
+    def _write_failed(self, exc: OSError) -> None:
+        """Stop recording after the first failed write (a full disk), say so in one line, and
+        stop the node (exit 1): what is in the file stays readable with ``lit replay salvage``."""
+        with self._lock:
+            if self.write_error is not None:
+                self.dropped += 1
+                return
+            self.write_error = exc
+            self.dropped += 1
+        self.log.error(
+            f"cannot write the bag {self.bag.path}: {exc.strerror or exc}; recording stopped "
+            f"and the recorder exits (1). What was written before reads with `lit replay "
+            f"salvage {self.bag.path}`"
+        )
+        self.exit_code = 1
+        self.finished = True
 
     def _received(self) -> int:
         with self._lock:
@@ -151,7 +189,16 @@ class Recorder:
             subscriptions = list(self._subscriptions.values())
         for subscription in subscriptions:
             self.node.destroy_subscription(subscription)
-        self.bag.close()
+        try:
+            self.bag.close()
+        except OSError as exc:
+            if self.write_error is None:
+                raise
+            self.log.error(
+                f"the bag {self.bag.path} could not be closed either ({exc.strerror or exc}): "
+                f"it is left unfinished; `lit replay salvage {self.bag.path}` reads it"
+            )
+            return
         total = self._received()
         dropped = f"; {self.dropped} arrived after it closed" if self.dropped else ""
         self.log.info(

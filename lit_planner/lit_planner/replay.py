@@ -25,13 +25,15 @@ error with exit status 2; ``salvage`` then recovers what is readable.
 A bag given twice (also as a folder and its ``.mcap`` file) is refused; ``bench`` counts a run
 record once when copies of a bag hold it (same topic, source, run id and seq; a warning says how
 many were left out) and refuses two different records under one run id and seq. Output folders
-(``bench --out`` or its default ``<first BAG>/replay``, ``tensors --out``) must be new or empty.
+(``bench --out`` or its default ``<first BAG>/replay``, ``<stem>-replay`` beside an ``.mcap``
+file, ``tensors --out``) must be new or empty.
 """
 
 from __future__ import annotations
 
 import argparse
 import bisect
+import contextlib
 import hashlib
 import itertools
 import json
@@ -489,6 +491,9 @@ def _metadata_mismatch(path: Path, facts: BagFacts, summaries: Sequence[Any]) ->
     for topic, count in sorted(listed.items()):
         if count and topic not in in_files:
             return f"it says {count} messages of {topic}, the files hold none"
+    total = sum(in_files.values())
+    if facts.messages != total:
+        return f"it says {facts.messages} messages in all, the files hold {total}"
     return None
 
 
@@ -1683,6 +1688,12 @@ def _chunk_data(chunk: Any, *, partial: bool = False) -> bytes:
         if partial:
             return zstandard.ZstdDecompressor().decompressobj().decompress(chunk.data)
         return zstandard.decompress(chunk.data, chunk.uncompressed_size)
+    if chunk.compression == "lz4":  # rosbag2's other MCAP compression (frame format)
+        import lz4.frame
+
+        if partial:
+            return lz4.frame.LZ4FrameDecompressor().decompress(chunk.data)
+        return lz4.frame.decompress(chunk.data)
     raise ValueError(f"chunk compression {chunk.compression!r} is not supported")
 
 
@@ -1828,9 +1839,17 @@ def _write_bag(
             writer.write(connection, log_ns, data)
             count += 1
         writer.close()
-    except BaseException:
-        writer.abort()
-        shutil.rmtree(writer.path, ignore_errors=True)  # open() created it: no half bag left
+    except BaseException as error:
+        try:
+            writer.abort()  # on a full disk its flush fails again
+        except Exception:  # noqa: BLE001, S110 - the folder goes all the same
+            pass
+        finally:
+            shutil.rmtree(writer.path, ignore_errors=True)  # open() created it: no half bag left
+        if isinstance(error, OSError):  # a full disk: name what could not be written
+            raise ReplayError(
+                f"cannot write {writer.path}: {_describe(error)}; nothing of it was kept"
+            ) from None
         raise
     return count
 
@@ -2214,7 +2233,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--out",
         type=argtypes.path,
         metavar="DIR",
-        help=f"output folder, new or empty (default: <first BAG>/{REPLAY_DIR})",
+        help=f"output folder, new or empty (default: <first BAG>/{REPLAY_DIR}; for an .mcap "
+        "file, <its name without .mcap>-replay beside it)",
     )
 
 
@@ -2479,6 +2499,30 @@ def _has_bench_config(path: str | Path) -> bool:
         return any(c.topic == bag.BENCH_CONFIG_TOPIC for c in reader._reader.connections)
 
 
+@contextlib.contextmanager
+def _removed_on_failure(out: Path) -> Iterator[None]:
+    """Remove what the block wrote into ``out`` (new, or empty: checked) when it fails (Ctrl-C, a
+    full disk): half-written outputs would look complete and block the rerun. An OSError
+    becomes a :class:`ReplayError` naming ``out``."""
+    existed = out.exists()
+    try:
+        yield
+    except BaseException as error:
+        if existed:
+            for child in out.iterdir():
+                if child.is_dir():
+                    shutil.rmtree(child, ignore_errors=True)
+                else:
+                    child.unlink(missing_ok=True)
+        else:
+            shutil.rmtree(out, ignore_errors=True)
+        if isinstance(error, OSError):
+            raise ReplayError(
+                f"cannot write into {out}: {_describe(error)}; what was written there is removed"
+            ) from None
+        raise
+
+
 def _bench(args: argparse.Namespace) -> int:
     check_distinct_bags(args.bags)
     first = Path(args.bags[0])
@@ -2492,17 +2536,14 @@ def _bench(args: argparse.Namespace) -> int:
         )
     else:
         _check_new_folder(out, f"--out {out}")
-    existed = Path(out).exists()  # then empty (checked above)
+    with _removed_on_failure(Path(out)):
+        return _bench_into(args, Path(out))
+
+
+def _bench_into(args: argparse.Namespace, out: Path) -> int:
+    """:func:`_bench` once its output folder ``out`` has been checked."""
     try:
-        summary, recorded = replay_bench(args.bags, Path(out))
-    except KeyboardInterrupt:
-        # Half-written outputs would look complete and block the rerun.
-        if existed:
-            for child in Path(out).iterdir():
-                shutil.rmtree(child) if child.is_dir() else child.unlink()
-        else:
-            shutil.rmtree(out, ignore_errors=True)
-        raise
+        summary, recorded = replay_bench(args.bags, out)
     except EmptyBenchBagError as error:
         print(f"{PROG} bench: warning: {error}", file=sys.stderr)
         return 1
@@ -2530,9 +2571,9 @@ def _bench(args: argparse.Namespace) -> int:
         if not summaries:
             raise ReplayError(f"{error}; nor any EpisodeSummary of a ROS run") from error
         rows, table = episode_table(summaries)
-        Path(out).mkdir(parents=True, exist_ok=True)
-        (Path(out) / "episodes.json").write_text(json.dumps(rows, indent=1) + "\n")
-        (Path(out) / "episodes.md").write_text(table)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "episodes.json").write_text(json.dumps(rows, indent=1) + "\n")
+        (out / "episodes.md").write_text(table)
         print(table, end="")
         print(
             f"{PROG} bench: {len(summaries)} planning queries -> {out}/episodes.json, episodes.md"

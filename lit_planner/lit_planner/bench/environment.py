@@ -122,12 +122,14 @@ def _ompl_version() -> str | None:
 
 def git_state(root: Path) -> dict[str, Any] | None:
     """``{"commit", "dirty"}`` of the git checkout at ``root`` (dirty: tracked files modified;
-    None if git could not tell); None outside git."""
+    None if git could not tell); None outside git. Read-only: ``git status`` takes no lock and
+    writes no refreshed index (``--no-optional-locks``), so it cannot make the user's own git
+    command fail on ``index.lock``, nor leave one behind when it is killed."""
 
     def git(*args: str) -> str | None:
         try:
             answer = subprocess.run(
-                ["git", "-C", str(root), *args],
+                ["git", "--no-optional-locks", "-C", str(root), *args],
                 capture_output=True,
                 text=True,
                 timeout=10,
