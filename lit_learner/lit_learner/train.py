@@ -154,6 +154,8 @@ class TrainingDistribution:
         self.randomised = {}
         self.longest_budget = 0.0
         """The longest time budget of the scenarios, in seconds (an instance keeps its family's)."""
+        self.shortest_budget = math.inf
+        """The shortest one."""
         for name in self.names:
             try:
                 problem = scenarios.get(name)
@@ -166,6 +168,7 @@ class TrainingDistribution:
                 )
             self.randomised[name] = problem.family_spec.randomised
             self.longest_budget = max(self.longest_budget, problem.time_budget)
+            self.shortest_budget = min(self.shortest_budget, problem.time_budget)
         self.rng = rng
 
     def draw(self, index: int) -> EpisodeSpec:
@@ -1257,7 +1260,10 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
     distribution = TrainingDistribution(state.scenarios, rng)  # checks the names first
     # Refused here, not by the first episode's planner after the learner has started.
     problem = planning.scale_problem(
-        "--budget-scale", state.budget_scale, distribution.longest_budget
+        "--budget-scale",
+        state.budget_scale,
+        distribution.longest_budget,
+        distribution.shortest_budget,
     )
     if problem is not None:
         raise TrainingError(problem)

@@ -76,14 +76,25 @@ MAX_TIME = 1e9
 bits, and from about 9.2e9 s on it overflowed, so OMPL's planners stopped at once (timeout)."""
 
 
-def scale_problem(option: str, scale: float, longest: float) -> str | None:
-    """What is wrong with the time budgets of up to ``longest`` s scaled by ``scale`` (the value
-    of the command's ``option``), or None: a scaled budget must be one a planner can be given
-    (:data:`MAX_TIME`)."""
+MIN_TIME = 1e-6
+"""Shortest time budget a scaled one may come to, s: a microsecond, about what one iteration of
+the search takes (a scale of 1e-320 made it 0, or a denormal the benchmark's time grid could not
+start from, after every run had been planned)."""
+
+
+def scale_problem(option: str, scale: float, longest: float, shortest: float) -> str | None:
+    """What is wrong with the time budgets of ``shortest`` to ``longest`` s scaled by ``scale``
+    (the value of the command's ``option``), or None: a scaled budget must be one a planner can
+    be given (:data:`MAX_TIME`) and not below :data:`MIN_TIME`."""
     if longest * scale > MAX_TIME:
         return (
             f"{option} {scale:g} gives budgets up to {longest * scale:g} s, more than the "
             f"{MAX_TIME:g} s a planner can be given"
+        )
+    if shortest > 0 and shortest * scale < MIN_TIME:
+        return (
+            f"{option} {scale:g} gives budgets down to {shortest * scale:g} s, less than the "
+            f"{MIN_TIME:g} s a query is given at least"
         )
     return None
 

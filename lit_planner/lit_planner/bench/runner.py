@@ -116,13 +116,12 @@ class BenchConfig:
 
     def __post_init__(self) -> None:
         try:
-            longest = max(
-                (scenario_for(name, self.instance).time_budget for name in self.scenarios),
-                default=0.0,
-            )
+            budgets = [scenario_for(name, self.instance).time_budget for name in self.scenarios]
         except ValueError:  # an unknown scenario: named where it is used
-            longest = 0.0
-        problem = planning.scale_problem("--time-scale", self.time_scale, longest)
+            budgets = []
+        problem = planning.scale_problem(
+            "--time-scale", self.time_scale, max(budgets, default=0.0), min(budgets, default=0.0)
+        )
         if problem is not None:
             raise ValueError(problem)
         if self.t_init_repeats < 1:
