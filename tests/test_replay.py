@@ -1134,6 +1134,21 @@ def test_metadata_that_disagrees_with_the_files_is_refused(lie: str, tmp_path: P
     assert _replay("bench", tmp_path / "salvaged", "--out", tmp_path / "out").returncode == 0
 
 
+def test_a_file_of_another_bag_in_the_folder_is_named_without_the_salvage_advice(
+    tmp_path: Path,
+) -> None:
+    """An .mcap file the folder's metadata.yaml does not list was answered with "rebuild the bag
+    from its files with lit replay salvage", which merges a stray file of another bag into it."""
+    copy = _sample_copy(tmp_path, "with-stray")
+    stray = _numbered_bag(tmp_path / "other", 3)
+    shutil.copy(_mcap(stray), copy / "other.mcap")
+    _assert_clean_error(
+        _replay("info", copy),
+        "other.mcap is in the folder, not in the files it lists (a file of another bag? then "
+        "move it out rather than salvage",
+    )
+
+
 def test_bench_replay_of_a_bag_without_records_warns_and_writes_nothing(tmp_path: Path) -> None:
     """A bench interrupted before its first scenario finished leaves its configuration and no
     record: that was exit 2 (bad input) with 'nor any EpisodeSummary of a ROS run'."""

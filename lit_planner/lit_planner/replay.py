@@ -471,7 +471,10 @@ def _metadata_mismatch(path: Path, facts: BagFacts, summaries: Sequence[Any]) ->
         return f"it lists {', '.join(twice)} more than once"
     for file in sorted(path.glob("*.mcap")):
         if file.name not in listed_files:
-            return f"{file.name} is in the folder, not in the files it lists"
+            return (
+                f"{file.name} is in the folder, not in the files it lists (a file of another "
+                "bag? then move it out rather than salvage, which would merge the two)"
+            )
     in_files: dict[str, int] = {}
     for summary in summaries:
         if isinstance(summary, Exception):  # damage: the reader reports it when it gets there
