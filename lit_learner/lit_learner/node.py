@@ -48,7 +48,6 @@ from lit_planner.rosutil import (
     STATS_TOPIC,
     DirectService,
     DuplicateServerWatch,
-    SafeLogger,
     declare_parameters,
     essential,
     flush_publishers,
@@ -60,6 +59,7 @@ from lit_planner.rosutil import (
     spin_node,
     spin_quietly,
 )
+from lit_planner.safe_logger import SafeLogger
 
 from lit_learner.errors import MessageError as CoreMessageError
 from lit_learner.errors import PairingError, ReplayError

@@ -89,7 +89,6 @@ from lit_planner.rosutil import (
     TOPICS,
     DirectService,
     DuplicateServerWatch,
-    SafeLogger,
     ServiceCaller,
     declare_parameters,
     episode_budget_limit,
@@ -102,6 +101,7 @@ from lit_planner.rosutil import (
     service_qos,
     spin_node,
 )
+from lit_planner.safe_logger import SafeLogger
 
 NODE_NAME = "lit_planner"
 MODES = ("tensor", "fit", "fixed", "training")

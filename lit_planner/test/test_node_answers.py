@@ -113,7 +113,7 @@ def test_a_count_limited_request_without_time_becomes_a_job_with_the_longest_tim
 def test_the_nodes_logger_logs_text_that_is_not_unicode() -> None:
     """rclpy's logger raises for a lone surrogate; in the planner node's worker thread that ended
     the thread. The nodes' SafeLogger logs it escaped and passes other text through as is."""
-    from lit_planner.rosutil import SafeLogger
+    from lit_planner.safe_logger import SafeLogger
 
     class StrictLogger:  # as rclpy's: the message must encode to UTF-8
         def __init__(self) -> None:
@@ -151,6 +151,46 @@ def test_the_nodes_logger_logs_text_that_is_not_unicode() -> None:
         ("info", "C1 \\x85\\x9b, separators \\u2028\\u2029, an override \\u202e: ψ é"),
     ]
     assert log.name == "strict"
+
+
+def test_the_duplicate_server_watch_logs_both_ends_of_a_duplicate(monkeypatch: typing.Any) -> None:
+    """The node that outlived a duplicate server died ("Logger severity cannot be changed
+    between calls"): with SafeLogger's file counted as rclpy's own, rclpy credited the watch's
+    error and its later info line to one call site, the line that ran the check."""
+    import rclpy
+    from lit_planner.safe_logger import SafeLogger
+
+    from lit_planner import rosutil
+
+    context = rclpy.Context()
+    rclpy.init(args=[], context=context)
+    try:
+        node = rclpy.create_node("duplicate_watch_test", context=context)
+        SafeLogger(node.get_logger())  # as the nodes make theirs
+
+        class Graph:  # the real node's logger and context, a graph of our choosing
+            servers = 2
+            context = node.context
+
+            def resolve_service_name(self, name: str) -> str:
+                return name
+
+            def count_services(self, name: str) -> int:
+                return self.servers
+
+            def get_logger(self) -> typing.Any:
+                return node.get_logger()
+
+        monkeypatch.setattr(rosutil, "DEAD_SERVER_SECONDS", 0.0)
+        graph = Graph()
+        watch = rosutil.DuplicateServerWatch(graph, "/lit/planner/plan")
+        for servers in (2, 1, 2, 1):  # an error, then an info line, from this one line
+            graph.servers = servers
+            assert watch.check() == servers
+        assert not watch.reported
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
 
 
 def test_the_ready_line_names_where_the_episodes_come_from() -> None:
