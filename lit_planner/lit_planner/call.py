@@ -563,8 +563,11 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
             if value is not None:
                 payload[key] = value
         for option, key in (("iterations", "max_iterations"), ("batches", "max_batches")):
-            if getattr(args, option) is not None:  # the node refuses a value it cannot take
-                payload[key] = getattr(args, option)
+            value = getattr(args, option)
+            if value == 0:  # the node's "no limit": it planned on the scenario's time instead
+                raise ValueError(f"--{option} must be at least 1 (leave it out for no limit)")
+            if value is not None:  # the node refuses a value it cannot take
+                payload[key] = value
         # An id of its own, for the cancel this call sends when it stops waiting.
         payload.setdefault("request_id", f"call-{uuid.uuid4().hex[:12]}")
         args.sent_request_id = payload["request_id"]

@@ -51,6 +51,14 @@ def test_plan_refuses_a_scenario_the_registry_refuses(tmp_path: Path) -> None:
     assert line == "lit call: error: scenario 'np8/3': family 'np' has only instance 0, not 3"
 
 
+@pytest.mark.parametrize("option", ["--iterations", "--batches"])
+def test_plan_refuses_a_limit_of_zero(tmp_path: Path, option: str) -> None:
+    """0 is the node's "no limit": `--iterations 0` planned on the scenario's wall-clock budget,
+    against the help's "without --time the query stops on this alone"."""
+    line = refusal(lit_call("plan", "--scenario", "np8", option, "0", cwd=tmp_path))
+    assert line == f"lit call: error: {option} must be at least 1 (leave it out for no limit)"
+
+
 def test_plan_refuses_a_missing_world_file_or_a_folder(tmp_path: Path) -> None:
     missing = tmp_path / "nonexistent.json"
     line = refusal(lit_call("plan", "--world", str(missing), cwd=tmp_path))
