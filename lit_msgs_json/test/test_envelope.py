@@ -1223,3 +1223,30 @@ def test_an_integer_too_large_for_a_double_is_refused_as_1e400_is() -> None:
         first, second = spelled_as_float.value, spelled_as_integer.value
         assert (second.code, second.field, second.rule) == (first.code, first.field, first.rule)
     assert decode(envelope_text(with_(DR, cost=10**300))).payload["cost"] == 10**300  # a double
+
+
+def test_a_name_given_twice_in_an_object_is_refused() -> None:
+    """I-JSON (RFC 7493) forbids it; both parsers kept the last, so a PlanRequest with two
+    request_ids could be logged as one and planned (or cancelled) as the other."""
+    world = {
+        "lower": [0.0, 0.0],
+        "upper": [1.0, 1.0],
+        "boxes": [{"lower": [0.4, 0.4], "upper": [0.5, 0.5]}],
+    }
+    plan = envelope_text({"world": world, "start": [0.1, 0.1], "goal": [0.9, 0.9]}, "PlanRequest")
+    assert decode(plan).payload["world"] == world
+    twice = [
+        ("payload", GOOD.replace('"payload":', '"payload": {}, "payload":', 1)),
+        ("request_id", plan.replace('"goal":', '"request_id": "a", "request_id": "b", "goal":')),
+        ("request_id", plan.replace('"goal":', '"request_id": "a", "request_id" \n: "b", "goal":')),
+        ("upper", plan.replace('"upper": [0.5, 0.5]', '"upper": [0.5, 0.5], "upper": [0.6, 0.6]')),
+    ]
+    for name, text in twice:
+        assert text.count(f'"{name}"') >= 2, name
+        for sent in (text, text.encode()):
+            with pytest.raises(MessageError, match=f"has the name '{name}' twice") as caught:
+                decode(sent)
+            assert caught.value.code == "json"
+    # A string holding a quote and a colon is no name.
+    text = envelope_text(with_(DR, episode_id='run "a": 1 \\":'))
+    assert decode(text).payload["episode_id"] == 'run "a": 1 \\":'
