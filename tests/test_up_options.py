@@ -438,6 +438,55 @@ def test_lit_call_stops_waiting_when_the_service_goes_away(
     assert "cancel of plan request" not in process.stderr  # nobody left to ask
 
 
+_TAKES_PLANS_SILENTLY = """
+import os, pathlib, signal, time
+import rclpy
+from diagnostic_msgs.srv import AddDiagnostics
+rclpy.init()
+signal.signal(signal.SIGTERM, lambda *_: os._exit(0))  # its callback sleeps
+node = rclpy.create_node('silent_planner')
+def take(request, response):  # a plan that never ends; no cancel service
+    pathlib.Path({marker!r}).touch()
+    time.sleep(600)
+node.create_service(AddDiagnostics, '/lit/planner/plan', take)
+print('ready', flush=True)
+rclpy.spin(node)
+"""
+
+
+def test_a_second_ctrl_c_stops_the_cancel_of_lit_call_plan(tmp_path: Path) -> None:
+    """The first Ctrl-C stops the wait for the plan and sends its cancel; a second one stops
+    that (here it waits for a cancel service nobody offers). lit call handles the signals itself:
+    rclpy's handler shut every context down, so the cancel needed a new one, made after the
+    signal."""
+    import signal
+
+    marker = tmp_path / "taken"
+    with _server(_TAKES_PLANS_SILENTLY.format(marker=str(marker))) as env:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "lit_planner.cli", "call", "--wait", "30", "plan",
+             "--scenario", "np4", "--time", "300"],
+            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        try:
+            deadline = time.monotonic() + 60.0
+            while not marker.exists():  # the plan request arrived
+                assert process.poll() is None and time.monotonic() < deadline
+                time.sleep(0.05)
+            process.send_signal(signal.SIGINT)
+            time.sleep(0.5)  # within the cancel's 5 s wait for its service
+            process.send_signal(signal.SIGINT)
+            _, stderr = process.communicate(timeout=60)
+        finally:
+            if process.poll() is None:
+                process.kill()
+                process.wait()
+    assert process.returncode == 130, stderr
+    assert "lit call: interrupted\n" in stderr, stderr
+    assert "lit call: interrupted again; the plan request was not cancelled" in stderr, stderr
+    assert "Traceback" not in stderr and "not found within" not in stderr, stderr
+
+
 def test_sigterm_stops_system_bench_in_order(tmp_path: Path) -> None:
     """SIGTERM killed lit system-bench at once (exit 143), leaving its folder and, for a moment,
     its nodes; now it stops them as Ctrl-C does."""

@@ -32,6 +32,7 @@ import faulthandler
 import json
 import math
 import os
+import signal
 import sys
 import threading
 import time
@@ -40,7 +41,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from lit_planner import argtypes
+from lit_planner import argtypes, signals
 from lit_planner.rosutil import (
     CANCEL_SERVICE,
     DECIDE_SERVICE,
@@ -48,6 +49,7 @@ from lit_planner.rosutil import (
     EXPORT_SERVICE,
     MAX_REQUEST_TIME,
     PLAN_SERVICE,
+    CallInterrupted,
     ServerGone,
     ServiceCaller,
     add_domain_option,
@@ -260,30 +262,54 @@ def run(args: argparse.Namespace) -> int:
     localhost_environment()
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
 
-    rclpy.init(args=[])  # not sys.argv: lit call's own options are no ROS arguments
-    node = rclpy.create_node(f"lit_call_{uuid.uuid4().hex[:8]}")
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    # rclpy's SIGTERM handler shuts the context down under the spin: quiet then (see below).
-    spinner = threading.Thread(target=spin_quietly, args=(executor, lambda: False), daemon=True)
-    spinner.start()
-    callers: list[ServiceCaller] = []
-    code = 1  # what an exception leaves with, should the teardown hang
-    try:
-        code = _call(node, args, name, text, callers)
-        return code
-    finally:
-        disarm = _exit_if_stuck(code)
-        for caller in callers:
-            caller.destroy()
-        # Stop the spinning thread before tearing down (a joinable C++ thread at exit aborts).
-        executor.shutdown(timeout_sec=1.0)
-        if rclpy.ok():
+    # Our own handlers: rclpy's shut every context down, so the cancel of a plan request needed
+    # a context of its own and about 2 s to find the cancel service, the query running on.
+    interrupts = Interrupts()
+    with signals.handling((signal.SIGINT, signal.SIGTERM), interrupts):
+        # not sys.argv: lit call's own options are no ROS arguments
+        rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
+        node = rclpy.create_node(f"lit_call_{uuid.uuid4().hex[:8]}")
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        spinner = threading.Thread(target=spin_quietly, args=(executor, lambda: False), daemon=True)
+        spinner.start()
+        callers: list[ServiceCaller] = []
+        code = 1  # what an exception leaves with, should the teardown hang
+        try:
+            code = _call(node, args, name, text, callers, interrupts)
+            return code
+        finally:
+            disarm = _exit_if_stuck(code)
+            for caller in callers:
+                caller.destroy()
+            # Stop the spinning thread before tearing down (a joinable C++ thread at exit
+            # aborts).
+            executor.shutdown(timeout_sec=1.0)
             rclpy.shutdown()
-        spinner.join(timeout=2.0)
-        node.destroy_node()
-        disarm()
+            spinner.join(timeout=2.0)
+            node.destroy_node()
+            disarm()
+
+
+class Interrupts:
+    """A signal handler that counts Ctrl-Cs and SIGTERMs: the first stops the wait (a plan request
+    is then cancelled in the node), a second one that cancel."""
+
+    def __init__(self) -> None:
+        self.count = 0
+
+    def __call__(self, *_: object) -> None:
+        self.count += 1
+
+    def first(self) -> bool:
+        """Whether a signal came."""
+        return self.count >= 1
+
+    def again(self) -> bool:
+        """Whether a second one came."""
+        return self.count >= 2
 
 
 def _resend_after(text: str) -> float | None:
@@ -300,16 +326,21 @@ def _resend_after(text: str) -> float | None:
 
 
 def _call(
-    node: Any, args: argparse.Namespace, name: str, text: str, callers: list[ServiceCaller]
+    node: Any,
+    args: argparse.Namespace,
+    name: str,
+    text: str,
+    callers: list[ServiceCaller],
+    interrupts: Interrupts,
 ) -> int:
     """Find the service, call it and print the answer; the exit code. A caller made is added to
     ``callers`` (:func:`run` destroys it)."""
-    import rclpy
     from rclpy.exceptions import InvalidServiceNameException
 
+    cancel: ServiceCaller | None = None
     try:
         if args.service == "export":
-            return _call_export(node, args)
+            return _call_export(node, args, interrupts)
         try:
             caller = ServiceCaller(node, name, private=True)
             callers.append(caller)
@@ -317,7 +348,13 @@ def _call(
             reason = str(exc).splitlines()[0].rstrip(":")  # rclpy adds the name and a caret
             print(f"lit call: error: service name {name!r}: {reason}", file=sys.stderr)
             return 2
-        if not caller.wait(args.wait):
+        if args.service == "plan":
+            # Made now, so that DDS has matched it with the cancel service by the time this call
+            # gives up on the plan.
+            cancel_name = _service_name(args.namespace, CANCEL_SERVICE)
+            cancel = ServiceCaller(node, cancel_name, private=True, suffix="cancel")
+            callers.append(cancel)
+        if not caller.wait(args.wait, interrupted=interrupts.first):
             others = _other_types(node, name)
             if others:  # found, but not one of ours: say so instead of "not found"
                 print(
@@ -334,15 +371,15 @@ def _call(
             )
             return 2
         if args.service in ("decide", "raw") and args.repeat > 1:
-            return _repeat(caller, text, args)
+            return _repeat(caller, text, args, interrupts)
         started = time.perf_counter()
         args.sent = True
-        # A Ctrl-C or SIGTERM shuts the context down; the wait notices it within 0.1 s.
+        # A Ctrl-C or SIGTERM: the wait notices it within 0.1 s.
         answer = caller.call(
             text,
             args.timeout,
             resend_after=_resend_after(text),
-            interrupted=lambda: not rclpy.ok(),
+            interrupted=interrupts.first,
             server_gone=SERVER_GONE,
         )
         elapsed = time.perf_counter() - started
@@ -350,9 +387,8 @@ def _call(
             print(
                 f"lit call: error: {name} did not answer within {args.timeout:g} s", file=sys.stderr
             )
-            if args.service == "plan":
-                args.sent = False  # a Ctrl-C during this cancel stops it: no second one
-                _cancel_plan(node, args)
+            if cancel is not None:
+                _cancel_plan(cancel, args, interrupts.first)  # a Ctrl-C stops this cancel
             return 2
         success, message = answer
         _print(message, args.payload_only)
@@ -375,20 +411,10 @@ def _call(
     except ServerGone as exc:  # nobody left to cancel a plan request in
         print(f"lit call: error: {exc}", file=sys.stderr)
         return 2
-    except (Exception, KeyboardInterrupt) as exc:  # filtered below
-        if not isinstance(exc, KeyboardInterrupt) and rclpy.ok():
-            raise
-        # rclpy's SIGTERM (or SIGINT) handler shut the context down under a wait, or SIGINT's
-        # KeyboardInterrupt came through: a stop request.
+    except CallInterrupted:  # a Ctrl-C or SIGTERM
         print("lit call: interrupted", file=sys.stderr)
-        if args.service == "plan" and getattr(args, "sent", False):
-            # rclpy shuts the context down from a thread of its own, maybe not yet: done here,
-            # and the cancel goes from a context of its own.
-            try:
-                rclpy.try_shutdown()
-            except Exception:  # noqa: BLE001, S110 - rclpy's signal thread won the race: down
-                pass
-            _cancel_plan_in_new_context(args)
+        if cancel is not None and getattr(args, "sent", False):
+            _cancel_plan(cancel, args, interrupts.again)  # a second one stops the cancel
         return 130
 
 
@@ -434,36 +460,38 @@ def _service_name(namespace: str, service: str) -> str:
     return name if name.startswith("/") else "/" + name
 
 
-def _cancel_plan(node: Any, args: argparse.Namespace) -> None:
-    """Ask the planner node to cancel the plan request this call gave up on; say on stderr
-    what it answered."""
+def _cancel_plan(
+    caller: ServiceCaller, args: argparse.Namespace, interrupted: Callable[[], bool]
+) -> None:
+    """Ask the planner node, through the cancel service's ``caller``, to cancel the plan request
+    this call gave up on; say on stderr what it answered. ``interrupted``: stops the cancel (a
+    Ctrl-C during it, or a second one after the first stopped the plan's wait)."""
     from lit_msgs_json.envelope import MessageError, Publisher
 
-    name = _service_name(args.namespace, CANCEL_SERVICE)
+    name = caller.name
     request_id = args.sent_request_id
     publisher = Publisher(f"lit_call/{os.getpid()}", f"call-{uuid.uuid4().hex[:8]}")
     try:
         text = publisher.encode("CancelRequest", {"request_id": request_id})
     except MessageError:  # a world file's own request_id that the node refused as well
         return
-    caller = ServiceCaller(node, name, private=True, suffix="cancel")
     try:
-        if not caller.wait(CANCEL_WAIT):
+        if not caller.wait(CANCEL_WAIT, interrupted=interrupted):
             outcome = f"{name} not found within {CANCEL_WAIT:g} s; the query may go on in the node"
         else:
-            try:
-                answer = caller.call(
-                    text,
-                    CANCEL_WAIT,
-                    resend_after=RESEND,
-                    interrupted=lambda: not node.context.ok(),
-                    server_gone=SERVER_GONE,
-                )
-                outcome = _cancel_outcome(answer, name)
-            except ServerGone as exc:
-                outcome = str(exc)
-    finally:
-        caller.destroy()
+            answer = caller.call(
+                text,
+                CANCEL_WAIT,
+                resend_after=RESEND,
+                interrupted=interrupted,
+                server_gone=SERVER_GONE,
+            )
+            outcome = _cancel_outcome(answer, name)
+    except ServerGone as exc:
+        outcome = str(exc)
+    except CallInterrupted:
+        print("lit call: interrupted again; the plan request was not cancelled", file=sys.stderr)
+        return
     print(f"lit call: cancel of plan request {request_id!r}: {outcome}", file=sys.stderr)
 
 
@@ -478,31 +506,6 @@ def _cancel_outcome(answer: tuple[bool, str] | None, name: str) -> str:
     except MessageError as exc:
         return f"unreadable answer from {name}: {exc}"
     return str(reply.payload["message"])
-
-
-def _cancel_plan_in_new_context(args: argparse.Namespace) -> None:
-    """:func:`_cancel_plan` after a Ctrl-C or SIGTERM shut the call's context down: from a
-    context of its own (a second signal ends that one too, and the cancel with it)."""
-    import rclpy
-
-    context = rclpy.Context()
-    try:
-        rclpy.init(args=[], context=context)
-        node = rclpy.create_node(f"lit_call_{uuid.uuid4().hex[:8]}", context=context)
-        try:
-            _cancel_plan(node, args)
-        finally:
-            node.destroy_node()
-    except (Exception, KeyboardInterrupt) as exc:  # noqa: BLE001 - exit code 130 whatever happens
-        if context.ok() and not isinstance(exc, KeyboardInterrupt):
-            print(f"lit call: could not cancel the plan request: {exc}", file=sys.stderr)
-        else:
-            print(
-                "lit call: interrupted again; the plan request was not cancelled", file=sys.stderr
-            )
-    finally:
-        if context.ok():
-            rclpy.shutdown(context=context)
 
 
 def _other_types(node: Any, name: str) -> list[str]:
@@ -633,7 +636,9 @@ def _read_world(path: Path) -> bytes:
     raise ValueError(f"--world {path}: {problem}")
 
 
-def _repeat(caller: ServiceCaller, text: str, args: argparse.Namespace) -> int:
+def _repeat(
+    caller: ServiceCaller, text: str, args: argparse.Namespace, interrupts: Interrupts
+) -> int:
     """Round trips: 20 warm-up calls, then ``--repeat`` timed ones.
 
     ``decide`` times what the planner pays per decision: encoding a new request (its own seq),
@@ -641,7 +646,6 @@ def _repeat(caller: ServiceCaller, text: str, args: argparse.Namespace) -> int:
     the call only.
     """
     import numpy as np
-    import rclpy
     from lit_msgs_json.envelope import MessageError, Publisher, decode
 
     request = json.loads(text) if args.service == "decide" else None
@@ -654,7 +658,7 @@ def _repeat(caller: ServiceCaller, text: str, args: argparse.Namespace) -> int:
         if request is not None:
             text = publisher.encode("DecideRequest", request["payload"])
         answer = caller.call(
-            text, args.timeout, interrupted=lambda: not rclpy.ok(), server_gone=SERVER_GONE
+            text, args.timeout, interrupted=interrupts.first, server_gone=SERVER_GONE
         )
         if answer is not None and answer[0] and request is not None:
             try:
@@ -690,18 +694,20 @@ def _repeat(caller: ServiceCaller, text: str, args: argparse.Namespace) -> int:
     return 0
 
 
-def _call_export(node: Any, args: argparse.Namespace) -> int:
+def _call_export(node: Any, args: argparse.Namespace, interrupts: Interrupts) -> int:
     from std_srvs.srv import Trigger
 
     caller = ServiceCaller(node, EXPORT_SERVICE, srv_type=Trigger)
-    if not caller.wait(args.wait):
+    if not caller.wait(args.wait, interrupted=interrupts.first):
         print(
             f"lit call: error: service {EXPORT_SERVICE} not found within {args.wait:g} s "
             f"(ROS_DOMAIN_ID={_domain()})",
             file=sys.stderr,
         )
         return 2
-    response = caller.request(Trigger.Request(), args.timeout, server_gone=SERVER_GONE)
+    response = caller.request(
+        Trigger.Request(), args.timeout, interrupted=interrupts.first, server_gone=SERVER_GONE
+    )
     if response is None:
         print(f"lit call: error: {EXPORT_SERVICE} did not answer", file=sys.stderr)
         return 2

@@ -309,11 +309,23 @@ class ServiceCaller:
             with node.context.handle:
                 self._wait_set = _rclpy.WaitSet(0, 0, 0, 1, 0, 0, node.context.handle)
 
-    def wait(self, timeout: float) -> bool:
+    def wait(self, timeout: float, interrupted: Callable[[], bool] | None = None) -> bool:
         """Whether the service appeared within ``timeout`` seconds (DDS discovery). The graph
         shows the server before the server's response writer has matched this client's reader;
-        a short settle time keeps the first answers from going nowhere."""
-        if not self.client.wait_for_service(timeout_sec=timeout):
+        a short settle time keeps the first answers from going nowhere. ``interrupted``: looked
+        at every :data:`INTERRUPT_POLL` s; once true the wait raises :class:`CallInterrupted`."""
+        if interrupted is None:
+            found = self.client.wait_for_service(timeout_sec=timeout)
+        else:
+            deadline, found = time.monotonic() + timeout, False
+            while not found:
+                if interrupted():
+                    raise CallInterrupted(f"the wait for {self.name} was interrupted")
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                found = self.client.wait_for_service(timeout_sec=min(left, INTERRUPT_POLL))
+        if not found:
             return False
         time.sleep(SETTLE_SECONDS)
         return True
