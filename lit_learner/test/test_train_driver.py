@@ -1022,7 +1022,7 @@ def test_episode_limits_apply_to_every_episode_and_carry_over_a_resume(tmp_path:
         ),
         (
             {"budget_scale": 1e-9, "no_bag": True},
-            r"--budget-scale 1e-09 gives budgets down to .* less than the 1e-06 s",
+            r"--budget-scale 1e-09 gives budgets down to .* less than the 1e-06 s --budget-scale allows",
         ),
         ({"max_iterations": 10}, "cannot be recorded .* add --no-bag"),
     ],

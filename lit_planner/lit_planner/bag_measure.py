@@ -56,7 +56,8 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"write rate: {args.messages} messages of {_text_bytes()} bytes in "
             f"{args.messages / rate:.3f} s = {rate:,.0f} messages/s "
-            f"(chunk {args.chunk_bytes} bytes)"
+            f"(chunk {args.chunk_bytes} bytes)",
+            flush=True,  # progress, also through a pipe
         )
         per_chunk = messages_per_chunk(args.chunk_bytes)
         rng = random.Random(args.seed)
@@ -76,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
             )
             print(
                 f"crash {trial + 1}/{args.kills}: SIGKILL after {confirmed} confirmed writes, "
-                f"{recovered} recovered, {losses[-1]} lost{unreported}"
+                f"{recovered} recovered, {losses[-1]} lost{unreported}",
+                flush=True,
             )
     if losses:
         print(

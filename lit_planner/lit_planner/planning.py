@@ -77,9 +77,10 @@ bits, and from about 9.2e9 s on it overflowed, so OMPL's planners stopped at onc
 
 
 MIN_TIME = 1e-6
-"""Shortest time budget a scaled one may come to, s: a microsecond, about what one iteration of
-the search takes (a scale of 1e-320 made it 0, or a denormal the benchmark's time grid could not
-start from, after every run had been planned)."""
+"""Shortest time budget a scale factor (``lit bench --time-scale``, ``lit train --budget-scale``)
+may make of a scenario's, s: a rule of these commands, not of the planner (which takes any
+positive time), against a mistyped factor (1e-320 made a budget 0, or a denormal the
+benchmark's time grid could not start from, after every run had been planned)."""
 
 
 def scale_problem(option: str, scale: float, longest: float, shortest: float) -> str | None:
@@ -94,7 +95,7 @@ def scale_problem(option: str, scale: float, longest: float, shortest: float) ->
     if shortest > 0 and shortest * scale < MIN_TIME:
         return (
             f"{option} {scale:g} gives budgets down to {shortest * scale:g} s, less than the "
-            f"{MIN_TIME:g} s a query is given at least"
+            f"{MIN_TIME:g} s {option} allows"
         )
     return None
 

@@ -200,7 +200,8 @@ class Recorder:
             )
             return
         total = self._received()
-        dropped = f"; {self.dropped} arrived after it closed" if self.dropped else ""
+        after = "after a write failed" if self.write_error is not None else "after it closed"
+        dropped = f"; {self.dropped} arrived {after}" if self.dropped else ""
         self.log.info(
             f"closed {self.bag.path}: {total} messages on "
             f"{sum(1 for n in self.counts.values() if n)} topics{dropped}"

@@ -1851,7 +1851,7 @@ def _write_bag(
             shutil.rmtree(writer.path, ignore_errors=True)  # open() created it: no half bag left
         if isinstance(error, OSError):  # a full disk: name what could not be written
             raise ReplayError(
-                f"cannot write {writer.path}: {_describe(error)}; nothing of it was kept"
+                f"{_io_failure(error, Path(writer.path))}; nothing of {writer.path} was kept"
             ) from None
         raise
     return count
@@ -2506,10 +2506,14 @@ def _has_bench_config(path: str | Path) -> bool:
 def _removed_on_failure(out: Path) -> Iterator[None]:
     """Remove what the block wrote into ``out`` (new, or empty: checked) when it fails (Ctrl-C, a
     full disk): half-written outputs would look complete and block the rerun. An OSError
-    becomes a :class:`ReplayError` naming ``out``."""
+    becomes a :class:`ReplayError` naming ``out`` (:func:`_io_failure`). A reader of the output
+    that left (BrokenPipeError, from the lines printed once the outputs are written) removes
+    nothing."""
     existed = out.exists()
     try:
         yield
+    except BrokenPipeError:
+        raise
     except BaseException as error:
         if existed:
             for child in out.iterdir():
@@ -2521,9 +2525,21 @@ def _removed_on_failure(out: Path) -> Iterator[None]:
             shutil.rmtree(out, ignore_errors=True)
         if isinstance(error, OSError):
             raise ReplayError(
-                f"cannot write into {out}: {_describe(error)}; what was written there is removed"
+                f"{_io_failure(error, out)}; what was written into {out} is removed"
             ) from None
         raise
+
+
+def _io_failure(error: OSError, out: Path) -> str:
+    """An OSError met while writing ``out`` from bags, in words: a file it names outside
+    ``out`` was being read (a bag), else it is ``out`` that could not be written (a full disk's
+    write names no file)."""
+    name = error.filename
+    if isinstance(name, str | bytes) and not Path(os.fsdecode(name)).resolve().is_relative_to(
+        out.resolve()
+    ):
+        return f"cannot read {os.fsdecode(name)}: {_describe(error)}"
+    return f"cannot write {out}: {_describe(error)}"
 
 
 def _bench(args: argparse.Namespace) -> int:

@@ -638,6 +638,9 @@ def _effort_table(rows: dict[str, Any]) -> list[str]:
 
 PAPER_SMALLEST_GAIN = 4.6
 """The smallest t_init improvement over FIT* the paper reports (%): its range is 4.6-31.6 %."""
+_SLACK = 1e-9
+"""Percentage points by which the paper's-range verdict lets a value miss its threshold: floating
+point's error, no more."""
 
 
 def _paper_range(rows: dict[str, Any]) -> list[str]:
@@ -646,10 +649,15 @@ def _paper_range(rows: dict[str, Any]) -> list[str]:
     and, where the rows have it, query by query at 99 %."""
 
     # Decided on the unrounded values: rounding as the tables print them counted a gain of
-    # 4.595 % (shown as +4.60) and a slightly worse cost (-0.00) as in the range.
+    # 4.595 % (shown as +4.60) and a slightly worse cost (-0.00) as in the range. The slack
+    # only absorbs floating-point error (a gain of exactly 4.6 % computed as 4.599999999999996).
     def reached(row: dict[str, Any]) -> bool:
         gain, cost = row["improvement_percent"]["t_init"], row["improvement_percent"]["c_init"]
-        return gain is not None and gain >= PAPER_SMALLEST_GAIN and (cost is None or cost >= 0.0)
+        return (
+            gain is not None
+            and gain >= PAPER_SMALLEST_GAIN - _SLACK
+            and (cost is None or cost >= -_SLACK)
+        )
 
     def intervals(row: dict[str, Any]) -> tuple[Any, Any] | None:
         pair = row.get("paired")
@@ -664,7 +672,10 @@ def _paper_range(rows: dict[str, Any]) -> list[str]:
             return False
         time_ci, cost_ci = found
         bound = 1.0 - PAPER_SMALLEST_GAIN / 100.0
-        return _as_float(time_ci["upper"]) <= bound and _as_float(cost_ci["upper"]) <= 1.0
+        return (
+            _as_float(time_ci["upper"]) <= bound + _SLACK / 100.0
+            and _as_float(cost_ci["upper"]) <= 1.0 + _SLACK / 100.0
+        )
 
     def listed(names: list[str], of: int) -> str:
         return f"{', '.join(names) or 'none'} ({len(names)} of {of})"
