@@ -265,7 +265,8 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.signals import SignalHandlerOptions
 
     # Our own handlers: rclpy's shut every context down, so the cancel of a plan request needed
-    # a context of its own and about 2 s to find the cancel service, the query running on.
+    # a context of its own and had to find the cancel service again (0.45-0.5 s to the node on a
+    # quiet machine, about 2 s under load), the query running on meanwhile.
     interrupts = Interrupts()
     with signals.handling((signal.SIGINT, signal.SIGTERM), interrupts):
         # not sys.argv: lit call's own options are no ROS arguments
