@@ -443,6 +443,22 @@ def _signal(pid: int, sig: int) -> None:
         os.kill(pid, sig)
 
 
+_FILE_SIZE_LIMIT = (
+    "import os, resource, signal, sys\n"
+    "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # the write fails instead of killing\n"
+    "limit = int(sys.argv[1])\n"
+    "resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))\n"
+    "os.execv(sys.argv[2], sys.argv[2:])\n"
+)
+
+
+def file_size_limited(limit: int, program: str) -> list[str]:
+    """The start of a command line that runs ``program`` (an absolute path; its arguments follow)
+    with every write beyond ``limit`` bytes of a file failing (EFBIG): a full disk for that
+    process alone, without root. Pipes are not files: its output still reaches the test."""
+    return [sys.executable, "-c", _FILE_SIZE_LIMIT, str(limit), program]
+
+
 def session_members(session: int) -> list[int]:
     """PIDs of the live processes in session ``session`` (from ``/proc``)."""
     return [pid for pid, (_, sid) in _process_table().items() if sid == session]

@@ -261,16 +261,6 @@ def test_a_lit_topic_of_a_type_the_recorder_does_not_take_is_named(tmp_path: Pat
     assert sum(warning in line for line in recorder.lines) == 1  # once, not every scan
 
 
-_FILE_SIZE_LIMIT = (
-    "import os, resource, signal, sys\n"
-    "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # the write fails instead of killing\n"
-    "limit = int(sys.argv[1])\n"
-    "resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))\n"
-    "os.execv(sys.argv[2], sys.argv[2:])\n"
-)
-"""Runs ``argv[2:]`` with writes beyond ``argv[1]`` bytes of a file failing: a full disk."""
-
-
 def test_a_full_disk_stops_the_recorder_with_one_line(tmp_path: Path) -> None:
     """A bag write that failed (a full disk) ended the recorder's executor in a long traceback,
     a second one from closing the bag and "exception was never retrieved"; now one line names the
@@ -280,7 +270,7 @@ def test_a_full_disk_stops_the_recorder_with_one_line(tmp_path: Path) -> None:
     import ros_helpers
     from lit_planner.up import _script
 
-    limit = [sys.executable, "-c", _FILE_SIZE_LIMIT, str(16 * 1024), _script("lit_recorder_node")]
+    limit = ros_helpers.file_size_limited(16 * 1024, _script("lit_recorder_node"))
     bag = tmp_path / "bag"
     with _recording(bag, "full", limit) as (system, recorder, codes):
         system.start(

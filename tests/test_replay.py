@@ -10,14 +10,13 @@ from __future__ import annotations
 import json
 import os
 import re
-import resource
 import shutil
 import signal
 import subprocess
 import sys
 import textwrap
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -513,17 +512,6 @@ def test_sigterm_leaves_no_half_written_output(command: str, tmp_path: Path) -> 
     assert not out.exists()
 
 
-def _file_size_limited(limit: int) -> Callable[[], None]:
-    """A ``preexec_fn``: writes beyond ``limit`` bytes of a file fail with EFBIG (a full disk,
-    for the process alone)."""
-
-    def limit_files() -> None:
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # the write fails instead of killing
-        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-
-    return limit_files
-
-
 @pytest.mark.parametrize("command", ["compact", "salvage", "bench"])
 def test_a_write_failure_leaves_no_half_written_output(command: str, tmp_path: Path) -> None:
     """A full disk in the middle of the output left a half-written bag or a cut runs.jsonl,
@@ -537,29 +525,22 @@ def test_a_write_failure_leaves_no_half_written_output(command: str, tmp_path: P
     args = [source, "--out", out] if command == "bench" else [source, "-o", out]
     if command == "compact":
         args = [source, out]
+    from ros_helpers import file_size_limited
+
     result = subprocess.run(
-        [sys.executable, "-m", "lit_planner.cli", "replay", command, *map(str, args)],
+        [*file_size_limited(8192, sys.executable), "-m", "lit_planner.cli", "replay", command,
+         *map(str, args)],
         cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120, check=False,
-        preexec_fn=_file_size_limited(8192),
     )  # fmt: skip
     _assert_clean_error(result, f"cannot write {out}: ")
     assert "File too large" in result.stderr
     assert not out.exists()
 
 
-def _catches_sigint(pid: int) -> bool:
-    """Whether process ``pid`` has a handler of its own for SIGINT (``SigCgt`` in ``/proc``)."""
-    try:
-        status = Path(f"/proc/{pid}/status").read_text()
-    except OSError:  # gone
-        return False
-    found = re.search(r"^SigCgt:\s*([0-9a-f]+)$", status, re.MULTILINE)
-    return found is not None and bool(int(found.group(1), 16) >> (signal.SIGINT - 1) & 1)
-
-
 def test_ctrl_c_during_measure_prints_no_writers_traceback(tmp_path: Path) -> None:
     """A Ctrl-C (SIGINT to the terminal's process group) during the crash trials reached the
     writer process too, which printed its own KeyboardInterrupt traceback."""
+    from lit_planner.testing import handles_signal
     from ros_helpers import children_of
 
     process = subprocess.Popen(
@@ -575,7 +556,7 @@ def test_ctrl_c_during_measure_prints_no_writers_traceback(tmp_path: Path) -> No
                 break
         deadline = time.monotonic() + 60.0
         # A writer runs, with Python's own SIGINT handler (before it, a SIGINT ends it quietly).
-        while not any(_catches_sigint(pid) for pid in children_of(process.pid)):
+        while not any(handles_signal(pid, signal.SIGINT) for pid in children_of(process.pid)):
             assert process.poll() is None and time.monotonic() < deadline
             time.sleep(0.001)
         os.killpg(process.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the whole group
