@@ -63,18 +63,23 @@ TEST(Features, LocalRatiosAroundPathStatesAndTheExpandedState)
     graph.addInvalidSample({-0.05, 0.0});
     graph.addInvalidSample({0.0, 0.0});
     graph.addInvalidSample({0.05, 0.0});
-    graph.addValidSample({0.0, 0.4});
+    const litstar::State *isolated = graph.addValidSample({0.0, 0.4});
 
     ompl::base::ScopedState<> a(problem.si), b(problem.si), lonely(problem.si);
-    a[0] = -0.2;   // within 0.06: start, (-0.15, 0) -> ratio 0
+    a[0] = -0.2;   // within 0.06: (-0.15, 0) (the start is at a itself) -> ratio 0
     a[1] = 0.0;
-    b[0] = 0.0;    // within 0.06: (-0.05, 0), (0, 0), (0.05, 0) -> ratio 1
+    b[0] = 0.0;    // within 0.06: (-0.05, 0), (0.05, 0) (the invalid (0, 0) is at b itself) -> ratio 1
     b[1] = 0.0;
     lonely[0] = -0.45;
     lonely[1] = -0.45;
     EXPECT_DOUBLE_EQ(graph.localRatio(a.get(), 0.06), 0.0);
     EXPECT_DOUBLE_EQ(graph.localRatio(b.get(), 0.06), 1.0);
     EXPECT_LT(graph.localRatio(lonely.get(), 0.06), 0.0);  // empty neighbourhood
+    // A state is not its own neighbour: the valid sample (0, 0.4) has no other sample within 0.06, so its
+    // neighbourhood is empty (counting itself it would be 0, "no obstacles around").
+    EXPECT_LT(graph.localRatio(isolated->raw_, 0.06), 0.0);
+    // The start (-0.2, 0) has (-0.15, 0) only.
+    EXPECT_DOUBLE_EQ(graph.localRatio(graph.start()->raw_, 0.06), 0.0);
 
     const double global = 3.0 / 7.0;
     EXPECT_DOUBLE_EQ(graph.ratioCalc(), global);
@@ -87,6 +92,9 @@ TEST(Features, LocalRatiosAroundPathStatesAndTheExpandedState)
     EXPECT_DOUBLE_EQ(localB, global);
     EXPECT_DOUBLE_EQ(localK, global);
     std::tie(localB, localK) = graph.localRatioCalc({a.get(), lonely.get()}, nullptr, 0.06);
+    EXPECT_DOUBLE_EQ(localB, (0.0 + global) / 2.0);
+    EXPECT_DOUBLE_EQ(localK, global);
+    std::tie(localB, localK) = graph.localRatioCalc({a.get(), isolated->raw_}, isolated->raw_, 0.06);
     EXPECT_DOUBLE_EQ(localB, (0.0 + global) / 2.0);
     EXPECT_DOUBLE_EQ(localK, global);
 }
@@ -245,7 +253,8 @@ TEST(Features, LocalRatioCountsASampleExactlyAtTheRadius)
 {
     // The count uses squared distances with a sqrt only near the radius: a sample at exactly distance() counts,
     // with one ulp less of radius it does not, for valid and invalid samples alike. One sample of the other kind
-    // sits at the centre, so each count shows in the ratio.
+    // sits next to the centre (not at it: a sample at the centre is the centre itself), so each count shows in
+    // the ratio.
     BoxProblem problem = test::narrowPassage(4);
     RandomGeometricGraph graph(problem.si, 1u);
     std::mt19937 rng(11u);
@@ -261,20 +270,21 @@ TEST(Features, LocalRatioCountsASampleExactlyAtTheRadius)
             centre[i] = c[i];
         }
         graph.clear();
-        double d = 0.0;
+        std::vector<double> beside = c;
+        beside[0] += 1e-6;
         const bool validProbe = trial % 2 == 0;
         if (validProbe)
         {
-            litstar::State *probe = graph.addValidSample(x);
-            graph.addInvalidSample(c);
-            d = graph.distance(c.data(), probe->coordinates_);
+            graph.addValidSample(x);
+            graph.addInvalidSample(beside);
         }
         else
         {
             graph.addInvalidSample(x);
-            litstar::State *at = graph.addValidSample(c);
-            d = graph.distance(at->coordinates_, x.data());
+            graph.addValidSample(beside);
         }
+        const double d = graph.distance(c.data(), x.data());
+        ASSERT_GT(d, 1e-5) << trial;
         const double with = graph.localRatio(centre.get(), d);
         const double without = graph.localRatio(centre.get(), std::nextafter(d, 0.0));
         EXPECT_DOUBLE_EQ(with, 0.5) << trial;

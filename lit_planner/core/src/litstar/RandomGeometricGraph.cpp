@@ -579,8 +579,10 @@ namespace lit::litstar
         const double inside = squared * (1.0 - 1e-9);
         const double outside = squared * (1.0 + 1e-9);
         std::size_t count = 0u;
+        // sum == 0 is the centre's own position: a state is not its own neighbour (LIT*'s rho_local counts
+        // the samples around a state, and an isolated state falls back to rho_global).
         const auto within = [&](double sum) {
-            return sum < inside || (sum <= outside && std::sqrt(sum) <= radius) ? 1u : 0u;
+            return sum > 0.0 && (sum < inside || (sum <= outside && std::sqrt(sum) <= radius)) ? 1u : 0u;
         };
         const double *y = packed.data();
         const std::size_t points = packed.size() / dim_;

@@ -176,7 +176,8 @@ namespace lit::litstar
         /** \brief rho = |X_invalid| / (|X_valid| + |X_invalid|) (Eq. 4 of the paper); 0 without samples. */
         double ratioCalc() const;
 
-        /** \brief Invalid ratio among all samples within \e radius of \e centre; negative when there are none. */
+        /** \brief Invalid ratio among the samples within \e radius of \e centre other than one at \e centre
+         *  itself (a state is not its own neighbour); negative when there are none. */
         double localRatio(const ompl::base::State *centre, double radius) const;
 
         /** \brief Algorithm 2: (rho_local,B, rho_local,K): the mean local ratio over \e pathStates (rho_global
@@ -238,7 +239,8 @@ namespace lit::litstar
         /** \brief Whether \e state, at \e distance from \e owner, is among the k nearest that \e owner was last
          *  asked for, given that it was at some point since the last prune. */
         bool inAskedPrefix(const State *owner, const State *state, double distance) const;
-        /** \brief How many of the packed points lie within \e radius of \e centre (as distance() <= radius). */
+        /** \brief How many of the packed points lie within \e radius of \e centre (as distance() <= radius),
+         *  not counting points at \e centre itself. */
         std::size_t countWithin(const std::vector<double> &packed, const double *centre, double radius) const;
         /** \brief Merges states_[from, end) into \e state's cache of its \e cap nearest. */
         void scanNeighbours(State *state, std::size_t cap, std::size_t from);
