@@ -492,7 +492,7 @@ def test_sigterm_leaves_no_half_written_output(command: str, tmp_path: Path) -> 
     SIGTERM used to leave half a compacted bag, and an interrupted bench a plots/ folder that then
     blocked the rerun ("exists and is not empty")."""
     shipped = ROOT / "bags" / "shipped"
-    source = shipped / ("train-20261130c" if command == "compact" else "tensor-paper-20261205")
+    source = shipped / ("train-20261130c" if command == "compact" else "tensor-paper-20261206")
     out = tmp_path / "out"
     args = [source, out] if command == "compact" else [source, "--out", out]
     process = subprocess.Popen(
