@@ -176,8 +176,9 @@ namespace lit::litstar
         /** \brief rho = |X_invalid| / (|X_valid| + |X_invalid|) (Eq. 4 of the paper); 0 without samples. */
         double ratioCalc() const;
 
-        /** \brief Invalid ratio among the samples within \e radius of \e centre other than one at \e centre
-         *  itself (a state is not its own neighbour); negative when there are none. */
+        /** \brief Invalid ratio among the samples within \e radius of \e centre, not counting samples at
+         *  the centre's own position (distance 0: a state is not its own neighbour); negative when there are
+         *  none. */
         double localRatio(const ompl::base::State *centre, double radius) const;
 
         /** \brief Algorithm 2: (rho_local,B, rho_local,K): the mean local ratio over \e pathStates (rho_global
