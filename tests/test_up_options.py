@@ -532,25 +532,33 @@ def test_sigterm_stops_system_bench_in_order(tmp_path: Path) -> None:
         nodes.kill()
 
 
-def test_sighup_stops_lit_up_in_order(tmp_path: Path) -> None:
-    """The terminal closing (SIGHUP) ended lit up at once: its nodes, orphaned, stopped all at one
-    moment, and its domain lock was free while they still ran. It stops them as Ctrl-C does."""
-    import signal
-    import subprocess
-
-    from lit_planner.testing import read_until
-
-    domain = launcher_domain()
+def _serving_lit_up(cwd: Path) -> subprocess.Popen[str]:
+    """``lit up`` with a planner that only serves (fixed policy, no recording), started in ``cwd``
+    on a domain of its own; returned once the planner is ready (the caller stops it)."""
     process = subprocess.Popen(
-        [sys.executable, "-m", "lit_planner.cli", "up", "--domain-id", str(domain),
+        [sys.executable, "-m", "lit_planner.cli", "up", "--domain-id", str(launcher_domain()),
          "--no-record", "--policy", "fixed", "--episodes", "0"],
-        cwd=tmp_path, env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+        cwd=cwd, env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
     )  # fmt: skip
     try:
         assert process.stdout is not None
         while not read_until(process.stdout, "ready:", timeout=120.0)[-1].startswith("[planner]"):
             pass  # another node's ready line
+    except BaseException:
+        process.kill()
+        process.wait()
+        raise
+    return process
+
+
+def test_sighup_stops_lit_up_in_order(tmp_path: Path) -> None:
+    """The terminal closing (SIGHUP) ended lit up at once: its nodes, orphaned, stopped all at one
+    moment, and its domain lock was free while they still ran. It stops them as Ctrl-C does."""
+    import signal
+
+    process = _serving_lit_up(tmp_path)
+    try:
         process.send_signal(signal.SIGHUP)
         out, _ = process.communicate(timeout=120)
     finally:
@@ -558,4 +566,35 @@ def test_sighup_stops_lit_up_in_order(tmp_path: Path) -> None:
             process.kill()
             process.wait()
     assert "lit up: stopped planner (exit 0)" in out, out
+    assert "Traceback" not in out, out
+
+
+def test_a_node_stopped_from_elsewhere_fails_lit_up(tmp_path: Path) -> None:
+    """A node that exits while lit up runs, even cleanly (exit 0 on a SIGTERM that lit up did not
+    send), leaves the system short of what was asked: lit up stops the others and exits 1 (it
+    exited 0, as if all had gone well)."""
+    import signal
+
+    from lit_planner.testing import descendants
+
+    process = _serving_lit_up(tmp_path)
+    watch = DescendantWatch(process.pid)
+    try:
+        planners = [
+            pid
+            for pid in descendants(process.pid)
+            if b"lit_planner_node" in Path(f"/proc/{pid}/cmdline").read_bytes()
+        ]
+        assert len(planners) == 1, planners
+        os.kill(planners[0], signal.SIGTERM)  # the planner stops cleanly on it (exit 0)
+        out, _ = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        watch.kill()
+    stopped = "lit up: planner (exit 0) exited before lit up was asked to stop; stopping the others"
+    assert stopped in out, out
+    assert "lit up: stopped planner (exit 0), learner (exit 0)" in out, out
+    assert process.returncode == 1, out
     assert "Traceback" not in out, out

@@ -473,7 +473,8 @@ def _given_values(items: Sequence[str], known: dict[str, Any]) -> dict[str, Any]
 
 
 def run(args: argparse.Namespace) -> int:
-    """Start everything, stream logs, stop on Ctrl-C; 0 when every process exited cleanly."""
+    """Start everything, stream logs, stop on Ctrl-C; 0 when the stop was asked for (Ctrl-C, SIGTERM,
+    SIGHUP) and every process exited cleanly; 1 when one failed or exited on its own."""
     from lit_learner import node as learner_node
     from lit_planner import node as planner_node
     from lit_planner.bag import default_bag_root
@@ -549,9 +550,14 @@ def run(args: argparse.Namespace) -> int:
         if not (stop.is_set() or learner_gone):
             system.start("planner", "lit_planner_node", planner)
         while not stop.wait(0.2):
-            if any(c.process.poll() is not None for c in system.children.values()):
-                dead = [n for n, c in system.children.items() if c.process.poll() is not None]
-                print(f"lit up: {', '.join(dead)} exited; stopping the others", flush=True)
+            dead = {n: c.process.poll() for n, c in system.children.items()}
+            dead = {n: code for n, code in dead.items() if code is not None}
+            if dead:
+                # Nothing ends a node but lit up: one that exited, even cleanly (a SIGTERM from
+                # elsewhere), left the system short of what was asked, and the run failed.
+                exits = ", ".join(f"{n} (exit {code})" for n, code in dead.items())
+                failure = RuntimeError(f"{exits} exited before lit up was asked to stop")
+                print(f"lit up: {failure}; stopping the others", flush=True)
                 break
     except RuntimeError as error:  # the recorder exited, or hung, before it was ready
         failure = error
