@@ -613,7 +613,12 @@ def check_path(scenario: Scenario, path: ArrayLike, resolution: float | None = N
 
     Every segment is sampled at ``resolution * max_extent / CHECK_REFINEMENT`` or finer, both
     endpoints included, and each sample is tested with :func:`is_valid`. The check stops at the
-    first invalid sample. A path whose samples are all valid is then tested segment by segment
+    first invalid sample, with one exception in the registry's scenarios, whose edges every
+    planner checks at points up to ``resolution * max_extent`` apart: a segment that meets boxes
+    only where it clips an edge or corner (in across one axis, out across another), each time
+    over a stretch no longer than that, passes (:func:`_only_short_corner_clips`; a path refined
+    for long hugs the obstacles' corners, and such clips pass every planner's own checks). A path
+    whose samples are all valid is then tested segment by segment
     against every box exactly for a segment that passes through a box (a wall thinner than the
     spacing slips between samples; :func:`_first_box_crossing`); such a crossing gives the segment
     and the middle of its stretch inside the box as the first invalid one.
@@ -641,6 +646,9 @@ def check_path(scenario: Scenario, path: ArrayLike, resolution: float | None = N
     if not (math.isfinite(fraction) and fraction > 0):
         raise ScenarioError(f"resolution must be a positive finite fraction, got {fraction!r}")
     spacing = fraction * scenario.max_extent / CHECK_REFINEMENT
+    # The planners check a registry scenario's edges at points at most this far apart (a custom
+    # world's exactly: no clip is tolerated there).
+    clip_limit = 0.0 if scenario.family == CUSTOM_FAMILY else fraction * scenario.max_extent
     lengths = np.linalg.norm(np.diff(waypoints, axis=0), axis=1)
     starts = bool(np.linalg.norm(waypoints[0] - scenario.start) <= ENDPOINT_TOLERANCE)
     ends = bool(np.linalg.norm(waypoints[-1] - scenario.goal) <= ENDPOINT_TOLERANCE)
@@ -678,7 +686,9 @@ def check_path(scenario: Scenario, path: ArrayLike, resolution: float | None = N
             first = _first_sample_in_a_box(scenario, a, b, steps)
         else:  # leaves the bounds: sample by sample (it is invalid anyway)
             first = _first_invalid_sample(scenario, a, b, steps)
-        if first is not None:
+        if first is not None and not (
+            clip_limit > 0.0 and _only_short_corner_clips(scenario, a, b, clip_limit)
+        ):
             return result(checked + first, index, _samples(a, b, steps, np.array([first]))[0])
         checked += steps
     # Samples miss a box thinner than their spacing (a custom world's coarse resolution, a box of
@@ -702,26 +712,11 @@ def _first_box_crossing(scenario: Scenario, waypoints: FloatArray) -> tuple[int,
     checked exactly, so its paths clip nothing)."""
     if len(waypoints) < 2 or len(scenario.boxes) == 0:
         return None
-    box_lo, box_hi = scenario.boxes[None, :, 0, :], scenario.boxes[None, :, 1, :]
-    per_segment = len(scenario.boxes) * scenario.dim
-    chunk = max(1, _CHUNK_ELEMENTS // per_segment)
+    chunk = max(1, _CHUNK_ELEMENTS // (len(scenario.boxes) * scenario.dim))
     for begin in range(0, len(waypoints) - 1, chunk):
         a = waypoints[begin : begin + chunk + 1][:-1][:, None, :]
         d = np.diff(waypoints[begin : begin + chunk + 1], axis=0)[:, None, :]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t_lo, t_hi = (box_lo - a) / d, (box_hi - a) / d
-        enter, leave = np.minimum(t_lo, t_hi), np.maximum(t_lo, t_hi)
-        # An axis the segment does not move along: inside the box's slab for every t, or never.
-        still = np.broadcast_to(d == 0.0, enter.shape)
-        within = (box_lo <= a) & (a <= box_hi)
-        enter = np.where(still, np.where(within, -np.inf, np.inf), enter)
-        leave = np.where(still, np.where(within, np.inf, -np.inf), leave)
-        first = np.maximum(enter.max(axis=2), 0.0)
-        last = np.minimum(leave.min(axis=2), 1.0)
-        # Through: in and out across the same axis (opposite faces, or the one face of a box of
-        # zero thickness). A stretch that enters across one axis and leaves across another clips
-        # an edge or corner, by less than the samples' spacing (else a sample found it).
-        through = enter.argmax(axis=2) == leave.argmin(axis=2)
+        first, last, through = _box_stretches(scenario, a, d)
         hits = np.argwhere((first <= last) & through)
         if len(hits):
             segment, box = hits[0]  # argwhere is row-major: the first segment's first box
@@ -729,6 +724,44 @@ def _first_box_crossing(scenario: Scenario, waypoints: FloatArray) -> tuple[int,
             point = a[segment, 0] + middle * d[segment, 0]
             return begin + int(segment), point
     return None
+
+
+def _box_stretches(
+    scenario: Scenario, a: FloatArray, d: FloatArray
+) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+    """For segments ``a -> a + d`` (shape (m, 1, dim)) and every box: the parameters ``first``
+    and ``last`` (shape (m, boxes)) of the stretch inside the closed box (none where
+    first > last), and whether it goes *through* (in and out across the same axis: opposite faces,
+    or the one face of a box of zero thickness); a stretch that enters across one axis and leaves
+    across another clips an edge or corner. Slab test: the parameter interval in which each
+    coordinate lies within the box's, intersected over the axes and with [0, 1]."""
+    box_lo, box_hi = scenario.boxes[None, :, 0, :], scenario.boxes[None, :, 1, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_lo, t_hi = (box_lo - a) / d, (box_hi - a) / d
+    enter, leave = np.minimum(t_lo, t_hi), np.maximum(t_lo, t_hi)
+    # An axis the segment does not move along: inside the box's slab for every t, or never.
+    still = np.broadcast_to(d == 0.0, enter.shape)
+    within = (box_lo <= a) & (a <= box_hi)
+    enter = np.where(still, np.where(within, -np.inf, np.inf), enter)
+    leave = np.where(still, np.where(within, np.inf, -np.inf), leave)
+    first = np.maximum(enter.max(axis=2), 0.0)
+    last = np.minimum(leave.min(axis=2), 1.0)
+    return first, last, enter.argmax(axis=2) == leave.argmin(axis=2)
+
+
+def _only_short_corner_clips(
+    scenario: Scenario, a: FloatArray, b: FloatArray, limit: float
+) -> bool:
+    """Whether the segment a→b meets boxes only in edge or corner clips, each over a stretch of
+    at most ``limit``: what a planner that checks the segment at points up to ``limit`` apart can
+    miss. False when it meets no box (exactly): a sample found inside one says otherwise; and
+    False when an end is invalid (the planners check their states themselves, exactly)."""
+    if len(scenario.boxes) == 0 or not is_valid(scenario, np.stack([a, b])).all():
+        return False
+    first, last, through = _box_stretches(scenario, a[None, None, :], (b - a)[None, None, :])
+    meets = first[0] <= last[0]
+    stretch = (last[0] - first[0]) * float(np.linalg.norm(b - a))
+    return bool(meets.any() and not through[0][meets].any() and stretch[meets].max() <= limit)
 
 
 def _samples(a: FloatArray, b: FloatArray, steps: int, j: NDArray[np.int64]) -> FloatArray:

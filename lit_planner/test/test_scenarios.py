@@ -161,6 +161,38 @@ def test_check_path_catches_a_thin_crossing_between_waypoints() -> None:
     assert check_path(s, path, resolution=1e-2).valid
 
 
+def _around_the_corner(k: float) -> np.ndarray:
+    """np2's path through the passage whose fourth segment follows x1 = 0.05 + k - (x0 - 0.1) / 2
+    past the wall's corner (0.1, 0.05): for k < 0 it cuts the corner over a stretch of
+    |k| * sqrt(5) (in across x1 = 0.05, out across x0 = 0.1)."""
+    return np.array(
+        [[-0.2, 0.0], [-0.11, 0.1], [0.09, 0.1], [0.09, 0.055 + k], [0.12, 0.04 + k], [0.2, 0.0]]
+    )
+
+
+def test_check_path_passes_a_corner_clip_shorter_than_the_planners_check_spacing() -> None:
+    """The planners check np2's edges at points up to 5e-6 * sqrt(2) (7.1e-6) apart, so a path
+    refined for long can cut a corner over a shorter stretch and pass their checks: `lit plan
+    --scenario np2 --batches 300 --seed 2` returned one that clipped the corner (0.1, 0.05) over
+    4.7e-6, and the re-check's samples (1.8e-6 apart) failed it (exit 3). Longer clips, a path
+    state inside a box and the same clip in a custom world (whose edges are checked exactly)
+    still fail."""
+    s = get("np2")
+    limit = s.resolution * s.max_extent
+    assert 2e-6 * math.sqrt(5) < limit < 4e-6 * math.sqrt(5)
+    check = check_path(s, _around_the_corner(-2e-6))
+    assert check.ok, check
+    assert not is_valid(s, np.array([[0.1 - 1e-7, 0.05 - 1e-7]])).all()  # samples do fall inside
+    longer = check_path(s, _around_the_corner(-4e-6))
+    assert not longer.valid and longer.first_invalid_index == 3
+    inside = _around_the_corner(-2e-6)
+    inside[4] = [0.1 - 1e-9, 0.05 - 1e-9]  # the segment's end just inside the corner
+    assert not check_path(s, inside).valid
+    world = custom(s.lower, s.upper, [tuple(map(tuple, box)) for box in s.boxes], s.start, s.goal,
+                   resolution=s.resolution)  # fmt: skip
+    assert not check_path(world, _around_the_corner(-2e-6)).valid
+
+
 @pytest.mark.parametrize("thickness", [2e-3, 0.0])
 def test_check_path_finds_a_wall_thinner_than_its_spacing(thickness: float) -> None:
     """A 10 m room with a wall of 2 mm (or none: a box of zero thickness) at the default custom
@@ -378,11 +410,15 @@ def _dense_reference(s, path, resolution):  # type: ignore[no-untyped-def]
 
 
 @pytest.mark.parametrize("name", ["np4", "wg8", "rrd4/3", "rrd8/5", "rrd16/2"])
-def test_check_path_finds_exactly_what_testing_every_sample_finds(name: str) -> None:
+def test_check_path_finds_exactly_what_testing_every_sample_finds(
+    name: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """check_path finds a segment's first sample inside a box by bisection on the sample formula
     instead of testing every sample: it must agree with testing every sample on the verdict, the
     segment, the exact point and the count, on random paths and on paths that graze boxes: along
-    faces, through corners, on a face, with axes that hardly move."""
+    faces, through corners, on a face, with axes that hardly move. (Without the pass it gives a
+    short corner clip, which the reference knows nothing of: many of these grazes are such clips.)"""
+    monkeypatch.setattr(scenarios, "_only_short_corner_clips", lambda *_: False)
     s = get(name)
     rng = np.random.default_rng(11)
     lower, upper = np.array(s.lower), np.array(s.upper)
