@@ -1486,7 +1486,38 @@ def test_episode_table_groups_the_instances_of_a_random_family() -> None:
     ]
     assert rows[1]["median_c_final"] is None  # one of two unsolved: the median is infinite
     assert rows[1]["fallback_decisions"] == 2
-    assert "| training | rrd4 (2 instances) | litstar | training | 2 | 1 |" in table
+    assert (
+        "| training | rrd4 (2 instances) | litstar | training | - | its limits | 2 | 1 |" in table
+    )
+
+
+def test_episode_table_keeps_budgets_and_stopped_queries_apart() -> None:
+    """Plan requests of 0.5 s and 0.2 s, and one cancelled after 1.8 s of a 30 s budget, were one
+    row: 3 of 3 solved, a median final cost over runs cut short at different moments."""
+
+    def summary(budget: float | None, cost: float, status: str = "exact_solution") -> dict:
+        return {
+            "mode": "service", "scenario": "np8", "planner": "litstar", "policy": "tensor",
+            "status": status, "time_budget": budget, "solved": True, "t_init": 0.01,
+            "c_init": cost, "cost": cost, "optimal_cost": 0.4236, "fallback_decisions": 0,
+            "path_valid": True,
+        }  # fmt: skip
+
+    rows, table = replay.episode_table([
+        summary(0.5, 0.60), summary(0.2, 0.70), summary(0.5, 0.62), summary(30.0, 0.9, "cancelled"),
+        summary(None, 0.8), summary(30.0, 0.5, "shutdown"),
+    ])  # fmt: skip
+    assert [(r["time_budget"], r["ended_by"], r["queries"]) for r in rows] == [
+        (0.2, "its limits", 1),
+        (0.5, "its limits", 2),
+        (30.0, "a cancel", 1),
+        (30.0, "the shutdown", 1),
+        (None, "its limits", 1),
+    ]
+    assert rows[1]["median_c_final"] == pytest.approx(0.61)
+    assert "| service | np8 | litstar | tensor | 0.5 s | its limits | 2 | 2 |" in table
+    assert "| service | np8 | litstar | tensor | 30 s | a cancel | 1 | 1 |" in table
+    assert "| service | np8 | litstar | tensor | - | its limits | 1 | 1 |" in table
 
 
 def test_episode_table_tells_custom_worlds_apart() -> None:
@@ -1514,7 +1545,9 @@ def test_episode_table_tells_custom_worlds_apart() -> None:
     assert [(r["scenario"], r["instances"], r["queries"]) for r in rows] == [
         ("custom2 (3 instances)", 3, 3)
     ]
-    assert "| service | custom2 (3 instances) | litstar | tensor | 3 | 3 |" in table
+    assert "| service | custom2 (3 instances) | litstar | tensor | - | its limits | 3 | 3 |" in (
+        table
+    )
 
 
 def test_a_killed_writer_loses_no_more_than_its_open_chunk(tmp_path: Path) -> None:

@@ -2424,19 +2424,33 @@ def read_episode_summaries(
     return summaries
 
 
+ENDED_BY = {"cancelled": "a cancel", "shutdown": "the shutdown"}
+"""The ``ended by`` cell of :func:`episode_table` for the statuses of queries stopped early;
+every other query ended at its limits (``its limits``)."""
+
+
 def episode_table(summaries: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str, Any]], str]:
     """Per (mode, scenario, planner, policy): queries, solved, medians of t_init, c_init, c_final
     and c_final / optimum (an unsolved query counts as infinite, as in ``lit bench``), fallback
     decisions and independently re-checked paths. Returns the rows and a markdown table.
 
+    Queries of other time budgets (none: ``-``, limited by iterations or batches) and queries
+    stopped early (ended by ``a cancel`` or ``the shutdown``, their costs those of that moment) are
+    rows of their own: they used to share one, counted as solved.
+
     Instances of a random family are one group (``rrd4 (458 instances)``): a training run draws a
     new instance for nearly every query, and a row per instance says nothing. Custom worlds
     (``custom2``, every one named by its dimension) are told apart by the world the summary
     carries: three worlds are ``custom2 (3 instances)``."""
-    groups: dict[tuple[str, str, str, str], list[Mapping[str, Any]]] = {}
+    groups: dict[tuple[str, str, str, str, float, str], list[Mapping[str, Any]]] = {}
     for summary in summaries:
         family = str(summary["scenario"]).split("/", 1)[0]
-        key = (summary["mode"], family, summary["planner"], summary["policy"])
+        budget = summary.get("time_budget")
+        key = (
+            summary["mode"], family, summary["planner"], summary["policy"],
+            math.inf if budget is None else float(budget),
+            ENDED_BY.get(str(summary.get("status")), "its limits"),
+        )  # fmt: skip
         groups.setdefault(key, []).append(summary)
 
     def median(values: list[float | None]) -> float | None:
@@ -2451,7 +2465,7 @@ def episode_table(summaries: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str
         return f"{summary['scenario']} {json.dumps(world, sort_keys=True)}"
 
     rows = []
-    for (mode, family, planner, policy), group in sorted(groups.items()):
+    for (mode, family, planner, policy, budget, ended), group in sorted(groups.items()):
         instances = {instance(s) for s in group}
         scenario = (
             str(group[0]["scenario"])
@@ -2464,6 +2478,7 @@ def episode_table(summaries: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str
         ]
         rows.append({
             "mode": mode, "scenario": scenario, "planner": planner, "policy": policy,
+            "time_budget": budget if math.isfinite(budget) else None, "ended_by": ended,
             "instances": len(instances), "queries": len(group),
             "solved": sum(bool(s["solved"]) for s in group),
             "median_t_init": median([s["t_init"] for s in group]),
@@ -2479,15 +2494,17 @@ def episode_table(summaries: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str
 
     lines = [
         (
-            "| mode | scenario | planner | policy | queries | solved | median t_init | "
-            "median c_init | median c_final | c_final / optimum | fallbacks | paths re-checked |"
+            "| mode | scenario | planner | policy | budget | ended by | queries | solved | "
+            "median t_init | median c_init | median c_final | c_final / optimum | fallbacks | "
+            "paths re-checked |"
         ),
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in rows:
+        budget = "-" if row["time_budget"] is None else f"{row['time_budget']:g} s"
         lines.append(
             f"| {row['mode']} | {row['scenario']} | {row['planner']} | {row['policy']} | "
-            f"{row['queries']} | {row['solved']} | {cell(row['median_t_init'], 1e3, ' ms')} | "
+            f"{budget} | {row['ended_by']} | {row['queries']} | {row['solved']} | {cell(row['median_t_init'], 1e3, ' ms')} | "
             f"{cell(row['median_c_init'])} | {cell(row['median_c_final'])} | "
             f"{cell(row['median_ratio'])} | {row['fallback_decisions']} | "
             f"{row['paths_rechecked_ok']}/{row['queries']} |"
