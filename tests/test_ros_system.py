@@ -1099,8 +1099,9 @@ BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
         "-1",
     ),
     (
+        # sent raw: lit call plan refuses it itself before sending (exit 2)
         "plan: start of the wrong dimension",
-        ["plan", "--scenario", "np4", "--start", "0,0"],
+        ["raw", PLAN, json.dumps(_envelope("PlanRequest", {"scenario": "np4", "start": [0, 0]}))],
         None,
         "invalid-request",
         "$.payload.start",
@@ -1139,8 +1140,16 @@ BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
         "aitstar stops on time only",
     ),
     (
-        "plan: a policy for an OMPL planner",  # was silently ignored
-        ["plan", "--scenario", "np4", "--planner", "aitstar", "--policy", "tensor"],
+        "plan: a policy for an OMPL planner",  # was silently ignored; lit call refuses it (exit 2)
+        [
+            "raw",
+            PLAN,
+            json.dumps(
+                _envelope(
+                    "PlanRequest", {"scenario": "np4", "planner": "aitstar", "policy": "tensor"}
+                )
+            ),
+        ],
         None,
         "invalid-request",
         "$.payload.policy",

@@ -122,7 +122,7 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
     if not (math.isfinite(p["episode_timeout"]) and p["episode_timeout"] >= 0):
         return f"episode_timeout must be 0 (never) or more seconds, got {p['episode_timeout']}"
     if not (math.isfinite(p["stats_period"]) and p["stats_period"] > 0):
-        return f"stats_period must be a positive number of seconds, got {p['stats_period']}"
+        return f"stats_period must be a finite positive number of seconds, got {p['stats_period']}"
     if not p["checkpoint"]:
         return "checkpoint must name a file"
     return service_name_problem("service", p["service"]) or run_id_problem("run_id", p["run_id"])

@@ -503,12 +503,13 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
     if len(_NAME_END.findall(data)) != _names_in(obj):
         twice = _name_given_twice(text)  # type: ignore[arg-type]
         if twice is not None:
+            name, where = twice
             claimed, seq = _claimed(obj)
             raise MessageError(
                 "json",
-                f"an object has the name {_clip(repr(twice), 200)} twice (I-JSON: names are "
-                "unique)",
-                field="$",
+                f"the object at {_clip(where, 200)} has the name {_clip(repr(name), 200)} twice "
+                "(I-JSON: names are unique)",
+                field=_clip(where, 1024),
                 rule="json",
                 request_schema=claimed,
                 request_seq=seq,
@@ -618,22 +619,37 @@ def _names_in(obj: object) -> int:
     return count
 
 
-def _name_given_twice(text: str | bytes) -> str | None:
-    """The first name given twice in one object of the JSON ``text``; None when there is none."""
-    found: list[str] = []
+def _name_given_twice(text: str | bytes) -> tuple[str, str] | None:
+    """A name given twice in one object of the JSON ``text`` (of the first such object the parser
+    completes: an inner one before the object around it) and that object's JSON path
+    (``$.payload.world``); None when there is none."""
+    found: list[tuple[str, dict[str, Any]]] = []
 
     def pairs(items: list[tuple[str, Any]]) -> dict[str, Any]:
+        made = dict(items)
         if not found:
             seen: set[str] = set()
             for name, _ in items:  # linear: an object of 100 000 names is within 1 MiB
                 if name in seen:
-                    found.append(name)
+                    found.append((name, made))
                     break
                 seen.add(name)
-        return dict(items)
+        return made
 
-    json.loads(text, object_pairs_hook=pairs, parse_constant=_reject_constant)
-    return found[0] if found else None
+    document = json.loads(text, object_pairs_hook=pairs, parse_constant=_reject_constant)
+    if not found:
+        return None
+    name, target = found[0]
+    stack: list[tuple[object, str]] = [(document, "$")]
+    while stack:  # the object itself (by identity), not an equal one elsewhere
+        value, where = stack.pop()
+        if value is target:
+            return name, where
+        if isinstance(value, dict):
+            stack.extend((item, f"{where}.{key}") for key, item in value.items())
+        elif isinstance(value, list):
+            stack.extend((item, f"{where}[{index}]") for index, item in enumerate(value))
+    return name, "$"  # not reached: the object is part of the document
 
 
 def _lone_surrogate(obj: object, path: str) -> tuple[str, str] | None:

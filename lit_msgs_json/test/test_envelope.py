@@ -1236,17 +1236,32 @@ def test_a_name_given_twice_in_an_object_is_refused() -> None:
     plan = envelope_text({"world": world, "start": [0.1, 0.1], "goal": [0.9, 0.9]}, "PlanRequest")
     assert decode(plan).payload["world"] == world
     twice = [
-        ("payload", GOOD.replace('"payload":', '"payload": {}, "payload":', 1)),
-        ("request_id", plan.replace('"goal":', '"request_id": "a", "request_id": "b", "goal":')),
-        ("request_id", plan.replace('"goal":', '"request_id": "a", "request_id" \n: "b", "goal":')),
-        ("upper", plan.replace('"upper": [0.5, 0.5]', '"upper": [0.5, 0.5], "upper": [0.6, 0.6]')),
+        ("payload", "$", GOOD.replace('"payload":', '"payload": {}, "payload":', 1)),
+        (
+            "request_id",
+            "$.payload",
+            plan.replace('"goal":', '"request_id": "a", "request_id": "b", "goal":'),
+        ),
+        (
+            "request_id",
+            "$.payload",
+            plan.replace('"goal":', '"request_id": "a", "request_id" \n: "b", "goal":'),
+        ),
+        (
+            "upper",
+            "$.payload.world.boxes[0]",
+            plan.replace('"upper": [0.5, 0.5]', '"upper": [0.5, 0.5], "upper": [0.6, 0.6]'),
+        ),
     ]
-    for name, text in twice:
+    for name, where, text in twice:
         assert text.count(f'"{name}"') >= 2, name
         for sent in (text, text.encode()):
             with pytest.raises(MessageError, match=f"has the name '{name}' twice") as caught:
                 decode(sent)
             assert caught.value.code == "json"
+            # The object's path (it was "$" for every object, the payload's included).
+            assert caught.value.field == where, caught.value.field
+            assert f"the object at {where} has" in str(caught.value)
     # A string holding a quote and a colon is no name.
     text = envelope_text(with_(DR, episode_id='run "a": 1 \\":'))
     assert decode(text).payload["episode_id"] == 'run "a": 1 \\":'

@@ -237,7 +237,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         for label, value in (("--wait", args.wait), ("--timeout", args.timeout)):
             if value is not None and not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{label} must be a positive number of seconds, got {value}")
+                raise ValueError(
+                    f"{label} must be a finite positive number of seconds, got {value}"
+                )
         if getattr(args, "repeat", 1) < 1:
             raise ValueError(f"--repeat must be 1 or more, got {args.repeat}")
         for option, value in vars(args).items():
@@ -557,11 +559,26 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
             payload["scenario"] = args.scenario
         if args.planner in planning.SHORTHANDS:  # as `lit plan` takes them: litstar-fit
             args.planner, args.policy = planning.resolve_planner(args.planner, args.policy)
-        elif args.planner is not None and args.planner not in planning.PLANNER_CHOICES:
-            # An unknown name gets `lit plan`'s message (the shorthands listed; the schema's enum
-            # error lists only the node's names) and nothing is sent. Combinations, such as a
-            # policy for an OMPL planner, are the node's to refuse.
-            planning.resolve_planner(args.planner)
+        elif args.planner is not None:
+            # An unknown name, or a policy for an OMPL planner, gets `lit plan`'s message (the
+            # shorthands listed; the schema's enum error lists only the node's names) and
+            # nothing is sent: exit 2 as for a shorthand that contradicts --policy (the node's
+            # invalid-request Error, exit 1, said "refused by the planner" for a typing error).
+            planning.resolve_planner(args.planner, args.policy)
+        if args.planner in planning.OMPL_PLANNERS and (args.iterations or args.batches):
+            raise ValueError(
+                f"{args.planner} stops on time only: --iterations and --batches are for "
+                f"{planning.LITSTAR}"
+            )
+        if args.world is None:
+            dim = scenarios.get(args.scenario).dim
+            for key in ("start", "goal"):
+                value = getattr(args, key)
+                if value is not None and len(value) != dim:
+                    raise ValueError(
+                        f"--{key} has {len(value)} coordinates; {args.scenario} has {dim} "
+                        "dimensions"
+                    )
         for key in ("time", "planner", "policy", "seed", "start", "goal", "request_id"):
             value = getattr(args, key)
             if value is not None:

@@ -158,7 +158,7 @@ def crosscheck(
     if runs < 1:
         raise ValueError(f"--runs must be at least 1, got {runs}")
     if not (math.isfinite(time) and time > 0):
-        raise ValueError(f"--time must be a positive number of seconds, got {time}")
+        raise ValueError(f"--time must be a finite positive number of seconds, got {time}")
     if not (math.isfinite(tolerance) and tolerance >= 0):
         raise ValueError(f"--tolerance must be a non-negative fraction, got {tolerance}")
     unknown = [name for name in planners if name not in OMPL2_PLANNERS]

@@ -99,7 +99,9 @@ def run(args: argparse.Namespace) -> int:
         scenario = scenarios.get(args.scenario)
         planning.check_seed(args.seed)
         if args.time is not None and not (math.isfinite(args.time) and args.time > 0):
-            raise LitPlannerError(f"--time must be a positive number of seconds, got {args.time}")
+            raise LitPlannerError(
+                f"--time must be a finite positive number of seconds, got {args.time}"
+            )
         if not args.local and (args.plans < 1 or args.training_episodes < 0):
             raise LitPlannerError(
                 f"--plans must be 1 or more and --training-episodes 0 or more, got {args.plans} "
@@ -108,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
         budget = args.training_budget
         if not args.local and not (math.isfinite(budget) and 0 < budget <= MAX_EPISODE_BUDGET):
             raise LitPlannerError(
-                f"--training-budget must be a positive number of seconds up to "
+                f"--training-budget must be a finite positive number of seconds up to "
                 f"{MAX_EPISODE_BUDGET:g}, got {budget}"
             )
         if not args.local:

@@ -219,7 +219,7 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
         )
     for name in ("decision_timeout", "first_decision_timeout"):
         if not (math.isfinite(p[name]) and p[name] > 0):
-            return f"{name} must be a positive number of seconds, got {p[name]}"
+            return f"{name} must be a finite positive number of seconds, got {p[name]}"
     for name in ("seed", "training_seed"):
         if not 0 <= p[name] <= MAX_SEED:
             return f"{name} must be between 0 and {MAX_SEED}, got {p[name]}"

@@ -522,7 +522,7 @@ def plan(
     if time is None:
         time = 0.0 if stops_on_count else problem.time_budget
     elif not (_is_real(time) and math.isfinite(time) and time > 0):
-        raise PlannerError(f"time must be a positive number of seconds, got {time!r}")
+        raise PlannerError(f"time must be a finite positive number of seconds, got {time!r}")
     elif time > MAX_TIME:
         raise PlannerError(f"time must be at most {MAX_TIME:g} s, got {time:g}")
 

@@ -383,7 +383,8 @@ def custom(
     for label, vector in (("upper", upper), ("start", start), ("goal", goal)):
         if len(vector) != dim:
             raise ScenarioError(
-                f"{label} has {len(vector)} coordinates, lower has {dim}",
+                f"{label} has {len(vector)} coordinates; the world has {dim} dimensions (its "
+                f"lower bound's length)",
                 part=None if label == "upper" else label,
             )
     corners = np.zeros((len(boxes), 2, dim))

@@ -127,7 +127,7 @@ def _check(args: argparse.Namespace) -> str | None:
 
     if args.episodes or args.kills:  # the parts that plan
         if not (math.isfinite(args.budget) and args.budget > 0):
-            return f"--budget must be a positive number of seconds, got {args.budget}"
+            return f"--budget must be a finite positive number of seconds, got {args.budget}"
         if not 0 <= args.seed < MAX_SEED:  # the tensor part draws with --seed + 1
             return f"--seed must be between 0 and {MAX_SEED - 1}, got {args.seed}"
         try:

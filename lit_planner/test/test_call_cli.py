@@ -195,12 +195,18 @@ def test_plan_takes_the_litstar_shorthands_as_lit_plan_does(tmp_path: Path) -> N
         )
         payload = json.loads(call._request(args)[1])["payload"]
         assert payload["planner"] == planner and "policy" not in payload
-    # A combination the node refuses is sent as given: the node's answer is the one to test.
-    args = cli.build_parser("call")[0].parse_args(
-        ["call", "plan", "--scenario", "np4", "--planner", "aitstar", "--policy", "tensor"]
-    )
-    payload = json.loads(call._request(args)[1])["payload"]
-    assert (payload["planner"], payload["policy"]) == ("aitstar", "tensor")
+    # Combinations `lit plan` refuses are refused here too, before sending (exit 2; the node's
+    # invalid-request Error made them exit 1, "refused by the planner", for a typing error).
+    refused = [
+        (["--planner", "aitstar", "--policy", "tensor"], "policy 'tensor' applies to litstar only"),
+        (["--planner", "aitstar", "--iterations", "500"], "aitstar stops on time only"),
+        (["--planner", "bitstar", "--batches", "5"], "bitstar stops on time only"),
+        (["--start", "-0.2,0,0"], "--start has 3 coordinates; np4 has 4 dimensions"),
+        (["--goal", "0.2,0,0,0,0"], "--goal has 5 coordinates; np4 has 4 dimensions"),
+    ]
+    for options, message in refused:
+        line = refusal(lit_call("plan", "--scenario", "np4", *options, cwd=tmp_path))
+        assert message in line, (options, line)
 
 
 def test_a_bad_namespace_or_non_utf8_raw_text_is_one_line(tmp_path: Path) -> None:

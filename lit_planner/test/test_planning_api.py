@@ -802,7 +802,7 @@ def test_arguments_are_not_overridden_by_params_and_times_are_bounded() -> None:
         ({"max_batches": "3"}, "max_batches must be a whole number"),
         ({"seed": 3.0, "max_iterations": 10}, "seed must be a whole number"),
         ({"seed": True, "max_iterations": 10}, "seed must be a whole number"),
-        ({"time": "1"}, "time must be a positive number of seconds, got '1'"),
+        ({"time": "1"}, "time must be a finite positive number of seconds, got '1'"),
     ],
 )
 def test_arguments_that_are_not_numbers_of_their_kind_are_planner_errors(

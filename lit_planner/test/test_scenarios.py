@@ -497,3 +497,11 @@ def test_a_goal_at_the_start_is_refused(offset: float) -> None:
         scenarios.custom([-1.0, -1.0], [1.0, 1.0], [], [0.0, 0.0], [offset, 0.0])
     assert caught.value.part == "goal"
     assert scenarios.custom([-1.0, -1.0], [1.0, 1.0], [], [0.0, 0.0], [1e-6, 0.0]).goal[0] == 1e-6
+
+
+def test_a_start_of_the_wrong_length_names_the_worlds_dimension() -> None:
+    """`lit call plan --scenario np8 --start -0.2,0,0` was answered "start has 3 coordinates,
+    lower has 8": lower is the world's field, which that request never gave."""
+    s = get("np8")
+    with pytest.raises(ScenarioError, match=r"start has 3 coordinates; the world has 8 dimensions"):
+        custom(s.lower, s.upper, [], [-0.2, 0.0, 0.0], s.goal)

@@ -215,7 +215,7 @@ def time_grid(
     stretch the axis over decades of nothing.
     """
     if not (math.isfinite(budget) and budget > 0):
-        raise ValueError(f"budget must be a positive number of seconds, got {budget}")
+        raise ValueError(f"budget must be a finite positive number of seconds, got {budget}")
     start = GRID_SPAN * budget
     if earliest is not None and math.isfinite(earliest) and earliest > 0:
         start = min(max(start, 0.9 * earliest), budget)
