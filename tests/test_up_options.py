@@ -601,3 +601,19 @@ def test_a_node_stopped_from_elsewhere_fails_lit_up(tmp_path: Path) -> None:
     assert "lit up: stopped planner (exit 0), learner (exit 0)" in out, out
     assert process.returncode == 1, out
     assert "Traceback" not in out, out
+
+
+def test_a_planner_with_exit_when_done_ends_lit_up_cleanly(tmp_path: Path) -> None:
+    """The planner's documented exit_when_done ends the run once its episodes are done: lit up
+    stops the others and exits with the planner's verdict (0), not as if the node had died."""
+    process = run_watched(
+        [sys.executable, "-m", "lit_planner.cli", "up", "--domain-id", str(launcher_domain()),
+         "--no-record", "--policy", "fixed", "--episodes", "2", "--scenario", "np4",
+         "--time-budget", "0.05", "--planner-param", "exit_when_done:=true"],
+        cwd=tmp_path, env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+        timeout=300,
+    )  # fmt: skip
+    out = process.stdout + process.stderr
+    assert "lit up: the planner exited (exit 0, exit_when_done); stopping the others" in out, out
+    assert "lit up: stopped planner (exit 0), learner (exit 0)" in out, out
+    assert process.returncode == 0, out

@@ -620,16 +620,17 @@ def _names_in(obj: object) -> int:
 
 
 def _name_given_twice(text: str | bytes) -> tuple[str, str] | None:
-    """A name given twice in one object of the JSON ``text`` (of the first such object the parser
-    completes: an inner one before the object around it) and that object's JSON path
-    (``$.payload.world``); None when there is none."""
+    """A name given twice in one object of the JSON ``text`` and that object's JSON path
+    (``$.payload.world``); None when there is none. Of the objects with one, the first the
+    parser completes (an inner one before the object around it) that the document keeps: an
+    object dropped by a name given twice around it is no part of the document."""
     found: list[tuple[str, dict[str, Any]]] = []
 
     def pairs(items: list[tuple[str, Any]]) -> dict[str, Any]:
         made = dict(items)
-        if not found:
+        if len(made) < len(items):  # linear: an object of 100 000 names is within 1 MiB
             seen: set[str] = set()
-            for name, _ in items:  # linear: an object of 100 000 names is within 1 MiB
+            for name, _ in items:
                 if name in seen:
                     found.append((name, made))
                     break
@@ -639,17 +640,17 @@ def _name_given_twice(text: str | bytes) -> tuple[str, str] | None:
     document = json.loads(text, object_pairs_hook=pairs, parse_constant=_reject_constant)
     if not found:
         return None
-    name, target = found[0]
+    paths: dict[int, str] = {}
     stack: list[tuple[object, str]] = [(document, "$")]
-    while stack:  # the object itself (by identity), not an equal one elsewhere
+    while stack:  # the objects themselves (by identity), not equal ones elsewhere
         value, where = stack.pop()
-        if value is target:
-            return name, where
         if isinstance(value, dict):
+            paths[id(value)] = where
             stack.extend((item, f"{where}.{key}") for key, item in value.items())
         elif isinstance(value, list):
             stack.extend((item, f"{where}[{index}]") for index, item in enumerate(value))
-    return name, "$"  # not reached: the object is part of the document
+    # The outermost object with a name twice is always kept (the root is), so one is found.
+    return next((name, paths[id(made)]) for name, made in found if id(made) in paths)
 
 
 def _lone_surrogate(obj: object, path: str) -> tuple[str, str] | None:

@@ -1252,6 +1252,9 @@ def test_a_name_given_twice_in_an_object_is_refused() -> None:
             "$.payload.world.boxes[0]",
             plan.replace('"upper": [0.5, 0.5]', '"upper": [0.5, 0.5], "upper": [0.6, 0.6]'),
         ),
+        # The inner object's duplicate is dropped with it by the outer one's (a review found the
+        # message naming "a" at "$").
+        ("payload", "$", GOOD.replace('"payload":', '"payload": {"a": 1, "a": 2}, "payload":', 1)),
     ]
     for name, where, text in twice:
         assert text.count(f'"{name}"') >= 2, name

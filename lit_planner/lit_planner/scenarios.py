@@ -307,9 +307,10 @@ class PathCheck:
     ok: bool
     """Valid, starts at the start and ends at the goal."""
     valid: bool
-    """Every checked point lies inside the bounds and outside every box, and no segment passes
-    through a box from one face to the opposite one (an exact test, which finds a box thinner
-    than the spacing)."""
+    """Every checked point lies inside the bounds and outside every box (in a registry scenario
+    but for a corner clip between the planners' own check points, see :func:`check_path`), and
+    no segment passes through a box from one face to the opposite one (an exact test, which finds
+    a box thinner than the spacing)."""
     starts_at_start: bool
     """The first waypoint is within :data:`ENDPOINT_TOLERANCE` of the start."""
     ends_at_goal: bool
@@ -615,10 +616,10 @@ def check_path(scenario: Scenario, path: ArrayLike, resolution: float | None = N
     Every segment is sampled at ``resolution * max_extent / CHECK_REFINEMENT`` or finer, both
     endpoints included, and each sample is tested with :func:`is_valid`. The check stops at the
     first invalid sample, with one exception in the registry's scenarios, whose edges every
-    planner checks at points up to ``resolution * max_extent`` apart: a segment that meets boxes
-    only where it clips an edge or corner (in across one axis, out across another), each time
-    over a stretch no longer than that, passes (:func:`_only_short_corner_clips`; a path refined
-    for long hugs the obstacles' corners, and such clips pass every planner's own checks). A path
+    planner checks at ``ceil(length / (resolution * max_extent))`` equal steps: a segment that
+    meets boxes only where it clips an edge or corner (in across one axis, out across another),
+    between two of those check points, passes (:func:`_only_clips_between_checks`; a path refined
+    for long hugs the obstacles' corners, and such a clip passes the planners' own checks). A path
     whose samples are all valid is then tested segment by segment
     against every box exactly for a segment that passes through a box (a wall thinner than the
     spacing slips between samples; :func:`_first_box_crossing`); such a crossing gives the segment
@@ -648,8 +649,8 @@ def check_path(scenario: Scenario, path: ArrayLike, resolution: float | None = N
         raise ScenarioError(f"resolution must be a positive finite fraction, got {fraction!r}")
     spacing = fraction * scenario.max_extent / CHECK_REFINEMENT
     # The planners check a registry scenario's edges at points at most this far apart (a custom
-    # world's exactly: no clip is tolerated there).
-    clip_limit = 0.0 if scenario.family == CUSTOM_FAMILY else fraction * scenario.max_extent
+    # world's exactly: no clip passes there).
+    check_spacing = 0.0 if scenario.family == CUSTOM_FAMILY else fraction * scenario.max_extent
     lengths = np.linalg.norm(np.diff(waypoints, axis=0), axis=1)
     starts = bool(np.linalg.norm(waypoints[0] - scenario.start) <= ENDPOINT_TOLERANCE)
     ends = bool(np.linalg.norm(waypoints[-1] - scenario.goal) <= ENDPOINT_TOLERANCE)
@@ -688,7 +689,7 @@ def check_path(scenario: Scenario, path: ArrayLike, resolution: float | None = N
         else:  # leaves the bounds: sample by sample (it is invalid anyway)
             first = _first_invalid_sample(scenario, a, b, steps)
         if first is not None and not (
-            clip_limit > 0.0 and _only_short_corner_clips(scenario, a, b, clip_limit)
+            check_spacing > 0.0 and _only_clips_between_checks(scenario, a, b, check_spacing)
         ):
             return result(checked + first, index, _samples(a, b, steps, np.array([first]))[0])
         checked += steps
@@ -750,19 +751,27 @@ def _box_stretches(
     return first, last, enter.argmax(axis=2) == leave.argmin(axis=2)
 
 
-def _only_short_corner_clips(
-    scenario: Scenario, a: FloatArray, b: FloatArray, limit: float
+def _only_clips_between_checks(
+    scenario: Scenario, a: FloatArray, b: FloatArray, spacing: float
 ) -> bool:
-    """Whether the segment a→b meets boxes only in edge or corner clips, each over a stretch of
-    at most ``limit``: what a planner that checks the segment at points up to ``limit`` apart can
-    miss. False when it meets no box (exactly): a sample found inside one says otherwise; and
-    False when an end is invalid (the planners check their states themselves, exactly)."""
+    """Whether the segment a→b meets boxes only in edge or corner clips (in across one axis, out
+    across another) that no point of the planners' own check of it falls in: they check the
+    points ``j / n`` (j = 1 … n - 1) of the segment, ``n = ceil(|b - a| / spacing)`` (OMPL's
+    ``DiscreteMotionValidator``, LIT*'s ``segmentCount``), and its ends as states. False when
+    it meets no box (exactly: a sample found inside one says otherwise), when an end is invalid,
+    or when it goes through a box."""
     if len(scenario.boxes) == 0 or not is_valid(scenario, np.stack([a, b])).all():
         return False
     first, last, through = _box_stretches(scenario, a[None, None, :], (b - a)[None, None, :])
     meets = first[0] <= last[0]
-    stretch = (last[0] - first[0]) * float(np.linalg.norm(b - a))
-    return bool(meets.any() and not through[0][meets].any() and stretch[meets].max() <= limit)
+    if not meets.any() or through[0][meets].any():
+        return False
+    n = max(1, math.ceil(float(np.linalg.norm(b - a)) / spacing))
+    # The points' indices within each stretch, with a slack of 1e-9 of a step (about 1e-14 of a
+    # length unit here) for the rounding of the planners' interpolation and of the slab test.
+    lowest = np.maximum(np.ceil(first[0][meets] * n + 1e-9), 1)
+    highest = np.minimum(np.floor(last[0][meets] * n - 1e-9), n - 1)
+    return bool(np.all(lowest > highest))
 
 
 def _samples(a: FloatArray, b: FloatArray, steps: int, j: NDArray[np.int64]) -> FloatArray:

@@ -549,12 +549,23 @@ def run(args: argparse.Namespace) -> int:
         }
         if not (stop.is_set() or learner_gone):
             system.start("planner", "lit_planner_node", planner)
+        # A planner with exit_when_done ends the run itself once its episodes are done (its exit
+        # code says whether they all ran); any other node that exits, even cleanly (a SIGTERM
+        # from elsewhere), left the system short of what was asked, and the run failed.
+        done_when_planner_exits = _given_values(args.planner_param, planner_node.PARAMETERS).get(
+            "exit_when_done", False
+        )
         while not stop.wait(0.2):
             dead = {n: c.process.poll() for n, c in system.children.items()}
             dead = {n: code for n, code in dead.items() if code is not None}
+            if dead and done_when_planner_exits and set(dead) == {"planner"}:
+                print(
+                    f"lit up: the planner exited (exit {dead['planner']}, exit_when_done); "
+                    "stopping the others",
+                    flush=True,
+                )
+                break
             if dead:
-                # Nothing ends a node but lit up: one that exited, even cleanly (a SIGTERM from
-                # elsewhere), left the system short of what was asked, and the run failed.
                 exits = ", ".join(f"{n} (exit {code})" for n, code in dead.items())
                 failure = RuntimeError(f"{exits} exited before lit up was asked to stop")
                 print(f"lit up: {failure}; stopping the others", flush=True)

@@ -161,36 +161,45 @@ def test_check_path_catches_a_thin_crossing_between_waypoints() -> None:
     assert check_path(s, path, resolution=1e-2).valid
 
 
-def _around_the_corner(k: float) -> np.ndarray:
-    """np2's path through the passage whose fourth segment follows x1 = 0.05 + k - (x0 - 0.1) / 2
-    past the wall's corner (0.1, 0.05): for k < 0 it cuts the corner over a stretch of
-    |k| * sqrt(5) (in across x1 = 0.05, out across x0 = 0.1)."""
-    return np.array(
-        [[-0.2, 0.0], [-0.11, 0.1], [0.09, 0.1], [0.09, 0.055 + k], [0.12, 0.04 + k], [0.2, 0.0]]
-    )
+def test_check_path_passes_a_corner_clip_between_the_planners_check_points() -> None:
+    """The planners check np2's edges at ceil(length / 7.1e-6) equal steps (resolution 5e-6 of
+    the extent sqrt(2)), so a path refined for long can cut a corner between two check points:
+    `lit plan --scenario np2 --batches 300 --seed 2` returned the segment below, which clips the
+    wall's corner (0.1, 0.05) over 4.7e-6, and the re-check's samples (1.8e-6 apart) failed it
+    (exit 3). A clip that holds one of the planners' check points, a state inside a box, and the
+    same clip in a custom world (whose edges are checked exactly) still fail. OMPL's rule, as
+    the crosscheck's independent checker decides it exactly, agrees on each segment."""
+    from lit_planner.ompl2.checker import BoxWorldChecker
 
-
-def test_check_path_passes_a_corner_clip_shorter_than_the_planners_check_spacing() -> None:
-    """The planners check np2's edges at points up to 5e-6 * sqrt(2) (7.1e-6) apart, so a path
-    refined for long can cut a corner over a shorter stretch and pass their checks: `lit plan
-    --scenario np2 --batches 300 --seed 2` returned one that clipped the corner (0.1, 0.05) over
-    4.7e-6, and the re-check's samples (1.8e-6 apart) failed it (exit 3). Longer clips, a path
-    state inside a box and the same clip in a custom world (whose edges are checked exactly)
-    still fail."""
     s = get("np2")
+    lower, upper = np.array(s.lower), np.array(s.upper)
+    ompl = BoxWorldChecker(lower, upper, s.boxes[:, 0, :], s.boxes[:, 1, :], s.resolution)
+    a, b = [0.09890925920833782, 0.05053011117818538], [0.10194584478249626, 0.04904851808855315]
+    assert not is_valid(s, np.array([[0.1 - 1e-7, 0.05 - 1e-7]])).all()  # the corner is solid
+
+    def through(a: list[float], b: list[float]) -> list[list[float]]:
+        return [list(s.start), [-0.11, 0.1], a, b, list(s.goal)]
+
+    assert check_path(s, through(a, b)).ok and ompl.motion_valid(a, b)
+    # Shorter than the spacing, but on a segment 1.5 spacings long: the planners check its
+    # midpoint, which is inside the wall (a review's counterexample to "a clip up to the
+    # spacing passes", the rule before this one).
     limit = s.resolution * s.max_extent
-    assert 2e-6 * math.sqrt(5) < limit < 4e-6 * math.sqrt(5)
-    check = check_path(s, _around_the_corner(-2e-6))
-    assert check.ok, check
-    assert not is_valid(s, np.array([[0.1 - 1e-7, 0.05 - 1e-7]])).all()  # samples do fall inside
-    longer = check_path(s, _around_the_corner(-4e-6))
-    assert not longer.valid and longer.first_invalid_index == 3
-    inside = _around_the_corner(-2e-6)
-    inside[4] = [0.1 - 1e-9, 0.05 - 1e-9]  # the segment's end just inside the corner
-    assert not check_path(s, inside).valid
+    d = 0.9 * limit / math.sqrt(2)
+    shift = (1.5 * limit / math.sqrt(2) - d) / 2
+    short = [0.1 - d - shift, 0.05 + shift], [0.1 + shift, 0.05 - d - shift]
+    assert not is_valid(s, (np.array(short[0]) + np.array(short[1]))[None] / 2).all()
+    check = check_path(s, through(*short))
+    assert not check.valid and check.first_invalid_index == 2, check
+    assert not ompl.motion_valid(*short)
+    # A longer cut of the same corner (the line 0.05 - 4e-6 - (x0 - 0.1) / 2: 8.9e-6 inside).
+    longer = [0.09, 0.055 - 4e-6], [0.12, 0.04 - 4e-6]
+    assert not check_path(s, through(*longer)).valid and not ompl.motion_valid(*longer)
+    inside = [0.1 - 1e-9, 0.05 - 1e-9]  # the segment's end just inside the corner
+    assert not check_path(s, through(a, inside)).valid and not ompl.motion_valid(a, inside)
     world = custom(s.lower, s.upper, [tuple(map(tuple, box)) for box in s.boxes], s.start, s.goal,
                    resolution=s.resolution)  # fmt: skip
-    assert not check_path(world, _around_the_corner(-2e-6)).valid
+    assert not check_path(world, through(a, b)).valid
 
 
 @pytest.mark.parametrize("thickness", [2e-3, 0.0])
@@ -418,7 +427,7 @@ def test_check_path_finds_exactly_what_testing_every_sample_finds(
     segment, the exact point and the count, on random paths and on paths that graze boxes: along
     faces, through corners, on a face, with axes that hardly move. (Without the pass it gives a
     short corner clip, which the reference knows nothing of: many of these grazes are such clips.)"""
-    monkeypatch.setattr(scenarios, "_only_short_corner_clips", lambda *_: False)
+    monkeypatch.setattr(scenarios, "_only_clips_between_checks", lambda *_: False)
     s = get(name)
     rng = np.random.default_rng(11)
     lower, upper = np.array(s.lower), np.array(s.upper)

@@ -585,8 +585,8 @@ def markdown(summary: dict[str, Any]) -> str:
         (
             "- Independent path check (numpy: samples 4× finer than the planners' resolution; "
             "for runs since 2026-12-04 also an exact test for a segment through a box; a segment "
-            "that only clips box corners, each over at most the planners' check spacing, passes, "
-            "as it passes their own checks: runs recorded until 2026-12-06 counted it as invalid, "
+            "that only clips box corners between the planners' own check points passes, as it "
+            "passes their checks: runs recorded until 2026-12-06 counted it as invalid, "
             f"`lit replay verify` re-checks with this rule): {invalid} of "
             f"{solved} returned paths invalid (such a run still counts as solved, with its times "
             "and costs, in the tables; the invalid paths column counts it)."
