@@ -152,11 +152,12 @@ def test_training_run_bag_gives_deterministic_offline_tensors(tmp_path: Path) ->
             lock.close()
     assert codes["recorder"] == 0
 
-    def offline(out: Path, seed: int) -> str:
+    def offline(out: Path, seed: int, *options: str) -> str:
         process = subprocess.run(
             [
                 sys.executable, "-m", "lit_planner.cli", "replay", "tensors", str(bag),
                 "--out", str(out), "--seed", str(seed), "--warmup", "16", "--batch-size", "16",
+                *options,
             ],
             capture_output=True, text=True, timeout=600, check=False,
         )  # fmt: skip
@@ -180,6 +181,11 @@ def test_training_run_bag_gives_deterministic_offline_tensors(tmp_path: Path) ->
         a, b, c = (np.load(tmp_path / run / name) for run in ("a", "b", "c"))
         assert np.array_equal(a, b), name
         assert not np.array_equal(a, c), name
+    # One agent trained: only its tensor (the other's initial actor was exported too, and the
+    # tensor policy played it: psi_K about 9 instead of the fixed e).
+    offline(tmp_path / "b-only", 3, "--train", "B")
+    assert (tmp_path / "b-only" / "b_tensor.npy").is_file()
+    assert not list((tmp_path / "b-only").glob("k_tensor.*"))
 
 
 def test_recorder_writes_what_it_received_before_it_stops(tmp_path: Path) -> None:

@@ -65,7 +65,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seed", type=int, default=0, help="learner seed (default 0)")
     parser.add_argument(
-        "--train", choices=("both", "B", "psi_K"), default="both", help="agents that learn"
+        "--train",
+        choices=("both", "B", "psi_K"),
+        default="both",
+        help="agents that learn and are exported (the other keeps its fixed value)",
     )
     parser.add_argument(
         "--warmup",
@@ -118,6 +121,9 @@ def run(args: argparse.Namespace) -> int:
             args.out,
             provenance,
             extra={"provenance.json": json.dumps(provenance, indent=2).encode() + b"\n"},
+            # An agent --train leaves out is not exported: the tensor policy then keeps its fixed
+            # value, where it played the initial actor's (psi_K about 9 with --train B).
+            agents=tuple(name for name in ("B", "psi_K") if core.trains(name)),
         )
     except ExportError as error:
         raise ReplayError(str(error)) from None
