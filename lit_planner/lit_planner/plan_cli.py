@@ -130,6 +130,8 @@ def run(args: argparse.Namespace) -> int:
     except LitPlannerError as error:
         print(f"lit plan: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if policy == "tensor":
+        _warn_of_untrained_tensors(args.tensors)
     if args.json:
         print(json.dumps(planning.json_safe(result), allow_nan=False))
     else:
@@ -140,6 +142,26 @@ def run(args: argparse.Namespace) -> int:
     # ok, as the summary's verdict and the planner node's path_valid: also a path that does not
     # start at the start or end at the goal (valid covers collisions only).
     return EXIT_PATH_INVALID if check is not None and not check["ok"] else EXIT_SOLVED
+
+
+def _warn_of_untrained_tensors(tensors: Any) -> None:
+    """Say on stderr which tensor of the folder is a learner's export of an agent that made no
+    gradient update (an export of a run stopped before that agent trained, say): the policy plays
+    its initial actor (psi_K about 9, not the fixed e that a folder without the file gives)."""
+    from pathlib import Path
+
+    from lit_planner.bench.runner import tensor_origin
+
+    folder = Path(tensors) if tensors is not None else planning.default_tensors_dir()
+    for name in planning.TENSOR_FILES.values():
+        path = folder / name
+        origin = tensor_origin(path) if path.exists() else None
+        if origin is not None and origin.startswith("UNTRAINED"):
+            print(
+                f"lit plan: warning: {path} is {origin}: its agent made no gradient update, so it "
+                "decides as an untrained actor (without the file its fixed value applies)",
+                file=sys.stderr,
+            )
 
 
 def _plan_interruptibly(*args: Any, **kwargs: Any) -> dict[str, Any]:

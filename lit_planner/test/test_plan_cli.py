@@ -365,3 +365,22 @@ def test_a_planner_that_dies_while_planning_ends_the_demo(tmp_path: Path) -> Non
             "learner exit 0", "planner exit -9", "recorder exit 0",
         ], out  # fmt: skip
         assert len(watch.seen) >= 3 and not watch.alive(), watch.alive()
+
+
+def test_an_untrained_tensor_is_named_when_the_tensor_policy_plays_it(tmp_path: Path) -> None:
+    """A learner's export of agents without a gradient update (a run stopped before its psi_K
+    phase) was played without a word: psi_K about 9 where a folder without the file gives e.
+    `lit tensors info` marked it; `lit plan` now says so too, and plans on."""
+    from lit_learner.config import LearnerConfig
+    from lit_learner.core import LearnerCore
+
+    LearnerCore(LearnerConfig(seed=0)).export_tensors(tmp_path, {"note": "untrained"})
+    planned = lit("plan", "--scenario", "np4", "--policy", "tensor", "--tensors", str(tmp_path),
+                  "--iterations", "300")  # fmt: skip
+    assert planned.returncode in (0, 1), planned.stderr
+    for name in ("b_tensor.npy", "k_tensor.npy"):
+        assert f"lit plan: warning: {tmp_path / name} is UNTRAINED (initial weights)" in (
+            planned.stderr
+        ), planned.stderr
+    shipped = lit("plan", "--scenario", "np4", "--policy", "tensor", "--iterations", "300")
+    assert "warning" not in shipped.stderr, shipped.stderr
