@@ -182,7 +182,8 @@ def test_training_run_bag_gives_deterministic_offline_tensors(tmp_path: Path) ->
         assert np.array_equal(a, b), name
         assert not np.array_equal(a, c), name
     # One agent trained: only its tensor (the other's initial actor was exported too, and the
-    # tensor policy played it: psi_K about 9 instead of the fixed e).
+    # tensor policy played it: psi_K about 9 instead of the fixed e). An earlier export's cannot
+    # be left beside it: --out must be a new or empty folder.
     offline(tmp_path / "b-only", 3, "--train", "B")
     assert (tmp_path / "b-only" / "b_tensor.npy").is_file()
     assert not list((tmp_path / "b-only").glob("k_tensor.*"))

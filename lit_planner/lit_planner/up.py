@@ -475,7 +475,8 @@ def _given_values(items: Sequence[str], known: dict[str, Any]) -> dict[str, Any]
 def run(args: argparse.Namespace) -> int:
     """Start everything, stream logs, stop on Ctrl-C; 0 when the stop was asked for (Ctrl-C,
     SIGTERM, SIGHUP; or a planner with exit_when_done ended the run) and every process exited
-    cleanly; 1 when one failed or another exited on its own."""
+    cleanly; 1 when one failed or another exited on its own; 2 when the options are refused or
+    the domain is taken."""
     from lit_learner import node as learner_node
     from lit_planner import node as planner_node
     from lit_planner.bag import default_bag_root

@@ -382,5 +382,6 @@ def test_an_untrained_tensor_is_named_when_the_tensor_policy_plays_it(tmp_path: 
         assert f"lit plan: warning: {tmp_path / name} is UNTRAINED (initial weights)" in (
             planned.stderr
         ), planned.stderr
-    shipped = lit("plan", "--scenario", "np4", "--policy", "tensor", "--iterations", "300")
+    shipped = lit("plan", "--scenario", "np4", "--policy", "tensor", "--iterations", "300",
+                  "--tensors", str(Path(__file__).resolve().parents[2] / "tensors"))  # fmt: skip
     assert "warning" not in shipped.stderr, shipped.stderr
