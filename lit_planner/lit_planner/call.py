@@ -555,8 +555,15 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
         else:
             # The planner checks the name too; a wrong one is refused here with the message
             # `lit plan` gives instead of the schema's pattern error, and nothing is sent.
-            scenarios.get(args.scenario)  # ScenarioError is a ValueError
+            dim = scenarios.get(args.scenario).dim  # ScenarioError is a ValueError
             payload["scenario"] = args.scenario
+            for key in ("start", "goal"):  # as the node would refuse them: nothing is sent
+                value = getattr(args, key)
+                if value is not None and len(value) != dim:
+                    raise ValueError(
+                        f"--{key} has {len(value)} coordinates; {args.scenario} has {dim} "
+                        "dimensions"
+                    )
         if args.planner in planning.SHORTHANDS:  # as `lit plan` takes them: litstar-fit
             args.planner, args.policy = planning.resolve_planner(args.planner, args.policy)
         elif args.planner is not None:
@@ -565,20 +572,8 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
             # nothing is sent: exit 2 as for a shorthand that contradicts --policy (the node's
             # invalid-request Error, exit 1, said "refused by the planner" for a typing error).
             planning.resolve_planner(args.planner, args.policy)
-        if args.planner in planning.OMPL_PLANNERS and (args.iterations or args.batches):
-            raise ValueError(
-                f"{args.planner} stops on time only: --iterations and --batches are for "
-                f"{planning.LITSTAR}"
-            )
-        if args.world is None:
-            dim = scenarios.get(args.scenario).dim
-            for key in ("start", "goal"):
-                value = getattr(args, key)
-                if value is not None and len(value) != dim:
-                    raise ValueError(
-                        f"--{key} has {len(value)} coordinates; {args.scenario} has {dim} "
-                        "dimensions"
-                    )
+        if args.planner is not None:  # an OMPL planner with --iterations or --batches
+            planning.check_stops_on_count(args.planner, bool(args.iterations or args.batches))
         for key in ("time", "planner", "policy", "seed", "start", "goal", "request_id"):
             value = getattr(args, key)
             if value is not None:

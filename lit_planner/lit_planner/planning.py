@@ -154,6 +154,14 @@ def check_count(value: object, label: str) -> None:
         )
 
 
+def check_stops_on_count(core_planner: str, stops_on_count: bool) -> None:
+    """PlannerError when an iteration or batch limit is given to a planner other than LIT*."""
+    if core_planner != LITSTAR and stops_on_count:
+        raise PlannerError(
+            f"{core_planner} stops on time only: max_iterations and max_batches are for {LITSTAR}"
+        )
+
+
 def resolve_planner(planner: str, policy: str | None = None) -> tuple[str, str | None]:
     """Split a planner name (shorthands included) into the core's planner and the policy name.
 
@@ -515,10 +523,7 @@ def plan(
     check_count(max_batches, "max_batches")
     check_seed(seed)
     stops_on_count = bool(max_iterations or max_batches)
-    if core_planner != LITSTAR and stops_on_count:
-        raise PlannerError(
-            f"{core_planner} stops on time only: max_iterations and max_batches are for {LITSTAR}"
-        )
+    check_stops_on_count(core_planner, stops_on_count)
     if time is None:
         time = 0.0 if stops_on_count else problem.time_budget
     elif not (_is_real(time) and math.isfinite(time) and time > 0):
