@@ -79,6 +79,8 @@ HISTOGRAM_BINS = 10
 """Bins of the per-episode action histograms (over each agent's consequent range)."""
 FIXED_NEIGHBOUR_FACTOR = math.e
 """psi_K while only the B agent trains (the fixed policy's value)."""
+FIXED_VALUES = {"B": "B = 100", "psi_K": "psi_K = e"}
+"""What the ``tensor`` policy plays for an agent whose tensor a folder lacks."""
 BUDGET_TOLERANCE = 1e-3
 """An episode whose planner time reaches (1 - this) of the budget ran out of time: truncated."""
 
@@ -783,7 +785,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--export",
         type=argtypes.path,
         metavar="DIR",
-        help="write the lookup tensors here at the end",
+        help="write the lookup tensors here at the end (only of agents that made a gradient "
+        "update)",
     )
     parser.add_argument(
         "--checkpoint-every",
@@ -1423,28 +1426,35 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         # Written there by something else while this run trained (an earlier export of the run
         # it resumes was there from the start, and is what it replaces).
         replaced = _tensor_files_state(args.export) != exported_before
-        try:
-            written = export(core, Path(args.export), record, curves)
-        except ExportError as error:
-            lock.close()
-            raise TrainingError(
-                f"{error}. The run is saved in {final}: `lit train --resume {final} --episodes "
-                f"{state.episode} --export {args.export}` exports it without training"
-            ) from None
-        lines.append(f"  tensors {', '.join(str(path) for path in written.values())}")
+        trained = trained_agents(core)
+        if trained:
+            try:
+                written = export(core, Path(args.export), record, curves, trained)
+            except ExportError as error:
+                lock.close()
+                raise TrainingError(
+                    f"{error}. The run is saved in {final}: `lit train --resume {final} "
+                    f"--episodes {state.episode} --export {args.export}` exports it without "
+                    "training"
+                ) from None
+            lines.append(f"  tensors {', '.join(str(path) for path in written.values())}")
+        else:
+            lines.append(f"  not exported to {args.export}: no agent made a gradient update yet")
         for name in AGENT_NAMES:  # said here, not only by `lit tensors info`
-            agent = core.agents.get(name)
-            if name not in written or agent is None or agent.updates:
+            agent = core.agents[name]
+            if name in trained:
                 continue
-            if not core.trains(name):
-                lines.append(f"  {name}: the actor's initial weights (this run does not train it)")
-                continue
-            lines.append(
-                f"  {name}: UNTRAINED, the actor's initial weights (no gradient update yet: "
-                f"{agent.transitions} of the {agent.config.warmup} transitions its updates "
-                "wait for)"
+            why = (
+                "this run does not train it"
+                if not core.trains(name)
+                else f"no gradient update yet: {agent.transitions} of the "
+                f"{agent.config.warmup} transitions its updates wait for"
             )
-        if replaced:
+            lines.append(
+                f"  {name}: no tensor ({why}); the tensor policy keeps its fixed value "
+                f"({FIXED_VALUES[name]})"
+            )
+        if replaced and trained:
             lines.append(
                 f"  (replaced the tensors written to {args.export} during this run; other files "
                 "there still describe those)"
@@ -1570,13 +1580,41 @@ def _lock_run_folder(run_dir: Path) -> Any:
     return handle
 
 
-def export(core: Any, directory: Path, record: dict[str, Any], curves: Path | None) -> dict:
-    """Write both tensors with ``record`` as provenance, plus ``provenance.json`` and the curves
-    (all or nothing: :meth:`~lit_learner.core.LearnerCore.export_tensors`)."""
+def trained_agents(core: Any) -> tuple[str, ...]:
+    """The agents whose actor made at least one gradient update: the only ones ``lit train``
+    exports (an initial actor played by the tensor policy decided psi_K about 9 where the
+    fixed value is e)."""
+    return tuple(name for name in AGENT_NAMES if core.agents[name].updates > 0)
+
+
+def export(
+    core: Any,
+    directory: Path,
+    record: dict[str, Any],
+    curves: Path | None,
+    agents: Sequence[str],
+) -> dict:
+    """Write the tensors of ``agents`` with ``record`` as provenance, plus ``provenance.json``
+    and the curves (all or nothing: :meth:`~lit_learner.core.LearnerCore.export_tensors`), and
+    then remove the other agent's tensor files from ``directory`` (an earlier export of the run
+    that this one resumes may hold them; they would be played beside this run's)."""
+    from lit_planner.tensor_files import sidecar_path
+
+    from lit_learner.export import TENSOR_FILES
+
     extra = {PROVENANCE_FILE: (json.dumps(record, indent=2) + "\n").encode()}
     if curves is not None and curves.exists():
         extra[CURVES_FILE] = curves.read_bytes()
-    return core.export_tensors(directory, record, extra=extra)
+    written = core.export_tensors(directory, record, agents=agents, extra=extra)
+    for name in AGENT_NAMES:
+        if name not in agents:
+            stale = directory / TENSOR_FILES[name]
+            for path in (stale, sidecar_path(stale)):
+                try:
+                    path.unlink(missing_ok=True)
+                except OSError as error:
+                    raise ExportError(f"cannot remove {path} ({error})") from None
+    return written
 
 
 def _bag_parent(state: DriverState) -> Path:

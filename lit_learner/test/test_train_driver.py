@@ -35,6 +35,15 @@ def small_config(seed: int = 0) -> LearnerConfig:
     )
 
 
+def tiny_config(seed: int = 0) -> LearnerConfig:
+    """Both agents update from their first transition: a run of one or two episodes exports
+    (``lit train`` exports only agents that made a gradient update)."""
+    tiny = {"warmup": 1, "batch_size": 1}
+    return LearnerConfig(
+        b=AgentConfig.batch_size_agent(**tiny), k=AgentConfig.neighbour_agent(**tiny), seed=seed
+    )
+
+
 def arguments(out: Path, **overrides: object) -> argparse.Namespace:
     parser = argparse.ArgumentParser()
     train.add_arguments(parser)
@@ -678,7 +687,7 @@ def test_an_earlier_export_is_refused_before_training_and_a_run_exports_without_
     assert (earlier / "b_tensor.npy").read_bytes() == b"earlier export"
 
     run_dir = tmp_path / "run"
-    hooks = train.TrainingHooks(learner_config=small_config())
+    hooks = train.TrainingHooks(learner_config=tiny_config())
     train.train(arguments(run_dir, episodes=2, scenarios="np4", no_bag=True), hooks)
     final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
     rows = (run_dir / METRICS_FILE).read_text()
@@ -853,7 +862,7 @@ def test_an_error_in_an_episode_saves_the_episodes_before_it(
 
     monkeypatch.setattr(LearnerCore, "close_episode", failing_third)
     run_dir = tmp_path / "run"
-    hooks = train.TrainingHooks(learner_config=small_config())
+    hooks = train.TrainingHooks(learner_config=tiny_config())  # exports after two episodes
     with pytest.raises(OSError, match="No space left"):
         train.train(arguments(run_dir, episodes=6, scenarios="np4", no_bag=True), hooks)
     final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
@@ -885,7 +894,7 @@ def test_export_into_the_run_folder_is_refused_and_an_export_records_no_bag(
     with pytest.raises(train.TrainingError, match="is the run folder"):
         train.train(arguments(run_dir, episodes=1, scenarios="np4", export=run_dir))
     assert not run_dir.exists()
-    hooks = train.TrainingHooks(learner_config=small_config())
+    hooks = train.TrainingHooks(learner_config=tiny_config())
     train.train(arguments(run_dir, episodes=1, scenarios="np4"), hooks)  # bag beside the run
     before = sorted(path.name for path in tmp_path.iterdir())
     final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
@@ -905,16 +914,37 @@ def test_export_into_the_run_folder_is_refused_and_an_export_records_no_bag(
         meanwhile.mkdir(exist_ok=True)
         (meanwhile / "k_tensor.npy").write_bytes(b"another writer")
 
-    hooks_writing = train.TrainingHooks(learner_config=small_config(), on_episode=write_there)
+    hooks_writing = train.TrainingHooks(learner_config=tiny_config(), on_episode=write_there)
     crossed = train.train(
         arguments(tmp_path / "crossed", episodes=1, scenarios="np4", no_bag=True, export=meanwhile),
         hooks_writing,
     )
     assert f"replaced the tensors written to {meanwhile} during this run" in crossed.summary
-    # One episode is far below the warm-up: the summary says the tensors are the initial actors'.
-    for name, warmup in (("B", 24), ("psi_K", 32)):
-        untrained = rf"  {name}: UNTRAINED, the actor's initial weights \(no gradient update yet: "
-        assert re.search(rf"{untrained}\d+ of the {warmup} transitions", crossed.summary), name
+    # Only an agent that made a gradient update is exported: one episode of the B phase trains
+    # B only, and psi_K's file (the other writer's) goes rather than stay beside B's.
+    assert (meanwhile / "b_tensor.npy").is_file()
+    assert not list(meanwhile.glob("k_tensor.*")), sorted(meanwhile.iterdir())
+    assert (
+        "  psi_K: no tensor (no gradient update yet: 0 of the 1 transitions its updates wait "
+        "for); the tensor policy keeps its fixed value (psi_K = e)"
+    ) in crossed.summary, crossed.summary
+    # An agent without an update has no tensor (its initial actor, played by the tensor policy,
+    # decided psi_K about 9 where the fixed value is e); with none, nothing is exported.
+    untrained = train.train(
+        arguments(tmp_path / "short", episodes=1, scenarios="np4", no_bag=True,
+                  export=tmp_path / "none"),
+        train.TrainingHooks(learner_config=small_config()),
+    )  # fmt: skip
+    assert f"not exported to {tmp_path / 'none'}: no agent made a gradient update yet" in (
+        untrained.summary
+    )
+    assert not (tmp_path / "none").exists()
+    for name, warmup, fixed in (("B", 24, "B = 100"), ("psi_K", 32, "psi_K = e")):
+        line = rf"  {name}: no tensor \(no gradient update yet: \d+ of the {warmup} transitions "
+        assert re.search(
+            line + rf"its updates wait for\); the tensor policy keeps its fixed value \({fixed}\)",
+            untrained.summary,
+        ), untrained.summary
     other = tmp_path / "other"
     train.train(arguments(other, episodes=1, scenarios="np4", no_bag=True), hooks)
     with pytest.raises(train.TrainingError, match="exists and is not empty"):
@@ -1077,14 +1107,15 @@ def test_a_new_total_in_one_unit_is_refused_when_the_other_stops_the_run(
     assert f"the run's total of {episodes + 1} episodes" in err and "larger --episodes" in err
     # --episodes at the checkpoint's count still exports without training, whatever stops the run.
     first = tmp_path / "first"
-    assert (
-        train.run(arguments(first, scenarios="np4", episodes=50, minutes=0.0005, no_bag=True)) == 0
+    train.train(
+        arguments(first, scenarios="np4", episodes=50, minutes=0.0005, no_bag=True),
+        train.TrainingHooks(learner_config=tiny_config()),  # B trains in the first episode
     )
     final = first / "checkpoints" / "final.ckpt"
     episodes = train.DriverState.load(train.state_path(final)).episode
     export = tmp_path / "export"
     assert train.run(arguments(first, resume=final, episodes=episodes, export=export)) == 0
-    assert (export / "k_tensor.npy").is_file()
+    assert (export / "b_tensor.npy").is_file()
     assert train.DriverState.load(train.state_path(final)).episode == episodes
 
 
@@ -1289,7 +1320,7 @@ def test_an_export_that_fails_is_one_line_that_says_how_to_export_again(tmp_path
     from lit_planner import tensor_files
 
     run_dir = tmp_path / "run"
-    hooks = train.TrainingHooks(learner_config=small_config())
+    hooks = train.TrainingHooks(learner_config=tiny_config())  # a trained agent to export
     train.train(arguments(run_dir, episodes=1, scenarios="np4", no_bag=True), hooks)
     final = run_dir / train.CHECKPOINT_DIR / "final.ckpt"
     export = tmp_path / "tensors"
