@@ -168,6 +168,11 @@ def crosscheck(
     problems = [scenarios.get(name) for name in scenario_names]
     if not problems:
         raise ValueError("no scenarios given")
+    # A name given twice ran twice and pooled both runs in rows printed twice (as lit bench).
+    for label, names in (("scenario", list(scenario_names)), ("planner", list(planners))):
+        duplicates = sorted({name for name in names if names.count(name) > 1})
+        if duplicates:
+            raise ValueError(f"{label} given twice: {', '.join(duplicates)}")
     # The first and the last seed (a seed per run: one check each took minutes for a huge --runs).
     planning.check_seed(first_seed)
     try:

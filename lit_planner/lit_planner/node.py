@@ -894,9 +894,10 @@ class PlannerNode:
             seed=job.seed,
             max_iterations=job.max_iterations,
             max_batches=job.max_batches,
-            tensors_dir=self.params["tensors_dir"] or None,
+            # For the tensor policy by name only (a cached policy object is used as it is).
+            tensors_dir=(self.params["tensors_dir"] or None) if policy == "tensor" else None,
             params=params,
-            listener=listener,
+            listener=listener if job.planner == "litstar" else None,  # OMPL planners call none
             cancel=job.stop,
         )
         with self._queue_lock:  # from now on a CancelRequest finds it no more

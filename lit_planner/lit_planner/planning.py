@@ -218,7 +218,8 @@ def make_policy(
             ``failures``.
 
     Raises:
-        PlannerError: unknown name or interpolation, or a callback missing / given in vain.
+        PlannerError: unknown name or interpolation, a callback missing / given in vain, or
+            ``tensors_dir`` / ``interpolation`` for a policy other than ``tensor``.
         MissingTensorsError: ``tensor`` found neither tensor file.
         TensorFileError: a tensor file or its sidecar is defective (names the file and problem).
     """
@@ -229,6 +230,10 @@ def make_policy(
             "the external policy needs a callback"
             if callback is None
             else f"a callback applies to the external policy only, not to {name!r}"
+        )
+    if name != "tensor" and (tensors_dir is not None or interpolation is not None):
+        raise PlannerError(
+            f"tensors_dir and interpolation are for the tensor policy, not for {name!r}"
         )
     if name == "fixed":
         return lit_core.FixedPolicy()
@@ -500,6 +505,20 @@ def plan(
     problem = _scenario(scenario, instance)
     policy_name = policy.name if isinstance(policy, lit_core.ParameterPolicy) else policy
     core_planner, policy_name = resolve_planner(planner, policy_name)
+    if tensors_dir is not None or interpolation is not None:
+        # Ignored otherwise: a user comparing policies believed the folder or mode was used.
+        if policy_name != "tensor":
+            raise PlannerError(
+                "tensors_dir and interpolation are for the tensor policy, not for "
+                + (f"policy {policy_name!r}" if policy_name is not None else planner)
+            )
+        if isinstance(policy, lit_core.ParameterPolicy):
+            raise PlannerError(
+                "tensors_dir and interpolation are for the policy name 'tensor'; a policy object "
+                "is used as it was made (pass them to make_policy)"
+            )
+    if listener is not None and core_planner != LITSTAR:
+        raise PlannerError(f"a listener is called by {LITSTAR} only; {planner} calls none")
     if isinstance(policy, lit_core.ParameterPolicy):
         policy_object = policy
     elif policy_name is None:

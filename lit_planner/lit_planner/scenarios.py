@@ -374,9 +374,11 @@ def custom(
     corners), start and goal. Named ``custom<n>``; no known optimum.
 
     Raises:
-        ScenarioError: inconsistent dimensions, bounds or boxes with lower > upper, non-finite
-            numbers, a dimension outside ``MIN_DIM..MAX_DIM``, start and goal within
-            ``ENDPOINT_TOLERANCE`` of each other.
+        ScenarioError: inconsistent dimensions, bounds or boxes with lower > upper, a
+            non-finite bound or box corner, a dimension outside ``MIN_DIM..MAX_DIM``, start and
+            goal within ``ENDPOINT_TOLERANCE`` of each other. (A start or goal outside the
+            bounds, inside a box or with a non-finite coordinate is not refused here: planning
+            it ends with ``invalid_start`` / ``invalid_goal`` and a message, as for any planner.)
     """
     dim = len(lower)
     if not MIN_DIM <= dim <= MAX_DIM:
@@ -402,7 +404,10 @@ def custom(
     if len(bad):
         raise ScenarioError(f"box {bad[0]} has a lower corner above its upper corner")
     if not (math.isfinite(time_budget) and time_budget > 0):
-        raise ScenarioError(f"time budget must be positive, got {time_budget}", part="time")
+        raise ScenarioError(
+            f"time budget must be a finite positive number of seconds, got {time_budget}",
+            part="time",
+        )
     resolution = DEFAULT_CUSTOM_RESOLUTION if resolution is None else float(resolution)
     _check_extent(np.asarray(lower, float), np.asarray(upper, float), resolution)
     with np.errstate(under="ignore", over="ignore"):

@@ -144,3 +144,15 @@ def test_bad_arguments_exit_2() -> None:
     assert "--runs 5000000000 from seed 1 reaches seed 5000000000, beyond the largest" in (
         process.stderr
     )
+    # A name given twice ran twice and each row pooled both runs ("2 | 2 | 2/2" under a header
+    # of one run per planner), every row printed twice, exit 0.
+    for option, value, label in (
+        ("--scenarios", "np4,np4", "scenario given twice: np4"),
+        ("--planners", "bitstar,bitstar", "planner given twice: bitstar"),
+    ):
+        process = subprocess.run(
+            [sys.executable, "-m", "lit_planner.cli", "crosscheck", option, value, "--runs", "1"],
+            capture_output=True, text=True, timeout=60, check=False,
+        )  # fmt: skip
+        assert process.returncode == 2, process.stderr
+        assert label in process.stderr, process.stderr

@@ -10,6 +10,7 @@ import dataclasses
 import itertools
 import json
 import math
+import re
 import time
 from pathlib import Path
 from typing import Any
@@ -386,6 +387,51 @@ def test_external_policy_failures_fall_back(capfd: pytest.CaptureFixture[str]) -
         make_policy("fixed", callback=broken)
     with pytest.raises(PlannerError, match="needs a callable"):
         plan("np4", policy="external", max_iterations=10)
+
+
+def test_options_that_would_be_ignored_are_refused(tmp_path: Path) -> None:
+    """A tensor folder or interpolation for another policy, and a listener for an OMPL planner,
+    were accepted and ignored: a user comparing settings believed they were used."""
+
+    class Listener:
+        def on_solution(self, event: object) -> None:
+            raise AssertionError("not called")
+
+    refused = [
+        (
+            {"policy": "fixed", "interpolation": "cubic"},
+            "for the tensor policy, not for policy 'fixed'",
+        ),
+        ({"policy": "fit", "tensors_dir": tmp_path}, "for the tensor policy, not for policy 'fit'"),
+        (
+            {"planner": "aitstar", "interpolation": "nearest"},
+            "for the tensor policy, not for aitstar",
+        ),
+        ({"policy": lit_core.FixedPolicy(), "tensors_dir": tmp_path}, "not for policy 'fixed'"),
+        (
+            {"planner": "aitstar", "listener": Listener()},
+            "called by litstar only; aitstar calls none",
+        ),
+        (
+            {"planner": "bitstar", "listener": Listener()},
+            "called by litstar only; bitstar calls none",
+        ),
+    ]
+    for options, message in refused:
+        with pytest.raises(PlannerError, match=re.escape(message)):
+            plan("np4", time=0.05, **options)  # type: ignore[arg-type]
+    for name in ("fixed", "fit"):
+        with pytest.raises(PlannerError, match=f"not for {name!r}"):
+            make_policy(name, tmp_path)
+        with pytest.raises(PlannerError, match=f"not for {name!r}"):
+            make_policy(name, interpolation="nearest")
+    shipped = Path(__file__).resolve().parents[2] / "tensors"
+    policy = make_policy("tensor", shipped)
+    with pytest.raises(PlannerError, match="a policy object is used as it was made"):
+        plan("np4", policy=policy, interpolation="nearest", max_iterations=10)
+    # What they apply to still takes them.
+    assert plan("np4", policy="tensor", tensors_dir=shipped, interpolation="nearest",
+                max_iterations=ITERATIONS)["solved"]  # fmt: skip
 
 
 @pytest.mark.parametrize("stop", [KeyboardInterrupt, SystemExit])

@@ -228,7 +228,11 @@ def benchmark_policies(
         if made is not None and name in made:
             policies[name] = made[name]
         else:
-            policies[name] = None if policy is None else planning.make_policy(policy, tensors_dir)
+            policies[name] = (
+                None
+                if policy is None
+                else planning.make_policy(policy, tensors_dir if policy == "tensor" else None)
+            )
     return policies
 
 

@@ -68,7 +68,9 @@ namespace lit
         std::size_t checks{0u};
     };
 
-    /** \brief Range of B and psi_K that LIT* applies (the paper's limits). */
+    /** \brief The paper's range of B and psi_K, to which the tensor and external policies clamp their answers.
+     *  LIT* itself takes any B >= 1 and psi_K > 0 from a policy: the fixed policy's psi_K = e is below 3, and
+     *  FIT*'s rule ranges over 1...199. */
     struct ParameterLimits
     {
         static constexpr int minBatchSize = 20;
@@ -77,10 +79,10 @@ namespace lit
         static constexpr double maxNeighbourFactor = 15.0;
     };
 
-    /** \brief Rounds half away from zero and clamps to [20, 200]; NaN gives std::nullopt. */
+    /** \brief Rounds half away from zero and clamps to [20, 200]; NaN or +-inf gives std::nullopt. */
     std::optional<int> clampBatchSize(double value);
 
-    /** \brief Clamps to [3, 15]; NaN gives std::nullopt. */
+    /** \brief Clamps to [3, 15]; NaN or +-inf gives std::nullopt. */
     std::optional<double> clampNeighbourFactor(double value);
 
     /** \brief Source of B and psi_K.
@@ -252,7 +254,7 @@ namespace lit
     };
 
     /** \brief Delegates to a callable (the learner in training). Out-of-range answers are clamped; a NaN
-     *  answer or an exception falls back to the fixed value and is counted. The planner pauses its clock
+     *  or infinite answer or an exception falls back to the fixed value and is counted. The planner pauses its clock
      *  while the callable runs. */
     class ExternalPolicy : public ParameterPolicy
     {
@@ -281,7 +283,7 @@ namespace lit
         }
         double decide(const DecisionContext &context) override;
 
-        /** \brief Answers that were unusable (NaN or a throwing callable). The first of each kind is logged. */
+        /** \brief Answers that were unusable (NaN, +-inf or a throwing callable). The first of each kind is logged. */
         std::size_t failures() const
         {
             return failures_;
