@@ -13,6 +13,7 @@ import re
 import sqlite3
 import subprocess
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -402,7 +403,7 @@ def _np4_fit_args(out: Path, bags: Path) -> object:
     )  # fmt: skip
 
 
-@pytest.mark.parametrize("stage", ["planning", "writing"])
+@pytest.mark.parametrize("stage", ["start", "planning", "writing"])
 def test_ctrl_c_says_what_is_kept_and_names_the_replay_that_makes_tables(
     monkeypatch: pytest.MonkeyPatch,
     tmp_path: Path,
@@ -417,8 +418,19 @@ def test_ctrl_c_says_what_is_kept_and_names_the_replay_that_makes_tables(
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
 
-    if stage == "planning":
+    run_benchmark = runner.run_benchmark
+
+    def interrupted_after_a_scenario(*args: Any, on_scenario_done: Any, **kwargs: Any) -> Any:
+        def done(records: Any) -> None:
+            on_scenario_done(records)
+            raise KeyboardInterrupt
+
+        return run_benchmark(*args, on_scenario_done=done, **kwargs)
+
+    if stage == "start":
         monkeypatch.setattr(runner, "run_benchmark", interrupted)
+    elif stage == "planning":
+        monkeypatch.setattr(runner, "run_benchmark", interrupted_after_a_scenario)
     else:
         monkeypatch.setattr(cli, "write_outputs", interrupted)
     out, bags = tmp_path / "out", tmp_path / "bags"
@@ -426,6 +438,8 @@ def test_ctrl_c_says_what_is_kept_and_names_the_replay_that_makes_tables(
     (bag_path,) = bags.iterdir()
     runs = out / "runs.jsonl"
     expected = {
+        "start": f"lit bench: interrupted before a scenario finished: nothing kept in {out}; the "
+        f"bag {bag_path} holds no runs",
         "planning": f"lit bench: interrupted; {runs} holds the runs of the finished scenarios (not"
         f" those of the scenario it was planning); `lit replay bench {bag_path}` makes tables of"
         " them",
@@ -433,4 +447,9 @@ def test_ctrl_c_says_what_is_kept_and_names_the_replay_that_makes_tables(
         f"partial); {runs} holds every run; `lit replay bench {bag_path}` writes them",
     }[stage]
     assert capsys.readouterr().err.splitlines()[-1] == expected
-    assert len(runs.read_text(encoding="utf-8").splitlines()) == (2 if stage == "writing" else 0)
+    if stage == "start":
+        # An empty runs.jsonl in --out refused the retry ("exists and is not empty").
+        assert not out.exists()
+        monkeypatch.undo()
+        assert cli.run(_np4_fit_args(out, tmp_path / "bags-retry")) == 0
+    assert len(runs.read_text(encoding="utf-8").splitlines()) == 2

@@ -93,6 +93,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="LIT* variant to check (default: %(default)s)",
     )
     parser.add_argument(
+        "--tensors",
+        metavar="DIR",
+        type=argtypes.path,
+        help="the tensors of --litstar litstar-tensor (default: $LIT_TENSORS, else the shipped "
+        "tensors/)",
+    )
+    parser.add_argument(
         "--planners",
         default=",".join(OMPL2_PLANNERS),
         help="OMPL 2.0.1 planners, comma-separated, of bitstar and irrtstar (default: %(default)s)",
@@ -126,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
         planners = scenarios.split_names(args.planners)
         report = crosscheck(names, runs=args.runs, time=args.time, first_seed=args.seed,
                             litstar=args.litstar, planners=planners,
-                            tolerance=args.tolerance)  # fmt: skip
+                            tolerance=args.tolerance, tensors_dir=args.tensors)  # fmt: skip
     except (LitPlannerError, ValueError) as error:
         print(f"lit crosscheck: {error}", file=sys.stderr)
         return 2
@@ -146,11 +153,13 @@ def crosscheck(
     litstar: str = DEFAULT_LITSTAR,
     planners: Sequence[str] = OMPL2_PLANNERS,
     tolerance: float = DEFAULT_TOLERANCE,
+    tensors_dir: Path | None = None,
 ) -> dict[str, Any]:
     """Run the cross-check; the report behind the table (rows, verdicts, raw runs, processes).
 
     Raises:
         ScenarioError, PlannerError: unknown scenario or planner, bad numbers.
+        MissingTensorsError, TensorFileError: ``litstar-tensor`` without usable tensors.
         lit_planner.ompl2.Ompl2Error: the OMPL 2.0.1 worker failed.
     """
     from lit_planner import planning  # imports lit_core: this process never imports PyPI ompl
@@ -183,6 +192,11 @@ def crosscheck(
             f"the largest, {planning.MAX_SEED}"
         ) from None
     planning.quiet_ompl(litstar)
+    # The tensor policy's files are read (and checked) once, before the first run.
+    _, policy_name = planning.resolve_planner(litstar)
+    if tensors_dir is not None and policy_name != "tensor":
+        raise ValueError(f"--tensors is for --litstar litstar-tensor, not {litstar}")
+    policy = planning.make_policy("tensor", tensors_dir) if policy_name == "tensor" else None
 
     rows: list[dict[str, Any]] = []
     details: list[dict[str, Any]] = []
@@ -192,7 +206,7 @@ def crosscheck(
         for seed in range(first_seed, first_seed + runs):
             print(f"lit crosscheck: {scenario.key} {litstar} seed {seed}", file=sys.stderr,
                   flush=True)  # fmt: skip
-            result = planning.plan(scenario, litstar, time=time, seed=seed)
+            result = planning.plan(scenario, litstar, policy, time=time, seed=seed)
             lit_runs.append({
                 "planner": litstar, "seed": seed, "solved": bool(result["solved"]),
                 "status": result["status"], "t_init": result["t_init"],

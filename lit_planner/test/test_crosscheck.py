@@ -156,3 +156,15 @@ def test_bad_arguments_exit_2() -> None:
         )  # fmt: skip
         assert process.returncode == 2, process.stderr
         assert label in process.stderr, process.stderr
+    # The tensors of litstar-tensor: named, and checked before the first run (a missing folder
+    # was reported after the first run's progress line); refused for another variant.
+    for options, message in (
+        (["--litstar", "litstar-tensor", "--tensors", "/nonexistent-lit"], "/nonexistent-lit"),
+        (["--tensors", "tensors"], "--tensors is for --litstar litstar-tensor, not litstar-fixed"),
+    ):
+        process = subprocess.run(
+            [sys.executable, "-m", "lit_planner.cli", "crosscheck", "--runs", "1", *options],
+            capture_output=True, text=True, timeout=60, check=False,
+        )  # fmt: skip
+        assert process.returncode == 2, process.stderr
+        assert message in process.stderr and "seed 1" not in process.stderr, process.stderr

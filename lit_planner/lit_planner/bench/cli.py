@@ -107,6 +107,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-bag", action="store_true", help="do not record a bag")
 
 
+def _remove_if_nothing_ran(runs_path: Path, out: Path, out_existed: bool) -> bool:
+    """Remove an empty ``runs_path``, and ``out`` if this run made it and nothing else is in
+    it; whether ``runs_path`` was empty."""
+    try:
+        if runs_path.stat().st_size:
+            return False
+        runs_path.unlink()
+        if not out_existed:
+            out.rmdir()  # only if empty: whatever else is there stays
+    except OSError:
+        pass
+    return True
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``lit bench``; 0 on success, 1 when a returned path failed the re-check, 2 bad input."""
     try:
@@ -182,6 +196,19 @@ def run(args: argparse.Namespace) -> int:
             if recording is not None:  # for `lit replay bench`: the stamps do not span all of it
                 recording.finish(finished, duration)
     except KeyboardInterrupt:
+        if _remove_if_nothing_ran(runs_path, out, out_existed):
+            # An empty runs.jsonl blocked the retry with the same --out ("not empty").
+            empty_bag = (
+                f"; the bag {recording.recorder.path} holds no runs"
+                if recording is not None
+                else ""
+            )
+            print(
+                f"lit bench: interrupted before a scenario finished: nothing kept in {out}"
+                f"{empty_bag}",
+                file=sys.stderr,
+            )
+            return 130
         tables = (
             f"; `lit replay bench {recording.recorder.path}` makes tables of them"
             if recording is not None
