@@ -403,16 +403,16 @@ def _np4_fit_args(out: Path, bags: Path) -> object:
     )  # fmt: skip
 
 
-@pytest.mark.parametrize("stage", ["start", "planning", "writing"])
+@pytest.mark.parametrize("stage", ["start", "after-a-scenario", "writing"])
 def test_ctrl_c_says_what_is_kept_and_names_the_replay_that_makes_tables(
     monkeypatch: pytest.MonkeyPatch,
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
     stage: str,
 ) -> None:
-    """Ctrl-C while it plans, or after the planning while the tables are written: exit 130 with
-    a line that says which runs ``runs.jsonl`` holds and which ``lit replay bench`` makes the
-    tables."""
+    """Ctrl-C before the first scenario finished (nothing is kept in --out), after one while it
+    plans on, or after the planning while the tables are written: exit 130 with a line that says
+    which runs ``runs.jsonl`` holds and which ``lit replay bench`` makes the tables."""
     from lit_planner.bench import cli, runner
 
     def interrupted(*args: object, **kwargs: object) -> None:
@@ -429,7 +429,7 @@ def test_ctrl_c_says_what_is_kept_and_names_the_replay_that_makes_tables(
 
     if stage == "start":
         monkeypatch.setattr(runner, "run_benchmark", interrupted)
-    elif stage == "planning":
+    elif stage == "after-a-scenario":
         monkeypatch.setattr(runner, "run_benchmark", interrupted_after_a_scenario)
     else:
         monkeypatch.setattr(cli, "write_outputs", interrupted)
@@ -440,7 +440,7 @@ def test_ctrl_c_says_what_is_kept_and_names_the_replay_that_makes_tables(
     expected = {
         "start": f"lit bench: interrupted before a scenario finished: nothing kept in {out}; the "
         f"bag {bag_path} holds no runs",
-        "planning": f"lit bench: interrupted; {runs} holds the runs of the finished scenarios (not"
+        "after-a-scenario": f"lit bench: interrupted; {runs} holds the runs of the finished scenarios (not"
         f" those of the scenario it was planning); `lit replay bench {bag_path}` makes tables of"
         " them",
         "writing": f"lit bench: interrupted while writing the outputs (those in {out} may be "

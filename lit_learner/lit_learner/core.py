@@ -497,9 +497,11 @@ class LearnerCore:
         agents: Sequence[str] = AGENT_NAMES,
         lock: AbstractContextManager[Any] | None = None,
         extra: Mapping[str, bytes] | None = None,
+        remove_others: bool = False,
     ) -> dict[str, Path]:
         """Write ``checkpoint.pt`` and each agent's lookup tensor with its sidecar into
-        ``directory``, with the ``extra`` files (name: content).
+        ``directory``, with the ``extra`` files (name: content); ``remove_others``: remove the
+        tensor files of the agents not in ``agents`` from ``directory`` (an earlier export's).
 
         ``lock`` (held by whoever else uses the core, e.g. the learner node's decision service)
         is taken only while the state and the actors are copied; the checkpoint file and the
@@ -514,11 +516,17 @@ class LearnerCore:
             lit_planner.errors.TensorFileError: a tensor or sidecar failed validation.
             ExportError: a file could not be written (a full disk, say).
         """
-        from lit_planner.tensor_files import staged_folder
+        from lit_planner.tensor_files import sidecar_path, staged_folder
 
         directory = Path(directory)
+        others = [
+            name
+            for agent, file_name in TENSOR_FILES.items()
+            if remove_others and agent not in agents
+            for name in (file_name, sidecar_path(file_name).name)
+        ]
         try:
-            with staged_folder(directory) as stage:
+            with staged_folder(directory, remove=others) as stage:
                 self._export_into(stage, provenance, agents, lock)
                 for name, content in (extra or {}).items():
                     (stage / name).write_bytes(content)

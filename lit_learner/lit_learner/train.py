@@ -1426,38 +1426,45 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         # Written there by something else while this run trained (an earlier export of the run
         # it resumes was there from the start, and is what it replaces).
         replaced = _tensor_files_state(args.export) != exported_before
-        trained = trained_agents(core)
-        if trained:
-            try:
-                written = export(core, Path(args.export), record, curves, trained)
-            except ExportError as error:
-                lock.close()
-                raise TrainingError(
-                    f"{error}. The run is saved in {final}: `lit train --resume {final} "
-                    f"--episodes {state.episode} --export {args.export}` exports it without "
-                    "training"
-                ) from None
-            lines.append(f"  tensors {', '.join(str(path) for path in written.values())}")
-        else:
-            lines.append(f"  not exported to {args.export}: no agent made a gradient update yet")
+        agents = exported_agents(core, state)
+        try:
+            written = export(core, Path(args.export), record, curves, agents)
+        except ExportError as error:
+            lock.close()
+            raise TrainingError(
+                f"{error}. The run is saved in {final}: `lit train --resume {final} --episodes "
+                f"{state.episode} --export {args.export}` exports it without training"
+            ) from None
+        lines.append(
+            f"  tensors {', '.join(str(path) for path in written.values())}"
+            if agents
+            else f"  tensors: none in {args.export} (no agent made a gradient update yet; "
+            "it holds the checkpoint and provenance)"
+        )
         for name in AGENT_NAMES:  # said here, not only by `lit tensors info`
             agent = core.agents[name]
-            if name in trained:
-                continue
-            why = (
-                "this run does not train it"
-                if not core.trains(name)
-                else f"no gradient update yet: {agent.transitions} of the "
-                f"{agent.config.warmup} transitions its updates wait for"
+            progress_note = (
+                f"{agent.transitions} of the {agent.config.warmup} transitions its updates wait for"
             )
+            if name in agents and not agent.updates:
+                lines.append(
+                    f"  {name}: UNTRAINED, the actor's initial weights (exported as the B "
+                    f"phase's tensor, which the psi_K agent trained against; {progress_note})"
+                )
+            elif name not in agents:
+                why = (
+                    "this run does not train it"
+                    if not core.trains(name)
+                    else f"no gradient update yet: {progress_note}"
+                )
+                lines.append(
+                    f"  {name}: no tensor ({why}); the tensor policy keeps its fixed value "
+                    f"({FIXED_VALUES[name]})"
+                )
+        if replaced:
             lines.append(
-                f"  {name}: no tensor ({why}); the tensor policy keeps its fixed value "
-                f"({FIXED_VALUES[name]})"
-            )
-        if replaced and trained:
-            lines.append(
-                f"  (replaced the tensors written to {args.export} during this run; other files "
-                "there still describe those)"
+                f"  (replaced or removed the tensors written to {args.export} during this run; "
+                "other files there still describe those)"
             )
     lock.close()
     return TrainingResult("\n".join(lines), interrupted)
@@ -1580,11 +1587,16 @@ def _lock_run_folder(run_dir: Path) -> Any:
     return handle
 
 
-def trained_agents(core: Any) -> tuple[str, ...]:
-    """The agents whose actor made at least one gradient update: the only ones ``lit train``
-    exports (an initial actor played by the tensor policy decided psi_K about 9 where the
-    fixed value is e)."""
-    return tuple(name for name in AGENT_NAMES if core.agents[name].updates > 0)
+def exported_agents(core: Any, state: DriverState) -> tuple[str, ...]:
+    """The agents whose tensor ``lit train`` exports: those whose actor made a gradient update
+    (an initial actor played by the tensor policy decided psi_K about 9 where the fixed value
+    is e), and B when the psi_K phase began against B's tensor of the B phase, whatever it was
+    (psi_K learns against the B it meets in use)."""
+    return tuple(
+        name
+        for name in AGENT_NAMES
+        if core.agents[name].updates > 0 or (name == "B" and state.b_tensor_dir is not None)
+    )
 
 
 def export(
@@ -1594,27 +1606,15 @@ def export(
     curves: Path | None,
     agents: Sequence[str],
 ) -> dict:
-    """Write the tensors of ``agents`` with ``record`` as provenance, plus ``provenance.json``
-    and the curves (all or nothing: :meth:`~lit_learner.core.LearnerCore.export_tensors`), and
-    then remove the other agent's tensor files from ``directory`` (an earlier export of the run
-    that this one resumes may hold them; they would be played beside this run's)."""
-    from lit_planner.tensor_files import sidecar_path
-
-    from lit_learner.export import TENSOR_FILES
-
+    """Write the tensors of ``agents`` (none is fine) with ``record`` as provenance, plus
+    ``provenance.json``, the curves and the checkpoint, and remove the other agent's tensor
+    files from ``directory`` (an earlier export of the run that this one resumes may hold them;
+    they would be played beside this run's): all or nothing, see
+    :meth:`~lit_learner.core.LearnerCore.export_tensors`."""
     extra = {PROVENANCE_FILE: (json.dumps(record, indent=2) + "\n").encode()}
     if curves is not None and curves.exists():
         extra[CURVES_FILE] = curves.read_bytes()
-    written = core.export_tensors(directory, record, agents=agents, extra=extra)
-    for name in AGENT_NAMES:
-        if name not in agents:
-            stale = directory / TENSOR_FILES[name]
-            for path in (stale, sidecar_path(stale)):
-                try:
-                    path.unlink(missing_ok=True)
-                except OSError as error:
-                    raise ExportError(f"cannot remove {path} ({error})") from None
-    return written
+    return core.export_tensors(directory, record, agents=agents, extra=extra, remove_others=True)
 
 
 def _bag_parent(state: DriverState) -> Path:

@@ -919,7 +919,9 @@ def test_export_into_the_run_folder_is_refused_and_an_export_records_no_bag(
         arguments(tmp_path / "crossed", episodes=1, scenarios="np4", no_bag=True, export=meanwhile),
         hooks_writing,
     )
-    assert f"replaced the tensors written to {meanwhile} during this run" in crossed.summary
+    assert f"replaced or removed the tensors written to {meanwhile} during this run" in (
+        crossed.summary
+    )
     # Only an agent that made a gradient update is exported: one episode of the B phase trains
     # B only, and psi_K's file (the other writer's) goes rather than stay beside B's.
     assert (meanwhile / "b_tensor.npy").is_file()
@@ -928,17 +930,32 @@ def test_export_into_the_run_folder_is_refused_and_an_export_records_no_bag(
         "  psi_K: no tensor (no gradient update yet: 0 of the 1 transitions its updates wait "
         "for); the tensor policy keeps its fixed value (psi_K = e)"
     ) in crossed.summary, crossed.summary
+    # Resumed into its own earlier export that holds psi_K's initial actor (as exports did before
+    # only trained agents were exported): that tensor goes, B's is written again.
+    from lit_learner.core import LearnerCore
+
+    LearnerCore(small_config()).export_tensors(tmp_path / "old", {"note": "untrained"})
+    for name in ("k_tensor.npy", "k_tensor.json"):
+        shutil.copy2(tmp_path / "old" / name, meanwhile / name)
+    resumed = train.train(
+        arguments(tmp_path / "crossed", resume=tmp_path / "crossed" / train.CHECKPOINT_DIR
+                  / "final.ckpt", episodes=1, export=meanwhile, no_bag=True)
+    )  # fmt: skip
+    assert sorted(path.name for path in meanwhile.glob("*_tensor.*")) == [
+        "b_tensor.json", "b_tensor.npy"
+    ], resumed.summary  # fmt: skip
     # An agent without an update has no tensor (its initial actor, played by the tensor policy,
-    # decided psi_K about 9 where the fixed value is e); with none, nothing is exported.
+    # decided psi_K about 9 where the fixed value is e); with none, the export holds no tensor.
     untrained = train.train(
         arguments(tmp_path / "short", episodes=1, scenarios="np4", no_bag=True,
                   export=tmp_path / "none"),
         train.TrainingHooks(learner_config=small_config()),
     )  # fmt: skip
-    assert f"not exported to {tmp_path / 'none'}: no agent made a gradient update yet" in (
+    assert f"tensors: none in {tmp_path / 'none'} (no agent made a gradient update yet" in (
         untrained.summary
     )
-    assert not (tmp_path / "none").exists()
+    assert not list((tmp_path / "none").glob("*_tensor.*"))
+    assert (tmp_path / "none" / train.PROVENANCE_FILE).is_file()
     for name, warmup, fixed in (("B", 24, "B = 100"), ("psi_K", 32, "psi_K = e")):
         line = rf"  {name}: no tensor \(no gradient update yet: \d+ of the {warmup} transitions "
         assert re.search(

@@ -137,10 +137,10 @@ def test_a_second_signal_while_the_outputs_are_written_is_ignored(tmp_path: Path
     with _train("--resume", str(start), "--episodes", "100000", "--checkpoint-every", "0",
                 "--export", str(export)) as process:  # fmt: skip
         _wait_for_episodes(process, run, 2)
-        process.send_signal(signal.SIGINT)
         # The driver state is written right after the final checkpoint, before the export.
         driver = train.state_path(start)
         written = driver.stat().st_mtime_ns
+        process.send_signal(signal.SIGINT)
         deadline = time.monotonic() + 300.0
         while driver.stat().st_mtime_ns == written:
             assert process.poll() is None, process.communicate()

@@ -894,8 +894,6 @@ class PlannerNode:
             seed=job.seed,
             max_iterations=job.max_iterations,
             max_batches=job.max_batches,
-            # For the tensor policy by name only (a cached policy object is used as it is).
-            tensors_dir=(self.params["tensors_dir"] or None) if policy == "tensor" else None,
             params=params,
             listener=listener if job.planner == "litstar" else None,  # OMPL planners call none
             cancel=job.stop,

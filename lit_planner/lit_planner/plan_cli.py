@@ -146,8 +146,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _warn_of_untrained_tensors(tensors: Any) -> None:
     """Say on stderr which tensor of the folder is a learner's export of an agent that made no
-    gradient update (an export of a run stopped before that agent trained, say): the policy plays
-    its initial actor (psi_K about 9, not the fixed e that a folder without the file gives)."""
+    gradient update (the learner node's export early in its training, or an older ``lit train``
+    export of a run stopped before that agent trained): the policy plays its initial actor (psi_K
+    about 9, not the fixed e that a folder without the file gives)."""
     from pathlib import Path
 
     from lit_planner.bench.runner import tensor_origin

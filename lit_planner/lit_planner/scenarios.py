@@ -374,9 +374,11 @@ def custom(
     corners), start and goal. Named ``custom<n>``; no known optimum.
 
     Raises:
-        ScenarioError: inconsistent dimensions, bounds or boxes with lower > upper, a
-            non-finite bound or box corner, a dimension outside ``MIN_DIM..MAX_DIM``, start and
-            goal within ``ENDPOINT_TOLERANCE`` of each other. (A start or goal outside the
+        ScenarioError: inconsistent dimensions, a lower bound not below its upper bound, a box
+            with a lower corner above its upper one, a non-finite bound or box corner, a
+            dimension outside ``MIN_DIM..MAX_DIM``, a time budget that is not a finite positive
+            number, a resolution that does not fit the world's extent, start and goal within
+            ``ENDPOINT_TOLERANCE`` of each other. (A start or goal outside the
             bounds, inside a box or with a non-finite coordinate is not refused here: planning
             it ends with ``invalid_start`` / ``invalid_goal`` and a message, as for any planner.)
     """

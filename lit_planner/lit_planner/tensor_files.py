@@ -334,13 +334,15 @@ def lock_held(path: Path) -> bool:
 
 
 @contextmanager
-def staged_folder(directory: Path) -> Iterator[Path]:
+def staged_folder(directory: Path, remove: Sequence[str] = ()) -> Iterator[Path]:
     """A staging folder inside ``directory`` (created if needed) for files that replace those of
     the same names in ``directory``, one rename each, once the block has written them all: a
     reader of ``directory`` sees each file whole, and a block that fails (a full disk) leaves
-    nothing of itself. The staging folder goes in any case, and ``directory`` too on an error if
-    it was created here; the error goes on (OSError for a folder that cannot be made). Staging
-    folders that killed processes left there (:func:`stale_stages`) are removed first."""
+    nothing of itself. The files named in ``remove`` go from ``directory`` just before the
+    renames (a failure there also leaves nothing of the block). The staging folder goes in any
+    case, and ``directory`` too on an error if it was created here; the error goes on (OSError
+    for a folder that cannot be made). Staging folders that killed processes left there
+    (:func:`stale_stages`) are removed first."""
     created = not directory.exists()
     directory.mkdir(parents=True, exist_ok=True)
     try:
@@ -351,6 +353,8 @@ def staged_folder(directory: Path) -> Iterator[Path]:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX)  # held while this export writes (stale_stages)
             yield stage
+            for name in remove:
+                (directory / name).unlink(missing_ok=True)
             for item in sorted(stage.iterdir()):
                 os.replace(item, directory / item.name)
         finally:

@@ -148,6 +148,7 @@ def test_bad_arguments_exit_2() -> None:
     # of one run per planner), every row printed twice, exit 0.
     for option, value, label in (
         ("--scenarios", "np4,np4", "scenario given twice: np4"),
+        ("--scenarios", "np4,np4/0", "scenario given twice: np4"),  # instance 0 is np4 itself
         ("--planners", "bitstar,bitstar", "planner given twice: bitstar"),
     ):
         process = subprocess.run(

@@ -259,8 +259,9 @@ def planner_setup(
 def tensor_origin(path: Path) -> str | None:
     """What made the tensor at ``path``, from its sidecar: ``constant <value>`` (``lit tensors
     constant``), ``trained, policy version <n>``, or ``UNTRAINED (initial weights), policy
-    version <n>`` for a learner's export whose agent made no gradient update (an export of a run
-    stopped before that agent's phase was called trained); None when the sidecar does not read."""
+    version <n>`` for a learner's export whose agent made no gradient update (such an export, of
+    the learner node or of an older ``lit train``, was called trained); None when the sidecar
+    does not read."""
     from lit_planner import tensor_files
 
     try:
