@@ -311,6 +311,28 @@ def test_records_without_checks_still_summarise(tmp_path: Any) -> None:
     assert "| — | 0 |" in text
 
 
+def test_the_best_ompl_planner_of_a_scenario_none_solved_is_not_named_like_a_winner(
+    tmp_path: Any,
+) -> None:
+    """No OMPL planner solved a run: the first listed was shown as the best OMPL planner."""
+    parts = _summary()
+    parts["records"] = [
+        _record(record["run"], record["planner"], solved=False)
+        if record["planner"] == "aitstar"
+        else record
+        for record in parts["records"]
+    ]
+    summary = _write_summary(tmp_path, parts)
+    assert summary["comparisons"]["best_ompl"]["rows"]["np4"]["reference"] == "aitstar"
+    text = (tmp_path / "summary.md").read_text()
+    assert "| np4 | none solved a run (AIT*, listed first) | ∞ |" in text, text
+    # One that solved is named as before.
+    solved = tmp_path / "solved"
+    solved.mkdir()
+    _write_summary(solved, _summary())
+    assert "| np4 | AIT* | " in (solved / "summary.md").read_text()
+
+
 def test_summary_validates_and_a_broken_one_is_rejected_naming_the_field(tmp_path: Any) -> None:
     summary = _write_summary(tmp_path, _summary())
     codec.validate("BenchSummary", summary)  # write_outputs validated it already; again, explicitly
@@ -569,6 +591,36 @@ def test_time_axis_labels_are_few_and_plain(low: float, high: float, expected: l
     finally:
         plt.close(figure)
     assert sorted(labels, key=float) == expected
+
+
+def test_a_plot_where_nothing_solved_says_so(monkeypatch, tmp_path) -> None:
+    """No planner solved a scenario without a known optimum (rrd4 at a tiny --time-scale): the
+    cost panel was empty, its axis spanning 1.03e-9 to 1.08e-9."""
+    import matplotlib.pyplot as plt
+    from lit_planner.bench import plots
+
+    assert plots.cost_limits([], [], None) == (1.0, 0.0)
+    assert plots.cost_limits([], [], 0.5) == (plots.HEADROOM * 0.5, plots.FOOTROOM * 0.5)
+    top, bottom = plots.cost_limits([2.0], [1.0], None)
+    assert (top, bottom) == (plots.HEADROOM * 2.0, plots.FOOTROOM * 1.0)
+    notes: list[str] = []
+    original = plt.Axes.text
+
+    def text(self, x, y, s, *args, **kwargs):
+        notes.append(s)
+        return original(self, x, y, s, *args, **kwargs)
+
+    monkeypatch.setattr(plt.Axes, "text", text)
+    times = np.array([0.01, 0.1])
+    unsolved = stats.CostCurve(
+        times=times, median=np.full(2, np.inf), lower=None, upper=None,
+        minimum=np.full(2, np.inf), maximum=np.full(2, np.inf), success=np.zeros(2), ranks=None,
+    )  # fmt: skip
+    entry = {"t_init": {"median": math.inf}, "c_init": {"median": math.inf}}
+    scenario = {"planners": {"aitstar": entry}, "optimal_cost": None, "time_budget": 0.1}
+    paths = plots.plot_scenario("rrd4", scenario, {"aitstar": unsolved}, tmp_path)
+    assert [path.name for path in paths] == ["rrd4.png", "rrd4.pdf"]
+    assert notes == [plots.NO_MEDIAN_NOTE]
 
 
 def test_the_note_says_what_made_the_tensors_it_played(tmp_path) -> None:

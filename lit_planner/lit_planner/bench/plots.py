@@ -33,6 +33,23 @@ FOOTROOM = 0.95
 """Cost axis bottom as a multiple of the smallest value drawn (or the optimum)."""
 
 
+NO_MEDIAN_NOTE = "no median cost to draw: no planner solved half of its runs"
+"""Said in the cost panel when no curve has a finite median (the panel was empty)."""
+
+
+def cost_limits(
+    tops: list[float], bottoms: list[float], optimum: float | None
+) -> tuple[float, float]:
+    """The cost axis (top, bottom) around the finite values drawn and the optimum; (1, 0) when
+    there is neither (nothing solved on a scenario without a known optimum: the axis spanned
+    1e-9 around nothing)."""
+    known = tops + ([optimum] if optimum else [])
+    if not known:
+        return 1.0, 0.0
+    top = HEADROOM * max(known)
+    return top, FOOTROOM * min(bottoms + ([optimum] if optimum else []) + [top])
+
+
 def plot_scenario(
     name: str,
     scenario: dict,
@@ -53,8 +70,7 @@ def plot_scenario(
             if values is not None and np.isfinite(values).any():
                 finite_tops.append(float(np.nanmax(np.where(np.isfinite(values), values, np.nan))))
     optimum = scenario.get("optimal_cost")
-    top = HEADROOM * max(finite_tops + ([optimum] if optimum else []) + [1e-9])
-    bottom = FOOTROOM * min(finite_bottoms + ([optimum] if optimum else []) + [top])
+    top, bottom = cost_limits(finite_tops, finite_bottoms, optimum)
     any_range = False
     for index, (planner, curve) in enumerate(curves.items()):
         colour = colours(index % 10)
@@ -82,6 +98,10 @@ def plot_scenario(
         success_axes.step(times, curve.success * 100, where="post", color=colour, lw=1.6)
     if optimum:
         cost_axes.axhline(optimum, color="black", ls="--", lw=1.0, label=f"optimum {optimum:.4f}")
+    if not any(np.isfinite(curve.median).any() for curve in curves.values()):
+        cost_axes.text(
+            0.5, 0.5, NO_MEDIAN_NOTE, transform=cost_axes.transAxes, ha="center", va="center"
+        )
     cost_axes.set_xscale("log")
     cost_axes.set_ylim(bottom, top)
     cost_axes.set_ylabel("cost (path length)")

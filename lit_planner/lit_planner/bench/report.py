@@ -534,7 +534,13 @@ def markdown(summary: dict[str, Any]) -> str:
 
     lines += ["## LIT* against the best OMPL planner", ""]
     if comp["best_ompl"]["rows"]:
-        lines += _comparison_table(comp["best_ompl"]["rows"], with_planner=True)
+        # No OMPL planner solved a run there: the one listed first was named like a winner.
+        unsolved = {
+            name
+            for name, row in comp["best_ompl"]["rows"].items()
+            if summary["scenarios"][name]["planners"][row["reference"]]["success_rate"] == 0
+        }
+        lines += _comparison_table(comp["best_ompl"]["rows"], with_planner=True, unsolved=unsolved)
         lines += ["", f"The {comp['best_ompl']['rule']}.", ""]
     else:
         lines += ["Not available: no LIT* or no OMPL planner in this benchmark.", ""]
@@ -737,9 +743,12 @@ def _paired_table(rows: dict[str, Any]) -> list[str]:
     return lines + [""]
 
 
-def _comparison_table(rows: dict[str, Any], *, with_planner: bool) -> list[str]:
+def _comparison_table(
+    rows: dict[str, Any], *, with_planner: bool, unsolved: set[str] | frozenset[str] = frozenset()
+) -> list[str]:
     """Markdown rows of LIT* against a reference: FIT*, or (``with_planner``) the best OMPL planner
-    per scenario, named in an extra column."""
+    per scenario, named in an extra column (``unsolved``: scenarios where it solved no run, as
+    none of the OMPL planners did: the one listed first)."""
     ours = "its" if with_planner else "FIT*"
     named = "| best OMPL planner " if with_planner else ""
     header = (
@@ -750,7 +759,10 @@ def _comparison_table(rows: dict[str, Any], *, with_planner: bool) -> list[str]:
     lines = [header, rule]
     for name, row in rows.items():
         ref, lit, imp = row["reference_medians"], row["litstar_medians"], row["improvement_percent"]
-        planner = f"| {label(row['reference'])} " if with_planner else ""
+        reference = label(row["reference"])
+        if name in unsolved:
+            reference = f"none solved a run ({reference}, listed first)"
+        planner = f"| {reference} " if with_planner else ""
         lines.append(
             f"| {name} {planner}| {fmt_ms(ref['t_init'])} | {fmt(ref['c_init'])} "
             f"| {fmt(ref['c_final'])} | {fmt_ms(lit['t_init'])} | {fmt(lit['c_init'])} "
