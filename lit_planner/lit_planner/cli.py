@@ -16,6 +16,7 @@ import signal
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -155,6 +156,44 @@ def _innermost_parser(
         parser = chosen
 
 
+class StdoutError(Exception):
+    """Standard output could not be written (a full disk behind ``> file``, ``> /dev/full``)."""
+
+
+class _GuardedStdout:
+    """``sys.stdout`` whose write errors other than a broken pipe are :class:`StdoutError`: a
+    command's own file errors stay OSErrors, and an answer that could not be printed is one line
+    (it was a traceback and exit 1, which ``lit plan`` uses for "not solved")."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            raise
+        except OSError as error:
+            raise StdoutError(error) from None
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            raise
+        except OSError as error:
+            raise StdoutError(error) from None
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
+def _quiet_stdout() -> None:
+    """Point standard output at /dev/null: Python's flush at exit would fail again."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` (default: ``sys.argv[1:]``) and run the chosen subcommand."""
     argv = _join_negative_lists(list(sys.argv[1:] if argv is None else argv))
@@ -169,15 +208,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     # documents how it stops on it (and children inherit the ignoring). Restore it.
     if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    stdout = sys.stdout
+    sys.stdout = _GuardedStdout(stdout)
     try:
-        return int(run(args) or 0)
+        code = int(run(args) or 0)
+        sys.stdout.flush()  # a write error shows here, not at exit
+        return code
     except KeyboardInterrupt:  # Ctrl-C: the command's own finally blocks have stopped its children
         print(f"lit {args.command}: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:  # `lit plan --json | head -c 100`: the reader left; no traceback
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())  # Python's flush at exit would fail again
+        _quiet_stdout()
         return 141  # as if killed by SIGPIPE, what a shell reports for such a pipeline
+    except StdoutError as error:
+        _quiet_stdout()
+        print(f"lit {args.command}: cannot write to standard output: {error}", file=sys.stderr)
+        return 2
+    finally:
+        sys.stdout = stdout
 
 
 if __name__ == "__main__":

@@ -114,8 +114,17 @@ def run(args: argparse.Namespace) -> int:
                 f"--tensors and --interpolation are for the tensor policy, not for "
                 f"{policy or planner}"
             )
+        if args.seed == 0 and planner != planning.LITSTAR:
+            # OMPL's generator takes 0 as 1 (with a warning the baselines' log level hides):
+            # --seed 0 was silently the run of --seed 1.
+            raise PlannerError(
+                f"{planner} is seeded through OMPL's generator, which cannot take seed 0 (it "
+                "would plan the run of --seed 1); give a seed from 1"
+            )
         planning.quiet_ompl(planner)
-        lit_core.set_global_seed(args.seed)
+        # LIT* plans with its own seed, 0 included; OMPL's global generator (which LIT* does not
+        # draw from) would warn about 0 and use 1.
+        lit_core.set_global_seed(max(args.seed, 1))
         result = _plan_interruptibly(
             scenario,
             planner,

@@ -157,6 +157,8 @@ def test_a_path_that_fails_the_recheck_exits_3(
         (["--policy", "tensor", "--tensors", "/nonexistent/tensors"], "no lookup tensors"),
         (["--planner", "bitstar", "--iterations", "5"], "stops on time only"),
         (["--seed", "-1"], "seed must be"),
+        # OMPL's generator takes 0 as 1: silently the run of --seed 1.
+        (["--planner", "rrtconnect", "--seed", "0"], "cannot take seed 0"),
         (["--iterations", "-5"], "--iterations must be a whole number"),
         (["--batches", "4294967296"], "--batches must be a whole number"),
         (["--policy", "fixed", "--interpolation", "nearest"], "are for the tensor policy"),
@@ -170,6 +172,24 @@ def test_plan_bad_input_is_one_line(args: list[str], message: str) -> None:
     assert process.stdout == ""
     lines = process.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("lit plan: ") and message in lines[0]
+
+
+def test_seed_0_plans_litstar_without_ompls_warning_and_an_unwritable_answer_is_one_line() -> None:
+    """LIT* takes seed 0 (its own generator); OMPL's global one warned that it used 1 instead.
+    An answer that could not be written (a full disk) was a traceback and exit 1, "not solved"."""
+    process = lit("plan", "--seed", "0", "--iterations", "200", "--json")
+    assert process.returncode in (0, 1), process.stderr
+    assert json.loads(process.stdout)["seed"] == 0
+    assert "seed cannot be 0" not in process.stderr, process.stderr
+    with open("/dev/full", "w") as full:
+        written = subprocess.run(
+            [sys.executable, "-m", "lit_planner.cli", "plan", "--iterations", "200"],
+            stdout=full, stderr=subprocess.PIPE, text=True, timeout=300, check=False,
+        )  # fmt: skip
+    assert written.returncode == 2, written.stderr
+    assert written.stderr.splitlines() == [
+        "lit plan: cannot write to standard output: [Errno 28] No space left on device"
+    ], written.stderr
 
 
 def test_plan_offers_only_the_policies_it_takes() -> None:
