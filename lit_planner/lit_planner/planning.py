@@ -268,8 +268,9 @@ def make_policy(
             source = f"from ${TENSORS_ENV}"
         else:
             source = f"the default; set ${TENSORS_ENV} or pass a folder to override"
+        where = "" if folder.is_dir() else ", a folder that does not exist"
         raise MissingTensorsError(
-            f"the tensor policy found no lookup tensors in {folder} ({source}): expected "
+            f"the tensor policy found no lookup tensors in {folder} ({source}{where}): expected "
             f"{' and/or '.join(TENSOR_FILES.values())} with their .json sidecars. Train and "
             "export them with `lit train --export DIR`, or use the fixed or fit policy"
         )

@@ -154,7 +154,10 @@ def test_a_path_that_fails_the_recheck_exits_3(
         (["--policy", "learned"], "unknown policy 'learned'"),
         (["--policy", "external"], "external policy needs a callable"),
         (["--planner", "aitstar", "--policy", "fit"], "applies to litstar only"),
-        (["--policy", "tensor", "--tensors", "/nonexistent/tensors"], "no lookup tensors"),
+        (
+            ["--policy", "tensor", "--tensors", "/nonexistent/tensors"],
+            "no lookup tensors in /nonexistent/tensors (given, a folder that does not exist)",
+        ),
         (["--planner", "bitstar", "--iterations", "5"], "stops on time only"),
         (["--seed", "-1"], "seed must be"),
         # OMPL's generator takes 0 as 1: silently the run of --seed 1.
