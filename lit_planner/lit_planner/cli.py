@@ -16,7 +16,8 @@ import signal
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+
+from lit_planner.guarded_stdout import GuardedStdout, StdoutError
 
 
 @dataclass(frozen=True)
@@ -156,38 +157,6 @@ def _innermost_parser(
         parser = chosen
 
 
-class StdoutError(Exception):
-    """Standard output could not be written (a full disk behind ``> file``, ``> /dev/full``)."""
-
-
-class _GuardedStdout:
-    """``sys.stdout`` whose write errors other than a broken pipe are :class:`StdoutError`: a
-    command's own file errors stay OSErrors, and an answer that could not be printed is one line
-    (it was a traceback and exit 1, which ``lit plan`` uses for "not solved")."""
-
-    def __init__(self, stream: Any) -> None:
-        self._stream = stream
-
-    def write(self, text: str) -> int:
-        try:
-            return self._stream.write(text)
-        except BrokenPipeError:
-            raise
-        except OSError as error:
-            raise StdoutError(error) from None
-
-    def flush(self) -> None:
-        try:
-            self._stream.flush()
-        except BrokenPipeError:
-            raise
-        except OSError as error:
-            raise StdoutError(error) from None
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._stream, name)
-
-
 def _quiet_stdout() -> None:
     """Point standard output at /dev/null: Python's flush at exit would fail again."""
     devnull = os.open(os.devnull, os.O_WRONLY)
@@ -209,7 +178,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
     stdout = sys.stdout
-    sys.stdout = _GuardedStdout(stdout)
+    guard = sys.stdout = GuardedStdout(stdout)
     try:
         code = int(run(args) or 0)
         sys.stdout.flush()  # a write error shows here, not at exit
@@ -225,7 +194,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"lit {args.command}: cannot write to standard output: {error}", file=sys.stderr)
         return 2
     finally:
-        sys.stdout = stdout
+        if sys.stdout is guard:  # not if the command set its own (rosutil.native_output_to_stderr)
+            sys.stdout = stdout
 
 
 if __name__ == "__main__":

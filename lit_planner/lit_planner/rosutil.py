@@ -19,6 +19,8 @@ import warnings
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+from lit_planner.guarded_stdout import GuardedStdout
+
 LOCALHOST_ENV = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
 """Environment every entry point sets unless the user already chose: DDS discovery on loopback."""
 DEFAULT_DOMAIN_ID = 42
@@ -1047,4 +1049,5 @@ def native_output_to_stderr() -> None:
         os.dup(sys.stdout.fileno()), "w", encoding=sys.stdout.encoding or "utf-8", buffering=1
     )
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
-    sys.stdout = answers
+    # Guarded as lit's own standard output: an answer that cannot be written is one line.
+    sys.stdout = GuardedStdout(answers)
