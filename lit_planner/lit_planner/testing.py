@@ -39,6 +39,15 @@ PYTEST_HANG_DUMP_S = 600
 """Seconds after which a still-running pytest test has its threads' stacks printed."""
 CTEST_GLOB = "lit_planner/core/build/*/CTestTestfile.cmake"
 """Where the core's scikit-build-core build tree registers its GoogleTest binaries."""
+SANITIZE_DIR = "lit_planner/core/build-sanitize"
+"""``lit test --sanitize``'s build tree of the GoogleTest binaries (not the extension module)."""
+SANITIZERS = "-fsanitize=address,undefined"
+"""AddressSanitizer (with LeakSanitizer) and UndefinedBehaviorSanitizer."""
+SANITIZE_ENV = {
+    "ASAN_OPTIONS": "detect_leaks=1:abort_on_error=0",
+    # Any undefined behaviour fails its test (the build makes it fatal too).
+    "UBSAN_OPTIONS": "print_stacktrace=1:halt_on_error=1",
+}
 ROS_DOMAIN_IDS = range(1, 101)
 """Domains a test run may reserve (ROS allows 0-232; 0 is everyone's default, so avoid it)."""
 
@@ -69,6 +78,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--ctest-regex",
         metavar="REGEX",
         help="only run ctest tests whose name matches REGEX (ctest -R)",
+    )
+    parser.add_argument(
+        "--sanitize",
+        action="store_true",
+        help=f"build the C++ tests with AddressSanitizer and UndefinedBehaviorSanitizer in "
+        f"{SANITIZE_DIR}/ and run them (ctest only; pytest is not run)",
     )
     parser.add_argument("--no-ctest", action="store_true", help="skip the C++ tests")
     parser.add_argument("--no-pytest", action="store_true", help="skip the Python tests")
@@ -328,9 +343,41 @@ def find_ctest_dir(root: Path) -> Path | None:
     return candidates[-1].parent if candidates else None
 
 
-def run_ctest(root: Path, env: dict[str, str], report_dir: Path, regex: str | None) -> RunnerResult:
+def sanitize_commands(root: Path, jobs: int) -> list[list[str]]:
+    """Configure and build :data:`SANITIZE_DIR`: the core's library and GoogleTest binaries with
+    :data:`SANITIZERS`, optimised with debug information (RelWithDebInfo) for readable reports."""
+    build = root / SANITIZE_DIR
+    flags = f"{SANITIZERS} -fno-omit-frame-pointer -fno-sanitize-recover=undefined"
+    return [
+        ["cmake", "-S", str(root / "lit_planner" / "core"), "-B", str(build),
+         "-DLIT_BUILD_PYTHON=OFF", "-DLIT_INSTALL_CPP=OFF", "-DLIT_BUILD_TESTS=ON",
+         "-DCMAKE_BUILD_TYPE=RelWithDebInfo", f"-DCMAKE_CXX_FLAGS={flags}",
+         f"-DCMAKE_EXE_LINKER_FLAGS={SANITIZERS}"],
+        ["cmake", "--build", str(build), "-j", str(jobs)],
+    ]  # fmt: skip
+
+
+def build_sanitized(root: Path, env: dict[str, str]) -> Path | str:
+    """Build :data:`SANITIZE_DIR` (incremental); its path, or what went wrong."""
+    if shutil.which("cmake") is None:
+        return "cmake not found on PATH (Debian package cmake)"
+    print(f"lit test: building the C++ tests with sanitizers in {SANITIZE_DIR}", flush=True)
+    for command in sanitize_commands(root, os.cpu_count() or 1):
+        returncode = _run_runner(command, env, root)
+        if returncode != 0:
+            return f"{' '.join(command[:2])} exited with {returncode}"
+    return root / SANITIZE_DIR
+
+
+def run_ctest(
+    root: Path,
+    env: dict[str, str],
+    report_dir: Path,
+    regex: str | None,
+    build_dir: Path | None = None,
+) -> RunnerResult:
     result = RunnerResult("ctest")
-    build_dir = find_ctest_dir(root)
+    build_dir = find_ctest_dir(root) if build_dir is None else build_dir
     if build_dir is None:
         result.error = f"no C++ build with tests ({CTEST_GLOB}); run ./lit once to build the core"
         return result
@@ -449,22 +496,38 @@ def run_pytest(
 def main(args: argparse.Namespace) -> int:
     """Run the tests selected by ``args``; the exit status of ``lit test``."""
     root = repo_root()
+    if args.sanitize and (args.no_ctest or args.keyword or args.pytest_args):
+        print(
+            "lit test: --sanitize runs the C++ tests only; it does not go with --no-ctest, -k or "
+            "pytest arguments",
+            file=sys.stderr,
+        )
+        return 2
     domain, domain_lock = reserve_ros_domain()
     env = child_environment(root, domain)
     print(f"lit test: ROS_DOMAIN_ID={domain}, ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST", flush=True)
     try:
         with tempfile.TemporaryDirectory(prefix="lit-test-") as tmp:
             report_dir = Path(tmp)
-            ctest = (
-                RunnerResult("ctest")
-                if args.no_ctest
-                else run_ctest(root, env, report_dir, args.ctest_regex)
-            )
-            pytest = (
-                RunnerResult("pytest")
-                if args.no_pytest
-                else run_pytest(root, env, report_dir, args.keyword, args.pytest_args)
-            )
+            if args.sanitize:
+                ctest, pytest = RunnerResult("ctest"), RunnerResult("pytest")
+                built = build_sanitized(root, env)
+                if isinstance(built, str):
+                    ctest.error = built
+                else:
+                    sanitized = env | SANITIZE_ENV
+                    ctest = run_ctest(root, sanitized, report_dir, args.ctest_regex, built)
+            else:
+                ctest = (
+                    RunnerResult("ctest")
+                    if args.no_ctest
+                    else run_ctest(root, env, report_dir, args.ctest_regex)
+                )
+                pytest = (
+                    RunnerResult("pytest")
+                    if args.no_pytest
+                    else run_pytest(root, env, report_dir, args.keyword, args.pytest_args)
+                )
     finally:
         if domain_lock is not None:
             domain_lock.close()

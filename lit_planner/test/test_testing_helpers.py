@@ -147,3 +147,30 @@ def test_lit_test_stopped_by_a_signal_lets_pytest_tear_down(tmp_path: Path, sign
             process.wait()
     assert process.returncode == 130, out
     assert (tmp_path / "teardown").read_text() == "done", out
+
+
+def test_lit_test_sanitize_builds_the_cpp_tests_apart_and_refuses_python_options(
+    tmp_path: Path,
+) -> None:
+    """``lit test --sanitize``: the GoogleTest binaries with ASan and UBSan in a build tree of
+    their own (the normal tree's ctest glob does not see it), and options for pytest refused."""
+    from lit_planner import testing
+
+    root = tmp_path / "checkout"
+    configure, build = testing.sanitize_commands(root, 2)
+    assert configure[:5] == ["cmake", "-S", str(root / "lit_planner/core"), "-B",
+                             str(root / testing.SANITIZE_DIR)]  # fmt: skip
+    assert "-DLIT_BUILD_PYTHON=OFF" in configure and "-DLIT_BUILD_TESTS=ON" in configure
+    flags = next(arg for arg in configure if arg.startswith("-DCMAKE_CXX_FLAGS="))
+    assert "-fsanitize=address,undefined" in flags and "-fno-sanitize-recover=undefined" in flags
+    assert build == ["cmake", "--build", str(root / testing.SANITIZE_DIR), "-j", "2"]
+    (root / testing.SANITIZE_DIR).mkdir(parents=True)
+    (root / testing.SANITIZE_DIR / "CTestTestfile.cmake").write_text("")
+    assert testing.find_ctest_dir(root) is None  # never taken for the normal build
+    for options in (["--no-ctest"], ["-k", "plan"], ["--", "tests"]):
+        process = subprocess.run(
+            [sys.executable, "-m", "lit_planner.cli", "test", "--sanitize", *options],
+            capture_output=True, text=True, timeout=60, check=False,
+        )  # fmt: skip
+        assert process.returncode == 2, (options, process.stderr)
+        assert "--sanitize runs the C++ tests only" in process.stderr
