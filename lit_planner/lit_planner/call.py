@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import Any
 
 from lit_planner import argtypes, signals
+from lit_planner.guarded_stdout import StdoutError
 from lit_planner.rosutil import (
     CANCEL_SERVICE,
     DECIDE_SERVICE,
@@ -441,7 +442,7 @@ def _exit_if_stuck(code: int) -> Callable[[], None]:
             flush=True,
         )
         faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
-        with contextlib.suppress(OSError, ValueError):
+        with contextlib.suppress(OSError, ValueError, StdoutError):
             sys.stdout.flush()
         os._exit(code)
 

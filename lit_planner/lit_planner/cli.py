@@ -166,35 +166,42 @@ def _quiet_stdout() -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` (default: ``sys.argv[1:]``) and run the chosen subcommand."""
     argv = _join_negative_lists(list(sys.argv[1:] if argv is None else argv))
-    selected = next((arg for arg in argv if not arg.startswith("-")), None)
-    parser, module = build_parser(selected if selected in COMMANDS else None)
-    args, extra = parser.parse_known_args(argv)
-    if extra:  # named by the (sub)command they were given to, with its usage, not lit's
-        _innermost_parser(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")
-    run = getattr(module, COMMANDS[args.command].run)
-    # A non-interactive shell starts background commands with SIGINT ignored, and Python then
-    # installs no KeyboardInterrupt handler: `kill -INT` would do nothing, although every command
-    # documents how it stops on it (and children inherit the ignoring). Restore it.
-    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
     stdout = sys.stdout
-    guard = sys.stdout = GuardedStdout(stdout)
+    # Guarded from the start, so that --help and usage lines are too (argparse ignores an OSError
+    # when it prints them); a closed standard output (`>&-`, sys.stdout None) stays as Python has it.
+    guard = None if stdout is None else GuardedStdout(stdout)
+    if guard is not None:
+        sys.stdout = guard
+    name = "lit"
     try:
+        selected = next((arg for arg in argv if not arg.startswith("-")), None)
+        parser, module = build_parser(selected if selected in COMMANDS else None)
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # named by the (sub)command they were given to, with its usage, not lit's
+            _innermost_parser(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")
+        name = f"lit {args.command}"
+        run = getattr(module, COMMANDS[args.command].run)
+        # A non-interactive shell starts background commands with SIGINT ignored, and Python then
+        # installs no KeyboardInterrupt handler: `kill -INT` would do nothing, although every
+        # command documents how it stops on it (and children inherit the ignoring). Restore it.
+        if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
         code = int(run(args) or 0)
-        sys.stdout.flush()  # a write error shows here, not at exit
+        if sys.stdout is not None:
+            sys.stdout.flush()  # a write error shows here, not at exit
         return code
     except KeyboardInterrupt:  # Ctrl-C: the command's own finally blocks have stopped its children
-        print(f"lit {args.command}: interrupted", file=sys.stderr)
+        print(f"{name}: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:  # `lit plan --json | head -c 100`: the reader left; no traceback
         _quiet_stdout()
         return 141  # as if killed by SIGPIPE, what a shell reports for such a pipeline
     except StdoutError as error:
         _quiet_stdout()
-        print(f"lit {args.command}: cannot write to standard output: {error}", file=sys.stderr)
+        print(f"{name}: cannot write to standard output: {error}", file=sys.stderr)
         return 2
     finally:
-        if sys.stdout is guard:  # not if the command set its own (rosutil.native_output_to_stderr)
+        if guard is not None and sys.stdout is guard:  # not if the command set its own
             sys.stdout = stdout
 
 

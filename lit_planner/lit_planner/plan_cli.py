@@ -9,7 +9,9 @@ With ``--json`` the output is exactly one JSON object on one line: everything
 run's ``cost``, ``t_init`` and ``c_init``). Without it, a readable summary.
 
 Exit status: 0 solved, 1 planned but no exact solution, 2 bad input (unknown scenario, planner or
-policy, missing or defective tensors), reported as one line on stderr.
+policy, missing or defective tensors; lit's main adds an answer that could not be written), 3
+solved with a path that failed the independent re-check, 130 interrupted; errors are one line on
+stderr.
 """
 
 from __future__ import annotations

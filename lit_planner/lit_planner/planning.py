@@ -268,9 +268,12 @@ def make_policy(
             source = f"from ${TENSORS_ENV}"
         else:
             source = f"the default; set ${TENSORS_ENV} or pass a folder to override"
-        where = "" if folder.is_dir() else ", a folder that does not exist"
+        try:
+            where = "" if folder.exists() else "; the folder does not exist"
+        except OSError:  # a parent that cannot be read: said by the name of the folder
+            where = ""
         raise MissingTensorsError(
-            f"the tensor policy found no lookup tensors in {folder} ({source}{where}): expected "
+            f"the tensor policy found no lookup tensors in {folder} ({source}){where}: expected "
             f"{' and/or '.join(TENSOR_FILES.values())} with their .json sidecars. Train and "
             "export them with `lit train --export DIR`, or use the fixed or fit policy"
         )

@@ -55,6 +55,7 @@ import numpy as np
 
 from lit_planner import argtypes, bag, rosutil, scenarios, signals
 from lit_planner.errors import LitPlannerError
+from lit_planner.guarded_stdout import StdoutError
 
 PROG = "lit replay"
 """Prefix of every message."""
@@ -2261,8 +2262,8 @@ def run(args: argparse.Namespace) -> int:
     except ReplayError as error:
         print(f"{PROG}: error: {error}", file=sys.stderr)
         return 2
-    except BrokenPipeError:
-        raise  # `lit replay info BAG | head -1`: the reader left; lit's main handles it
+    except (BrokenPipeError, StdoutError):
+        raise  # `lit replay info BAG | head -1`, `> /dev/full`: lit's main handles them
     except Exception as error:  # bad input must never end in a traceback
         if os.environ.get("LIT_REPLAY_DEBUG"):
             raise
@@ -2525,11 +2526,11 @@ def _removed_on_failure(out: Path) -> Iterator[None]:
     full disk): half-written outputs would look complete and block the rerun. An OSError
     becomes a :class:`ReplayError` naming ``out`` (:func:`_io_failure`). A reader of the output
     that left (BrokenPipeError, from the lines printed once the outputs are written) removes
-    nothing."""
+    nothing, nor does an answer that could not be printed (StdoutError: the outputs are whole)."""
     existed = out.exists()
     try:
         yield
-    except BrokenPipeError:
+    except (BrokenPipeError, StdoutError):
         raise
     except BaseException as error:
         if existed:

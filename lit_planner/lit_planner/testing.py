@@ -362,10 +362,12 @@ def build_sanitized(root: Path, env: dict[str, str]) -> Path | str:
     if shutil.which("cmake") is None:
         return "cmake not found on PATH (Debian package cmake)"
     print(f"lit test: building the C++ tests with sanitizers in {SANITIZE_DIR}", flush=True)
-    for command in sanitize_commands(root, os.cpu_count() or 1):
+    for step, command in zip(
+        ("configuring", "building"), sanitize_commands(root, os.cpu_count() or 1), strict=True
+    ):
         returncode = _run_runner(command, env, root)
         if returncode != 0:
-            return f"{' '.join(command[:2])} exited with {returncode}"
+            return f"{step} {SANITIZE_DIR} failed (cmake exited with {returncode})"
     return root / SANITIZE_DIR
 
 
@@ -496,7 +498,7 @@ def run_pytest(
 def main(args: argparse.Namespace) -> int:
     """Run the tests selected by ``args``; the exit status of ``lit test``."""
     root = repo_root()
-    if args.sanitize and (args.no_ctest or args.keyword or args.pytest_args):
+    if args.sanitize and (args.no_ctest or args.keyword is not None or args.pytest_args):
         print(
             "lit test: --sanitize runs the C++ tests only; it does not go with --no-ctest, -k or "
             "pytest arguments",
@@ -515,7 +517,7 @@ def main(args: argparse.Namespace) -> int:
                 if isinstance(built, str):
                     ctest.error = built
                 else:
-                    sanitized = env | SANITIZE_ENV
+                    sanitized = SANITIZE_ENV | env  # the user's own options win
                     ctest = run_ctest(root, sanitized, report_dir, args.ctest_regex, built)
             else:
                 ctest = (

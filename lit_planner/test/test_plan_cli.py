@@ -156,7 +156,7 @@ def test_a_path_that_fails_the_recheck_exits_3(
         (["--planner", "aitstar", "--policy", "fit"], "applies to litstar only"),
         (
             ["--policy", "tensor", "--tensors", "/nonexistent/tensors"],
-            "no lookup tensors in /nonexistent/tensors (given, a folder that does not exist)",
+            "no lookup tensors in /nonexistent/tensors (given); the folder does not exist",
         ),
         (["--planner", "bitstar", "--iterations", "5"], "stops on time only"),
         (["--seed", "-1"], "seed must be"),
@@ -193,6 +193,36 @@ def test_seed_0_plans_litstar_without_ompls_warning_and_an_unwritable_answer_is_
     assert written.stderr.splitlines() == [
         "lit plan: cannot write to standard output: [Errno 28] No space left on device"
     ], written.stderr
+
+
+def test_every_command_says_when_it_cannot_write_its_answer(tmp_path: Path) -> None:
+    """--help and usage went through argparse, which ignores the write error (exit 0, nothing
+    said); lit replay turned it into its generic error, and replay bench then removed the whole
+    outputs it had written. A closed standard output (`>&-`) stays Python's no-op."""
+    expected = "cannot write to standard output: [Errno 28] No space left on device"
+    out = tmp_path / "replayed"
+    for args, prefix in (
+        (["--help"], "lit"),
+        (["plan", "--help"], "lit"),
+        (["replay", "info", str(ROOT / "bags/samples/bench_np4")], "lit replay"),
+        (
+            ["replay", "bench", str(ROOT / "bags/samples/bench_np4"), "--out", str(out)],
+            "lit replay",
+        ),
+    ):
+        with open("/dev/full", "w") as full:  # a device, written as a shell would
+            written = subprocess.run(
+                [sys.executable, "-m", "lit_planner.cli", *args],
+                stdout=full, stderr=subprocess.PIPE, text=True, timeout=300, check=False,
+            )  # fmt: skip
+        assert written.returncode == 2, (args, written.stderr)
+        assert written.stderr.splitlines()[-1] == f"{prefix}: {expected}", (args, written.stderr)
+    assert (out / "summary.md").is_file()  # the outputs were whole: kept
+    closed = subprocess.run(
+        ["bash", "-c", f'exec "{sys.executable}" -m lit_planner.cli tensors info >&-'],
+        capture_output=True, text=True, timeout=300, check=False,
+    )  # fmt: skip
+    assert closed.returncode == 0 and "Traceback" not in closed.stderr, closed.stderr
 
 
 def test_plan_offers_only_the_policies_it_takes() -> None:

@@ -390,7 +390,7 @@ def summary_config(config: runner.BenchConfig, requested: list[str]) -> dict[str
         "time_scale": config.time_scale,
         "t_init_repeats": config.t_init_repeats,
         "confidence": stats.CONFIDENCE,
-        "ompl_global_seed": config.first_seed,
+        "ompl_global_seed": runner.ompl_global_seed(config.first_seed),
         "shuffle": f"random.Random({runner.SHUFFLE_KEY!r}).shuffle(planners) per run",
         "check_jobs": config.check_jobs,
         "tensors_dir": str(config.tensors_dir or planning.default_tensors_dir()),

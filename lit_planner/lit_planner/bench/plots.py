@@ -33,7 +33,7 @@ FOOTROOM = 0.95
 """Cost axis bottom as a multiple of the smallest value drawn (or the optimum)."""
 
 
-NO_MEDIAN_NOTE = "no median cost to draw: no planner solved half of its runs"
+NO_MEDIAN_NOTE = "no median cost to draw: no planner solved more than half of its runs"
 """Said in the cost panel when no curve has a finite median (the panel was empty)."""
 
 
