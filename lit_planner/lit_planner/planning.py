@@ -19,6 +19,7 @@ non-finite float (JSON has no infinity).
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import numbers
 import os
@@ -402,6 +403,17 @@ def tensor_files_signature(folder: Path) -> tuple[object, ...]:
     return tuple(signature)
 
 
+def _declared_output(path: Path) -> str | None:
+    """The output (``B`` or ``psi_K``) that the sidecar of ``path`` names, read without its
+    schema; None when it names none of them or does not read (the full check says why)."""
+    try:
+        document = json.loads(path.with_suffix(".json").read_bytes())
+        name = document["output"]["name"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return name if name in TENSOR_FILES else None
+
+
 def load_tensor(path: Path, output: str) -> lit_core.LookupTensor:
     """Load the lookup tensor of ``output`` (``B`` or ``psi_K``) with the C++ reader.
 
@@ -415,6 +427,14 @@ def load_tensor(path: Path, output: str) -> lit_core.LookupTensor:
     # Imported here: it pulls in the JSON-Schema validator, which other policies never need.
     from lit_planner import tensor_files
 
+    # The name first: a sidecar whose output.name says the other tensor failed the schema on
+    # the rule that goes with the name ("$.output.rounding: 'none' was expected"), not this.
+    declared = _declared_output(path)
+    if declared is not None and declared != output:
+        raise TensorFileError(
+            f"{path}: its sidecar says it holds {declared!r}, but this file name is reserved "
+            f"for {output!r}"
+        )
     sidecar = tensor_files.read_sidecar(path)
     if sidecar.output != output:
         raise TensorFileError(

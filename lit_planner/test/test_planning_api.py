@@ -676,6 +676,19 @@ def test_bad_tensor_files_are_rejected(tmp_path: Path, defect: str, message: str
     assert "b_tensor.npy" in str(caught.value)
 
 
+def test_a_sidecar_naming_the_other_tensor_is_refused_by_that_name(tmp_path: Path) -> None:
+    """A B sidecar edited to say psi_K was refused for its rounding rule ("$.output.rounding:
+    'none' was expected"), which does not say what is wrong."""
+    write_tensor_pair(tmp_path, k=False)
+    side = tmp_path / "b_tensor.json"
+    document = json.loads(side.read_text())
+    document["output"]["name"] = "psi_K"
+    side.write_text(json.dumps(document))
+    with pytest.raises(TensorFileError, match="says it holds 'psi_K', but this file name is "
+                       "reserved for 'B'"):  # fmt: skip
+        make_policy("tensor", tmp_path)
+
+
 def test_the_tensor_policy_cache_reads_again_only_changed_files(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
