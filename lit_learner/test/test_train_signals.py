@@ -118,15 +118,12 @@ def test_a_second_signal_stops_at_once(tmp_path: Path) -> None:
 def test_a_second_signal_while_the_outputs_are_written_is_ignored(tmp_path: Path) -> None:
     """Once the episodes are over, the final checkpoint, curves, provenance and export take
     seconds (the two 101^3 tensors); a second Ctrl-C then must not leave them half written."""
-    from lit_learner.config import AgentConfig, LearnerConfig
     from lit_planner.tensor_files import read_tensor
+    from test_train_driver import tiny_config
 
     # Both agents update from their first transition (lit train exports only agents that made
     # a gradient update; the defaults wait for 500 and 10 000 transitions).
-    tiny = {"warmup": 1, "batch_size": 1}
-    config = LearnerConfig(
-        b=AgentConfig.batch_size_agent(**tiny), k=AgentConfig.neighbour_agent(**tiny), seed=0
-    )
+    config = tiny_config()
     run, export = tmp_path / "run", tmp_path / "tensors"
     train.train(
         _arguments("--scenarios", "np4", "--episodes", "1", "--schedule", "joint", "--no-bag",

@@ -178,11 +178,8 @@ def crosscheck(
     if not problems:
         raise ValueError("no scenarios given")
     # A name given twice ran twice and pooled both runs in rows printed twice (as lit bench).
-    keys = [problem.key for problem in problems]  # np4 and np4/0 are one scenario
-    for label, names in (("scenario", keys), ("planner", list(planners))):
-        duplicates = sorted({name for name in names if names.count(name) > 1})
-        if duplicates:
-            raise ValueError(f"{label} given twice: {', '.join(duplicates)}")
+    scenarios.refuse_duplicates("scenario", [problem.key for problem in problems])  # np4 = np4/0
+    scenarios.refuse_duplicates("planner", planners)
     # The first and the last seed (a seed per run: one check each took minutes for a huge --runs).
     planning.check_seed(first_seed)
     try:

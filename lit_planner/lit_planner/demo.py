@@ -139,7 +139,7 @@ def plan_scenario(scenario: Scenario, policy: str, seed: int, time: float | None
     import lit_core
 
     planning.quiet_ompl(DEMO_PLANNER)
-    lit_core.set_global_seed(max(seed, 1))  # OMPL takes 0 as 1, with a warning
+    lit_core.set_global_seed(planning.ompl_global_seed(seed))
     return planning.plan(scenario, DEMO_PLANNER, policy, time=time, seed=seed)
 
 

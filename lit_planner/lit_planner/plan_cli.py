@@ -126,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
         planning.quiet_ompl(planner)
         # LIT* plans with its own seed, 0 included; OMPL's global generator (which LIT* does not
         # draw from) would warn about 0 and use 1.
-        lit_core.set_global_seed(max(args.seed, 1))
+        lit_core.set_global_seed(planning.ompl_global_seed(args.seed))
         result = _plan_interruptibly(
             scenario,
             planner,

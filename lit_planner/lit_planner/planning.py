@@ -435,12 +435,7 @@ def load_tensor(path: Path, output: str) -> lit_core.LookupTensor:
             f"{path}: its sidecar says it holds {declared!r}, but this file name is reserved "
             f"for {output!r}"
         )
-    sidecar = tensor_files.read_sidecar(path)
-    if sidecar.output != output:
-        raise TensorFileError(
-            f"{path}: its sidecar says it holds {sidecar.output!r}, but this file name is "
-            f"reserved for {output!r}"
-        )
+    sidecar = tensor_files.read_sidecar(path)  # its schema allows B and psi_K only
     if len(sidecar.shape) != 3:
         raise TensorFileError(f"{path}: the sidecar's shape {sidecar.shape} is not 3-D")
     low, high = sidecar.value_range
@@ -626,6 +621,12 @@ def check_seed(seed: int) -> None:
     32-bit seeds."""
     if not _is_whole(seed) or not 0 <= seed <= MAX_SEED:
         raise PlannerError(f"seed must be a whole number between 0 and {MAX_SEED}, got {seed!r}")
+
+
+def ompl_global_seed(seed: int) -> int:
+    """The seed given to OMPL's global generator for ``seed``: itself, or 1 for 0, which OMPL
+    cannot take (it uses 1 instead, with a warning that the baselines' log level hides)."""
+    return max(seed, 1)
 
 
 def quiet_ompl(planner: str) -> None:

@@ -360,6 +360,14 @@ def from_world(
     )
 
 
+def refuse_duplicates(label: str, names: Sequence[str]) -> None:
+    """Raise :class:`ScenarioError` naming the ``label`` names (scenario keys, planners) given
+    more than once: a benchmark would run them twice and pool both runs."""
+    duplicates = sorted({name for name in names if list(names).count(name) > 1})
+    if duplicates:
+        raise ScenarioError(f"{label} given twice: {', '.join(duplicates)}")
+
+
 def custom(
     lower: Sequence[float],
     upper: Sequence[float],

@@ -390,7 +390,7 @@ def summary_config(config: runner.BenchConfig, requested: list[str]) -> dict[str
         "time_scale": config.time_scale,
         "t_init_repeats": config.t_init_repeats,
         "confidence": stats.CONFIDENCE,
-        "ompl_global_seed": runner.ompl_global_seed(config.first_seed),
+        "ompl_global_seed": planning.ompl_global_seed(config.first_seed),
         "shuffle": f"random.Random({runner.SHUFFLE_KEY!r}).shuffle(planners) per run",
         "check_jobs": config.check_jobs,
         "tensors_dir": str(config.tensors_dir or planning.default_tensors_dir()),
@@ -483,10 +483,8 @@ def _config(
         )
     if not scenario_names or not planners:
         raise ValueError("need at least one scenario and one planner")
-    for label, names in (("scenario", scenario_names), ("planner", planners)):
-        duplicates = sorted({n for n in names if names.count(n) > 1})
-        if duplicates:
-            raise ValueError(f"{label} given twice: {', '.join(duplicates)}")
+    scenarios.refuse_duplicates("scenario", scenario_names)
+    scenarios.refuse_duplicates("planner", planners)
     for name in scenario_names:
         if "/" in name:
             raise ValueError(

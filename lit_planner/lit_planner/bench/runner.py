@@ -207,12 +207,6 @@ def select_planners(
     return running, skipped, made
 
 
-def ompl_global_seed(first_seed: int) -> int:
-    """The seed a benchmark gives OMPL's global generator: its first seed, or 1 for 0, which
-    OMPL cannot take (it uses 1 instead, with a warning the baselines' log level hides)."""
-    return max(first_seed, 1)
-
-
 def benchmark_policies(
     planners: Sequence[str], tensors_dir: Path | None = None, made: dict[str, Any] | None = None
 ) -> dict[str, Any]:
@@ -482,7 +476,7 @@ def run_benchmark(
     """
     import lit_core  # the C++ extension: only when planning really starts
 
-    lit_core.set_global_seed(ompl_global_seed(config.first_seed))
+    lit_core.set_global_seed(planning.ompl_global_seed(config.first_seed))
     problems = [scenario_for(name, config.instance) for name in config.scenarios]
     if policies is None:
         policies = benchmark_policies(config.planners, config.tensors_dir)
