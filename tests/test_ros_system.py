@@ -26,6 +26,7 @@ from lit_msgs_json.envelope import MAX_MESSAGE_BYTES, Publisher
 from lit_planner.testing import longest_chord_inside_boxes
 from ros_helpers import (
     RECORDER_NODE,
+    ROOT,
     Child,
     Recording,
     RosSystem,
@@ -1567,17 +1568,67 @@ def test_learner_stats_wait_for_their_subscribers(ros: RosSystem) -> None:
     _no_traceback(waiting, eager)
 
 
+def _quick_learner_checkpoint(path: Path) -> Path:
+    """A fresh learner's checkpoint whose agents make a gradient step from their first
+    transition on (a learner resumes its checkpoint's configuration): two short episodes train
+    both. The learner's own warm-ups (500 and 10 000 transitions) take hundreds of episodes."""
+    from lit_learner.config import AgentConfig, LearnerConfig
+    from lit_learner.core import LearnerCore
+
+    quick = {"warmup": 1, "batch_size": 1}
+    core = LearnerCore(
+        LearnerConfig(
+            b=AgentConfig.batch_size_agent(**quick), k=AgentConfig.neighbour_agent(**quick)
+        )
+    )
+    LearnerCore.write_checkpoint(core.checkpoint_state(), path)
+    return path
+
+
+def test_the_learner_exports_only_the_agents_that_trained(ros: RosSystem, tmp_path: Path) -> None:
+    """An export before any gradient update writes no tensor (as `lit train`'s): the answer
+    names the checkpoint copy and says why each agent was left out, and the tensors an earlier
+    export left in the folder are removed. It exported the initial actors, which the tensor
+    policy played (psi_K about 9 where its fixed value is e)."""
+    exports = tmp_path / "exports"
+    exports.mkdir()
+    for name in ("b_tensor.npy", "b_tensor.json", "k_tensor.npy", "k_tensor.json"):
+        (exports / name).write_bytes((ROOT / "tensors" / name).read_bytes())
+    learner = ros.learner(export_dir=str(exports))
+    _ready(learner)
+    result = ros.call("export")
+    assert result.returncode == 0, result
+    answer = json.loads(result.stdout)
+    assert answer == {
+        "checkpoint": str(exports / "checkpoint.pt"),
+        "left_out": {
+            "B": "no tensor (no gradient update yet: 0 of the 500 transitions its updates wait "
+            "for); the tensor policy keeps its fixed value (B = 100)",
+            "psi_K": "no tensor (no gradient update yet: 0 of the 10000 transitions its updates "
+            "wait for); the tensor policy keeps its fixed value (psi_K = e)",
+        },
+    }, answer
+    assert sorted(path.name for path in exports.iterdir()) == ["checkpoint.pt"]
+    learner.wait_for_log(r"exported tensors to \S*exports \(request\); B: no tensor", timeout=30)
+    assert learner.running()
+    _no_traceback(learner)
+
+
 def test_the_learner_exports_after_max_episodes_and_on_request(
     ros: RosSystem, tmp_path: Path
 ) -> None:
     """With max_episodes the learner exports by itself once that many training episodes ended;
     an export folder it cannot write makes that export fail, and it is tried again until it
     works (it was not, until the shutdown). `lit call export`: success false with the reason
-    (exit 1) while the folder cannot be written, the learner going on; then both tensors with
-    the node's provenance, and the answer names them."""
+    (exit 1) while the folder cannot be written, the learner going on; then both tensors (both
+    agents made gradient steps) with the node's provenance, and the answer names them."""
     exports = tmp_path / "exports"
     exports.write_text("a file where the export folder should be", encoding="utf-8")
-    learner = ros.learner(export_dir=str(exports), max_episodes=2)
+    learner = ros.learner(
+        checkpoint=str(_quick_learner_checkpoint(tmp_path / "checkpoint.pt")),
+        export_dir=str(exports),
+        max_episodes=2,
+    )
     _ready(learner)
     result = ros.call("export")
     assert result.returncode == 1, result
@@ -1595,6 +1646,7 @@ def test_the_learner_exports_after_max_episodes_and_on_request(
         assert sidecar.provenance["reason"] == "end of training", sidecar.provenance
         assert sidecar.provenance["episodes"] >= 2, sidecar.provenance
         assert sidecar.provenance["planners"] == ["/lit_planner"], sidecar.provenance
+        assert sidecar.training["updates"] > 0, sidecar.training
 
     result = ros.call("export")
     assert result.returncode == 0, result
@@ -1659,5 +1711,7 @@ def test_sigterm_shuts_both_nodes_down_cleanly(ros: RosSystem) -> None:
         assert not set(spawned[name]) & live_pids(), f"{name}'s children {spawned[name]} live on"
     assert checkpoint.is_file()
     assert "checkpoint" in learner.text()
-    assert any((ros.workdir / "learner" / "tensors").iterdir())  # trained: exported on shutdown
+    # It made progress: exported on shutdown (the checkpoint copy alone: before its warm-up ends
+    # no agent has a tensor to export).
+    assert (ros.workdir / "learner" / "tensors" / "checkpoint.pt").is_file()
     _no_traceback(planner, learner)

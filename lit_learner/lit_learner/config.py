@@ -11,6 +11,13 @@ from lit_learner.errors import ConfigError
 
 AGENT_NAMES = ("B", "psi_K")
 """The two agents: batch size B and neighbour factor psi_K."""
+FIXED_VALUES = {"B": "B = 100", "psi_K": "psi_K = e"}
+"""What the ``tensor`` policy plays for an agent whose tensor a folder lacks."""
+
+
+def left_out_note(agent: str, why: str) -> str:
+    """What an export says of ``agent``, whose tensor it left out for the reason ``why``."""
+    return f"no tensor ({why}); the tensor policy keeps its fixed value ({FIXED_VALUES[agent]})"
 
 
 @dataclass(frozen=True)

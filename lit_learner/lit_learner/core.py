@@ -107,6 +107,25 @@ class LearnerCore:
         """Whether ``agent`` stores transitions and learns."""
         return self.config.train_b if agent == "B" else self.config.train_k
 
+    def untrained_reason(self, agent: str) -> str | None:
+        """Why ``agent``'s actor still holds its initial weights, for the user; None once it made
+        a gradient update. Exports leave such an agent out: the tensor policy keeps its fixed
+        value then (:data:`FIXED_VALUES`), where it played the initial actor's (psi_K about 9
+        against the fixed e)."""
+        state = self.agents[agent]
+        if state.updates:
+            return None
+        if not self.trains(agent):
+            return "this run does not train it"
+        return (
+            f"no gradient update yet: {state.transitions} of the {state.config.warmup} "
+            "transitions its updates wait for"
+        )
+
+    def trained_agents(self) -> tuple[str, ...]:
+        """The agents that made a gradient update, in :data:`AGENT_NAMES` order."""
+        return tuple(name for name in AGENT_NAMES if self.untrained_reason(name) is None)
+
     # ------------------------------------------------------------------ messages
 
     def decide(self, request: DecisionRequest) -> float:

@@ -22,9 +22,10 @@
   transitions' gradient steps become due, and it no longer stays in memory and checkpoints.
 - Checkpoints every ``checkpoint_every`` episodes and ``checkpoint_period`` s (0: off), and on shutdown;
   resumes from ``checkpoint`` when the file exists (``fresh: true`` starts over).
-- Exports the B and K lookup tensors to ``export_dir`` on ``/lit/learner/export``
-  (``std_srvs/srv/Trigger``), after ``max_episodes`` episodes (the end of training), and on
-  shutdown when it trained since the last export.
+- Exports the lookup tensors of the agents that made a gradient update (with a checkpoint copy)
+  to ``export_dir`` on ``/lit/learner/export`` (``std_srvs/srv/Trigger``), after
+  ``max_episodes`` episodes (the end of training), and on shutdown when it trained since the last
+  export.
 """
 
 from __future__ import annotations
@@ -61,6 +62,7 @@ from lit_planner.rosutil import (
 )
 from lit_planner.safe_logger import SafeLogger
 
+from lit_learner.config import AGENT_NAMES, left_out_note
 from lit_learner.errors import MessageError as CoreMessageError
 from lit_learner.errors import PairingError, ReplayError
 from lit_learner.messages import DecisionRequest, EpisodeEnd
@@ -603,12 +605,15 @@ class LearnerNode:
                 )
                 return response
             try:
-                paths = self.export("request")
+                paths, left_out = self.export("request")
             except Exception as exc:  # noqa: BLE001 - report, keep serving
                 response.success, response.message = False, f"export failed: {exc}"
                 return response
         response.success = True
-        response.message = json.dumps({k: str(v) for k, v in paths.items()})
+        answer: dict[str, Any] = {k: str(v) for k, v in paths.items()}
+        if left_out:
+            answer["left_out"] = left_out
+        response.message = json.dumps(answer)
         return response
 
     # ------------------------------------------------------------------ training
@@ -721,13 +726,25 @@ class LearnerNode:
         self._last_checkpoint = time.monotonic()
         self.log.info(f"checkpoint {self.params['checkpoint']} ({progress[0]} episodes)")
 
-    def export(self, why: str) -> dict[str, Path]:
-        """Write both lookup tensors (and a checkpoint copy) into ``export_dir``."""
+    def export(self, why: str) -> tuple[dict[str, Path], dict[str, str]]:
+        """Write the lookup tensors of the agents that made a gradient update (as ``lit train``
+        does) and a checkpoint copy into ``export_dir``, and remove the other agent's tensor
+        files from it (an earlier export's: the folder holds one export).
+
+        Returns:
+            The written files' paths (:meth:`~lit_learner.core.LearnerCore.export_tensors`) and,
+            for each agent left out, what the export says of it.
+        """
         # One export at a time, decisions going on meanwhile; and not beside a checkpoint (the
         # export writes a checkpoint copy, perhaps to the same file).
         with self._export_lock, self._checkpoint_lock:
-            with self._lock:  # the serving thread adds planners meanwhile
+            with self._frozen():  # the serving thread adds planners, the trainer updates agents
                 planners, progress = sorted(self.core.sources), self._progress()
+                left_out = {
+                    name: left_out_note(name, reason)
+                    for name in AGENT_NAMES
+                    if (reason := self.core.untrained_reason(name)) is not None
+                }
             record = {
                 "exported_by": "lit_learner_node",
                 "reason": why,
@@ -736,10 +753,19 @@ class LearnerNode:
                 "episodes": progress[0],
                 "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             }
-            paths = self.core.export_tensors(self.params["export_dir"], record, lock=self._frozen())
+            paths = self.core.export_tensors(
+                self.params["export_dir"],
+                record,
+                agents=tuple(name for name in AGENT_NAMES if name not in left_out),
+                lock=self._frozen(),
+                remove_others=True,
+            )
             self._at_export = progress
-        self.log.info(f"exported tensors to {self.params['export_dir']} ({why})")
-        return paths
+        self.log.info(
+            f"exported tensors to {self.params['export_dir']} ({why})"
+            + "".join(f"; {name}: {note}" for name, note in left_out.items())
+        )
+        return paths, left_out
 
     @contextlib.contextmanager
     def _frozen(self) -> Iterator[None]:

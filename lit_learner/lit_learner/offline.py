@@ -33,6 +33,7 @@ from lit_planner.replay import (
     read_before,
 )
 
+from lit_learner.config import AGENT_NAMES, left_out_note
 from lit_learner.errors import ExportError
 from lit_planner import argtypes
 
@@ -116,14 +117,21 @@ def run(args: argparse.Namespace) -> int:
         "decisions": sum(len(e.decisions) for e in episodes),
         "decision_interval": interval.value,
     }
+    # Only an agent that made a gradient update is exported (as by lit train): the tensor policy
+    # keeps the fixed value of one left out, where it played the initial actor's (psi_K about 9).
+    agents = core.trained_agents()
+    if not agents:
+        raise ReplayError(
+            "no agent made a gradient update, so there is no tensor to export ("
+            + "; ".join(f"{name}: {core.untrained_reason(name)}" for name in AGENT_NAMES)
+            + "): give more bags or a lower --warmup; nothing was written"
+        )
     try:
         paths = core.export_tensors(
             args.out,
             provenance,
             extra={"provenance.json": json.dumps(provenance, indent=2).encode() + b"\n"},
-            # An agent --train leaves out is not exported: the tensor policy then keeps its fixed
-            # value, where it played the initial actor's (psi_K about 9 with --train B).
-            agents=tuple(name for name in ("B", "psi_K") if core.trains(name)),
+            agents=agents,
         )
     except ExportError as error:
         raise ReplayError(str(error)) from None
@@ -142,17 +150,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"  messages: {skipped.line()}")
     print(f"  psi_K decision interval {interval.value} ({interval.source})")
     for name, path in paths.items():
-        agent = core.agents.get(name)
-        untrained = agent is not None and agent.updates == 0
-        print(
-            f"  {name}: {path}"
-            + (
-                f" (UNTRAINED: {agent.transitions} transitions, no gradient update; the "
-                "actor's initial weights)"
-                if untrained
-                else ""
-            )
-        )
+        print(f"  {name}: {path}")
+    for name in AGENT_NAMES:
+        why = core.untrained_reason(name)
+        if why is not None:
+            print(f"  {name}: {left_out_note(name, why)}")
     return 0
 
 

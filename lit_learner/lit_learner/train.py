@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from lit_learner.config import AGENT_NAMES
+from lit_learner.config import AGENT_NAMES, left_out_note
 from lit_learner.errors import ExportError
 from lit_learner.metrics import (
     CURVES_FILE,
@@ -79,8 +79,6 @@ HISTOGRAM_BINS = 10
 """Bins of the per-episode action histograms (over each agent's consequent range)."""
 FIXED_NEIGHBOUR_FACTOR = math.e
 """psi_K while only the B agent trains (the fixed policy's value)."""
-FIXED_VALUES = {"B": "B = 100", "psi_K": "psi_K = e"}
-"""What the ``tensor`` policy plays for an agent whose tensor a folder lacks."""
 BUDGET_TOLERANCE = 1e-3
 """An episode whose planner time reaches (1 - this) of the budget ran out of time: truncated."""
 
@@ -1442,25 +1440,14 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             "it holds the checkpoint and provenance)"
         )
         for name in AGENT_NAMES:  # said here, not only by `lit tensors info`
-            agent = core.agents[name]
-            progress_note = (
-                f"{agent.transitions} of the {agent.config.warmup} transitions its updates wait for"
-            )
-            if name in agents and not agent.updates:
+            why = core.untrained_reason(name)
+            if why is not None and name in agents:
                 lines.append(
                     f"  {name}: UNTRAINED, the actor's initial weights (exported as the B "
-                    f"phase's tensor, which the psi_K agent trained against; {progress_note})"
+                    f"phase's tensor, which the psi_K agent trained against; {why})"
                 )
-            elif name not in agents:
-                why = (
-                    "this run does not train it"
-                    if not core.trains(name)
-                    else f"no gradient update yet: {progress_note}"
-                )
-                lines.append(
-                    f"  {name}: no tensor ({why}); the tensor policy keeps its fixed value "
-                    f"({FIXED_VALUES[name]})"
-                )
+            elif why is not None:
+                lines.append(f"  {name}: {left_out_note(name, why)}")
         if replaced:
             lines.append(
                 f"  (replaced or removed the tensors written to {args.export} during this run; "
@@ -1592,10 +1579,11 @@ def exported_agents(core: Any, state: DriverState) -> tuple[str, ...]:
     (an initial actor played by the tensor policy decided psi_K about 9 where the fixed value
     is e), and B when the psi_K phase began against B's tensor of the B phase, whatever it was
     (psi_K learns against the B it meets in use)."""
+    trained = core.trained_agents()
     return tuple(
         name
         for name in AGENT_NAMES
-        if core.agents[name].updates > 0 or (name == "B" and state.b_tensor_dir is not None)
+        if name in trained or (name == "B" and state.b_tensor_dir is not None)
     )
 
 
