@@ -1588,12 +1588,28 @@ def _quick_learner_checkpoint(path: Path) -> Path:
 def test_the_learner_exports_only_the_agents_that_trained(ros: RosSystem, tmp_path: Path) -> None:
     """An export before any gradient update writes no tensor (as `lit train`'s): the answer
     names the checkpoint copy and says why each agent was left out, and the tensors an earlier
-    export left in the folder are removed. It exported the initial actors, which the tensor
-    policy played (psi_K about 9 where its fixed value is e)."""
+    export of a learner node left in the folder are removed. It exported the initial actors,
+    which the tensor policy played (psi_K about 9 where its fixed value is e). Tensors of
+    anything else there (the shipped ones) are not the node's to replace or remove: it does not
+    start, and an export refuses them."""
     exports = tmp_path / "exports"
     exports.mkdir()
-    for name in ("b_tensor.npy", "b_tensor.json", "k_tensor.npy", "k_tensor.json"):
+    shipped = ("b_tensor.npy", "b_tensor.json", "k_tensor.npy", "k_tensor.json")
+    for name in shipped:
         (exports / name).write_bytes((ROOT / "tensors" / name).read_bytes())
+    refused = ros.learner("refused", export_dir=str(exports))
+    assert refused.wait(timeout=NODE_START) == 1, refused.tail()
+    assert (
+        f"lit_learner_node: export_dir {exports} holds b_tensor.npy, k_tensor.npy, not a learner "
+        "node's export (an export replaces and removes the tensor files there); choose another "
+        "folder, or move them" in refused.text()
+    ), refused.tail()
+    assert sorted(path.name for path in exports.iterdir()) == sorted(shipped)
+
+    for name in ("b_tensor.json", "k_tensor.json"):  # now an earlier export of a learner node
+        sidecar = json.loads((exports / name).read_text(encoding="utf-8"))
+        sidecar["provenance"] = {"exported_by": "lit_learner_node"}
+        (exports / name).write_text(json.dumps(sidecar), encoding="utf-8")
     learner = ros.learner(export_dir=str(exports))
     _ready(learner)
     result = ros.call("export")
@@ -1609,9 +1625,20 @@ def test_the_learner_exports_only_the_agents_that_trained(ros: RosSystem, tmp_pa
         },
     }, answer
     assert sorted(path.name for path in exports.iterdir()) == ["checkpoint.pt"]
-    learner.wait_for_log(r"exported tensors to \S*exports \(request\); B: no tensor", timeout=30)
+    learner.wait_for_log(
+        rf"exported to {re.escape(str(exports))} \(request\): a checkpoint copy; B: no tensor",
+        timeout=30,
+    )
+
+    (exports / "b_tensor.npy").write_bytes((ROOT / "tensors" / "b_tensor.npy").read_bytes())
+    result = ros.call("export")
+    assert result.returncode == 1, result
+    assert result.stdout.startswith(f"export failed: export_dir {exports} holds b_tensor.npy, "), (
+        result
+    )
+    assert sorted(path.name for path in exports.iterdir()) == ["b_tensor.npy", "checkpoint.pt"]
     assert learner.running()
-    _no_traceback(learner)
+    _no_traceback(learner, refused)
 
 
 def test_the_learner_exports_after_max_episodes_and_on_request(
@@ -1640,7 +1667,7 @@ def test_the_learner_exports_after_max_episodes_and_on_request(
     assert planner.wait(timeout=300.0) == 0, planner.tail()
     learner.wait_for_log(r"checkpoint or export is tried again", timeout=120.0)
     exports.unlink()
-    learner.wait_for_log(r"exported tensors to .* \(end of training\)", timeout=120.0)
+    learner.wait_for_log(r"exported to .* \(end of training\)", timeout=120.0)
     for name in ("b_tensor.npy", "k_tensor.npy"):
         _, sidecar = tensor_files.read_tensor(exports / name)
         assert sidecar.provenance["reason"] == "end of training", sidecar.provenance

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 from lit_planner.testing import DescendantWatch, handles_signal, read_until, run_watched
-from ros_helpers import launcher_domain
+from ros_helpers import ROOT, launcher_domain
 
 
 @pytest.mark.parametrize(
@@ -63,6 +63,11 @@ from ros_helpers import launcher_domain
         # Stored as 1 by the core, then every LIT* query was refused as the client's fault.
         (["--planner-param", "decision_interval:=4294967296"], "up to 4294967295, got 429"),
         (["--checkpoint", "EXISTING"], "a folder; give the checkpoint file"),
+        # A learner export replaces and removes the tensor files there (the shipped ones too).
+        (
+            ["--learner-param", "export_dir:=SHIPPED"],
+            "holds b_tensor.npy, k_tensor.npy, not a learner node's export",
+        ),
         (["--bag", "EXISTING"], "exists already"),
         # The recorder and the learner failed after everything had started (the learner only at
         # its shutdown, losing the run's checkpoint).
@@ -75,8 +80,11 @@ from ros_helpers import launcher_domain
 )
 def test_bad_options_start_nothing(tmp_path: Path, options: list[str], message: str) -> None:
     (tmp_path / "bag").mkdir()
-    named = {"EXISTING": tmp_path / "bag", "NEW": tmp_path / "new-bag"}
-    options = [str(named[o]) if o in named else o for o in options]
+    named = {"EXISTING": tmp_path / "bag", "NEW": tmp_path / "new-bag", "SHIPPED": ROOT / "tensors"}
+    options = [
+        str(named[o]) if o in named else o.replace("SHIPPED", str(named["SHIPPED"]))
+        for o in options
+    ]
     process = run_watched(
         # A free domain: should a regression start lit up, it starts on a domain of its own.
         [sys.executable, "-m", "lit_planner.cli", "up", "--domain-id", str(launcher_domain()),

@@ -18,7 +18,7 @@ import random
 import shutil
 import threading
 import zipfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -27,7 +27,7 @@ import numpy as np
 import torch
 
 from lit_learner.agent import DDPGAgent
-from lit_learner.config import AGENT_NAMES, LearnerConfig
+from lit_learner.config import AGENT_NAMES, LearnerConfig, left_out_note
 from lit_learner.errors import CheckpointError, ConfigError, ExportError, NonFiniteWeights
 from lit_learner.export import CHECKPOINT_FILE, TENSOR_FILES, policy_grid
 from lit_learner.messages import DecisionRequest, EpisodeEnd
@@ -109,22 +109,34 @@ class LearnerCore:
 
     def untrained_reason(self, agent: str) -> str | None:
         """Why ``agent``'s actor still holds its initial weights, for the user; None once it made
-        a gradient update. Exports leave such an agent out: the tensor policy keeps its fixed
-        value then (:data:`FIXED_VALUES`), where it played the initial actor's (psi_K about 9
-        against the fixed e)."""
+        a gradient update."""
         state = self.agents[agent]
         if state.updates:
             return None
         if not self.trains(agent):
             return "this run does not train it"
+        if state.transitions < state.config.warmup:
+            return (
+                f"no gradient update yet: {state.transitions} of the {state.config.warmup} "
+                "transitions its updates wait for"
+            )
         return (
-            f"no gradient update yet: {state.transitions} of the {state.config.warmup} "
-            "transitions its updates wait for"
+            f"no gradient update yet: its {state.transitions} transitions passed the warm-up "
+            f"({state.config.warmup}); its first steps are still owed"
         )
 
-    def trained_agents(self) -> tuple[str, ...]:
-        """The agents that made a gradient update, in :data:`AGENT_NAMES` order."""
-        return tuple(name for name in AGENT_NAMES if self.untrained_reason(name) is None)
+    def export_plan(self) -> tuple[tuple[str, ...], dict[str, str]]:
+        """The agents an export writes a tensor of, those that made a gradient update (in
+        :data:`AGENT_NAMES` order), and for each other what the export says of it
+        (:func:`~lit_learner.config.left_out_note`). An initial actor is not exported: the
+        tensor policy played it (psi_K about 9, where the fixed value it keeps without the
+        tensor is e)."""
+        left_out = {
+            name: left_out_note(name, reason)
+            for name in AGENT_NAMES
+            if (reason := self.untrained_reason(name)) is not None
+        }
+        return tuple(name for name in AGENT_NAMES if name not in left_out), left_out
 
     # ------------------------------------------------------------------ messages
 
@@ -535,40 +547,73 @@ class LearnerCore:
             lit_planner.errors.TensorFileError: a tensor or sidecar failed validation.
             ExportError: a file could not be written (a full disk, say).
         """
+        chosen = (tuple(agents), {})
+        return self._export(directory, provenance, lambda: chosen, lock, extra, remove_others)[0]
+
+    def export_trained(
+        self,
+        directory: str | Path,
+        provenance: dict[str, Any],
+        lock: AbstractContextManager[Any] | None = None,
+        extra: Mapping[str, bytes] | None = None,
+        remove_others: bool = False,
+    ) -> tuple[dict[str, Path], dict[str, str]]:
+        """:meth:`export_tensors` of the agents of :meth:`export_plan`, chosen under ``lock``
+        with the copy of the state (an agent's first step cannot fall between the two).
+
+        Returns:
+            The written files' paths, and what the export says of each agent it left out.
+        """
+        return self._export(directory, provenance, self.export_plan, lock, extra, remove_others)
+
+    def _export(
+        self,
+        directory: str | Path,
+        provenance: dict[str, Any],
+        choose: Callable[[], tuple[tuple[str, ...], dict[str, str]]],
+        lock: AbstractContextManager[Any] | None,
+        extra: Mapping[str, bytes] | None,
+        remove_others: bool,
+    ) -> tuple[dict[str, Path], dict[str, str]]:
+        """The body of :meth:`export_tensors` and :meth:`export_trained`; ``choose`` (called
+        under ``lock``) gives the agents and the notes of those left out."""
         from lit_planner.tensor_files import sidecar_path, staged_folder
 
         directory = Path(directory)
-        others = [
-            name
-            for agent, file_name in TENSOR_FILES.items()
-            if remove_others and agent not in agents
-            for name in (file_name, sidecar_path(file_name).name)
-        ]
+        others: list[str] = []  # staged_folder removes them after the block: filled in there
         try:
             with staged_folder(directory, remove=others) as stage:
-                self._export_into(stage, provenance, agents, lock)
+                agents, left_out = self._export_into(stage, provenance, choose, lock)
+                others += [
+                    name
+                    for agent, file_name in TENSOR_FILES.items()
+                    if remove_others and agent not in agents
+                    for name in (file_name, sidecar_path(file_name).name)
+                ]
                 for name, content in (extra or {}).items():
                     (stage / name).write_bytes(content)
         except OSError as error:
             raise ExportError(
                 f"export to {directory} failed ({error}); nothing of it was written there"
             ) from None
-        return {"checkpoint": directory / CHECKPOINT_FILE} | {
+        paths = {"checkpoint": directory / CHECKPOINT_FILE} | {
             name: directory / TENSOR_FILES[name] for name in agents
         }
+        return paths, left_out
 
     def _export_into(
         self,
         directory: Path,
         provenance: dict[str, Any],
-        agents: Sequence[str],
+        choose: Callable[[], tuple[tuple[str, ...], dict[str, str]]],
         lock: AbstractContextManager[Any] | None,
-    ) -> None:
-        """:meth:`export_tensors`' files, written into ``directory``."""
+    ) -> tuple[tuple[str, ...], dict[str, str]]:
+        """:meth:`_export`'s files, written into ``directory``; returns what ``choose`` gave."""
         from lit_planner.tensor_files import write_tensor  # pulls in the JSON-Schema validator
 
         checkpoint = directory / CHECKPOINT_FILE
         with lock if lock is not None else nullcontext():
+            agents, left_out = choose()
             state = self.checkpoint_state()  # written below, after the lock
             frozen = {
                 name: (
@@ -603,6 +648,7 @@ class LearnerCore:
                 checkpoint_sha256=checkpoint_sha256,
                 provenance=provenance,
             )
+        return agents, left_out
 
 
 def _sha256(path: Path) -> str:

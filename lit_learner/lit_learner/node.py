@@ -62,9 +62,8 @@ from lit_planner.rosutil import (
 )
 from lit_planner.safe_logger import SafeLogger
 
-from lit_learner.config import AGENT_NAMES, left_out_note
+from lit_learner.errors import ExportError, PairingError, ReplayError
 from lit_learner.errors import MessageError as CoreMessageError
-from lit_learner.errors import PairingError, ReplayError
 from lit_learner.messages import DecisionRequest, EpisodeEnd
 
 NODE_NAME = "lit_learner"
@@ -127,7 +126,45 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
         return f"stats_period must be a finite positive number of seconds, got {p['stats_period']}"
     if not p["checkpoint"]:
         return "checkpoint must name a file"
+    foreign = foreign_tensor_files(Path(p["export_dir"]))
+    if foreign:
+        return foreign_problem(Path(p["export_dir"]), foreign)
     return service_name_problem("service", p["service"]) or run_id_problem("run_id", p["run_id"])
+
+
+NODE_EXPORTER = "lit_learner_node"
+"""``provenance.exported_by`` of the node's exports."""
+
+
+def foreign_tensor_files(folder: Path) -> list[str]:
+    """The tensor files (``.npy`` or sidecar) in ``folder`` that are not a learner node's export
+    (whose sidecar's provenance says ``exported_by: lit_learner_node``). The node's export
+    replaces and removes the tensor files there: it must not take the shipped tensors, or those
+    of ``lit train``, with them."""
+    from lit_planner.tensor_files import sidecar_path
+
+    from lit_learner.export import TENSOR_FILES
+
+    found = []
+    for name in TENSOR_FILES.values():
+        tensor, sidecar = folder / name, sidecar_path(folder / name)
+        if not (tensor.exists() or sidecar.exists()):
+            continue
+        try:
+            exporter = json.loads(sidecar.read_bytes())["provenance"]["exported_by"]
+        except (OSError, ValueError, KeyError, TypeError):
+            exporter = None
+        if exporter != NODE_EXPORTER:
+            found.append(tensor.name if tensor.exists() else sidecar.name)
+    return found
+
+
+def foreign_problem(folder: Path, files: Sequence[str]) -> str:
+    """What is wrong with an ``export_dir`` that holds the tensor ``files`` of something else."""
+    return (
+        f"export_dir {folder} holds {', '.join(files)}, not a learner node's export (an export "
+        "replaces and removes the tensor files there); choose another folder, or move them"
+    )
 
 
 DECIDE_ACCEPT = ("DecideRequest", "EpisodeEnd")
@@ -693,12 +730,16 @@ class LearnerNode:
         )
 
     def _export_due(self, progress: tuple[int, int]) -> bool:
+        """The end-of-training export is owed: ``max_episodes`` episodes ended and their owed
+        gradient steps ran (an agent whose warm-up ended with the last episodes had no step
+        yet, and was left out)."""
         limit = self.params["max_episodes"]
         return (
             bool(limit)
             and progress[0] >= limit
             and not self._exported_at_end
             and progress != self._at_export
+            and self.core.pending_updates == 0
         )
 
     def _maintain(self) -> None:
@@ -732,37 +773,38 @@ class LearnerNode:
         files from it (an earlier export's: the folder holds one export).
 
         Returns:
-            The written files' paths (:meth:`~lit_learner.core.LearnerCore.export_tensors`) and,
-            for each agent left out, what the export says of it.
+            The written files' paths and, for each agent left out, what the export says of it
+            (:meth:`~lit_learner.core.LearnerCore.export_trained`).
+
+        Raises:
+            ExportError: ``export_dir`` holds tensor files that are not a learner node's export
+                (:func:`foreign_tensor_files`), or a file could not be written.
         """
+        folder = Path(self.params["export_dir"])
         # One export at a time, decisions going on meanwhile; and not beside a checkpoint (the
         # export writes a checkpoint copy, perhaps to the same file).
         with self._export_lock, self._checkpoint_lock:
-            with self._frozen():  # the serving thread adds planners, the trainer updates agents
+            foreign = foreign_tensor_files(folder)
+            if foreign:
+                raise ExportError(foreign_problem(folder, foreign))
+            with self._lock:  # the serving thread adds planners meanwhile
                 planners, progress = sorted(self.core.sources), self._progress()
-                left_out = {
-                    name: left_out_note(name, reason)
-                    for name in AGENT_NAMES
-                    if (reason := self.core.untrained_reason(name)) is not None
-                }
             record = {
-                "exported_by": "lit_learner_node",
+                "exported_by": NODE_EXPORTER,
                 "reason": why,
                 "run_id": self.run_id,
                 "planners": planners,
                 "episodes": progress[0],
                 "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             }
-            paths = self.core.export_tensors(
-                self.params["export_dir"],
-                record,
-                agents=tuple(name for name in AGENT_NAMES if name not in left_out),
-                lock=self._frozen(),
-                remove_others=True,
+            paths, left_out = self.core.export_trained(
+                folder, record, lock=self._frozen(), remove_others=True
             )
             self._at_export = progress
+        tensors = [path.name for name, path in paths.items() if name != "checkpoint"]
         self.log.info(
-            f"exported tensors to {self.params['export_dir']} ({why})"
+            f"exported to {folder} ({why}): "
+            + (", ".join(tensors) + " and a checkpoint copy" if tensors else "a checkpoint copy")
             + "".join(f"; {name}: {note}" for name, note in left_out.items())
         )
         return paths, left_out

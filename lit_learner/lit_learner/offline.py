@@ -33,7 +33,7 @@ from lit_planner.replay import (
     read_before,
 )
 
-from lit_learner.config import AGENT_NAMES, left_out_note
+from lit_learner.config import AGENT_NAMES
 from lit_learner.errors import ExportError
 from lit_planner import argtypes
 
@@ -117,21 +117,18 @@ def run(args: argparse.Namespace) -> int:
         "decisions": sum(len(e.decisions) for e in episodes),
         "decision_interval": interval.value,
     }
-    # Only an agent that made a gradient update is exported (as by lit train): the tensor policy
-    # keeps the fixed value of one left out, where it played the initial actor's (psi_K about 9).
-    agents = core.trained_agents()
-    if not agents:
+    # Only an agent that made a gradient update is exported (as by lit train and the node).
+    if not core.export_plan()[0]:
         raise ReplayError(
             "no agent made a gradient update, so there is no tensor to export ("
             + "; ".join(f"{name}: {core.untrained_reason(name)}" for name in AGENT_NAMES)
             + "): give more bags or a lower --warmup; nothing was written"
         )
     try:
-        paths = core.export_tensors(
+        paths, left_out = core.export_trained(
             args.out,
             provenance,
             extra={"provenance.json": json.dumps(provenance, indent=2).encode() + b"\n"},
-            agents=agents,
         )
     except ExportError as error:
         raise ReplayError(str(error)) from None
@@ -149,12 +146,8 @@ def run(args: argparse.Namespace) -> int:
             f"{reason}: {count}" for reason, count in episodes_left_out.items()))  # fmt: skip
     print(f"  messages: {skipped.line()}")
     print(f"  psi_K decision interval {interval.value} ({interval.source})")
-    for name, path in paths.items():
-        print(f"  {name}: {path}")
-    for name in AGENT_NAMES:
-        why = core.untrained_reason(name)
-        if why is not None:
-            print(f"  {name}: {left_out_note(name, why)}")
+    for name, text in (paths | left_out).items():
+        print(f"  {name}: {text}")
     return 0
 
 

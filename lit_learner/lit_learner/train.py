@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from lit_learner.config import AGENT_NAMES, left_out_note
+from lit_learner.config import AGENT_NAMES
 from lit_learner.errors import ExportError
 from lit_learner.metrics import (
     CURVES_FILE,
@@ -1439,15 +1439,16 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             else f"  tensors: none in {args.export} (no agent made a gradient update yet; "
             "it holds the checkpoint and provenance)"
         )
+        left_out = core.export_plan()[1]
         for name in AGENT_NAMES:  # said here, not only by `lit tensors info`
-            why = core.untrained_reason(name)
-            if why is not None and name in agents:
+            if name in agents and name in left_out:
                 lines.append(
                     f"  {name}: UNTRAINED, the actor's initial weights (exported as the B "
-                    f"phase's tensor, which the psi_K agent trained against; {why})"
+                    "phase's tensor, which the psi_K agent trained against; "
+                    f"{core.untrained_reason(name)})"
                 )
-            elif why is not None:
-                lines.append(f"  {name}: {left_out_note(name, why)}")
+            elif name in left_out:
+                lines.append(f"  {name}: {left_out[name]}")
         if replaced:
             lines.append(
                 f"  (replaced or removed the tensors written to {args.export} during this run; "
@@ -1579,7 +1580,7 @@ def exported_agents(core: Any, state: DriverState) -> tuple[str, ...]:
     (an initial actor played by the tensor policy decided psi_K about 9 where the fixed value
     is e), and B when the psi_K phase began against B's tensor of the B phase, whatever it was
     (psi_K learns against the B it meets in use)."""
-    trained = core.trained_agents()
+    trained = core.export_plan()[0]
     return tuple(
         name
         for name in AGENT_NAMES

@@ -122,3 +122,36 @@ def test_an_export_that_fails_partway_leaves_nothing_of_itself(
          "provenance.json"]
     )  # fmt: skip
     tf.read_tensor(written["B"])
+
+
+def test_export_trained_writes_the_agents_that_made_a_gradient_update(tmp_path: Path) -> None:
+    """The exporters (lit train, lit replay tensors, the learner node) write no tensor of an
+    agent whose actor holds its initial weights (the tensor policy played it: psi_K about 9
+    where its fixed value is e); each left out is said why, in words that fit where its
+    training stands, and ``remove_others`` takes an earlier export's tensor of it away."""
+    core = LearnerCore(LearnerConfig(train_b=False, seed=3))
+    assert core.export_plan() == (
+        (),
+        {
+            "B": "no tensor (this run does not train it); the tensor policy keeps its fixed value "
+            "(B = 100)",
+            "psi_K": "no tensor (no gradient update yet: 0 of the 10000 transitions its updates "
+            "wait for); the tensor policy keeps its fixed value (psi_K = e)",
+        },
+    )
+    core.agents["psi_K"].transitions = 10_000  # warm-up over, its first steps not run yet
+    assert core.untrained_reason("psi_K") == (
+        "no gradient update yet: its 10000 transitions passed the warm-up (10000); its first "
+        "steps are still owed"
+    )
+    core.agents["psi_K"].updates = 1
+    assert core.export_plan() == (("psi_K",), {"B": core.export_plan()[1]["B"]})
+
+    folder = tmp_path / "export"
+    core.export_tensors(folder, {"command": "pytest"})  # both, as an earlier export
+    paths, left_out = core.export_trained(folder, {"command": "pytest"}, remove_others=True)
+    assert set(paths) == {"checkpoint", "psi_K"} and set(left_out) == {"B"}
+    assert sorted(path.name for path in folder.iterdir()) == [
+        "checkpoint.pt", "k_tensor.json", "k_tensor.npy"
+    ]  # fmt: skip
+    assert tf.read_tensor(paths["psi_K"])[1].training["updates"] == 1

@@ -454,6 +454,7 @@ def _check(args: argparse.Namespace, run_id: str, bag: Path | None) -> str | Non
     }
     learner = {
         **learner_node.PARAMETERS,
+        "export_dir": str(Path("runs") / run_id / "learner" / "tensors"),  # as started below
         "run_id": run_id,
         **_given_values(args.learner_param, learner_node.PARAMETERS),
     }
