@@ -840,6 +840,10 @@ def test_a_late_answer_resumes_calls_before_learner_retry(ros: RosSystem) -> Non
         first_fallback = next(
             i for i, source in enumerate(sources) if source.startswith("fallback")
         )
+        # From the shipped tensors (they failed to load, and every fallback played B = 100 and
+        # psi_K = e, with an error in the log).
+        assert sources[first_fallback] == "fallback-tensor", sources
+        assert "unusable" not in planner.text(), planner.tail()
         if "learner" in sources[first_fallback:]:
             break
         # The call made on the late answer missed too (a learner still busy after the pause, on

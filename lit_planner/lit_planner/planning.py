@@ -414,7 +414,7 @@ def _declared_output(path: Path) -> str | None:
     return name if name in TENSOR_FILES else None
 
 
-def load_tensor(path: Path, output: str) -> lit_core.LookupTensor:
+def load_tensor(path: str | Path, output: str) -> lit_core.LookupTensor:
     """Load the lookup tensor of ``output`` (``B`` or ``psi_K``) with the C++ reader.
 
     The sidecar gives the shape and value range that the C++ reader checks the file against
@@ -427,6 +427,7 @@ def load_tensor(path: Path, output: str) -> lit_core.LookupTensor:
     # Imported here: it pulls in the JSON-Schema validator, which other policies never need.
     from lit_planner import tensor_files
 
+    path = Path(path)  # the planner node names its fallback tensors with text
     # The name first: a sidecar whose output.name says the other tensor failed the schema on
     # the rule that goes with the name ("$.output.rounding: 'none' was expected"), not this.
     declared = _declared_output(path)

@@ -22,6 +22,7 @@ from lit_planner.errors import MissingTensorsError, PlannerError, TensorFileErro
 from lit_planner.planning import (
     OMPL_PLANNERS,
     json_safe,
+    load_tensor,
     make_policy,
     plan,
     query_for,
@@ -687,6 +688,15 @@ def test_a_sidecar_naming_the_other_tensor_is_refused_by_that_name(tmp_path: Pat
     with pytest.raises(TensorFileError, match="says it holds 'psi_K', but this file name is "
                        "reserved for 'B'"):  # fmt: skip
         make_policy("tensor", tmp_path)
+
+
+def test_load_tensor_takes_a_path_as_text(tmp_path: Path) -> None:
+    """The planner node names its fallback tensors with text: the sidecar's name check took only
+    a Path ('str' object has no attribute 'with_suffix'), and every fallback of every training
+    run played the fixed values."""
+    write_tensor_pair(tmp_path)
+    for output, name in (("B", "b_tensor.npy"), ("psi_K", "k_tensor.npy")):
+        assert load_tensor(str(tmp_path / name), output).trilinear(0.5, 0.5, 0.5) > 0
 
 
 def test_the_tensor_policy_cache_reads_again_only_changed_files(
