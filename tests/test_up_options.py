@@ -55,6 +55,8 @@ from ros_helpers import ROOT, launcher_domain
         # Names and run ids the node could not use (they crashed it with a traceback).
         (["--planner-param", "learner_service:=bad-name"], "is not a ROS service name"),
         (["--learner-param", "service:=/lit/x~y"], "is not a ROS service name"),
+        (["--learner-param", "service:=bad//name"], "must not contain repeated '/'"),
+        (["--planner-param", "learner_service:=/lit//x"], "must not contain repeated '/'"),
         (["--planner-param", "run_id:=" + "r" * 200], "run_id 'rrrr"),
         (["--learner-param", "run_id:=" + "r" * 200], "is too long"),
         # The planner's episode ids "<run_id>/<index>" (128 characters at most): every message
@@ -224,6 +226,37 @@ def test_parameters_are_passed_with_the_types_the_nodes_declare() -> None:
     }  # fmt: skip
     assert up._typed_params(["fresh:=True"], learner_node.PARAMETERS) == {"fresh": "true"}
     assert up._typed_params(["tensors_dir:="], planner_node.PARAMETERS) == {}  # its default
+
+
+def test_text_that_lit_up_sets_reaches_the_node_as_that_text() -> None:
+    """lit up's own text values (--scenario, paths, run ids) are quoted for rcl, which reads
+    ``-p`` values as YAML-like scalars: ``--scenario ,np4`` passed lit up's checks, and the
+    planner then failed at start ("Couldn't parse parameter override rule"). rcl's own parser
+    reads them here, in a child process."""
+    from lit_planner import up
+
+    texts = [",np4", "np4,", "yes", "1e3", "a #b", "it's", "[x]", "{y: 1}", "/tmp/a b/c.pt"]
+    child = (
+        "import json, sys, rclpy\n"
+        "from rclpy.node import Node\n"
+        "rclpy.init(args=sys.argv)\n"
+        "node = Node('reader')\n"
+        f"names = ['p' + str(i) for i in range({len(texts)})]\n"
+        "print(json.dumps([node.declare_parameter(n, '').value for n in names]))\n"
+    )
+    overrides = [a for i, t in enumerate(texts) for a in ("-p", f"p{i}:={up._ros_value(t)}")]
+    process = subprocess.run(
+        [sys.executable, "-c", child, "--ros-args", *overrides],
+        capture_output=True, text=True, timeout=60, check=False,
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+                 ROS_DOMAIN_ID=str(launcher_domain())),
+    )  # fmt: skip
+    assert process.returncode == 0, process.stderr
+    assert json.loads(process.stdout) == texts
+    # What lit up passes on from --planner-param / --learner-param is spelled already.
+    assert up._ros_value(up._typed_params(["scenario:=np4"], {"scenario": "x"})["scenario"]) == (
+        "'np4'"
+    )
 
 
 @pytest.mark.parametrize(

@@ -910,11 +910,16 @@ def service_name_problem(label: str, name: str) -> str | None:
     included), in words; None when it can. A node given such a name failed at start with
     rclpy's traceback."""
     from rclpy.exceptions import InvalidServiceNameException
+    from rclpy.expand_topic_name import expand_topic_name
+    from rclpy.validate_full_topic_name import validate_full_topic_name
     from rclpy.validate_topic_name import validate_topic_name
 
     try:
         validate_topic_name(name, is_service=True)
-    except InvalidServiceNameException as error:
+        # Some rules hold only for the expanded name, which rcl checks when the node creates
+        # the service or client (a repeated '/' was a traceback at start).
+        validate_full_topic_name(expand_topic_name(name, "node", "/"), is_service=True)
+    except (InvalidServiceNameException, ValueError) as error:
         reason = str(error).splitlines()[0].rstrip(": ")
         return f"{label} {name!r} is not a ROS service name: {reason}"
     return None

@@ -625,7 +625,7 @@ def _typed_params(items: Sequence[str], known: dict[str, Any]) -> dict[str, str]
     and ``y`` are not text to it, ``010`` is octal), so text is passed quoted, whole numbers for
     float parameters as floats (it refuses ``time_budget:=1``), integers and booleans in one
     spelling. An empty value keeps an empty default (rcl refuses an empty value)."""
-    return {name: text for name, (_, text) in _read_params(items, known).items()}
+    return {name: RclSpelled(text) for name, (_, text) in _read_params(items, known).items()}
 
 
 def _read_params(items: Sequence[str], known: dict[str, Any]) -> dict[str, tuple[Any, str]]:
@@ -678,9 +678,20 @@ _BOOLEAN_WORDS = {"true": True, "false": False, "yes": True, "no": False, "on": 
 """The boolean words ``lit up`` takes (rcl takes these in lower case, among others)."""
 
 
+class RclSpelled(str):
+    """A parameter value spelled as rcl is to read it (:func:`_typed_params`): passed as it is."""
+
+
 def _ros_value(value: object) -> str:
+    """``value`` spelled for ``-p NAME:=VALUE``: text quoted, as rcl reads values as YAML-like
+    scalars (``--scenario ,np4`` was a parse error that ended the planner at start; ``yes``
+    would be a boolean)."""
     if isinstance(value, bool):
         return "true" if value else "false"
+    if isinstance(value, RclSpelled):
+        return str(value)
+    if isinstance(value, str):
+        return "'" + value.replace("'", "''") + "'"
     return str(value)
 
 
