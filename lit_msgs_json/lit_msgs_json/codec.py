@@ -89,6 +89,14 @@ def validate(name: str, obj: object, *, plain: bool | None = None) -> None:
             )
         if error.validator == "const":  # jsonschema names the expected value only
             message += f", got {_shown(error.instance)}"
+        message = _short(message, error.instance)
+        # jsonschema names neither the size nor the limit (but for "should be non-empty")
+        if error.validator in _SIZE_RULES and "empty" not in message:
+            bound = "at most" if str(error.validator).startswith("max") else "at least"
+            message += (
+                f" ({len(error.instance)} {_SIZE_RULES[str(error.validator)]}; {bound} "
+                f"{error.validator_value})"
+            )
         raise SchemaError(short, error.json_path, str(error.validator), message)
 
 
@@ -105,6 +113,26 @@ def _exclusive_fields(error: Any) -> list[str] | None:
             return None
         names.append(required[0])
     return names
+
+
+_SIZE_RULES = {
+    "maxItems": "items",
+    "minItems": "items",
+    "maxLength": "characters",
+    "minLength": "characters",
+    "maxProperties": "fields",
+    "minProperties": "fields",
+}
+"""The size rules, and what they count."""
+
+
+def _short(message: str, instance: object) -> str:
+    """jsonschema's ``message`` with the value it begins with (its Python repr) shown short: a
+    world of 12 000 boxes was quoted whole in its "too long" error."""
+    text = repr(instance)
+    if len(text) > 80 and message.startswith(text):
+        return _shown(instance) + message[len(text) :]
+    return message
 
 
 def _shown(value: object) -> str:
