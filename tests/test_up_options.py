@@ -58,7 +58,7 @@ from ros_helpers import ROOT, launcher_domain
         (["--learner-param", "service:=bad//name"], "must not contain repeated '/'"),
         (["--planner-param", "learner_service:=/lit//x"], "must not contain repeated '/'"),
         (["--planner-param", "run_id:=" + "r" * 200], "run_id 'rrrr"),
-        (["--learner-param", "run_id:=" + "r" * 200], "is too long"),
+        (["--learner-param", "run_id:=" + "r" * 200], ": it is too long (200 characters; at most"),
         # The planner's episode ids "<run_id>/<index>" (128 characters at most): every message
         # of episodes 10 and later was refused (the episodes failed, and the node exited 0).
         (["--episodes", "11", "--run-id", "r" + "1" * 125], "run_id of 126 characters: with 11"),
@@ -235,7 +235,8 @@ def test_text_that_lit_up_sets_reaches_the_node_as_that_text() -> None:
     reads them here, in a child process."""
     from lit_planner import up
 
-    texts = [",np4", "np4,", "yes", "1e3", "a #b", "it's", "[x]", "{y: 1}", "/tmp/a b/c.pt"]
+    texts = [",np4", "np4,", "yes", "1e3", "a #b", "it's", '"q"', "[x]", "{y: 1}", "/tmp/a b/c.pt",
+             "line\nbreak", "tab\there", "back\\slash", "日本", "-x", "*y"]  # fmt: skip
     child = (
         "import json, sys, rclpy\n"
         "from rclpy.node import Node\n"
@@ -257,6 +258,22 @@ def test_text_that_lit_up_sets_reaches_the_node_as_that_text() -> None:
     assert up._ros_value(up._typed_params(["scenario:=np4"], {"scenario": "x"})["scenario"]) == (
         "'np4'"
     )
+    assert up._ros_value(Path("/tmp/a b")) == '"/tmp/a b"'
+
+
+def test_service_names_are_checked_as_rcl_expands_them() -> None:
+    """A repeated '/' shows only in the expanded name (rcl refused it when the node made its
+    service: a traceback at start); substitutions that expand well pass (``{ns}/x`` in a
+    namespace of its own)."""
+    from lit_planner.rosutil import service_name_problem
+
+    for good in ("/lit/learner/decide", "decide", "~/decide", "{ns}/decide", "{node}/decide"):
+        assert service_name_problem("service", good) is None, good
+    for bad, reason in (("/lit//x", "must not contain repeated '/'"),
+                        ("{nope}/x", "unknown substitution"), ("x~y", "tilde")):  # fmt: skip
+        problem = service_name_problem("service", bad)
+        assert problem is not None and reason in problem, (bad, problem)
+        assert "/project/src" not in problem, problem  # rcl's source location is not for users
 
 
 @pytest.mark.parametrize(

@@ -88,11 +88,13 @@ def validate(name: str, obj: object, *, plain: bool | None = None) -> None:
                 "neither" if not given else " and ".join(map(repr, given))
             )
         if error.validator == "const":  # jsonschema names the expected value only
-            message += f", got {_shown(error.instance)}"
+            message += f", got {shown(error.instance)}"
         message = _short(message, error.instance)
-        # jsonschema names neither the size nor the limit (but for "should be non-empty")
-        if error.validator in _SIZE_RULES and "empty" not in message:
-            bound = "at most" if str(error.validator).startswith("max") else "at least"
+        # jsonschema names neither the size nor the limit (but for "should be non-empty" and
+        # "is expected to be empty", the rules min 1 and max 0)
+        at_most = str(error.validator).startswith("max")
+        if error.validator in _SIZE_RULES and error.validator_value != (0 if at_most else 1):
+            bound = "at most" if at_most else "at least"
             message += (
                 f" ({len(error.instance)} {_SIZE_RULES[str(error.validator)]}; {bound} "
                 f"{error.validator_value})"
@@ -131,13 +133,13 @@ def _short(message: str, instance: object) -> str:
     world of 12 000 boxes was quoted whole in its "too long" error."""
     text = repr(instance)
     if len(text) > 80 and message.startswith(text):
-        return _shown(instance) + message[len(text) :]
+        return shown(instance) + message[len(text) :]
     return message
 
 
-def _shown(value: object) -> str:
+def shown(value: object) -> str:
     """``value`` as JSON, cut short when long (the message may otherwise quote a whole file)."""
-    text = json.dumps(value, default=repr)  # NaN as NaN (allow_nan)
+    text = json.dumps(value, default=repr, ensure_ascii=False)  # NaN as NaN (allow_nan)
     return text if len(text) <= 80 else text[:77] + "..."
 
 

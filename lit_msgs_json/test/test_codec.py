@@ -213,6 +213,11 @@ def test_a_huge_violating_value_is_shortened_in_the_message() -> None:
         codec.validate("PlanRequest", {"world": world, "start": [0, 0], "goal": [0.3, 0.3]})
     with pytest.raises(SchemaError, match=r"'' should be non-empty \(rule: minLength\)$"):
         codec.validate("PlanRequest", {"scenario": "np4", "request_id": ""})
+    with pytest.raises(SchemaError, match=r'^PlanRequest: \$\.request_id: "(empty){15}e\.\.\. is too '
+                       r"long \(1000 characters; at most \d+\)"):  # fmt: skip
+        codec.validate("PlanRequest", {"scenario": "np4", "request_id": "empty" * 200})
+    with pytest.raises(SchemaError, match=r'^PlanRequest: \$\.request_id: "日本日本'):
+        codec.validate("PlanRequest", {"scenario": "np4", "request_id": "日本" * 200})
 
 
 def test_prepare_builds_the_validators_ahead_and_names_unknown_schemas() -> None:

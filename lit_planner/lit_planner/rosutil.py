@@ -917,10 +917,11 @@ def service_name_problem(label: str, name: str) -> str | None:
     try:
         validate_topic_name(name, is_service=True)
         # Some rules hold only for the expanded name, which rcl checks when the node creates
-        # the service or client (a repeated '/' was a traceback at start).
-        validate_full_topic_name(expand_topic_name(name, "node", "/"), is_service=True)
+        # the service or client (a repeated '/' was a traceback at start). Expanded as in a
+        # namespace other than the root ({ns}/x is //x in the root, /robot/x in /robot).
+        validate_full_topic_name(expand_topic_name(name, "node", "/ns"), is_service=True)
     except (InvalidServiceNameException, ValueError) as error:
-        reason = str(error).splitlines()[0].rstrip(": ")
+        reason = str(error).splitlines()[0].rstrip(": ").split(", at /")[0]
         return f"{label} {name!r} is not a ROS service name: {reason}"
     return None
 
@@ -928,6 +929,7 @@ def service_name_problem(label: str, name: str) -> str | None:
 def run_id_problem(label: str, run_id: str) -> str | None:
     """Why ``run_id`` cannot be a message envelope's ``run_id``, in words; None when it can (an
     empty one: the node makes one up)."""
+    from lit_msgs_json.codec import shown
     from lit_msgs_json.envelope import MessageError, Publisher
 
     if not run_id:
@@ -935,7 +937,9 @@ def run_id_problem(label: str, run_id: str) -> str | None:
     try:
         Publisher("lit", run_id)
     except MessageError as error:
-        reason = str(error).replace(repr(run_id), "it")
+        reason = str(error)
+        for quoted in (repr(run_id), shown(run_id)):  # the message quotes it, long ones short
+            reason = reason.replace(quoted, "it")
         return f"{label} {run_id[:40]!r}{'...' if len(run_id) > 40 else ''}: {reason}"
     return None
 

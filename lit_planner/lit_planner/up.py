@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import ctypes
 import fcntl
+import json
 import math
 import os
 import re
@@ -690,8 +691,8 @@ def _ros_value(value: object) -> str:
         return "true" if value else "false"
     if isinstance(value, RclSpelled):
         return str(value)
-    if isinstance(value, str):
-        return "'" + value.replace("'", "''") + "'"
+    if isinstance(value, (str, os.PathLike)):  # YAML's double quotes read JSON's escapes
+        return json.dumps(os.fspath(value), ensure_ascii=False)
     return str(value)
 
 
