@@ -17,6 +17,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from lit_planner import signals
 from lit_planner.guarded_stdout import GuardedStdout, StdoutError
 
 
@@ -30,6 +31,10 @@ class Command:
     """One line for ``lit --help``."""
     run: str = "run"
     """Name of the module's ``(args) -> int`` function."""
+    stops_like_ctrl_c: bool = False
+    """``kill PID`` (SIGTERM) and a closed terminal (SIGHUP) stop it as Ctrl-C does: its
+    ``finally`` blocks run (the children it started, its temporary files), it says "interrupted"
+    and exits 130. The other commands handle the signals themselves, or end at once."""
 
 
 COMMANDS: dict[str, Command] = {
@@ -43,11 +48,14 @@ COMMANDS: dict[str, Command] = {
         "benchmark planners on the paper's scenarios: statistics, tables, plots (--quick, --paper)",
     ),
     "plan": Command(
-        "lit_planner.plan_cli", "plan one query with LIT* or an OMPL planner (C++ core)"
+        "lit_planner.plan_cli",
+        "plan one query with LIT* or an OMPL planner (C++ core)",
+        stops_like_ctrl_c=True,
     ),
     "arena": Command(
         "lit_planner.arena",
         "turn a bench run folder's runs.jsonl into OMPL benchmark logs and a Planner Arena database",
+        stops_like_ctrl_c=True,
     ),
     "replay": Command(
         "lit_planner.replay",
@@ -68,6 +76,7 @@ COMMANDS: dict[str, Command] = {
     "crosscheck": Command(
         "lit_planner.crosscheck",
         "independent cross-check: LIT*'s paths and costs against OMPL 2.0.1 (PyPI ompl) planners",
+        stops_like_ctrl_c=True,
     ),
     "train": Command(
         "lit_learner.train",
@@ -77,6 +86,7 @@ COMMANDS: dict[str, Command] = {
         "lit_learner.toy",
         "train the B agent on a fixed toy query (np2, 1000 iterations as its horizon): greedy "
         "return against constant B",
+        stops_like_ctrl_c=True,
     ),
     "tensors": Command(
         "lit_planner.tensors_cli",
@@ -186,7 +196,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         # command documents how it stops on it (and children inherit the ignoring). Restore it.
         if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
             signal.signal(signal.SIGINT, signal.default_int_handler)
-        code = int(run(args) or 0)
+        stops = (signal.SIGTERM, signal.SIGHUP) if COMMANDS[args.command].stops_like_ctrl_c else ()
+        with signals.handling(stops, signal.default_int_handler):
+            code = int(run(args) or 0)
         if sys.stdout is not None:
             sys.stdout.flush()  # a write error shows here, not at exit
         return code

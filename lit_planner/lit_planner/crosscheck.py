@@ -204,7 +204,7 @@ def crosscheck(
         for seed in range(first_seed, first_seed + runs):
             print(f"lit crosscheck: {scenario.key} {litstar} seed {seed}", file=sys.stderr,
                   flush=True)  # fmt: skip
-            result = planning.plan(scenario, litstar, policy, time=time, seed=seed)
+            result = planning.plan_interruptibly(scenario, litstar, policy, time=time, seed=seed)
             lit_runs.append({
                 "planner": litstar, "seed": seed, "solved": bool(result["solved"]),
                 "status": result["status"], "t_init": result["t_init"],

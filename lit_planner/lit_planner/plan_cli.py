@@ -20,7 +20,6 @@ import argparse
 import json
 import math
 import sys
-import threading
 from collections.abc import Mapping
 from typing import Any
 
@@ -127,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
         # LIT* plans with its own seed, 0 included; OMPL's global generator (which LIT* does not
         # draw from) would warn about 0 and use 1.
         lit_core.set_global_seed(planning.ompl_global_seed(args.seed))
-        result = _plan_interruptibly(
+        result = planning.plan_interruptibly(
             scenario,
             planner,
             policy,
@@ -174,40 +173,6 @@ def _warn_of_untrained_tensors(tensors: Any) -> None:
                 "decides as an untrained actor (without the file its fixed value applies)",
                 file=sys.stderr,
             )
-
-
-def _plan_interruptibly(*args: Any, **kwargs: Any) -> dict[str, Any]:
-    """:func:`planning.plan` on a thread of its own: the main thread stays in Python, so Ctrl-C
-    stops the query within an iteration through a ``lit_core.CancelFlag`` (inside the core,
-    Python's handler could only run once the whole budget was spent)."""
-    cancel = lit_core.CancelFlag()
-    outcome: dict[str, Any] = {}
-    done = threading.Event()  # not Thread.join: one interrupted by Ctrl-C may return early after
-
-    def work() -> None:
-        try:
-            outcome["result"] = planning.plan(*args, cancel=cancel, **kwargs)
-        except BaseException as error:  # noqa: BLE001 -- raised again on the main thread
-            outcome["error"] = error
-        finally:
-            done.set()
-
-    threading.Thread(target=work, name="plan", daemon=True).start()
-    try:
-        while not done.wait(0.05):
-            pass
-    except KeyboardInterrupt:
-        cancel.set()
-        while True:  # the core stops within an iteration; exiting under it would abort
-            try:
-                done.wait()
-                break
-            except KeyboardInterrupt:  # a second Ctrl-C: still wait for that iteration
-                continue
-        raise
-    if "error" in outcome:
-        raise outcome["error"]
-    return outcome["result"]
 
 
 def _check_policy_name(policy: str | None) -> None:

@@ -668,3 +668,39 @@ def _param_text(value: object) -> str:
     if isinstance(value, bool):
         return "1" if value else "0"
     return str(value)
+
+
+def plan_interruptibly(*args: Any, **kwargs: Any) -> dict[str, Any]:
+    """:func:`plan` on a thread of its own: the main thread stays in Python, so Ctrl-C (or a
+    signal handler that raises ``KeyboardInterrupt``) stops the query within an iteration
+    through a ``lit_core.CancelFlag`` (inside the core, Python's handler could only run once the
+    whole budget was spent), and is then raised. The commands that plan (lit plan, lit bench,
+    lit crosscheck) plan this way; ``cancel`` may not be given."""
+    cancel = lit_core.CancelFlag()
+    outcome: dict[str, Any] = {}
+    done = threading.Event()  # not Thread.join: one interrupted by Ctrl-C may return early after
+
+    def work() -> None:
+        try:
+            outcome["result"] = plan(*args, cancel=cancel, **kwargs)
+        except BaseException as error:  # noqa: BLE001 -- raised again on the main thread
+            outcome["error"] = error
+        finally:
+            done.set()
+
+    threading.Thread(target=work, name="plan", daemon=True).start()
+    try:
+        while not done.wait(0.05):
+            pass
+    except KeyboardInterrupt:
+        cancel.set()
+        while True:  # the core stops within an iteration; exiting under it would abort
+            try:
+                done.wait()
+                break
+            except KeyboardInterrupt:  # a second Ctrl-C: still wait for that iteration
+                continue
+        raise
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["result"]

@@ -10,6 +10,7 @@ import re
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -129,16 +130,16 @@ def test_a_path_that_fails_the_recheck_exits_3(
     node's path_valid follow ok: a path not ending at the goal printed FAILED and exited 0."""
     import argparse
 
-    from lit_planner import plan_cli
+    from lit_planner import plan_cli, planning
 
-    real = plan_cli._plan_interruptibly
+    real = planning.plan_interruptibly
 
     def not_at_the_goal(*args: Any, **kwargs: Any) -> dict[str, Any]:
         result = real(*args, **kwargs)
         result["path_check"] = {**result["path_check"], "ok": False, "ends_at_goal": False}
         return result
 
-    monkeypatch.setattr(plan_cli, "_plan_interruptibly", not_at_the_goal)
+    monkeypatch.setattr(planning, "plan_interruptibly", not_at_the_goal)
     parser = argparse.ArgumentParser()
     plan_cli.add_arguments(parser)
     args = parser.parse_args(["--scenario", "np4", "--iterations", "2000"])
@@ -242,6 +243,87 @@ def test_ctrl_c_stops_lit_plan_during_its_query() -> None:
         if process.poll() is None:
             process.kill()
             process.wait()
+
+
+LONG_BENCH = ["bench", "--scenarios", "np2", "--planners", "litstar-fixed", "--runs", "1",
+              "--time-scale", "1e4", "--no-bag"]  # fmt: skip
+"""A bench of one LIT* run of about 1500 s (np2: 0.15 s at time scale 1)."""
+
+
+@pytest.mark.parametrize(
+    ("command", "signum"),
+    [
+        (["plan", "--scenario", "np8", "--time", "600"], signal.SIGTERM),
+        (LONG_BENCH, signal.SIGINT),
+        (LONG_BENCH, signal.SIGTERM),
+        (["crosscheck", "--scenarios", "np2", "--runs", "1", "--time", "600"], signal.SIGTERM),
+    ],
+    ids=["plan-sigterm", "bench-sigint", "bench-sigterm", "crosscheck-sigterm"],
+)
+def test_a_signal_stops_a_planning_command_during_its_query(
+    tmp_path: Path, command: list[str], signum: int
+) -> None:
+    """Ctrl-C or ``kill PID`` a few seconds into a query of 600 s or more ends the command
+    (exit 130, "interrupted"): lit bench and lit crosscheck planned out the run's whole budget
+    first (their Python handler could only run once the core returned), and SIGTERM ended lit
+    plan and lit crosscheck at once, without a word."""
+    if command[0] == "bench":
+        command = [*command, "--out", str(tmp_path / "out")]
+    process = subprocess.Popen(
+        [sys.executable, "-m", "lit_planner.cli", *command],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        with pytest.raises(subprocess.TimeoutExpired):
+            process.wait(timeout=5.0)  # set up and planning by then
+        process.send_signal(signum)
+        _, err = process.communicate(timeout=120)  # far short of the budget
+        assert process.returncode == 130, err
+        assert f"lit {command[0]}: interrupted" in err and "Traceback" not in err, err
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+
+
+def test_sigterm_to_lit_crosscheck_ends_its_ompl_worker(tmp_path: Path) -> None:
+    """``kill PID`` while the OMPL 2.0.1 worker plans: the worker ends with lit crosscheck, and
+    its temporary folder goes (the worker planned on as an orphan, its folder left behind)."""
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    process = subprocess.Popen(
+        [sys.executable, "-m", "lit_planner.cli", "crosscheck", "--scenarios", "np2", "--runs",
+         "1", "--time", "2"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env=dict(os.environ, TMPDIR=str(scratch)),
+    )  # fmt: skip
+    watch = DescendantWatch(process.pid)
+    try:
+        worker = None
+        for _ in range(1200):  # LIT*'s 2 s, then the worker
+            worker = next((pid for pid, _ in watch.seen if _is_ompl2_worker(pid)), None)
+            if worker is not None or process.poll() is not None:
+                break
+            time.sleep(0.05)
+        assert worker is not None, process.communicate(timeout=60)
+        process.send_signal(signal.SIGTERM)
+        _, err = process.communicate(timeout=120)
+        assert process.returncode == 130, err
+        assert "lit crosscheck: interrupted" in err and "Traceback" not in err, err
+        assert watch.alive() == []
+        assert list(scratch.iterdir()) == []
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        watch.kill()
+
+
+def _is_ompl2_worker(pid: int) -> bool:
+    try:
+        return b"lit_planner.ompl2.crosscheck" in Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        return False
 
 
 def test_demo_local_plans_once_in_this_process_without_ros(tmp_path: Path) -> None:

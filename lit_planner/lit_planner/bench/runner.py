@@ -380,7 +380,7 @@ def time_first_solution(
     for _ in range(repeats - 1):
         # No time limit: the iteration limit alone ends the rerun (a budget could cut off a
         # rerun a little slower than a run that solved near its end).
-        rerun = planning.plan(
+        rerun = planning.plan_interruptibly(
             problem,
             planner,
             time=None,
@@ -500,7 +500,7 @@ def run_benchmark(
                     )
                     planning.quiet_ompl(planner)
                     started = time.perf_counter()
-                    result = planning.plan(
+                    result = planning.plan_interruptibly(
                         problem,
                         planner,
                         policy=policies[planner],
