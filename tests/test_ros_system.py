@@ -571,7 +571,9 @@ def test_a_failing_checkpoint_leaves_the_trainer_running_and_probes_train_nothin
     # exit code says so.
     assert ros.stop(learner, signal.SIGTERM, timeout=60.0) == 1, learner.tail()
     assert "shutdown failed" in learner.text()
-    assert (ros.workdir / "learner" / "tensors" / "b_tensor.npy").is_file(), learner.tail(30)
+    # (A copy of the checkpoint: no agent is past its warm-up, so no tensor.)
+    assert (ros.workdir / "learner" / "tensors" / "checkpoint.pt").is_file(), learner.tail(30)
+    assert re.search(r"exported to \S+ \(shutdown\): a checkpoint copy", learner.text())
     assert "Exception in thread" not in learner.text(), learner.tail(60)
 
 
