@@ -1362,7 +1362,7 @@ def test_tensors_and_measure_reject_bad_arguments(tmp_path: Path) -> None:
     (tmp_path / "full" / "b_tensor.npy").write_text("old")
     _assert_clean_error(_replay("tensors", SAMPLE, "--out", tmp_path / "full"), "not empty")
     assert (tmp_path / "full" / "b_tensor.npy").read_text() == "old"
-    for option, value in (("--seed", "-1"), ("--batch-size", "0"), ("--warmup", "-1"),
+    for option, value in (("--seed", "-1"), ("--batch-size", "0"), ("--warmup", "0"),
                           ("--decision-interval", "0")):  # fmt: skip
         out = tmp_path / f"bad{option}"
         _assert_clean_error(_replay("tensors", SAMPLE, "--out", out, option, value), option)

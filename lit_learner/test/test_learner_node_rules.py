@@ -1,5 +1,6 @@
-"""When the learner node checkpoints (``LearnerNode._checkpoint_due``), on a stand-in holding
-only what the rule reads: no ROS needed. The ROS tests (tests/test_ros_system.py) run the node."""
+"""When the learner node checkpoints (``LearnerNode._checkpoint_due``) and makes its
+end-of-training export (``LearnerNode._export_due``), on a stand-in holding only what the rules
+read: no ROS needed. The ROS tests (tests/test_ros_system.py) run the node."""
 
 from __future__ import annotations
 
@@ -37,3 +38,35 @@ def test_a_checkpoint_is_due_by_episodes_or_time_and_zero_turns_a_rule_off(
     progress: tuple[int, int], since: float, params: dict[str, float], due: bool
 ) -> None:
     assert _due(progress, since, **params) is due
+
+
+@pytest.mark.parametrize(
+    ("progress", "pending", "exported", "at_export", "due"),
+    [
+        ((100, 7), 0, False, (0, 0), True),  # max_episodes ended, no gradient step owed
+        ((100, 7), 3, False, (0, 0), False),  # steps owed: an agent may not have trained yet
+        ((99, 7), 0, False, (0, 0), False),  # not all episodes ended
+        ((100, 7), 0, True, (0, 0), False),  # made once
+        ((100, 7), 0, False, (100, 7), False),  # nothing new since the last export
+        ((130, 9), 0, False, (0, 0), True),  # later episodes (resumed past the limit)
+    ],
+)
+def test_the_end_of_training_export_waits_for_the_owed_gradient_steps(
+    progress: tuple[int, int],
+    pending: int,
+    exported: bool,
+    at_export: tuple[int, int],
+    due: bool,
+) -> None:
+    """After ``max_episodes`` episodes the export waited for nothing: an agent whose warm-up
+    ended with the last episode had made no gradient step yet, and was left out of the export
+    for good (it is made once)."""
+    node = SimpleNamespace(
+        params={**PARAMETERS, "max_episodes": 100},
+        core=SimpleNamespace(pending_updates=pending),
+        _exported_at_end=exported,
+        _at_export=at_export,
+    )
+    assert LearnerNode._export_due(node, progress) is due  # type: ignore[arg-type]
+    off = SimpleNamespace(**{**vars(node), "params": {**PARAMETERS, "max_episodes": 0}})
+    assert LearnerNode._export_due(off, progress) is False  # type: ignore[arg-type]

@@ -690,8 +690,7 @@ def plan_interruptibly(*args: Any, **kwargs: Any) -> dict[str, Any]:
 
     threading.Thread(target=work, name="plan", daemon=True).start()
     try:
-        while not done.wait(0.05):
-            pass
+        done.wait()  # a lock wait that signal handlers interrupt (no polling while the query runs)
     except KeyboardInterrupt:
         cancel.set()
         while True:  # the core stops within an iteration; exiting under it would abort

@@ -2288,7 +2288,7 @@ def _tensors(args: argparse.Namespace) -> int:
     if not 0 <= args.seed <= MAX_SEED:
         raise ReplayError(f"--seed must be between 0 and {MAX_SEED}, got {args.seed}")
     for label, value, least in (
-        ("--warmup", args.warmup, 0),
+        ("--warmup", args.warmup, 1),  # 0 is below any batch size
         ("--batch-size", args.batch_size, 1),
         ("--decision-interval", args.decision_interval, 1),
     ):

@@ -390,6 +390,9 @@ def custom(
             bounds, inside a box or with a non-finite coordinate is not refused here: planning
             it ends with ``invalid_start`` / ``invalid_goal`` and a message, as for any planner.)
     """
+    lower, upper = _numbers("lower", lower), _numbers("upper", upper)
+    start, goal = _numbers("start", start, part="start"), _numbers("goal", goal, part="goal")
+    time_budget = _number("time budget", time_budget, part="time")
     dim = len(lower)
     if not MIN_DIM <= dim <= MAX_DIM:
         raise ScenarioError(f"world dimension {dim} outside {MIN_DIM}..{MAX_DIM}")
@@ -400,11 +403,7 @@ def custom(
                 f"lower bound's length)",
                 part=None if label == "upper" else label,
             )
-    corners = np.zeros((len(boxes), 2, dim))
-    for i, (box_lower, box_upper) in enumerate(boxes):
-        if len(box_lower) != dim or len(box_upper) != dim:
-            raise ScenarioError(f"box {i} does not have {dim} coordinates per corner")
-        corners[i, 0], corners[i, 1] = box_lower, box_upper
+    corners = _box_corners(boxes, dim)
     values = np.concatenate([np.asarray(lower, float), np.asarray(upper, float), corners.ravel()])
     if not np.all(np.isfinite(values)):
         raise ScenarioError("the world has a non-finite coordinate")
@@ -418,7 +417,9 @@ def custom(
             f"time budget must be a finite positive number of seconds, got {time_budget}",
             part="time",
         )
-    resolution = DEFAULT_CUSTOM_RESOLUTION if resolution is None else float(resolution)
+    resolution = (
+        DEFAULT_CUSTOM_RESOLUTION if resolution is None else _number("resolution", resolution)
+    )
     _check_extent(np.asarray(lower, float), np.asarray(upper, float), resolution)
     with np.errstate(under="ignore", over="ignore"):
         separation = float(np.linalg.norm(np.asarray(goal, float) - np.asarray(start, float)))
@@ -449,6 +450,65 @@ def custom(
         seed=None,
         description=f"explicit world in R^{dim} with {len(boxes)} boxes",
     )
+
+
+def _shown(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:57]}..."
+
+
+def _number(label: str, value: Any, *, part: str | None = None) -> float:
+    """``value`` as a float, or a ScenarioError naming ``label`` (float() said only "could not
+    convert string to float: 'abc'", without saying which argument)."""
+    if isinstance(value, (str, bytes)):  # float("1e3") would take text
+        raise ScenarioError(f"{label} must be a number, got {_shown(value)}", part=part)
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ScenarioError(f"{label} must be a number, got {_shown(value)}", part=part) from None
+
+
+def _sequence(label: str, value: Any, *, part: str | None = None) -> Sequence[Any]:
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__"):
+        raise ScenarioError(f"{label} must be a sequence, got {_shown(value)}", part=part)
+    return value
+
+
+def _numbers(label: str, value: Any, *, part: str | None = None) -> list[float]:
+    """``value`` as a list of floats, or a ScenarioError naming ``label`` and the entry."""
+    entries = _sequence(label, value, part=part)
+    array = _numeric_array(entries)
+    if array is not None and array.ndim == 1:
+        return array.tolist()
+    return [_number(f"{label}[{i}]", x, part=part) for i, x in enumerate(entries)]
+
+
+def _numeric_array(entries: Sequence[Any]) -> NDArray[np.float64] | None:
+    """``entries`` as a new float array when they are all numbers (no text: numpy would convert
+    "1e3"), else None."""
+    try:
+        array = np.asarray(entries)
+    except (TypeError, ValueError):  # ragged
+        return None
+    return array.astype(float) if array.dtype.kind in "biuf" else None
+
+
+def _box_corners(boxes: Any, dim: int) -> NDArray[np.float64]:
+    """The boxes as an array (box, lower/upper, axis); a ScenarioError names the first box that
+    is not a pair of ``dim`` numbers each."""
+    entries = _sequence("boxes", boxes)
+    corners = _numeric_array(entries) if len(entries) else np.zeros((0, 2, dim))
+    if corners is not None and corners.shape == (len(entries), 2, dim):
+        return corners
+    for i, box in enumerate(entries):  # the first box at fault, with what is wrong with it
+        if isinstance(box, (str, bytes)) or not hasattr(box, "__len__") or len(box) != 2:
+            raise ScenarioError(
+                f"box {i} must be a (lower corner, upper corner) pair, got {_shown(box)}"
+            )
+        for corner, side in zip(box, ("lower", "upper")):
+            if len(_numbers(f"box {i}'s {side} corner", corner)) != dim:
+                raise ScenarioError(f"box {i} does not have {dim} coordinates per corner")
+    raise ScenarioError(f"the boxes must be pairs of corners with {dim} coordinates each")
 
 
 MIN_RESOLUTION = 1e-6

@@ -665,7 +665,7 @@ def corrupt(path: Path, defect: str) -> None:
         ("dtype not UTF-8", r"dtype is '\\x88f4', expected '<f4'"),
         ("wrong shape", r"shape \(101, 101, 100\) does not match the sidecar's \(101, 101, 101\)"),
         ("NaN", r"value nan at index \(3, 4, 5\) is not finite"),
-        ("out of range", r"value 500\.0+ at index \(1, 2, 3\) is out of range \[20\.0+, 200\.0+\]"),
+        ("out of range", r"value 500 at index \(1, 2, 3\) is out of range \[20, 200\]"),
         ("stale sidecar", "SHA-256"),
     ],
 )

@@ -6,6 +6,7 @@ import itertools
 import json
 import math
 import zlib
+from typing import Any
 
 import numpy as np
 import pytest
@@ -514,3 +515,43 @@ def test_a_start_of_the_wrong_length_names_the_worlds_dimension() -> None:
     s = get("np8")
     with pytest.raises(ScenarioError, match=r"start has 3 coordinates; the world has 8 dimensions"):
         custom(s.lower, s.upper, [], [-0.2, 0.0, 0.0], s.goal)
+
+
+@pytest.mark.parametrize(
+    ("change", "message", "part"),
+    [
+        ({"resolution": "abc"}, r"resolution must be a number, got 'abc'", None),
+        ({"time_budget": None}, r"time budget must be a number, got None", "time"),
+        ({"lower": [0, "a"]}, r"lower\[1\] must be a number, got 'a'", None),
+        ({"upper": None}, r"upper must be a sequence, got None", None),
+        ({"start": [0.1, "q"]}, r"start\[1\] must be a number, got 'q'", "start"),
+        ({"goal": "ab"}, r"goal must be a sequence, got 'ab'", "goal"),
+        ({"boxes": 5}, r"boxes must be a sequence, got 5", None),
+        ({"boxes": [([0, 0],)]}, r"box 0 must be a \(lower corner, upper corner\) pair", None),
+        (
+            {"boxes": [([0, 0], [1, 1]), ([0, 0], ["x", 1])]},
+            r"box 1's upper corner\[0\] must",
+            None,
+        ),
+        ({"boxes": [([0, 0], [1])]}, r"box 0 does not have 2 coordinates per corner", None),
+    ],
+)
+def test_custom_arguments_that_are_not_numbers_are_named(
+    change: dict[str, Any], message: str, part: str | None
+) -> None:
+    """custom(resolution="abc") raised float()'s bare "could not convert string to float: 'abc'",
+    naming no argument; text is not taken as a number (numpy would have read "1e3")."""
+    arguments: dict[str, Any] = {
+        "lower": [0, 0],
+        "upper": [1, 1],
+        "boxes": [([0.4, 0.1], [0.6, 0.9])],
+        "start": [0.1, 0.5],
+        "goal": [0.9, 0.5],
+    }
+    arguments.update(change)
+    with pytest.raises(ScenarioError, match=message) as caught:
+        scenarios.custom(**arguments)
+    assert caught.value.part == part
+    boxes = np.zeros((3, 2, 2))
+    world = scenarios.custom([0, 0], [1, 1], boxes, [0.1, 0.5], [0.9, 0.5])
+    assert world.boxes.shape == (3, 2, 2) and boxes.flags.writeable  # the caller's array is copied

@@ -3,6 +3,7 @@
 #include <functional>
 
 #include "lit/InformedMeasure.h"
+#include "NumberText.h"
 
 #include <ompl/base/DiscreteMotionValidator.h>
 #include <ompl/base/PlannerData.h>
@@ -129,15 +130,14 @@ namespace lit
     void LITstar::setRewireFactor(double factor)
     {
         // 0 or less gave K = 1 and inf an overflowed K of 0: planners that never solved, without a word.
-        std::ostringstream text;
-        text << factor;  // std::to_string printed 1e-300 as 0.000000
+        const std::string text = detail::numberText(factor);
         if (!(std::isfinite(factor) && factor > 0.0 && factor <= 1e6))
-            throw ompl::Exception("LITstar: the rewire factor must be a number in (0, 1e6], got " + text.str());
+            throw ompl::Exception("LITstar: the rewire factor must be a number in (0, 1e6], got " + text);
         if (factor < 1.0)
             OMPL_WARN("LITstar: a rewire factor below 1 (%s) gives fewer neighbours than the k-nearest RGG's bound: "
                       "the planner loses asymptotic optimality and, from about 0.05 down, may never connect start and "
                       "goal (K = 1)",
-                      text.str().c_str());
+                      text.c_str());
         rewireFactor_ = factor;
     }
     double LITstar::getRewireFactor() const
@@ -210,7 +210,7 @@ namespace lit
         // A negative budget used to become 0, "no limit": the opposite of what a typo meant.
         if (!(seconds >= 0.0))
             throw ompl::Exception("LITstar: the time budget must be 0 (no limit) or more seconds, got " +
-                                  std::to_string(seconds));
+                                  detail::numberText(seconds));
         timeBudget_ = seconds;
     }
     double LITstar::getTimeBudget() const
@@ -754,8 +754,8 @@ namespace lit
         const double count =
             static_cast<double>(segmentCountFactor_) * std::ceil(graph_->distance(a, b) / longestValidSegment_);
         if (!(count < 2147483648.0))  // also NaN: the point indices are unsigned int
-            throw ompl::Exception("LITstar: an edge of length " + std::to_string(graph_->distance(a, b)) + " needs " +
-                                  std::to_string(count) +
+            throw ompl::Exception("LITstar: an edge of length " + detail::numberText(graph_->distance(a, b)) + " needs " +
+                                  detail::numberText(count) +
                                   " collision checks at this state validity checking resolution, more than 2^31: "
                                   "use a coarser resolution");
         return static_cast<unsigned int>(count);

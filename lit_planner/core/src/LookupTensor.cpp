@@ -1,5 +1,7 @@
 #include "lit/LookupTensor.h"
 
+#include "NumberText.h"
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -85,7 +87,7 @@ namespace lit
         // Lookups would interpolate a NaN into B or psi_K (load() adds the file's name).
         for (std::size_t i = 0; i < values_.size(); ++i)
             if (!std::isfinite(values_[i]))
-                throw TensorError(std::string(valuePrefix) + "value " + std::to_string(values_[i]) + " at index " +
+                throw TensorError(std::string(valuePrefix) + "value " + detail::numberText(values_[i]) + " at index " +
                                   gridIndex(shape_, i) + " is not finite");
     }
 
@@ -191,9 +193,9 @@ namespace lit
         const std::vector<float> &stored = tensor->values_;
         for (std::size_t i = 0; i < count; ++i)
             if (stored[i] < spec.minValue - 1e-4 || stored[i] > spec.maxValue + 1e-4)
-                fail(path, "value " + std::to_string(stored[i]) + " at index " + gridIndex(tensor->shape_, i) +
-                               " is out of range [" + std::to_string(spec.minValue) + ", " +
-                               std::to_string(spec.maxValue) + "]");
+                fail(path, "value " + detail::numberText(stored[i]) + " at index " + gridIndex(tensor->shape_, i) +
+                               " is out of range [" + detail::numberText(spec.minValue) + ", " +
+                               detail::numberText(spec.maxValue) + "]");
         return std::move(*tensor);
     }
 

@@ -1,5 +1,7 @@
 #include "lit/ParameterPolicy.h"
 
+#include "NumberText.h"
+
 #include <ompl/util/Console.h>
 
 #include <algorithm>
@@ -40,7 +42,7 @@ namespace lit
                                         std::to_string(batchSize));
         if (!(std::isfinite(neighbourFactor) && neighbourFactor > 0.0))
             throw std::invalid_argument("FixedPolicy: the neighbour factor must be a positive number, got " +
-                                        std::to_string(neighbourFactor));
+                                        detail::numberText(neighbourFactor));
     }
 
     double FixedPolicy::decide(const DecisionContext &context)

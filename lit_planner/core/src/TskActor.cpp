@@ -1,5 +1,7 @@
 #include "lit/TskActor.h"
 
+#include "NumberText.h"
+
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -29,7 +31,7 @@ namespace lit
       : centres_(centres), consequents_(std::move(consequents))
     {
         if (!(std::isfinite(sigma) && sigma > 0.0))
-            throw std::invalid_argument("sigma must be finite and positive, got " + std::to_string(sigma));
+            throw std::invalid_argument("sigma must be finite and positive, got " + detail::numberText(sigma));
         scale_ = -1.0 / (2.0 * sigma * sigma);
         checkLayer(trunk, 9, "trunk");
         Eigen::Index inputs = trunk.first.rows();

@@ -1286,6 +1286,7 @@ TEST(LITstar, ParametersOutsideTheirRangeAreRefused)
                                                       "the rewire factor must be a number in (0, 1e6]"))
             << factor;
     EXPECT_TRUE(test::throwsWith<ompl::Exception>([&] { planner.setRewireFactor(-1e-300); }, "got -1e-300"));
+    EXPECT_TRUE(test::throwsWith<ompl::Exception>([&] { planner.setRewireFactor(1000001.0); }, "got 1000001"));
     {
         // Taken, with a warning: from about 0.05 down K was 1 and the planner never solved, without a word.
         const CapturedWarnings messages;
@@ -1301,6 +1302,7 @@ TEST(LITstar, ParametersOutsideTheirRangeAreRefused)
         EXPECT_TRUE(test::throwsWith<ompl::Exception>([&] { planner.setTimeBudget(budget); },
                                                       "the time budget must be 0 (no limit) or more seconds"))
             << budget;  // -1 was "no limit"
+    EXPECT_TRUE(test::throwsWith<ompl::Exception>([&] { planner.setTimeBudget(-1e-300); }, "got -1e-300"));
     // Through OMPL's parameters: false with a warning, nothing changed (the setters' exceptions ended setParams).
     EXPECT_FALSE(planner.params().setParam("time_budget", "-1"));
     EXPECT_FALSE(planner.params().setParam("batch_size", "0"));
