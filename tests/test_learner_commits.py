@@ -124,14 +124,16 @@ SCRIPT = textwrap.dedent(
     learner._sweep_idle_episodes()
     learner.apply_commits()
     out["refused_end_swept"] = e5 in learner.core.open_episodes()
-    # Improvements only add up, also against a decision answered but not recorded yet (it was
-    # answered, then dropped when its commit failed).
+    # Improvements only add up and costs only fall, also against a decision answered but not
+    # recorded yet (it was answered, then dropped when its commit failed).
     other = Publisher("planner/other", "run-1")
     learner._lock.acquire()
     more = dict(decide("psi_K", 0.3), episode_id="imp", improvements=3, cost=1.5, path_states=5)
     ok_more, _ = call("DecideRequest", more, other)
     ok_fewer, payload = call("DecideRequest", dict(more, planning_time=0.4, improvements=2), other)
     out["fewer_improvements"] = [ok_more, ok_fewer, payload.get("code"), payload.get("field")]
+    ok_dearer, payload = call("DecideRequest", dict(more, planning_time=0.4, cost=1.6), other)
+    out["higher_cost"] = [ok_dearer, payload.get("code"), payload.get("field")]
     learner._lock.release()
     learner.apply_commits()
     learner.shutdown()
@@ -184,3 +186,4 @@ def test_decisions_answered_while_the_lock_is_taken_are_recorded_after_in_order(
     assert out["refused_end"] == [False, "invalid-request", True, True, "planner/test|run-1|e5"]
     assert out["refused_end_swept"] is False
     assert out["fewer_improvements"] == [True, False, "invalid-request", "$.payload.improvements"]
+    assert out["higher_cost"] == [False, "invalid-request", "$.payload.cost"]

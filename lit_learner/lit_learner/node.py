@@ -65,6 +65,7 @@ from lit_planner.safe_logger import SafeLogger
 from lit_learner.errors import ExportError, PairingError, ReplayError
 from lit_learner.errors import MessageError as CoreMessageError
 from lit_learner.messages import DecisionRequest, EpisodeEnd
+from lit_learner.pairing import check_order
 
 NODE_NAME = "lit_learner"
 TRAINER_NICE = 10
@@ -260,8 +261,8 @@ class LearnerNode:
         """Guards ``_unapplied`` (held for an append or a pop only), and the open episodes'
         bookkeeping that the idle sweep changes (``_latest_time``, ``_last_seen``,
         ``_open_episode``). Taken after ``_lock`` where both are held."""
-        self._latest_time: dict[str, tuple[float, int]] = {}
-        """Planning time and improvements of each open episode's latest answered decision
+        self._latest_time: dict[str, tuple[float, int, float | None]] = {}
+        """Planning time, improvements and cost of each open episode's latest answered decision
         (serving thread)."""
         self._last_seen: dict[str, tuple[float, float, str]] = {}
         """Each open episode's latest decision: monotonic time, the episode's time budget and
@@ -469,7 +470,11 @@ class LearnerNode:
                         self._probes += 1
                     return response
                 with self._queue_lock:  # the idle sweep sees all three or none
-                    self._latest_time[episode] = (decision.planning_time, decision.improvements)
+                    self._latest_time[episode] = (
+                        decision.planning_time,
+                        decision.improvements,
+                        decision.cost,  # the lowest so far: a higher one was refused
+                    )
                     self._last_seen.pop(episode, None)  # in order of their latest decisions
                     self._last_seen[episode] = (
                         time.monotonic(),
@@ -564,24 +569,18 @@ class LearnerNode:
             return response
 
     def _check_order(self, decision: DecisionRequest) -> None:
-        """The pairing's order checks (time, improvements) against this episode's latest
+        """The pairing's order checks (time, improvements, cost) against this episode's latest
         decision, including decisions whose commit has not been applied yet (the core's own
         check sees only the applied ones: a later decision with fewer improvements was answered,
         then dropped when its commit failed)."""
         latest = self._latest_time.get(decision.episode_id)
-        if latest is None:
-            return
-        if decision.planning_time < latest[0]:
-            raise PairingError(
-                f"episode {decision.episode_id!r}: planning_time {decision.planning_time} is "
-                f"before the previous message's {latest[0]}",
-                field="planning_time",
-            )
-        if decision.improvements < latest[1]:
-            raise PairingError(
-                f"episode {decision.episode_id!r}: improvements {decision.improvements} is below "
-                f"the {latest[1]} an earlier message reported",
-                field="improvements",
+        if latest is not None:
+            check_order(
+                decision.episode_id,
+                latest,
+                decision.planning_time,
+                decision.improvements,
+                decision.cost,
             )
 
     def _queue_commit(

@@ -46,6 +46,40 @@ class PendingStep:
     """Planner time when the decision was taken."""
 
 
+def check_order(
+    episode_id: str,
+    before: tuple[float, int, float | None],
+    planning_time: float,
+    improvements: int,
+    cost: float | None,
+) -> None:
+    """Raise PairingError when a message of an episode whose earlier messages reached
+    ``before`` (latest planning time, most improvements, lowest cost or None) goes back:
+    ``planning_time`` before the latest, ``improvements`` below the most (improvements only add
+    up), or ``cost`` above the lowest or None after it (a best cost only falls: a rising one was
+    taken, and R_B / R_K rewarded it as the path's new quality)."""
+    last_time, seen, best_cost = before
+    if planning_time < last_time:
+        raise PairingError(
+            f"episode {episode_id!r}: planning_time {planning_time} is before the previous "
+            f"message's {last_time}",
+            field="planning_time",
+        )
+    if improvements < seen:
+        raise PairingError(
+            f"episode {episode_id!r}: improvements {improvements} is below the {seen} an "
+            "earlier message reported",
+            field="improvements",
+        )
+    if best_cost is not None and (cost is None or cost > best_cost):
+        raise PairingError(
+            f"episode {episode_id!r}: "
+            + ("no cost (no solution)" if cost is None else f"cost {cost} is above")
+            + f" after the cost {best_cost} an earlier message reported (a best cost only falls)",
+            field="cost",
+        )
+
+
 @dataclass
 class EpisodeProgress:
     """What the pairing remembers of one episode."""
@@ -56,27 +90,28 @@ class EpisodeProgress:
     pending: dict[str, PendingStep] = field(default_factory=dict)
     returns: dict[str, float] = field(default_factory=dict)
     """Undiscounted return per agent so far."""
+    best_cost: float | None = None
+    """The lowest cost a message reported, None before a solution."""
 
-    def check(self, episode_id: str, planning_time: float, improvements: int) -> None:
-        """Raise PairingError when ``planning_time`` is before the previous message's or
-        ``improvements`` below a count seen before (improvements only add up)."""
-        if planning_time < self.last_time:
-            raise PairingError(
-                f"episode {episode_id!r}: planning_time {planning_time} is before the previous "
-                f"message's {self.last_time}",
-                field="planning_time",
-            )
-        seen = max(self.improvement_times)
-        if improvements < seen:
-            raise PairingError(
-                f"episode {episode_id!r}: improvements {improvements} is below the "
-                f"{seen} an earlier message reported",
-                field="improvements",
-            )
+    def check(
+        self, episode_id: str, planning_time: float, improvements: int, cost: float | None
+    ) -> None:
+        """:func:`check_order` against this episode's messages so far."""
+        check_order(
+            episode_id,
+            (self.last_time, max(self.improvement_times), self.best_cost),
+            planning_time,
+            improvements,
+            cost,
+        )
 
-    def observe(self, episode_id: str, planning_time: float, improvements: int) -> None:
-        self.check(episode_id, planning_time, improvements)
+    def observe(
+        self, episode_id: str, planning_time: float, improvements: int, cost: float | None
+    ) -> None:
+        self.check(episode_id, planning_time, improvements, cost)
         self.last_time = planning_time
+        if cost is not None:
+            self.best_cost = cost
         if improvements not in self.improvement_times and improvements > max(
             self.improvement_times
         ):
@@ -105,7 +140,9 @@ class Pairing:
         changing anything."""
         episode = self.episodes.get(request.episode_id)
         if episode is not None:
-            episode.check(request.episode_id, request.planning_time, request.improvements)
+            episode.check(
+                request.episode_id, request.planning_time, request.improvements, request.cost
+            )
 
     def step(self, request: DecisionRequest, action: float | None) -> Transition | None:
         """Close the agent's pending step in this episode (if any) and open a new one. After a
@@ -120,7 +157,9 @@ class Pairing:
             The closed transition, or None when nothing was pending.
         """
         episode = self.episodes.setdefault(request.episode_id, EpisodeProgress())
-        episode.observe(request.episode_id, request.planning_time, request.improvements)
+        episode.observe(
+            request.episode_id, request.planning_time, request.improvements, request.cost
+        )
         closed = None
         pending = episode.pending.pop(request.agent, None)
         if pending is not None and not request.after_fallback:
@@ -146,7 +185,9 @@ class Pairing:
         which come at every improvement, an improvement's time was the time of the next psi_K
         request (up to 47 % of the budget later on development queries)."""
         episode = self.episodes.setdefault(request.episode_id, EpisodeProgress())
-        episode.observe(request.episode_id, request.planning_time, request.improvements)
+        episode.observe(
+            request.episode_id, request.planning_time, request.improvements, request.cost
+        )
 
     def end(self, end: EpisodeEnd) -> tuple[list[Transition], dict[str, float]]:
         """Close every pending step of the episode and forget it.
@@ -159,7 +200,7 @@ class Pairing:
         if episode is None:
             return [], {}
         # An end out of time order is refused with the episode still open (it can be abandoned).
-        episode.observe(end.episode_id, end.planning_time, end.improvements)
+        episode.observe(end.episode_id, end.planning_time, end.improvements, end.cost)
         del self.episodes[end.episode_id]
         closed = []
         for agent in AGENT_NAMES:
@@ -247,6 +288,7 @@ class Pairing:
                     a: (p.state, p.action, p.improvements, p.time) for a, p in e.pending.items()
                 },
                 "returns": dict(e.returns),
+                "best_cost": e.best_cost,
             }
             for episode_id, e in self.episodes.items()
         }
@@ -258,6 +300,7 @@ class Pairing:
                 last_time=e["last_time"],
                 pending={a: PendingStep(tuple(p[0]), *p[1:]) for a, p in e["pending"].items()},
                 returns=dict(e["returns"]),
+                best_cost=e.get("best_cost"),  # absent from checkpoints before 2026-12-07
             )
             for episode_id, e in state.items()
         }

@@ -201,6 +201,48 @@ def test_an_improvement_count_that_goes_down_is_an_error_that_changes_nothing() 
     assert len(closed) == 1
 
 
+@pytest.mark.parametrize("cost", [3.5, None])
+def test_a_best_cost_that_rises_or_is_lost_is_an_error_that_changes_nothing(
+    cost: float | None,
+) -> None:
+    """A cost above one reported before (or none after a solution) was taken, and R_B / R_K
+    rewarded it as the path's new quality; a best cost only falls."""
+    pairing = Pairing(REWARD)
+    pairing.step(request("B", "e", 1.0, 0.1, improvements=1, cost=3.0, path_states=4), 0.1)
+    pairing.step(request("psi_K", "e", 1.5, 0.1, improvements=1, cost=3.0, path_states=4), 0.1)
+    shown = r"no cost \(no solution\)" if cost is None else rf"cost {cost} is above"
+    with pytest.raises(PairingError, match=rf"episode 'e': {shown} after the cost 3.0 an earlier"):
+        pairing.check(request("B", "e", 2.0, 0.1, improvements=1, cost=cost, path_states=4))
+    with pytest.raises(PairingError, match=r"a best cost only falls") as caught:
+        pairing.step(request("psi_K", "e", 2.0, 0.1, improvements=2, cost=cost, path_states=4), 0.1)
+    assert caught.value.field == "cost"
+    with pytest.raises(PairingError, match=r"a best cost only falls"):
+        pairing.end(EpisodeEnd("e", 3.0, 10.0, cost, 2.0, 2, 4))
+    assert set(pairing.episodes["e"].pending) == {"B", "psi_K"}  # still open, its steps kept
+    # The same cost again and a lower one are taken, also after a checkpoint round trip.
+    pairing.step(request("B", "e", 2.0, 0.1, improvements=1, cost=3.0, path_states=4), 0.1)
+    copy = Pairing(REWARD)
+    copy.load_state_dict(pairing.state_dict())
+    with pytest.raises(PairingError, match=r"a best cost only falls"):
+        copy.end(EpisodeEnd("e", 3.0, 10.0, cost, 2.0, 2, 4))
+    closed, _ = copy.end(EpisodeEnd("e", 3.0, 10.0, 2.5, 2.0, 2, 4))
+    assert len(closed) == 2
+
+
+def test_a_checkpoint_without_the_best_cost_still_loads() -> None:
+    """Checkpoints written before the pairing kept the best cost: the check starts at the next
+    solution."""
+    pairing = Pairing(REWARD)
+    pairing.step(request("B", "e", 1.0, 0.1, improvements=1, cost=3.0, path_states=4), 0.1)
+    state = pairing.state_dict()
+    del state["e"]["best_cost"]
+    copy = Pairing(REWARD)
+    copy.load_state_dict(state)
+    assert copy.episodes["e"].best_cost is None
+    copy.step(request("B", "e", 2.0, 0.1, improvements=2, cost=2.5, path_states=4), 0.1)
+    assert copy.episodes["e"].best_cost == 2.5
+
+
 def test_an_end_before_the_last_decision_is_refused_and_the_episode_stays_open() -> None:
     pairing = Pairing(REWARD)
     pairing.step(request("B", "e", 2.0, 0.1), 0.1)

@@ -396,7 +396,7 @@ namespace lit
             const auto *sampleable = goal->as<ompl::base::GoalSampleableRegion>();
             if (goal->hasType(ompl::base::GOAL_LAZY_SAMPLES) && sampleable->maxSampleCount() == 0u)
             {
-                // Also no longer than the planner's own time budget allows (the wait is not planning time).
+                // Also no longer than the planner's own time budget allows (the wait is planning time).
                 const double left = timeBudget_ - planningTime();
                 const ompl::base::PlannerTerminationCondition wait =
                     timeBudget_ > 0.0 ? ompl::base::plannerOrTerminationCondition(
@@ -502,26 +502,6 @@ namespace lit
                 pdef_->clearSolutionPaths();  // else the former, possibly cheaper, path stayed its best solution
             }
         }
-        if (!problemInitialized_)
-        {
-            const ompl::base::PlannerStatus status = initializeProblem(ptc);
-            if (status != ompl::base::PlannerStatus::UNKNOWN)
-            {
-                pis_.restart();  // the next solve() reads the start and goals again (the start was taken already)
-                OMPL_ERROR("%s: %s", getName().c_str(), statusMessage_.c_str());
-                return status;
-            }
-        }
-        // At every solve(): the checker may have been replaced since the last one (and is held while used).
-        // Exactly our checker: a subclass may override isValid(), which the fast path would not call on edges.
-        const ompl::base::StateSpace *space = si_->getStateSpace().get();
-        const ompl::base::StateValidityChecker *checker = si_->getStateValidityChecker().get();
-        boxChecker_ = typeid(*space) == typeid(ompl::base::RealVectorStateSpace) && checker != nullptr &&
-                              typeid(*checker) == typeid(BoxWorldValidityChecker) ?
-                          std::static_pointer_cast<const BoxWorldValidityChecker>(si_->getStateValidityChecker()) :
-                          nullptr;
-        batchLimitReached_ = false;
-        statusMessage_.clear();
         struct Running  // the termination condition and the clock belong to this call, also if it throws
         {
             LITstar &planner;
@@ -538,6 +518,35 @@ namespace lit
             Running(const Running &) = delete;
             Running &operator=(const Running &) = delete;
         };
+        if (!problemInitialized_)
+        {
+            ompl::base::PlannerStatus status;
+            {
+                // Reading the problem is planning time (a goal region's draws, a goal set's wait, the graph), as
+                // it is for OMPL's planners, timed from solve() on: it was left off the clock, and a goal
+                // region's draws did not count in LIT*'s t_init.
+                accumulatedTime_ = 0.0;  // a new problem's clock (also after a read that threw)
+                const Running reading(*this, ptc);
+                status = initializeProblem(ptc);
+            }
+            if (status != ompl::base::PlannerStatus::UNKNOWN)
+            {
+                accumulatedTime_ = 0.0;  // nothing was planned: the next solve() reads the problem anew
+                pis_.restart();  // the next solve() reads the start and goals again (the start was taken already)
+                OMPL_ERROR("%s: %s", getName().c_str(), statusMessage_.c_str());
+                return status;
+            }
+        }
+        // At every solve(): the checker may have been replaced since the last one (and is held while used).
+        // Exactly our checker: a subclass may override isValid(), which the fast path would not call on edges.
+        const ompl::base::StateSpace *space = si_->getStateSpace().get();
+        const ompl::base::StateValidityChecker *checker = si_->getStateValidityChecker().get();
+        boxChecker_ = typeid(*space) == typeid(ompl::base::RealVectorStateSpace) && checker != nullptr &&
+                              typeid(*checker) == typeid(BoxWorldValidityChecker) ?
+                          std::static_pointer_cast<const BoxWorldValidityChecker>(si_->getStateValidityChecker()) :
+                          nullptr;
+        batchLimitReached_ = false;
+        statusMessage_.clear();
         {
             const Running running(*this, ptc);
             while (!shouldStop() && !batchLimitReached_ && !solutionCannotImprove() &&

@@ -22,6 +22,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -1143,6 +1144,60 @@ TEST(LITstar, AGoalRegionClearedOrReplacedIsNotSampledAgain)
         ASSERT_EQ(planner->graph().goals().size(), 1u);
         EXPECT_EQ(planner->bestPath().back(), (std::vector<double>{-0.3, -0.3}));
     }
+}
+
+TEST(LITstar, ReadingTheProblemIsPlanningTime)
+{
+    // The wait for a goal set's first goal (and a goal region's draws) was off the clock, so LIT*'s planning time
+    // and t_init left out work that OMPL's planners, timed from solve() on, count. The sampler gives its goal 50 ms
+    // after solve() first asks the termination condition, which it does while reading the problem.
+    BoxProblem problem = test::narrowPassage(2, 1e-3);
+    auto solving = std::make_shared<std::atomic<bool>>(false);
+    auto given = std::make_shared<std::atomic<bool>>(false);
+    auto lazy = std::make_shared<ompl::base::GoalLazySamples>(
+        problem.si,
+        [solving, given](const ompl::base::GoalLazySamples *, ompl::base::State *state) {
+            if (given->load() || !solving->load())
+            {
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
+                return false;
+            }
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+            auto *values = state->as<ompl::base::RealVectorStateSpace::StateType>()->values;
+            values[0] = 0.2;
+            values[1] = 0.0;
+            given->store(true);
+            return true;
+        },
+        false);
+    problem.pdef->setGoal(lazy);
+    auto planner = batchLimited(problem, 5u);
+    lazy->startSampling();
+    const ompl::base::PlannerTerminationCondition ptc(
+        [solving]
+        {
+            solving->store(true);
+            return false;
+        });
+    EXPECT_EQ(planner->solve(ptc), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    lazy->stopSampling();
+    EXPECT_GE(planner->planningTime(), 0.05);
+
+    // A read that fails leaves the clock at 0: the next solve() reads the problem anew.
+    BoxProblem idle = test::narrowPassage(2, 1e-3);
+    auto never = std::make_shared<ompl::base::GoalLazySamples>(
+        idle.si,
+        [](const ompl::base::GoalLazySamples *, ompl::base::State *) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(5));
+            return false;
+        },
+        false);
+    idle.pdef->setGoal(never);
+    auto waiting = std::make_shared<LITstar>(idle.si);
+    waiting->setTimeBudget(0.1);
+    waiting->setProblemDefinition(idle.pdef);
+    EXPECT_EQ(waiting->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::INVALID_GOAL);
+    EXPECT_EQ(waiting->planningTime(), 0.0);
 }
 
 TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
