@@ -287,6 +287,7 @@ namespace lit
         graph_.reset();
         reverseQueue_ = {};
         problemInitialized_ = false;
+        terminalsPending_ = false;
         batchLimitReached_ = false;
         bestCost_ = infinity;
         pruneDue_ = false;
@@ -469,6 +470,7 @@ namespace lit
         graph_ = std::make_unique<litstar::RandomGeometricGraph>(si_, seed_);
         forwardQueue_ = std::make_unique<litstar::ForwardQueue>([this](litstar::Edge &edge) { computeKeys(edge); });
         graph_->setTerminals(starts, goals);
+        terminalsPending_ = true;
         for (State *start : graph_->starts())
             start->costToCome_ = 0.0;
         firstSolutionMeasure_ = 0.0;
@@ -671,10 +673,11 @@ namespace lit
 
     void LITstar::iterate()
     {
-        if (counters_.batches == 0u)
+        if (terminalsPending_)  // the first iteration, or start-goal lines that a stop left unchecked
         {
             connectTerminals();
-            if (!solutionCannotImprove())
+            // No batch is drawn after a stop (the next solve() draws it).
+            if (!terminalsPending_ && counters_.batches == 0u && !solutionCannotImprove() && !shouldStop())
                 improveApproximation();
         }
         else if (continueReverseSearch())
@@ -1107,11 +1110,17 @@ namespace lit
         std::stable_sort(pairs.begin(), pairs.end(), [&](const auto &a, const auto &b) {
             return graph_->distance(a.first, a.second) < graph_->distance(b.first, b.second);
         });
+        terminalsPending_ = false;
         for (const auto &[start, goal] : pairs)
         {
             const double cost = graph_->distance(start, goal);
-            if (cost >= bestCost_ || shouldStop())
+            if (cost >= bestCost_)
                 break;
+            if (shouldStop())
+            {
+                terminalsPending_ = true;  // the next iteration (the next solve()) checks the lines left
+                break;
+            }
             if (isBlacklisted(start, goal) || isWhitelisted(start, goal))
                 continue;
             ++counters_.edgesEvaluated;

@@ -1185,6 +1185,42 @@ TEST(LITstar, ReadingTheProblemIsPlanningTime)
     EXPECT_GE(planner->planningTime(), 0.05);
 }
 
+TEST(LITstar, StartGoalLinesThatAStopLeftUncheckedAreCheckedByTheNextSolve)
+{
+    // The nearer goal A is behind a wall, the farther goal B in a free straight line. A stop after A's line was
+    // checked ended the start-goal checks for good: the first iteration drew its batch anyway, and the next solve()
+    // never checked B's line (a start's neighbours leave the goals out), so it never returned the straight line.
+    BoxWorld world;
+    world.lower = {-1.0, -1.0};
+    world.upper = {1.0, 1.0};
+    world.boxes.push_back(Box{{0.24, -0.95}, {0.26, 0.95}});
+    BoxProblem problem = makeBoxProblem(world, {0.0, 0.0}, {0.5, 0.0}, 1e-3);
+    auto goals = std::make_shared<ompl::base::GoalStates>(problem.si);
+    ompl::base::ScopedState<> behind(problem.si), free(problem.si);
+    behind[0] = 0.5;
+    behind[1] = 0.0;
+    free[0] = 0.0;
+    free[1] = 0.9;
+    goals->addState(behind);
+    goals->addState(free);
+    problem.pdef->setGoal(goals);
+    auto planner = batchLimited(problem, 2u);
+    planner->setSeed(3u);
+    bool stopped = false;
+    const ompl::base::PlannerTerminationCondition once(
+        [&]
+        {
+            // Once, right after the first line's check (a cancel raised and lowered, or a time limit reached).
+            stopped = stopped || planner->counters().edgesEvaluated == 1u;
+            return stopped && planner->counters().edgesEvaluated == 1u;
+        });
+    EXPECT_EQ(planner->solve(once), ompl::base::PlannerStatus::TIMEOUT);
+    EXPECT_EQ(planner->counters().edgesEvaluated, 1u);
+    EXPECT_EQ(planner->counters().batches, 0u);  // no batch drawn after the stop
+    EXPECT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    EXPECT_NEAR(planner->bestCost(), 0.9, 1e-12);  // B's straight line
+}
+
 TEST(LITstar, AContinuousGoalRegionIsSampledABoundedNumberOfTimes)
 {
     // OMPL's GoalSpace never runs out of goal samples: reading them all filled memory before the clock started.

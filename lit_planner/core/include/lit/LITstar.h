@@ -295,6 +295,9 @@ namespace lit
         /** \brief Bisection depth of the reverse search's sparse checks (d = 2^depth - 1 checks). */
         unsigned int sparseDepth_{1u};
         bool problemInitialized_{false};
+        /** \brief Start-goal lines not checked yet: set for new terminals, cleared by a connectTerminals() that
+         *  ran to its end (a stop within it left the farther goals' lines unchecked for good). */
+        bool terminalsPending_{false};
         bool batchLimitReached_{false};
         /** \brief The termination condition of the running solve() (null outside it). */
         const ompl::base::PlannerTerminationCondition *ptc_{nullptr};
