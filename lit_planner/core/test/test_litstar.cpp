@@ -128,6 +128,20 @@ namespace
         return planner;
     }
 
+    /** \brief Plan to these goal states (a GoalStates holding each, in this order). */
+    void setGoalStates(const BoxProblem &problem, const std::vector<std::vector<double>> &states)
+    {
+        auto goals = std::make_shared<ompl::base::GoalStates>(problem.si);
+        for (const std::vector<double> &values : states)
+        {
+            ompl::base::ScopedState<> state(problem.si);
+            for (std::size_t i = 0; i < values.size(); ++i)
+                state[i] = values[i];
+            goals->addState(state);
+        }
+        problem.pdef->setGoal(goals);
+    }
+
     void expectJoinsStartAndGoal(const std::vector<std::vector<double>> &path, unsigned int n)
     {
         ASSERT_GE(path.size(), 2u);
@@ -627,15 +641,7 @@ TEST(LITstar, EveryGoalOfAGoalSetIsKept)
     // OMPL's nextGoal() hands out one scratch state: every goal read became the last one. The near goal is
     // listed first, so the planner used to plan to the far one behind the wall.
     BoxProblem problem = test::narrowPassage(2, 1e-3);
-    auto goals = std::make_shared<ompl::base::GoalStates>(problem.si);
-    ompl::base::ScopedState<> near(problem.si), far(problem.si);
-    near[0] = -0.3;
-    near[1] = 0.3;
-    far[0] = 0.2;
-    far[1] = 0.0;
-    goals->addState(near);
-    goals->addState(far);
-    problem.pdef->setGoal(goals);
+    setGoalStates(problem, {{-0.3, 0.3}, {0.2, 0.0}});  // near, far
     auto planner = batchLimited(problem, 5u);
     ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
     const auto path = planner->bestPath();
@@ -919,16 +925,11 @@ TEST(LITstar, SeveralGoalsFillTheirBatches)
     // With two goals the batches were drawn from the whole space and kept only informed samples: in R^8 after
     // the first solution a batch ended after 10 x 10000 rejections with about 14 samples of B = 100.
     BoxProblem problem = test::narrowPassage(8, 1e-3);
-    auto goals = std::make_shared<ompl::base::GoalStates>(problem.si);
-    ompl::base::ScopedState<> near(problem.si), far(problem.si);
-    for (unsigned int d = 0; d < 8u; ++d)
-        near[d] = far[d] = 0.0;
+    std::vector<double> near(8u, 0.0), far(8u, 0.0);
     near[0] = 0.2;
     far[0] = -0.45;
     far[1] = 0.45;
-    goals->addState(near);
-    goals->addState(far);
-    problem.pdef->setGoal(goals);
+    setGoalStates(problem, {near, far});
     auto planner = std::make_shared<LITstar>(problem.si);
     planner->setSeed(2u);
     planner->setMaxBatches(30u);
@@ -1195,15 +1196,7 @@ TEST(LITstar, StartGoalLinesThatAStopLeftUncheckedAreCheckedByTheNextSolve)
     world.upper = {1.0, 1.0};
     world.boxes.push_back(Box{{0.24, -0.95}, {0.26, 0.95}});
     BoxProblem problem = makeBoxProblem(world, {0.0, 0.0}, {0.5, 0.0}, 1e-3);
-    auto goals = std::make_shared<ompl::base::GoalStates>(problem.si);
-    ompl::base::ScopedState<> behind(problem.si), free(problem.si);
-    behind[0] = 0.5;
-    behind[1] = 0.0;
-    free[0] = 0.0;
-    free[1] = 0.9;
-    goals->addState(behind);
-    goals->addState(free);
-    problem.pdef->setGoal(goals);
+    setGoalStates(problem, {{0.5, 0.0}, {0.0, 0.9}});  // behind the wall, in a free line
     auto planner = batchLimited(problem, 2u);
     planner->setSeed(3u);
     bool stopped = false;
