@@ -175,6 +175,24 @@ def test_info_counts_topics_and_seq_gaps(mixed_bag: Path) -> None:
     assert "3 skipped" in text.stdout
 
 
+def test_info_prints_recorded_names_escaped(tmp_path: Path) -> None:
+    """Any process on the graph can publish on /lit/*: a source with a lone surrogate ended
+    ``lit replay info`` with a UnicodeEncodeError and nothing else, and one with a terminal
+    escape and a newline coloured the terminal and forged a line of the output."""
+    path = tmp_path / "poisoned"
+    with BagRecorder(path, run_id="r1") as recorder:
+        recorder.add_topic("/lit/decision", bag.STRING_TYPE)
+        for seq, source in enumerate(("/ev\x1b[31mil\nfake line", "/evil\ud800")):
+            text = envelope("lit_msgs_json/Decision", seq, source, "r1", {}, stamp_ns=seq)
+            recorder.write_string("/lit/decision", text, 100 + seq)
+    result = _replay("info", path)
+    assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr
+    assert "from /ev\\x1b[31mil\\nfake line (run r1)" in result.stdout, result.stdout
+    assert "from /evil\\ud800 (run r1)" in result.stdout, result.stdout
+    assert "\x1b" not in result.stdout
+    assert not any(line.startswith("fake line") for line in result.stdout.splitlines())
+
+
 def test_info_accounts_a_restarted_publisher_as_a_process_of_its_own(tmp_path: Path) -> None:
     """A node restarted under the same name and run id (lit up passes one) counts from 0 again:
     its second process is accounted apart, so its numbers do not pass for duplicates of the first

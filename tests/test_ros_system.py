@@ -245,14 +245,19 @@ def _long_request_running(
     long = ros.call_start(
         "--payload-only", "plan", "--scenario", "np4", "--time", budget, "--request-id", "long"
     )
+    _wait_for_a_solution(recording, planner, "long")
+    return long
+
+
+def _wait_for_a_solution(recording: Recording, planner: Child, request_id: str) -> None:
+    """Until ``recording`` holds a SolutionUpdate of the plan request ``request_id``."""
     recording.wait_until(
         "/lit/solution",
-        lambda updates: any(update["episode_id"] == "long" for update in updates),
+        lambda updates: any(update["episode_id"] == request_id for update in updates),
         timeout=60.0,
-        what="a solution of the long request",
+        what=f"a solution of the request {request_id}",
         watch=[planner],
     )
-    return long
 
 
 def test_plan_requests_wait_in_the_queue_then_busy(ros: RosSystem) -> None:
@@ -395,6 +400,45 @@ def test_a_cancel_sent_again_after_a_new_plan_with_its_id_cancels_that_plan(
     assert (answer["running"], answer["queued"]) == (1, 0), answer
     stopped = finish_call(second)
     assert stopped.returncode == 0 and stopped.json()["status"] == "cancelled", stopped
+    assert planner.running()
+    _no_traceback(planner)
+
+
+def test_a_plan_request_sent_again_is_answered_with_its_result_not_planned_twice(
+    ros: RosSystem,
+) -> None:
+    """A copy of a plan request (the same text: ``lit call`` sends up to three when no answer
+    has come after 1, 3 and 7 s, since a request can be lost while a new client is matched)
+    waits for the request's result and gets it as its answer; it is not planned again."""
+    from lit_msgs_json import Publisher
+
+    recording = ros.recorder(["/lit/episode", "/lit/solution"])
+    planner = ros.planner()
+    _ready(planner)
+    recording.wait_for_publishers("/lit/solution")
+    text = Publisher("my_client", "run-1").encode(
+        "PlanRequest", {"scenario": "np4", "time": 300.0, "request_id": "twice"}
+    )
+    first = ros.call_start("raw", "/lit/planner/plan", text)
+    _wait_for_a_solution(recording, planner, "twice")
+    copy = ros.call_start("raw", "/lit/planner/plan", text)
+    planner.wait_for_log(r"plan request twice: a copy came again", timeout=60.0)
+    cancel = ros.call("--payload-only", "cancel", "--request-id", "twice")
+    assert cancel.returncode == 0 and cancel.json()["running"] == 1, cancel
+    answers = [finish_call(call) for call in (first, copy)]
+    assert [answer.returncode for answer in answers] == [0, 0], answers
+    payloads = [answer.json()["payload"] for answer in answers]
+    assert payloads[0]["status"] == "cancelled" and payloads[0]["request_id"] == "twice"
+    assert payloads[1] == payloads[0]  # the one query's result
+    recording.wait_until(
+        "/lit/episode",
+        lambda summaries: any(s["episode_id"] == "twice" for s in summaries),
+        timeout=60.0,
+        what="the request's episode summary",
+        watch=[planner],
+    )
+    assert "waits behind" not in planner.text()
+    assert sum(s["episode_id"] == "twice" for s in recording.payloads("/lit/episode")) == 1
     assert planner.running()
     _no_traceback(planner)
 
@@ -1147,6 +1191,20 @@ BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
         "aitstar stops on time only",
     ),
     (
+        "plan: a seed for an OMPL planner",  # answered as the seed used; its plans differed
+        [
+            "raw",
+            PLAN,
+            json.dumps(
+                _envelope("PlanRequest", {"scenario": "np4", "planner": "rrtconnect", "seed": 5})
+            ),
+        ],
+        None,
+        "invalid-request",
+        "$.payload.seed",
+        "rrtconnect cannot take a seed in the planner node",
+    ),
+    (
         "plan: a policy for an OMPL planner",  # was silently ignored; lit call refuses it (exit 2)
         [
             "raw",
@@ -1407,6 +1465,61 @@ def _nice_values(pid: int) -> dict[int, int]:
         fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
         values[int(task.name)] = int(fields[16])  # fields after the name start at field 3
     return values
+
+
+WRONG_AGENT_LEARNER = """
+import rclpy
+from diagnostic_msgs.srv import AddDiagnostics
+from lit_msgs_json import Publisher
+from lit_msgs_json.envelope import decode
+from lit_planner.rosutil import service_qos
+
+rclpy.init()
+node = rclpy.create_node("wrong_agent_learner")
+reply = Publisher("wrong_agent_learner", "fake")
+
+
+def serve(request, response):
+    message = decode(request.load_namespace)
+    payload = message.payload
+    response.success = True
+    if message.name == "EpisodeEnd":
+        response.message = reply.encode("EpisodeEndResponse", {
+            "episode_id": payload["episode_id"], "transitions_stored": 0, "pending_updates": 0,
+            "policy_version": 0, "episodes": 1})
+        return response
+    other = "psi_K" if payload["agent"] == "B" else "B"  # a B value for psi_K, and the reverse
+    response.message = reply.encode("DecideResponse", {
+        "agent": other, "episode_id": payload["episode_id"], "value": 100.0 if other == "B" else 5.0,
+        "policy_version": 0, "explore": False})
+    return response
+
+
+node.create_service(AddDiagnostics, "/lit/learner/decide", serve, qos_profile=service_qos())
+print("ready: wrong-agent learner", flush=True)
+try:
+    rclpy.spin(node)
+except KeyboardInterrupt:
+    pass
+"""
+"""A learner that answers every decision for the other agent."""
+
+
+def test_a_learner_answer_for_another_agent_is_not_executed(ros: RosSystem) -> None:
+    """A DecideResponse for another agent (or episode) than the request's was executed as it
+    was: a psi_K request answered with a B value planned with psi_K = 15 (clamped), without a
+    word. It is a fallback now, with a warning naming what was answered."""
+    learner = ros.start("fake-learner", [sys.executable, "-c", WRONG_AGENT_LEARNER])
+    learner.wait_for_log(r"ready:", timeout=NODE_START)
+    recording = ros.recorder([EPISODE])
+    planner = ros.planner(episodes=1, exit_when_done=True, **TRAINING)
+    assert planner.wait(timeout=300.0) == 0, planner.tail()
+    planner.wait_for_log(r"the learner answered for agent '(B|psi_K)' of episode", timeout=1.0)
+    summary = recording.wait_until(
+        EPISODE, lambda found: len(found) >= 1, timeout=30.0, what="the EpisodeSummary"
+    )[0]
+    assert summary["fallback_decisions"] == summary["learner_calls"] > 0, summary
+    _no_traceback(planner)
 
 
 def test_learner_trains_at_a_lower_priority_than_it_answers(ros: RosSystem) -> None:

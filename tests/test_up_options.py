@@ -108,6 +108,8 @@ def test_bad_options_start_nothing(tmp_path: Path, options: list[str], message: 
         (["demo", "--time", "-1"], "lit demo: --time must be a finite positive number"),
         (["demo", "--local", "--time", "0"], "lit demo: --time must be a finite positive number"),
         (["demo", "--plans", "0"], "lit demo: --plans must be 1 or more"),
+        # It trained, then the planner node refused the plan's seed: a traceback, exit 1.
+        (["demo", "--seed", "4294967295", "--plans", "2"], "plans seeds up to 4294967296"),
         (["demo", "--training-budget", "0"], "--training-budget must be a finite positive number"),
         (
             ["demo", "--training-budget", "inf"],

@@ -497,6 +497,7 @@ class LearnerCore:
 
     def _restore(self, state: dict[str, Any]) -> None:
         """The saved state of :meth:`load_checkpoint` into this fresh core."""
+        _check_values(state)
         core = self
         for name, agent in core.agents.items():
             try:
@@ -669,6 +670,69 @@ _TENSOR_DTYPES = frozenset(
 _WRITE_FAILED = ("unexpected pos", "failed writing")
 """Words of torch's writer when the file could not be written (a full disk: "unexpected pos 64 vs
 0"; "PytorchStreamWriter failed writing file ...")."""
+
+
+def _whole(label: str, value: Any) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise CheckpointError(f"{label} is {value!r}, not a whole number >= 0")
+
+
+def _real(label: str, value: Any, *, least: float = -np.inf) -> None:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float, np.integer, np.floating))
+        or not least <= float(value) < np.inf
+    ):
+        raise CheckpointError(f"{label} is {value!r}, not a finite number >= {least:g}")
+
+
+def _mapping(label: str, value: Any) -> Mapping[Any, Any]:
+    if not isinstance(value, Mapping):
+        raise CheckpointError(f"{label} is a {type(value).__name__}, not a mapping")
+    return value
+
+
+def _check_values(state: Mapping[str, Any]) -> None:
+    """Raise CheckpointError for a count, time or cost of the wrong type or out of range: such a
+    checkpoint loaded, and the learner node then failed at its first statistics (a traceback,
+    and a shutdown that wrote the checkpoint over). Structure that is missing raises KeyError
+    (or TypeError), which the caller reports."""
+    _whole("episodes", state["episodes"])
+    _whole("policy_version", state["policy_version"])
+    for source in state.get("sources", ()):
+        if not isinstance(source, str):
+            raise CheckpointError(f"sources holds {source!r}, not a name")
+    for agent, count in _mapping("pending_updates", state["pending_updates"]).items():
+        _whole(f"pending_updates[{agent!r}]", count)
+    for episode, owed in _mapping("owed_updates", state.get("owed_updates", {})).items():
+        for agent, count in _mapping(f"owed_updates[{episode!r}]", owed).items():
+            _whole(f"owed_updates[{episode!r}][{agent!r}]", count)
+    for episode, terms in _mapping("episode_terms", state["episode_terms"]).items():
+        for agent, values in _mapping(f"episode_terms[{episode!r}]", terms).items():
+            for i, value in enumerate(values):
+                _real(f"episode_terms[{episode!r}][{agent!r}][{i}]", value)
+    for name, agent in _mapping("agents", state["agents"]).items():
+        _whole(f"agents[{name!r}].updates", agent["updates"])
+        _whole(f"agents[{name!r}].transitions", agent["transitions"])
+    for episode, progress in _mapping("pairing", state["pairing"]).items():
+        where = f"pairing[{episode!r}]"
+        for count, time in _mapping(
+            f"{where}.improvement_times", progress["improvement_times"]
+        ).items():
+            _whole(f"{where}.improvement_times key", count)
+            _real(f"{where}.improvement_times[{count}]", time, least=0.0)
+        _real(f"{where}.last_time", progress["last_time"], least=0.0)
+        if progress.get("best_cost") is not None:
+            _real(f"{where}.best_cost", progress["best_cost"], least=0.0)
+        for agent, value in _mapping(f"{where}.returns", progress["returns"]).items():
+            _real(f"{where}.returns[{agent!r}]", value)
+        for agent, pending in _mapping(f"{where}.pending", progress["pending"]).items():
+            features, action, improvements, time = pending
+            for i, feature in enumerate(features):
+                _real(f"{where}.pending[{agent!r}] feature {i}", feature)
+            _real(f"{where}.pending[{agent!r}] action", action)
+            _whole(f"{where}.pending[{agent!r}] improvements", improvements)
+            _real(f"{where}.pending[{agent!r}] time", time, least=0.0)
 
 
 def _archive_damage(path: Path) -> str | None:

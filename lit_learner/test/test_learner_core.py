@@ -324,6 +324,40 @@ def test_a_checkpoint_with_parts_missing_is_one_error(tmp_path: Path) -> None:
         LearnerCore.load_checkpoint(path)
 
 
+@pytest.mark.parametrize(
+    ("edit", "value", "message"),
+    [
+        (("policy_version",), "x", r"policy_version is 'x', not a whole number >= 0"),
+        (("episodes",), -5, r"episodes is -5, not a whole number >= 0"),
+        (("pending_updates", "B"), 1.5, r"pending_updates\['B'\] is 1.5"),
+        (("agents", "psi_K", "updates"), True, r"agents\['psi_K'\].updates is True"),
+        (("pairing", "e", "last_time"), math.nan, r"pairing\['e'\].last_time is nan"),
+        (("pairing", "e", "best_cost"), "1", r"pairing\['e'\].best_cost is '1'"),
+    ],
+    ids=["version", "episodes", "pending", "updates", "time", "cost"],
+)
+def test_a_checkpoint_value_of_the_wrong_type_is_refused_at_load(
+    tmp_path: Path, edit: tuple[str, ...], value: object, message: str
+) -> None:
+    """The learner node loaded a checkpoint whose policy_version was 'x' (or whose episodes
+    were -5), its statistics then failed with a traceback, and its shutdown wrote the
+    checkpoint over."""
+    core = LearnerCore(LearnerConfig(seed=0))
+    request = DecisionRequest("B", "e", 0.1, 0.1, 0.1, 0.5, 10.0, 3.0, 2.0, 1, 4)
+    core.commit(request, core.choose(request).a_norm)
+    path = tmp_path / "core.pt"
+    core.save_checkpoint(path)
+    state = torch.load(path, weights_only=False)
+    *parents, key = edit
+    target = state
+    for part in parents:
+        target = target[part]
+    target[key] = value
+    torch.save(state, path)
+    with pytest.raises(CheckpointError, match=message):
+        LearnerCore.load_checkpoint(path)
+
+
 def test_a_killed_writers_temporary_checkpoint_is_removed(tmp_path: Path) -> None:
     """A process killed while it wrote a checkpoint left ``<name>.<pid>.<thread>.tmp`` beside it,
     and nothing removed it. One that a writer still holds (its flock) is left alone."""

@@ -174,6 +174,21 @@ def dumps(name: str, obj: object, **kwargs: Any) -> str:
     return json.dumps(obj, allow_nan=False, **kwargs)
 
 
+class _NameTwice(Exception):
+    """A JSON object gives a name twice (its name in ``args[0]``)."""
+
+
+def _names_once(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    made = dict(pairs)
+    if len(made) < len(pairs):
+        seen: set[str] = set()
+        for key, _ in pairs:
+            if key in seen:
+                raise _NameTwice(key)
+            seen.add(key)
+    return made
+
+
 def loads(name: str, text: str | bytes) -> Any:
     """Parse strict JSON (``NaN``/``Infinity`` rejected) and validate it against schema ``name``.
 
@@ -181,7 +196,19 @@ def loads(name: str, text: str | bytes) -> Any:
         SchemaError: the text is not JSON (rule ``json``) or violates the schema.
     """
     try:
-        obj = json.loads(text, parse_constant=_reject_constant, parse_int=_double_int)
+        obj = json.loads(
+            text,
+            parse_constant=_reject_constant,
+            parse_int=_double_int,
+            object_pairs_hook=_names_once,
+        )
+    except _NameTwice as twice:  # json.loads kept the last value, as envelopes do not
+        raise SchemaError(
+            name.removeprefix("lit_msgs_json/"),
+            "$",
+            "json",
+            f"not usable JSON: the name {shown(twice.args[0])} is given twice in one object",
+        ) from None
     except (ValueError, TypeError) as exc:  # JSONDecodeError and UnicodeDecodeError are ValueErrors
         raise SchemaError(
             name.removeprefix("lit_msgs_json/"), "$", "json", f"not valid JSON: {exc}"

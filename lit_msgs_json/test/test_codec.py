@@ -236,3 +236,10 @@ def test_json_nested_too_deeply_is_a_schema_error() -> None:
     """A sidecar of 100 000 nested arrays raised RecursionError (a traceback in lit tensors)."""
     with pytest.raises(SchemaError, match="nested too deeply"):
         loads("lit_msgs_json/TensorSidecar", "[" * 100_000)
+
+
+def test_a_name_given_twice_is_a_schema_error() -> None:
+    """json.loads keeps a repeated name's last value: a sidecar or run record saying two things
+    was read as the second (envelopes refuse it)."""
+    with pytest.raises(SchemaError, match=r'the name "output" is given twice in one object'):
+        loads("lit_msgs_json/TensorSidecar", '{"a": {"output": 1, "output": 2}}')

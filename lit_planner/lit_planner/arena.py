@@ -281,7 +281,13 @@ def read_runs(path: Path) -> list[dict[str, Any]]:
             raise ArenaError(
                 f"{path}:{number}: expected a JSON object, got {type(record).__name__}"
             )
-        if record.get("schema") == BENCH_RUN_SCHEMA:
+        schema = record.get("schema")
+        if schema is not None and schema != BENCH_RUN_SCHEMA:  # it was taken as a run
+            raise ArenaError(
+                f"{path}:{number}: a record of schema {json.dumps(schema)[:100]}, not a lit "
+                f"bench run ({BENCH_RUN_SCHEMA})"
+            )
+        if schema == BENCH_RUN_SCHEMA:
             try:  # a lit bench record: as lit bench wrote it (no NaN, no negative cost, ...)
                 codec.loads(BENCH_RUN_SCHEMA, line)
             except codec.SchemaError as error:
@@ -311,6 +317,11 @@ def write_logs(
         for key in ("scenario", "planner"):
             if not isinstance(record.get(key), str) or not record[key]:
                 raise ArenaError(f"run record {index} has no {key!r} name: {dict(record)}")
+            if not record[key].isprintable():  # a lone surrogate failed the write (traceback)
+                raise ArenaError(
+                    f"run record {index}: its {key} name {ascii(record[key])[:200]} is not "
+                    "printable text"
+                )
         by_scenario.setdefault(_scenario_name(record), []).append(record)
     log_dir.mkdir(parents=True, exist_ok=True)
     paths = []

@@ -77,14 +77,18 @@ its answer (:class:`~lit_planner.rosutil.ServerGone`): its node stopped, and a r
 as it stopped is never answered."""
 RESEND = 1.0
 """Seconds without an answer after which a request is sent again (then after 2, 4, ... s), if its
-service answers a copy as the request it repeats (:func:`_resend_after`)."""
+service answers a copy as the request it repeats (:func:`_resends`)."""
 
 ANSWERS_COPIES = frozenset(
     f"lit_msgs_json/{name}" for name in ("DecideRequest", "EpisodeEnd", "CancelRequest")
 )
 """Requests whose services answer a client's copy of its latest text as that request: the
 learner's decide service from its cache, the planner's cancel service by repeating its answer.
-A plan request is not among them: a copy would be planned again."""
+The planner's plan service also takes a copy as the request (answered with its result), but
+only a few are sent (:data:`PLAN_RESENDS`): each waits in the node for the whole query."""
+PLAN_RESENDS = 3
+"""Copies of a plan request sent at most (after 1, 3 and 7 s without an answer): a request lost
+while a new client is matched is lost in its first seconds, and a long query's answer is not."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -316,17 +320,21 @@ class Interrupts:
         return self.count >= 2
 
 
-def _resend_after(text: str) -> float | None:
-    """:data:`RESEND` for a request whose service answers a copy as the request it repeats
-    (:data:`ANSWERS_COPIES`), else None (sent once). A request or its answer can be lost while a
-    new client is still being matched, with no error on either side (in CI: a cancel, and a
-    decide request the learner had answered, each followed by 60 s of silence); a copy sent
-    then gets the answer."""
+def _resends(text: str) -> tuple[float | None, int | None]:
+    """When to send ``text`` again without an answer, and how many copies at most:
+    (:data:`RESEND`, no limit) for a request whose service answers a copy as the request it
+    repeats (:data:`ANSWERS_COPIES`), (:data:`RESEND`, :data:`PLAN_RESENDS`) for a plan request,
+    else (None, None): sent once. A request or its answer can be lost while a new client is
+    still being matched, with no error on either side (in CI: a cancel, and a decide request the
+    learner had answered, each followed by 60 s of silence); a copy sent then gets the
+    answer."""
     try:
         schema = json.loads(text).get("schema")
     except (ValueError, AttributeError, RecursionError):  # not JSON, not an object: sent once
-        return None
-    return RESEND if schema in ANSWERS_COPIES else None
+        return None, None
+    if schema == "lit_msgs_json/PlanRequest":
+        return RESEND, PLAN_RESENDS
+    return (RESEND, None) if schema in ANSWERS_COPIES else (None, None)
 
 
 def _call(
@@ -379,12 +387,14 @@ def _call(
         started = time.perf_counter()
         args.sent = True
         # A Ctrl-C or SIGTERM: the wait notices it within 0.1 s.
+        resend_after, max_resends = _resends(text)
         answer = caller.call(
             text,
             args.timeout,
-            resend_after=_resend_after(text),
+            resend_after=resend_after,
             interrupted=interrupts.first,
             server_gone=SERVER_GONE,
+            max_resends=max_resends,
         )
         elapsed = time.perf_counter() - started
         if answer is None:
@@ -573,8 +583,9 @@ def _request(args: argparse.Namespace) -> tuple[str, str]:
             # nothing is sent: exit 2 as for a shorthand that contradicts --policy (the node's
             # invalid-request Error, exit 1, said "refused by the planner" for a typing error).
             planning.resolve_planner(args.planner, args.policy)
-        if args.planner is not None:  # an OMPL planner with --iterations or --batches
+        if args.planner is not None:  # an OMPL planner with --iterations, --batches or --seed
             planning.check_stops_on_count(args.planner, bool(args.iterations or args.batches))
+            planning.check_seed_in_node(args.planner, args.seed is not None)
         for key in ("time", "planner", "policy", "seed", "start", "goal", "request_id"):
             value = getattr(args, key)
             if value is not None:

@@ -176,6 +176,12 @@ def _quiet_stdout() -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` (default: ``sys.argv[1:]``) and run the chosen subcommand."""
     argv = _join_negative_lists(list(sys.argv[1:] if argv is None else argv))
+    for stream in (sys.stdout, sys.stderr):
+        # Text that is not Unicode (a lone surrogate in a recorded message or a sidecar) is
+        # printed escaped: it ended `lit replay info` and `lit tensors info` with a
+        # UnicodeEncodeError, and nothing else of their output.
+        if stream is not None and hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="backslashreplace")
     stdout = sys.stdout
     # Guarded from the start, so that --help and usage lines are too (argparse ignores an OSError
     # when it prints them); a closed standard output (`>&-`, sys.stdout None) stays as Python has it.

@@ -107,6 +107,12 @@ def run(args: argparse.Namespace) -> int:
                 f"--plans must be 1 or more and --training-episodes 0 or more, got {args.plans} "
                 f"and {args.training_episodes}"
             )
+        if not args.local and args.seed + args.plans - 1 > planning.MAX_SEED:
+            # Checked here, not by the planner node after the training (a traceback, exit 1).
+            raise LitPlannerError(
+                f"--seed {args.seed} with --plans {args.plans} plans seeds up to "
+                f"{args.seed + args.plans - 1}; the largest seed is {planning.MAX_SEED}"
+            )
         budget = args.training_budget
         if not args.local and not (math.isfinite(budget) and 0 < budget <= MAX_EPISODE_BUDGET):
             raise LitPlannerError(

@@ -140,6 +140,10 @@ CANCEL_EARLY = 10.0
 """Seconds a CancelRequest naming no known plan request is remembered: a plan request with that
 request_id arriving meanwhile is answered as cancelled, once."""
 ID_GENERATIONS = 4096
+PLAN_COPIES_KEPT = 32
+"""Plan requests, latest first, whose copies (the same text from the same client: a request sent
+again because its answer was slow to come) are answered with their result instead of being
+planned again (``PlannerNode._plan_copies``)."""
 """request_ids whose count of queued plan requests the node keeps (``_cancel_repeat_key``)."""
 EXECUTOR_THREADS = 8
 """The planner node's executor threads at least; more for a long queue (``PlannerNode.threads``)."""
@@ -386,6 +390,11 @@ class PlannerNode:
         self._id_generations: collections.OrderedDict[str, int] = collections.OrderedDict()
         """Plan requests queued so far by request_id, for the latest ID_GENERATIONS ids (read
         by the cancel service's repeat key; written under the lock)."""
+        self._plan_copies: collections.OrderedDict[tuple[str, str, int], Job] = (
+            collections.OrderedDict()
+        )
+        """The latest PLAN_COPIES_KEPT plan requests queued, by client (source, run) and text:
+        a copy of one is answered with its result, not planned again (under the lock)."""
         self._cancelled_early: dict[str, float] = {}
         """request_ids a CancelRequest named before any plan request carried them, with when
         (time.monotonic()): a plan request that arrives within CANCEL_EARLY s is answered as
@@ -474,7 +483,14 @@ class PlannerNode:
         reply = self.envelopes["reply"]
         try:
             message = decode(request.load_namespace, accept="PlanRequest")
-            job = self._job_from_request(message.payload, message.seq)
+            copy_key = (message.source, message.run_id, hash(request.load_namespace))
+            with self._queue_lock:
+                original = self._plan_copies.get(copy_key)
+            job = (
+                original
+                if original is not None
+                else self._job_from_request(message.payload, message.seq)
+            )
         except MessageError as exc:
             response.success, response.message = False, reply.error(exc)
             self.log.warning(f"plan request rejected: {exc}")
@@ -493,6 +509,55 @@ class PlannerNode:
             )
             self.log.warning(f"plan request rejected: {exc}")
             return response
+        if original is not None:
+            # A client's copy sent again (lit call resends a plan request that no answer has
+            # come to in its first seconds: one can be lost while a new client is matched).
+            self.log.info(
+                f"plan request {job.episode_id}: a copy came again (seq {message.seq} of "
+                f"{message.source}); answered with the request's result, not planned twice"
+            )
+        else:
+            answered = self._queue_plan(job, message, copy_key, response)
+            if answered is not None:
+                return answered
+        job.done.wait()
+        if job.error is not None:
+            response.success = False
+            if isinstance(job.error, TensorFileError):  # the tensors' fault, not the node's
+                response.message = reply.error(
+                    job.error,
+                    code="unavailable",
+                    message=(
+                        f"the tensor policy is unavailable: {str(job.error)[:3000]} (the files "
+                        "are read again at the next query)"
+                    ),
+                    request_schema="PlanRequest",
+                    request_seq=message.seq,
+                )
+            elif isinstance(job.error, (PlannerError, ScenarioError)):  # the request's options
+                response.message = reply.error(
+                    job.error,
+                    code="invalid-request",
+                    message=str(job.error)[:3000],
+                    request_schema="PlanRequest",
+                    request_seq=message.seq,
+                )
+            else:
+                response.message = reply.error(job.error)
+            return response
+        assert job.result is not None
+        response.success, response.message = plan_answer_text(
+            reply, self._plan_response(job), message.seq, self.log, job.episode_id
+        )
+        return response
+
+    def _queue_plan(
+        self, job: Job, message: Any, copy_key: tuple[str, str, int], response: Any
+    ) -> Any:
+        """Queue a new plan request's job (its copies are answered with its result from now on);
+        the response when it is answered at once (refused: the node is stopping or busy;
+        cancelled before it arrived), else None."""
+        reply = self.envelopes["reply"]
         with self._queue_lock:
             if self._stopping.is_set():  # after shutdown() began: nothing would take the job
                 response.success = False
@@ -528,6 +593,10 @@ class PlannerNode:
                 if len(generations) > ID_GENERATIONS:
                     generations.popitem(last=False)
                 self._jobs.put(job)  # under the lock: shutdown() cannot slip between check and put
+            self._plan_copies[copy_key] = job
+            self._plan_copies.move_to_end(copy_key)
+            if len(self._plan_copies) > PLAN_COPIES_KEPT:
+                self._plan_copies.popitem(last=False)
             if job.request_id is None:
                 self.log.info(
                     f"plan request seq {message.seq} of {message.source} has no request_id: it "
@@ -536,40 +605,12 @@ class PlannerNode:
         if cancelled_early:
             self.log.info(f"plan request {job.episode_id} was cancelled before it arrived")
             job.result = _not_started(job)
+            job.done.set()  # for its copies
             response.success, response.message = plan_answer_text(
                 reply, self._plan_response(job), message.seq, self.log, job.episode_id
             )
             return response
-        job.done.wait()
-        if job.error is not None:
-            response.success = False
-            if isinstance(job.error, TensorFileError):  # the tensors' fault, not the node's
-                response.message = reply.error(
-                    job.error,
-                    code="unavailable",
-                    message=(
-                        f"the tensor policy is unavailable: {str(job.error)[:3000]} (the files "
-                        "are read again at the next query)"
-                    ),
-                    request_schema="PlanRequest",
-                    request_seq=message.seq,
-                )
-            elif isinstance(job.error, (PlannerError, ScenarioError)):  # the request's options
-                response.message = reply.error(
-                    job.error,
-                    code="invalid-request",
-                    message=str(job.error)[:3000],
-                    request_schema="PlanRequest",
-                    request_seq=message.seq,
-                )
-            else:
-                response.message = reply.error(job.error)
-            return response
-        assert job.result is not None
-        response.success, response.message = plan_answer_text(
-            reply, self._plan_response(job), message.seq, self.log, job.episode_id
-        )
-        return response
+        return None
 
     def _serve_cancel(self, request: Any, response: Any) -> Any:
         """A CancelRequest: stop the running plan request and drop the queued ones that carry
@@ -654,6 +695,7 @@ class PlannerNode:
 
     def _job_from_request(self, payload: dict[str, Any], seq: int | None = None) -> Job:
         from lit_planner.errors import ScenarioError
+        from lit_planner.planning import check_seed_in_node
 
         try:
             problem = self._problem_from_request(payload)
@@ -683,6 +725,17 @@ class PlannerNode:
                     request_schema="PlanRequest",
                     request_seq=seq,
                 )
+        try:
+            check_seed_in_node(planner, "seed" in payload)
+        except PlannerError as exc:
+            raise MessageError(
+                "invalid-request",
+                str(exc),
+                field="$.payload.seed",
+                rule="litstar-only",
+                request_schema="PlanRequest",
+                request_seq=seq,
+            ) from None
         time_limit = payload.get("time")
         if time_limit is None and (payload.get("max_iterations") or payload.get("max_batches")):
             # A count limit alone plans without a time limit in the Python API; a request keeps
@@ -1012,11 +1065,22 @@ class PlannerNode:
                     # From encoding the request to the decoded, validated answer.
                     latency = (time.perf_counter() - started) * 1e3
                     self._heard_from_learner(f"in {latency:.1f} ms")
-                    if success and reply.name == "DecideResponse":
+                    answers = (reply.payload.get("agent"), reply.payload.get("episode_id"))
+                    if (
+                        success
+                        and reply.name == "DecideResponse"
+                        and answers == (kind, job.episode_id)
+                    ):
                         episode.add("learner", latency)
                         job.fell_back.discard(kind)
                         return float(reply.payload["value"])
-                    reason = f"learner error: {reply.payload.get('message', '?')}"
+                    if success and reply.name == "DecideResponse":  # it was executed as is
+                        reason = (
+                            f"the learner answered for agent {answers[0]!r} of episode "
+                            f"{answers[1]!r}, not for {kind!r} of this episode"
+                        )
+                    else:
+                        reason = f"learner error: {reply.payload.get('message', '?')}"
             else:
                 reason = f"learner did not answer within {deadline * 1e3:.0f} ms"
                 self._missed(self.learner.last_overdue)

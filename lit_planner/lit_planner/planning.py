@@ -163,6 +163,17 @@ def check_stops_on_count(core_planner: str, stops_on_count: bool) -> None:
         )
 
 
+def check_seed_in_node(core_planner: str, seeded: bool) -> None:
+    """PlannerError when a plan request to the planner node gives a seed to a planner other than
+    LIT*: the node answered it as the seed used, and two plans of one seed differed."""
+    if core_planner != LITSTAR and seeded:
+        raise PlannerError(
+            f"{core_planner} cannot take a seed in the planner node: OMPL's planners draw from "
+            "OMPL's generator, which a process seeds once, so the node cannot repeat their plans "
+            "(`lit plan` can: a process of its own); leave the seed out"
+        )
+
+
 def resolve_planner(planner: str, policy: str | None = None) -> tuple[str, str | None]:
     """Split a planner name (shorthands included) into the core's planner and the policy name.
 

@@ -339,11 +339,13 @@ class ServiceCaller:
         resend_after: float | None = None,
         interrupted: Callable[[], bool] | None = None,
         server_gone: float | None = None,
+        max_resends: int | None = None,
     ) -> Any:
         """Send ``request``; the response, or None after ``timeout``. ``resend_after`` (private
         mode only; ignored otherwise): without an answer after that many seconds send the same
-        request again, then after twice as long, and so on until the deadline, and take the
-        first answer to any of them (the others are dropped when they come). ``interrupted``:
+        request again, then after twice as long, and so on until the deadline (or until
+        ``max_resends`` copies are sent), and take the first answer to any of them (the others
+        are dropped when they come). ``interrupted``:
         looked at every :data:`INTERRUPT_POLL` s while waiting; once true the call raises
         :class:`CallInterrupted` (a signal handler that shut the context down does not wake the
         wait set, which would wait out the whole timeout; a server process that died will not
@@ -354,7 +356,7 @@ class ServiceCaller:
         if server_gone is not None:
             interrupted = self._unless_gone(interrupted, server_gone)
         if self._owner is not None:
-            return self._request_waiting(request, timeout, resend_after, interrupted)
+            return self._request_waiting(request, timeout, resend_after, interrupted, max_resends)
         done = threading.Event()
         future = self.client.call_async(request)
         future.add_done_callback(lambda _: done.set())
@@ -403,6 +405,7 @@ class ServiceCaller:
         timeout: float,
         resend_after: float | None,
         interrupted: Callable[[], bool] | None = None,
+        max_resends: int | None = None,
     ) -> Any:
         with self._lock:
             if self._wait_set is None:
@@ -430,6 +433,8 @@ class ServiceCaller:
                         self.resent += 1
                         interval *= 2.0
                         resend = now + interval
+                        if max_resends is not None and len(sent) > max_resends:
+                            resend = deadline  # no more copies
                         continue
                     until = min(deadline, resend)
                     if interrupted is not None:
@@ -493,12 +498,16 @@ class ServiceCaller:
         resend_after: float | None = None,
         interrupted: Callable[[], bool] | None = None,
         server_gone: float | None = None,
+        max_resends: int | None = None,
     ) -> tuple[bool, str] | None:
         """Send ``text`` as ``load_namespace``; ``(success, message)``, or None after ``timeout``
-        (``resend_after``, ``interrupted``, ``server_gone``: see :meth:`request`)."""
+        (``resend_after``, ``interrupted``, ``server_gone``, ``max_resends``: see
+        :meth:`request`)."""
         request = self.srv_type.Request()
         request.load_namespace = text
-        response = self.request(request, timeout, resend_after, interrupted, server_gone)
+        response = self.request(
+            request, timeout, resend_after, interrupted, server_gone, max_resends
+        )
         if response is None:
             return None
         return bool(response.success), str(response.message)

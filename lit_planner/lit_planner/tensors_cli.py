@@ -39,6 +39,7 @@ import numpy as np
 
 from lit_planner import argtypes, planning, tensor_files
 from lit_planner.errors import LitPlannerError, TensorFileError
+from lit_planner.guarded_stdout import printable
 
 EXIT_WRITTEN = 0
 """The tensors were written."""
@@ -241,12 +242,19 @@ def _info_lines(name: str, entry: dict[str, object]) -> list[str]:
         )
     provenance = entry["provenance"]
     assert isinstance(provenance, dict)
-    lines.append(f"    created     {entry['created']}, policy version {entry['policy_version']}")
-    lines += [f"    {key:<11s} {provenance[key]}" for key in PROVENANCE_SHOWN if key in provenance]
+    lines.append(
+        f"    created     {printable(entry['created'])}, policy version "
+        f"{printable(entry['policy_version'])}"
+    )
+    lines += [
+        f"    {key:<11s} {printable(provenance[key])}"
+        for key in PROVENANCE_SHOWN
+        if key in provenance
+    ]
     resumes = provenance.get("resumed_with") or []
     if isinstance(resumes, list) and resumes:  # the run's last command, the export's own
         lines.append(
-            f"    {'resumed':<11s} {resumes[-1]}"
+            f"    {'resumed':<11s} {printable(resumes[-1])}"
             + (f" (the last of {len(resumes)} resumes)" if len(resumes) > 1 else "")
         )
     return lines

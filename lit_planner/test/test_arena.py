@@ -246,6 +246,17 @@ def test_missing_and_malformed_runs_files(tmp_path: Path) -> None:
     (tmp_path / arena.RUNS_FILE).write_text(line + line)
     with pytest.raises(arena.ArenaError, match=r"runs.jsonl:2: a second record of scenario"):
         arena.export_arena(tmp_path)
+    # Another schema's record was taken as a run.
+    other = dict(RECORDS[0], schema="lit_msgs_json/Foo")
+    (tmp_path / arena.RUNS_FILE).write_text(json.dumps(other) + "\n")
+    with pytest.raises(arena.ArenaError, match=r'runs.jsonl:1: a record of schema "lit_msgs'):
+        arena.export_arena(tmp_path)
+    # A lone surrogate in a name: a UnicodeEncodeError traceback and an empty log file.
+    unnamed = {k: v for k, v in RECORDS[0].items() if k not in ("schema", "version")}
+    (tmp_path / arena.RUNS_FILE).write_text(json.dumps(dict(unnamed, planner="\ud800")) + "\n")
+    with pytest.raises(arena.ArenaError, match=r"its planner name '\\ud800' is not printable"):
+        arena.export_arena(tmp_path)
+    assert not list((tmp_path / arena.LOG_DIR).glob("*.log"))
 
 
 def test_worker_refuses_a_process_with_lit_core(tmp_path: Path) -> None:

@@ -153,6 +153,19 @@ def test_info_shows_the_resume_that_wrote_an_export(tmp_path: Path) -> None:
     ), readable.stdout
 
 
+def test_info_prints_the_provenance_escaped(tmp_path: Path) -> None:
+    """A sidecar's provenance with a lone surrogate was a UnicodeEncodeError traceback (the
+    planner plays the same folder), and control characters went to the terminal raw."""
+    provenance = {"command": "\ud800 lit train \x1b[31m\u202e"}
+    from lit_learner.config import LearnerConfig
+    from lit_learner.core import LearnerCore
+
+    LearnerCore(LearnerConfig(seed=0)).export_tensors(tmp_path, provenance)
+    readable = lit("tensors", "info", str(tmp_path))
+    assert readable.returncode == 0 and "Traceback" not in readable.stderr, readable.stderr
+    assert readable.stdout.count("    command     \\ud800 lit train \\x1b[31m\\u202e\n") == 2
+
+
 def test_info_names_a_defective_tensor_and_still_shows_the_other(tmp_path: Path) -> None:
     assert (
         lit("tensors", "constant", "--b", "80", "--psi-k", "4", "--out", str(tmp_path)).returncode
