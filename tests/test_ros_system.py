@@ -1305,8 +1305,8 @@ def test_bad_input_is_answered_with_errors(ros: RosSystem) -> None:
     # Fast DDS carries a message larger than its shared-memory segment (512 KiB) in fragments, and
     # with a dozen other clients starting at once one such request was seen lost (60 s without an
     # answer). With all 26 small ones at once, the learner's answer to one was lost once in CI:
-    # lit call now sends such a request again, but not a plan request, which the planner would
-    # plan again.
+    # lit call now sends such a request again (a plan request at most three times, in its first
+    # 7 s).
     small = [case for case in BAD_INPUT if case[2] is not OVERSIZE]
     results = []
     for first in range(0, len(small), 8):

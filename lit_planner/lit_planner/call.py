@@ -49,6 +49,7 @@ from lit_planner.rosutil import (
     DEFAULT_DOMAIN_ID,
     EXPORT_SERVICE,
     MAX_REQUEST_TIME,
+    PLAN_RESENDS,
     PLAN_SERVICE,
     CallInterrupted,
     ServerGone,
@@ -86,9 +87,6 @@ ANSWERS_COPIES = frozenset(
 learner's decide service from its cache, the planner's cancel service by repeating its answer.
 The planner's plan service also takes a copy as the request (answered with its result), but
 only a few are sent (:data:`PLAN_RESENDS`): each waits in the node for the whole query."""
-PLAN_RESENDS = 3
-"""Copies of a plan request sent at most (after 1, 3 and 7 s without an answer): a request lost
-while a new client is matched is lost in its first seconds, and a long query's answer is not."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

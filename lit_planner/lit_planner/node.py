@@ -84,6 +84,7 @@ from lit_planner.rosutil import (
     CANCEL_SERVICE,
     DECIDE_SERVICE,
     MAX_REQUEST_TIME,
+    PLAN_RESENDS,
     PLAN_SEND_ATTEMPTS,
     PLAN_SERVICE,
     TOPICS,
@@ -331,10 +332,13 @@ class PlannerNode:
         self.exit_code = 0
         """The process's exit code once ``finished`` (``exit_when_done``): 1 when an episode
         failed."""
-        self.threads = max(EXECUTOR_THREADS, int(p["queue_limit"]) + SPARE_THREADS + 1)
-        """Executor threads (spin_node): each plan request in progress or waiting holds one, and
-        busy answers, cancels, parameter services and timers need their own (with 8 threads a
-        queue_limit of 8 left none: requests beyond it waited unanswered instead of busy)."""
+        self.threads = max(
+            EXECUTOR_THREADS, (int(p["queue_limit"]) + 1) * (1 + PLAN_RESENDS) + SPARE_THREADS
+        )
+        """Executor threads (spin_node): each plan request in progress or waiting holds one, as
+        does each copy of it that ``lit call`` sends, and busy answers, cancels, parameter
+        services and timers need their own (with 8 threads a queue_limit of 8 left none:
+        requests beyond it waited unanswered instead of busy)."""
         qos = json_qos()
         self._string = String
         self._trajectory = JointTrajectory

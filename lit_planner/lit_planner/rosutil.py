@@ -521,6 +521,11 @@ class ServiceCaller:
                     self._owner.destroy_node()
 
 
+PLAN_RESENDS = 3
+"""Copies of a plan request ``lit call`` sends at most (after 1, 3 and 7 s without an answer: a
+request lost while a new client is matched is lost in its first seconds, and a long query's
+answer is not); the planner node keeps an executor thread for each."""
+
 SEND_ATTEMPTS = 20
 """Tries of :func:`send_response` (each waits up to 100 ms for the client's reader): about 2 s,
 the most the decide service's one serving thread (and any send waiting for the send lock
