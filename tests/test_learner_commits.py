@@ -136,6 +136,16 @@ SCRIPT = textwrap.dedent(
     out["higher_cost"] = [ok_dearer, payload.get("code"), payload.get("field")]
     learner._lock.release()
     learner.apply_commits()
+    # A count written as 4.0 (valid JSON for 4) was kept as a float, and the checkpoint holding
+    # it was refused at load ("not a whole number").
+    ok_float, _ = call("DecideRequest", dict(more, planning_time=0.5, improvements=4.0,
+                                             cost=1.4), other)
+    learner.apply_commits()
+    learner.checkpoint()
+    from lit_learner.core import LearnerCore
+    resumed = LearnerCore.load_checkpoint(f"{folder}/c.pt")
+    out["float_count"] = [ok_float, sorted(
+        resumed.pairing.episodes["planner/other|run-1|imp"].improvement_times)]
     learner.shutdown()
     learner.node.destroy_node()
     rclpy.shutdown()
@@ -187,3 +197,4 @@ def test_decisions_answered_while_the_lock_is_taken_are_recorded_after_in_order(
     assert out["refused_end_swept"] is False
     assert out["fewer_improvements"] == [True, False, "invalid-request", "$.payload.improvements"]
     assert out["higher_cost"] == [False, "invalid-request", "$.payload.cost"]
+    assert out["float_count"] == [True, [0, 3, 4]]

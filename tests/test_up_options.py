@@ -437,13 +437,16 @@ rclpy.spin(node)
         ("DecideRequest", True),
         ("EpisodeEnd", True),
         ("CancelRequest", True),
-        ("PlanRequest", False),
+        ("PlanRequest", True),
+        ("PlanResponse", False),
     ],
 )
 def test_lit_call_sends_again_what_its_service_answers_as_a_copy(schema: str, resent: bool) -> None:
     """A decide request whose answer was lost waited out lit call's whole timeout (seen in CI: 60
     s). lit call sends again the requests whose services answer a copy as the request it
-    repeats (the learner's, a cancel); a plan request is sent once, as a copy would plan again."""
+    repeats (the learner's, a cancel, and a plan request, which the planner node answers with
+    the request's result; at most three copies of it, ``call._resends``); other text is sent
+    once."""
     text = json.dumps({"schema": f"lit_msgs_json/{schema}", "version": 1, "payload": {}})
     with _server(_LOSES_FIRST_ANSWERS) as env:
         process = _lit_call(env, "--wait", "30", "--timeout", "5", "raw", "/lossy/service", text)
@@ -453,6 +456,18 @@ def test_lit_call_sends_again_what_its_service_answers_as_a_copy(schema: str, re
     else:
         assert process.returncode == 2, process.stderr
         assert "did not answer within 5 s" in process.stderr
+
+
+def test_a_plan_request_is_sent_again_at_most_three_times() -> None:
+    from lit_planner.call import RESEND, _resends
+
+    def text(schema: str) -> str:
+        return json.dumps({"schema": f"lit_msgs_json/{schema}", "payload": {}})
+
+    assert _resends(text("PlanRequest")) == (RESEND, 3)  # after 1, 3 and 7 s
+    assert _resends(text("DecideRequest")) == (RESEND, None)  # until the deadline
+    assert _resends(text("PlanResponse")) == (None, None)
+    assert _resends("not JSON") == (None, None)
 
 
 _STOPS_UNANSWERED = """

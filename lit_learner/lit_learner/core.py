@@ -727,12 +727,14 @@ def _check_values(state: Mapping[str, Any]) -> None:
         for agent, value in _mapping(f"{where}.returns", progress["returns"]).items():
             _real(f"{where}.returns[{agent!r}]", value)
         for agent, pending in _mapping(f"{where}.pending", progress["pending"]).items():
-            features, action, improvements, time = pending
+            # (features, action, improvements, time); before 2026-11-30 without the time
+            features, action, improvements, *time = pending
             for i, feature in enumerate(features):
                 _real(f"{where}.pending[{agent!r}] feature {i}", feature)
             _real(f"{where}.pending[{agent!r}] action", action)
             _whole(f"{where}.pending[{agent!r}] improvements", improvements)
-            _real(f"{where}.pending[{agent!r}] time", time, least=0.0)
+            for value in time:
+                _real(f"{where}.pending[{agent!r}] time", value, least=0.0)
 
 
 def _archive_damage(path: Path) -> str | None:

@@ -443,8 +443,8 @@ class LearnerNode:
                     time_budget=payload["time_budget"],
                     cost=payload["cost"],
                     minimum_cost=payload["minimum_cost"],
-                    improvements=payload["improvements"],
-                    path_states=payload["path_states"],
+                    improvements=int(payload["improvements"]),  # 2.0 is valid JSON for 2
+                    path_states=int(payload["path_states"]),
                     explore=payload.get("explore", True),
                     after_fallback=payload.get("after_fallback", False),
                 )
@@ -470,10 +470,14 @@ class LearnerNode:
                         self._probes += 1
                     return response
                 with self._queue_lock:  # the idle sweep sees all three or none
+                    before = self._latest_time.get(episode)
                     self._latest_time[episode] = (
                         decision.planning_time,
                         decision.improvements,
-                        decision.cost,  # the lowest so far: a higher one was refused
+                        # the lowest so far (a higher one was refused, but for a rounding)
+                        decision.cost
+                        if before is None or before[2] is None or decision.cost is None
+                        else min(before[2], decision.cost),
                     )
                     self._last_seen.pop(episode, None)  # in order of their latest decisions
                     self._last_seen[episode] = (
@@ -511,8 +515,8 @@ class LearnerNode:
                 time_budget=payload["time_budget"],
                 cost=payload["cost"],
                 minimum_cost=payload["minimum_cost"],
-                improvements=payload["improvements"],
-                path_states=payload["path_states"],
+                improvements=int(payload["improvements"]),  # 2.0 is valid JSON for 2
+                path_states=int(payload["path_states"]),
                 truncated=payload["truncated"],
                 final_features={k: tuple(v) for k, v in final.items()} if final else None,
                 fallback_agents=tuple(payload.get("fallback_agents", ())),

@@ -229,6 +229,21 @@ def test_a_best_cost_that_rises_or_is_lost_is_an_error_that_changes_nothing(
     assert len(closed) == 2
 
 
+def test_a_cost_a_rounding_above_the_best_is_taken_and_moves_nothing() -> None:
+    """The episode end's cost is the path's length summed again: on a machine whose OMPL fuses
+    multiply-adds (arm64) it can be an ulp above the decisions' best cost, and the end was
+    refused (the episode abandoned)."""
+    pairing = Pairing(REWARD)
+    pairing.step(request("B", "e", 1.0, 0.1, improvements=1, cost=3.0, path_states=4), 0.1)
+    above = 3.0 * (1.0 + 1e-12)
+    pairing.step(request("B", "e", 2.0, 0.1, improvements=1, cost=above, path_states=4), 0.1)
+    assert pairing.episodes["e"].best_cost == 3.0
+    with pytest.raises(PairingError, match=r"a best cost only falls"):
+        pairing.check(request("B", "e", 2.0, 0.1, improvements=1, cost=3.0001, path_states=4))
+    closed, _ = pairing.end(EpisodeEnd("e", 3.0, 10.0, above, 2.0, 1, 4))
+    assert len(closed) == 1
+
+
 def test_a_checkpoint_without_the_best_cost_still_loads() -> None:
     """Checkpoints written before the pairing kept the best cost: the check starts at the next
     solution."""

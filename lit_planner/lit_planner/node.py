@@ -141,11 +141,11 @@ CANCEL_EARLY = 10.0
 """Seconds a CancelRequest naming no known plan request is remembered: a plan request with that
 request_id arriving meanwhile is answered as cancelled, once."""
 ID_GENERATIONS = 4096
-PLAN_COPIES_KEPT = 32
-"""Plan requests, latest first, whose copies (the same text from the same client: a request sent
-again because its answer was slow to come) are answered with their result instead of being
-planned again (``PlannerNode._plan_copies``)."""
 """request_ids whose count of queued plan requests the node keeps (``_cancel_repeat_key``)."""
+PLAN_COPIES_KEPT = 32
+"""Answered plan requests, the latest, whose copies (the same text from the same client: a
+request sent again because its answer was slow to come) are answered with their result instead
+of being planned again (``PlannerNode._plan_copies``; those queued or running are all kept)."""
 EXECUTOR_THREADS = 8
 """The planner node's executor threads at least; more for a long queue (``PlannerNode.threads``)."""
 SPARE_THREADS = 3
@@ -305,6 +305,8 @@ class Job:
     """The running query's ``lit_core.CancelFlag``: set by a CancelRequest or by shutdown()."""
     cut_short: bool = False
     """The query was cut short by shutdown() (an episode so ended is not done)."""
+    copies: int = 0
+    """Copies of its plan request waiting for its result (plan requests only)."""
 
 
 class PlannerNode:
@@ -397,8 +399,9 @@ class PlannerNode:
         self._plan_copies: collections.OrderedDict[tuple[str, str, int], Job] = (
             collections.OrderedDict()
         )
-        """The latest PLAN_COPIES_KEPT plan requests queued, by client (source, run) and text:
-        a copy of one is answered with its result, not planned again (under the lock)."""
+        """Plan requests queued or running, and the latest PLAN_COPIES_KEPT answered, by client
+        (source, run) and text: a copy of one is answered with its result, not planned again
+        (under the lock)."""
         self._cancelled_early: dict[str, float] = {}
         """request_ids a CancelRequest named before any plan request carried them, with when
         (time.monotonic()): a plan request that arrives within CANCEL_EARLY s is answered as
@@ -516,6 +519,21 @@ class PlannerNode:
         if original is not None:
             # A client's copy sent again (lit call resends a plan request that no answer has
             # come to in its first seconds: one can be lost while a new client is matched).
+            with self._queue_lock:
+                waiting = not job.done.is_set() and job.copies >= PLAN_RESENDS
+                job.copies += 0 if waiting else 1
+            if waiting:  # each holds an executor thread until the query ends
+                response.success = False
+                response.message = reply.error(
+                    MessageError(
+                        "busy",
+                        f"plan request {job.episode_id}: {PLAN_RESENDS} copies of it wait for "
+                        "its result already; no more are taken while it runs",
+                        request_schema="PlanRequest",
+                        request_seq=message.seq,
+                    )
+                )
+                return response
             self.log.info(
                 f"plan request {job.episode_id}: a copy came again (seq {message.seq} of "
                 f"{message.source}); answered with the request's result, not planned twice"
@@ -597,10 +615,12 @@ class PlannerNode:
                 if len(generations) > ID_GENERATIONS:
                     generations.popitem(last=False)
                 self._jobs.put(job)  # under the lock: shutdown() cannot slip between check and put
-            self._plan_copies[copy_key] = job
-            self._plan_copies.move_to_end(copy_key)
-            if len(self._plan_copies) > PLAN_COPIES_KEPT:
-                self._plan_copies.popitem(last=False)
+            copies = self._plan_copies
+            copies[copy_key] = job
+            copies.move_to_end(copy_key)
+            answered = [key for key, kept in copies.items() if kept.done.is_set()]
+            for key in answered[: max(0, len(answered) - PLAN_COPIES_KEPT)]:
+                del copies[key]  # the oldest answered ones: queued or running ones stay
             if job.request_id is None:
                 self.log.info(
                     f"plan request seq {message.seq} of {message.source} has no request_id: it "

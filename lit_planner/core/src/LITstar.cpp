@@ -766,8 +766,8 @@ namespace lit
         const double count =
             static_cast<double>(segmentCountFactor_) * std::ceil(graph_->distance(a, b) / longestValidSegment_);
         if (!(count < 2147483648.0))  // also NaN: the point indices are unsigned int
-            throw ompl::Exception("LITstar: an edge of length " + detail::numberText(graph_->distance(a, b)) + " needs " +
-                                  detail::numberText(count) +
+            throw ompl::Exception("LITstar: an edge of length " + detail::numberText(graph_->distance(a, b)) +
+                                  " needs " + detail::numberText(count) +
                                   " collision checks at this state validity checking resolution, more than 2^31: "
                                   "use a coarser resolution");
         return static_cast<unsigned int>(count);

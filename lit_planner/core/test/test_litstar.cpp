@@ -809,7 +809,7 @@ TEST(LITstar, ALazyGoalSetIsWaitedForAndAFailedSetupIsReadAgain)
         problem.si,
         [calls](const ompl::base::GoalLazySamples *, ompl::base::State *state) {
             if ((*calls)++ > 0)
-                return false;  // one goal (a call that answers false adds nothing)
+                return false;  // one goal (a false answer ends the sampling thread)
             std::this_thread::sleep_for(std::chrono::milliseconds(50));
             auto *values = state->as<ompl::base::RealVectorStateSpace::StateType>()->values;
             values[0] = 0.2;
@@ -1159,11 +1159,11 @@ TEST(LITstar, ReadingTheProblemIsPlanningTime)
     auto lazy = std::make_shared<ompl::base::GoalLazySamples>(
         problem.si,
         [solving, given](const ompl::base::GoalLazySamples *, ompl::base::State *state) {
-            if (given->load() || !solving->load())
-            {
+            if (given->load())
+                return false;  // one goal (a false answer ends the sampling thread)
+            // The thread calls at once: wait here for solve() (at most 60 s, so that a failure cannot hang).
+            for (int waited = 0; waited < 60000 && !solving->load(); ++waited)
                 std::this_thread::sleep_for(std::chrono::milliseconds(1));
-                return false;
-            }
             std::this_thread::sleep_for(std::chrono::milliseconds(50));
             auto *values = state->as<ompl::base::RealVectorStateSpace::StateType>()->values;
             values[0] = 0.2;
