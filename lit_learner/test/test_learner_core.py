@@ -358,6 +358,21 @@ def test_a_checkpoint_value_of_the_wrong_type_is_refused_at_load(
         LearnerCore.load_checkpoint(path)
 
 
+def test_a_checkpoint_whose_pending_steps_have_no_time_still_loads(tmp_path: Path) -> None:
+    """Checkpoints from before 2026-11-30 keep a pending step as (features, action,
+    improvements); the pairing loads them (time 0), and the value checks took them as damaged."""
+    core = LearnerCore(LearnerConfig(seed=0))
+    request = DecisionRequest("B", "e", 0.1, 0.1, 0.1, 0.5, 10.0, 3.0, 2.0, 1, 4)
+    core.commit(request, core.choose(request).a_norm)
+    path = tmp_path / "core.pt"
+    core.save_checkpoint(path)
+    state = torch.load(path, weights_only=False)
+    pending = state["pairing"]["e"]["pending"]
+    pending["B"] = tuple(pending["B"])[:3]
+    torch.save(state, path)
+    assert LearnerCore.load_checkpoint(path).pairing.episodes["e"].pending["B"].time == 0.0
+
+
 def test_a_killed_writers_temporary_checkpoint_is_removed(tmp_path: Path) -> None:
     """A process killed while it wrote a checkpoint left ``<name>.<pid>.<thread>.tmp`` beside it,
     and nothing removed it. One that a writer still holds (its flock) is left alone."""
