@@ -125,6 +125,9 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         json_path = Path(args.json)
         problem = "a folder" if json_path.is_dir() else write_problem(json_path.parent)
+        if problem is None and json_path.exists() and not _is_report(json_path):
+            # It was written over (a walkthrough's world file, given by mistake).
+            problem = "there, and not a lit crosscheck report (which is replaced); choose another"
         if problem is not None:  # asked now, not after the runs
             print(f"lit crosscheck: --json {args.json}: {problem}", file=sys.stderr)
             return 2
@@ -142,6 +145,15 @@ def run(args: argparse.Namespace) -> int:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)  # checked as creatable above
         Path(args.json).write_text(json.dumps(_json_safe(report), indent=1, allow_nan=False))
     return 0 if report["ok"] else 1
+
+
+def _is_report(path: Path) -> bool:
+    """Whether ``path`` holds a report of ``lit crosscheck --json`` (which a new one replaces)."""
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return False
+    return isinstance(document, dict) and {"ok", "rows", "scenarios"} <= document.keys()
 
 
 def crosscheck(

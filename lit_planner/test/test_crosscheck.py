@@ -113,6 +113,7 @@ def test_short_real_crosscheck_on_np4(tmp_path: Path) -> None:
     assert "Known optima: np4 0.4236" in process.stdout
     report = json.loads(out.read_text())
     assert report["ok"] is True
+    assert crosscheck._is_report(out)  # a next run with this --json replaces it
     (detail,) = report["scenarios"]
     assert detail["ompl2_process"]["lit_core_loaded"] is False
     assert detail["ompl2_process"]["pid"] != os.getpid()
@@ -125,6 +126,20 @@ def test_short_real_crosscheck_on_np4(tmp_path: Path) -> None:
         if run["solved"]:
             assert run["validation"]["valid"]
             assert run["c_final"] >= scenarios.get("np4").optimal_cost
+
+
+def test_a_json_file_that_is_not_a_report_is_not_written_over(tmp_path: Path) -> None:
+    """`--json world.json` given by mistake replaced the world file with the report."""
+    world = tmp_path / "world.json"
+    world.write_text('{"lower": [0, 0], "upper": [1, 1], "boxes": []}')
+    process = subprocess.run(
+        [sys.executable, "-m", "lit_planner.cli", "crosscheck", "--scenarios", "np4",
+         "--runs", "1", "--json", str(world)],
+        capture_output=True, text=True, timeout=60, check=False,
+    )  # fmt: skip
+    assert process.returncode == 2, process.stderr
+    assert "there, and not a lit crosscheck report (which is replaced)" in process.stderr
+    assert world.read_text() == '{"lower": [0, 0], "upper": [1, 1], "boxes": []}'
 
 
 def test_bad_arguments_exit_2() -> None:
