@@ -187,7 +187,7 @@ def test_info_prints_recorded_names_escaped(tmp_path: Path) -> None:
             recorder.write_string("/lit/decision", text, 100 + seq)
     result = _replay("info", path)
     assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr
-    assert "from /ev\\x1b[31mil\\nfake line (run r1)" in result.stdout, result.stdout
+    assert "from /ev\\x1b[31mil\\x0afake line (run r1)" in result.stdout, result.stdout
     assert "from /evil\\ud800 (run r1)" in result.stdout, result.stdout
     assert "\x1b" not in result.stdout
     assert not any(line.startswith("fake line") for line in result.stdout.splitlines())

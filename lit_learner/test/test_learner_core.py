@@ -6,6 +6,7 @@ import math
 import threading
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -324,6 +325,16 @@ def test_a_checkpoint_with_parts_missing_is_one_error(tmp_path: Path) -> None:
         LearnerCore.load_checkpoint(path)
 
 
+def _checkpoint_with_a_pending_step(path: Path) -> dict[str, Any]:
+    """Save a fresh core with one pending B step of episode ``e`` to ``path``; its state as
+    ``torch.load`` reads it (to edit and save again)."""
+    core = LearnerCore(LearnerConfig(seed=0))
+    request = DecisionRequest("B", "e", 0.1, 0.1, 0.1, 0.5, 10.0, 3.0, 2.0, 1, 4)
+    core.commit(request, core.choose(request).a_norm)
+    core.save_checkpoint(path)
+    return torch.load(path, weights_only=False)
+
+
 @pytest.mark.parametrize(
     ("edit", "value", "message"),
     [
@@ -342,12 +353,8 @@ def test_a_checkpoint_value_of_the_wrong_type_is_refused_at_load(
     """The learner node loaded a checkpoint whose policy_version was 'x' (or whose episodes
     were -5), its statistics then failed with a traceback, and its shutdown wrote the
     checkpoint over."""
-    core = LearnerCore(LearnerConfig(seed=0))
-    request = DecisionRequest("B", "e", 0.1, 0.1, 0.1, 0.5, 10.0, 3.0, 2.0, 1, 4)
-    core.commit(request, core.choose(request).a_norm)
     path = tmp_path / "core.pt"
-    core.save_checkpoint(path)
-    state = torch.load(path, weights_only=False)
+    state = _checkpoint_with_a_pending_step(path)
     *parents, key = edit
     target = state
     for part in parents:
@@ -361,12 +368,8 @@ def test_a_checkpoint_value_of_the_wrong_type_is_refused_at_load(
 def test_a_checkpoint_whose_pending_steps_have_no_time_still_loads(tmp_path: Path) -> None:
     """Checkpoints from before 2026-11-30 keep a pending step as (features, action,
     improvements); the pairing loads them (time 0), and the value checks took them as damaged."""
-    core = LearnerCore(LearnerConfig(seed=0))
-    request = DecisionRequest("B", "e", 0.1, 0.1, 0.1, 0.5, 10.0, 3.0, 2.0, 1, 4)
-    core.commit(request, core.choose(request).a_norm)
     path = tmp_path / "core.pt"
-    core.save_checkpoint(path)
-    state = torch.load(path, weights_only=False)
+    state = _checkpoint_with_a_pending_step(path)
     pending = state["pairing"]["e"]["pending"]
     pending["B"] = tuple(pending["B"])[:3]
     torch.save(state, path)

@@ -35,7 +35,15 @@ from typing import Any
 
 import orjson
 
-from lit_msgs_json.codec import beyond_double, plain_json, valid_envelope, validate
+from lit_msgs_json.codec import (
+    NAME_END,
+    beyond_double,
+    name_given_twice,
+    names_in,
+    plain_json,
+    valid_envelope,
+    validate,
+)
 from lit_msgs_json.errors import SchemaError
 
 MAX_MESSAGE_BYTES = 1_048_576
@@ -500,8 +508,8 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
             )
     # I-JSON (RFC 7493) also forbids an object with a name twice. Both parsers keep the last
     # one, so a message with two request_ids could be logged as one and planned as the other.
-    if len(_NAME_END.findall(data)) != _names_in(obj):
-        twice = _name_given_twice(text)  # type: ignore[arg-type]
+    if len(NAME_END.findall(data)) != names_in(obj):
+        twice = name_given_twice(text)  # type: ignore[arg-type]
         if twice is not None:
             name, where = twice
             claimed, seq = _claimed(obj)
@@ -592,65 +600,6 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
 
 _SURROGATE_ESCAPE = re.compile(rb"\\u[dD][89a-fA-F]")
 """A backslash-u escape of a UTF-16 surrogate (paired or not; :func:`_lone_surrogate` tells)."""
-
-
-_NAME_END = re.compile(rb'"[ \t\n\r]*:')
-"""The end of an object's name: its closing quote and the colon. Outside strings it occurs once
-per name; inside a string (an escaped quote, or a string's opening quote, followed by a colon)
-it adds to the count, so the count is at least the number of names in the text."""
-
-
-def _names_in(obj: object) -> int:
-    """The names of the objects in ``obj``, at most: an array whose first item is no array or
-    object is not searched (an object after a number, which no schema allows, is left out and
-    sends the text to :func:`_name_given_twice`). A name given twice is kept once."""
-    # Exact types (both parsers build plain dicts and lists): three times faster than
-    # isinstance with a generator, on the decide path's every message.
-    count, pending = 0, [obj]
-    while pending:
-        item = pending.pop()
-        if type(item) is dict:
-            count += len(item)
-            for value in item.values():
-                if type(value) is dict or type(value) is list:
-                    pending.append(value)
-        elif type(item) is list and item and (type(item[0]) is dict or type(item[0]) is list):
-            pending.extend(item)
-    return count
-
-
-def _name_given_twice(text: str | bytes) -> tuple[str, str] | None:
-    """A name given twice in one object of the JSON ``text`` and that object's JSON path
-    (``$.payload.world``); None when there is none. Of the objects with one, the first the
-    parser completes (an inner one before the object around it) that the document keeps: an
-    object dropped by a name given twice around it is no part of the document."""
-    found: list[tuple[str, dict[str, Any]]] = []
-
-    def pairs(items: list[tuple[str, Any]]) -> dict[str, Any]:
-        made = dict(items)
-        if len(made) < len(items):  # linear: an object of 100 000 names is within 1 MiB
-            seen: set[str] = set()
-            for name, _ in items:
-                if name in seen:
-                    found.append((name, made))
-                    break
-                seen.add(name)
-        return made
-
-    document = json.loads(text, object_pairs_hook=pairs, parse_constant=_reject_constant)
-    if not found:
-        return None
-    paths: dict[int, str] = {}
-    stack: list[tuple[object, str]] = [(document, "$")]
-    while stack:  # the objects themselves (by identity), not equal ones elsewhere
-        value, where = stack.pop()
-        if isinstance(value, dict):
-            paths[id(value)] = where
-            stack.extend((item, f"{where}.{key}") for key, item in value.items())
-        elif isinstance(value, list):
-            stack.extend((item, f"{where}[{index}]") for index, item in enumerate(value))
-    # The outermost object with a name twice is always kept (the root is), so one is found.
-    return next((name, paths[id(made)]) for name, made in found if id(made) in paths)
 
 
 def _lone_surrogate(obj: object, path: str) -> tuple[str, str] | None:

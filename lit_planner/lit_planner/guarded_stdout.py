@@ -36,14 +36,3 @@ class GuardedStdout:
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._stream, name)
-
-
-def printable(value: object) -> str:
-    """``str(value)`` with the characters a terminal would act on escaped as Python writes them
-    (``\\x1b``, ``\\n``, ``\\ud800``, ``\\u202e``): control characters, line separators, lone
-    surrogates and bidirectional overrides. For text read from recordings and files, which
-    printed raw could colour the terminal or forge a line of the output."""
-    text = str(value)
-    if text.isprintable():
-        return text
-    return "".join(c if c.isprintable() else ascii(c)[1:-1] for c in text)

@@ -55,7 +55,8 @@ import numpy as np
 
 from lit_planner import argtypes, bag, rosutil, scenarios, signals
 from lit_planner.errors import LitPlannerError
-from lit_planner.guarded_stdout import StdoutError, printable
+from lit_planner.guarded_stdout import StdoutError
+from lit_planner.safe_logger import SafeLogger
 
 PROG = "lit replay"
 """Prefix of every message."""
@@ -951,13 +952,13 @@ def format_info(info: dict[str, Any]) -> str:
             f"(duration {info['duration_s']:.3f} s)"
         )
     lines.append("run         " + (", ".join(
-        f"{printable(key)}={printable(value)}"
+        f"{SafeLogger.text(key)}={SafeLogger.text(value)}"
         for key, value in sorted(info["custom_data"].items())
     ) or "no metadata"))  # fmt: skip
     lines.append("topics")
     width = max([len(t["topic"]) for t in info["topics"]] + [5])
     for topic in info["topics"]:
-        name, kind = printable(topic["topic"]), printable(topic["type"])
+        name, kind = SafeLogger.text(topic["topic"]), SafeLogger.text(topic["type"])
         lines.append(f"  {name:<{width}}  {kind:<38} {topic['messages']:>8}")
     lines.append("publishers (seq per topic and source)")
     if not info["publishers"]:
@@ -970,16 +971,16 @@ def format_info(info: dict[str, Any]) -> str:
         ]
         restart = f", process {pub['instance']}" if pub["instance"] > 1 else ""
         lines.append(
-            f"  {printable(pub['topic'])} from {printable(pub['source'])} "
-            f"(run {', '.join(map(printable, pub['run_ids']))}{restart}): "
+            f"  {SafeLogger.text(pub['topic'])} from {SafeLogger.text(pub['source'])} "
+            f"(run {', '.join(map(SafeLogger.text, pub['run_ids']))}{restart}): "
             f"seq {pub['first_seq']}..{pub['last_seq']}, {pub['count']} messages, "
             + (", ".join(problems) if problems else "no gaps")
             + (f", {pub['leading']} before the first" if pub["leading"] else "")
-            + f"; {', '.join(map(printable, pub['schemas']))}"
+            + f"; {', '.join(map(SafeLogger.text, pub['schemas']))}"
         )
     skipped = info["skipped"]
     lines.append(f"skipped     {Skipped(Counter(skipped['reasons'])).line()}")
-    lines.extend(f"  {printable(example)}" for example in skipped["examples"])
+    lines.extend(f"  {SafeLogger.text(example)}" for example in skipped["examples"])
     return "\n".join(lines)
 
 

@@ -453,8 +453,11 @@ def custom(
 
 
 def _shown(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else f"{text[:57]}..."
+    """``lit_msgs_json.codec.shown``, imported only for an error (this module is numpy only:
+    the OMPL 2.0.1 worker imports it)."""
+    from lit_msgs_json.codec import shown
+
+    return shown(value)
 
 
 def _number(label: str, value: Any, *, part: str | None = None) -> float:

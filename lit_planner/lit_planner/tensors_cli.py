@@ -39,7 +39,7 @@ import numpy as np
 
 from lit_planner import argtypes, planning, tensor_files
 from lit_planner.errors import LitPlannerError, TensorFileError
-from lit_planner.guarded_stdout import printable
+from lit_planner.safe_logger import SafeLogger
 
 EXIT_WRITTEN = 0
 """The tensors were written."""
@@ -243,18 +243,18 @@ def _info_lines(name: str, entry: dict[str, object]) -> list[str]:
     provenance = entry["provenance"]
     assert isinstance(provenance, dict)
     lines.append(
-        f"    created     {printable(entry['created'])}, policy version "
-        f"{printable(entry['policy_version'])}"
+        f"    created     {SafeLogger.text(entry['created'])}, policy version "
+        f"{SafeLogger.text(entry['policy_version'])}"
     )
     lines += [
-        f"    {key:<11s} {printable(provenance[key])}"
+        f"    {key:<11s} {SafeLogger.text(provenance[key])}"
         for key in PROVENANCE_SHOWN
         if key in provenance
     ]
     resumes = provenance.get("resumed_with") or []
     if isinstance(resumes, list) and resumes:  # the run's last command, the export's own
         lines.append(
-            f"    {'resumed':<11s} {printable(resumes[-1])}"
+            f"    {'resumed':<11s} {SafeLogger.text(resumes[-1])}"
             + (f" (the last of {len(resumes)} resumes)" if len(resumes) > 1 else "")
         )
     return lines

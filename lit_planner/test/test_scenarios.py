@@ -520,12 +520,12 @@ def test_a_start_of_the_wrong_length_names_the_worlds_dimension() -> None:
 @pytest.mark.parametrize(
     ("change", "message", "part"),
     [
-        ({"resolution": "abc"}, r"resolution must be a number, got 'abc'", None),
-        ({"time_budget": None}, r"time budget must be a number, got None", "time"),
-        ({"lower": [0, "a"]}, r"lower\[1\] must be a number, got 'a'", None),
-        ({"upper": None}, r"upper must be a sequence, got None", None),
-        ({"start": [0.1, "q"]}, r"start\[1\] must be a number, got 'q'", "start"),
-        ({"goal": "ab"}, r"goal must be a sequence, got 'ab'", "goal"),
+        ({"resolution": "abc"}, r'resolution must be a number, got "abc"', None),
+        ({"time_budget": None}, r"time budget must be a number, got null", "time"),
+        ({"lower": [0, "a"]}, r'lower\[1\] must be a number, got "a"', None),
+        ({"upper": None}, r"upper must be a sequence, got null", None),
+        ({"start": [0.1, "q"]}, r'start\[1\] must be a number, got "q"', "start"),
+        ({"goal": "ab"}, r'goal must be a sequence, got "ab"', "goal"),
         ({"boxes": 5}, r"boxes must be a sequence, got 5", None),
         ({"boxes": [([0, 0],)]}, r"box 0 must be a \(lower corner, upper corner\) pair", None),
         (
