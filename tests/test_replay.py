@@ -193,6 +193,22 @@ def test_info_prints_recorded_names_escaped(tmp_path: Path) -> None:
     assert not any(line.startswith("fake line") for line in result.stdout.splitlines())
 
 
+def test_info_tells_a_reused_seq_from_a_copy(tmp_path: Path) -> None:
+    """A seq recorded again with the same bytes is a duplicate (a copy); under other bytes it is
+    reused (two publishers of one name and run id), which was counted as a duplicate too."""
+    path = tmp_path / "reused"
+    with BagRecorder(path, run_id="r1") as recorder:
+        recorder.add_topic("/lit/decision", bag.STRING_TYPE)
+        for index, (seq, agent) in enumerate([(0, "b"), (0, "k"), (1, "b"), (1, "b"), (2, "b")]):
+            payload = {"agent": agent}
+            text = envelope("lit_msgs_json/Decision", seq, "/p", "r1", payload, stamp_ns=seq)
+            recorder.write_string("/lit/decision", text, 100 + index)
+    (publisher,) = replay.bag_info(path)["publishers"]
+    assert (publisher["count"], publisher["duplicates"], publisher["reused"]) == (5, 1, 1)
+    text = _replay("info", path)
+    assert "seq 0..2, 5 messages, 1 duplicates, 1 reused seqs (two publishers" in text.stdout
+
+
 def test_info_accounts_a_restarted_publisher_as_a_process_of_its_own(tmp_path: Path) -> None:
     """A node restarted under the same name and run id (lit up passes one) counts from 0 again:
     its second process is accounted apart, so its numbers do not pass for duplicates of the first

@@ -35,6 +35,8 @@ best cost after each solution improvement, plus the step curve sampled at
 from __future__ import annotations
 
 import argparse
+import collections
+import hashlib
 import json
 import math
 import os
@@ -322,11 +324,16 @@ def write_logs(
                     f"run record {index}: its {key} name {ascii(record[key])[:200]} is not "
                     "printable text"
                 )
+        if not _scenario_name(record):  # "/x": the experiment had an empty name
+            raise ArenaError(
+                f"run record {index}: its scenario {record['scenario']!r} has no name before '/'"
+            )
         by_scenario.setdefault(_scenario_name(record), []).append(record)
     log_dir.mkdir(parents=True, exist_ok=True)
     paths = []
+    names = _log_names(by_scenario)
     for scenario, group in by_scenario.items():
-        path = log_dir / f"{_UNSAFE.sub('_', scenario.lower())}.log"
+        path = log_dir / names[scenario]
         path.write_text(benchmark_log(scenario, group, date=date, host=host,
                                       progress_points=progress_points))  # fmt: skip
         paths.append(path)
@@ -554,6 +561,22 @@ def _run_time(record: Mapping[str, Any], time_limit: float | None) -> float | No
         if math.isfinite(value) and value >= 0:
             return value
     return None
+
+
+def _log_names(scenarios: Iterable[str]) -> dict[str, str]:
+    """A log file name for each scenario name: its letters and digits (``np4.log``), with a hash
+    of the name when that leaves nothing (``/`` alone) or is another scenario's too (``np4`` and
+    ``NP4``: one log was written over the other, and its runs were lost from the database)."""
+    stems = {name: _UNSAFE.sub("_", name.lower()).strip("_") for name in scenarios}
+    counts = collections.Counter(stems.values())
+    return {
+        name: (
+            f"{stem}.log"
+            if stem and counts[stem] == 1
+            else f"{stem or 'scenario'}_{hashlib.sha256(name.encode()).hexdigest()[:12]}.log"
+        )
+        for name, stem in stems.items()
+    }
 
 
 def _scenario_name(record: Mapping[str, Any]) -> str:

@@ -516,6 +516,12 @@ class PlannerNode:
             )
             self.log.warning(f"plan request rejected: {exc}")
             return response
+        if original is None:
+            answered = self._queue_plan(job, message, copy_key, response)
+            if isinstance(answered, Job):  # a copy, queued while this one was being read
+                original = job = answered
+            elif answered is not None:
+                return answered
         if original is not None:
             # A client's copy sent again (lit call resends a plan request that no answer has
             # come to in its first seconds: one can be lost while a new client is matched).
@@ -538,10 +544,6 @@ class PlannerNode:
                 f"plan request {job.episode_id}: a copy came again (seq {message.seq} of "
                 f"{message.source}); answered with the request's result, not planned twice"
             )
-        else:
-            answered = self._queue_plan(job, message, copy_key, response)
-            if answered is not None:
-                return answered
         job.done.wait()
         if job.error is not None:
             response.success = False
@@ -578,9 +580,14 @@ class PlannerNode:
     ) -> Any:
         """Queue a new plan request's job (its copies are answered with its result from now on);
         the response when it is answered at once (refused: the node is stopping or busy;
-        cancelled before it arrived), else None."""
+        cancelled before it arrived), the job of a copy of it that was queued while this one was
+        read (checked under the lock the copy was queued under: it is not planned twice), else
+        None."""
         reply = self.envelopes["reply"]
         with self._queue_lock:
+            queued_copy = self._plan_copies.get(copy_key)
+            if queued_copy is not None:
+                return queued_copy
             if self._stopping.is_set():  # after shutdown() began: nothing would take the job
                 response.success = False
                 response.message = reply.error(_stopping_error(message.seq))

@@ -12,8 +12,10 @@ A BAG is a rosbag2 bag directory or one of its ``.mcap`` files. Messages on ``/l
 envelopes ``{"schema", "version", "seq", "stamp_ns", "source", "run_id", "payload"}`` or, on
 ``/lit/path``, ``trajectory_msgs/msg/JointTrajectory``. ``seq`` rises by one per publisher, that
 is per (topic, source, run id) and process (:class:`SeqAccount`): ``info`` counts, per publisher,
-the gaps (runs of missing numbers), the missing messages and the duplicates, and ``leading`` (the
-numbers before the first recorded one, when a publisher started at 0 before the recording did).
+the gaps (runs of missing numbers), the missing messages, the duplicates (a seq recorded again
+with the same bytes), the reused seqs (other bytes: two publishers of one name and run id) and
+``leading`` (the numbers before the first recorded one, when a publisher started at 0 before the
+recording did).
 
 What cannot be used is skipped and counted, never fatal: messages on other topics, envelopes of an
 unknown schema or an unsupported version, text that is not an envelope, undecodable messages, and
@@ -836,6 +838,12 @@ class SeqAccount:
     """The highest seq seen."""
     last_stamp_ns: int = -1
     """The latest send time seen."""
+    contents: dict[int, set[int]] = field(default_factory=dict)
+    """Hashes of the recorded bytes of each seq's messages."""
+    duplicates: int = 0
+    """Messages recorded again: a seq seen before with the same bytes."""
+    reused: int = 0
+    """Messages under a seq seen before with other bytes (two publishers of one name and run)."""
 
     def restarted_by(self, seq: int, stamp_ns: int) -> bool:
         """Whether a message (``seq``, ``stamp_ns``) comes from a new process of the publisher."""
@@ -845,7 +853,15 @@ class SeqAccount:
             and (stamp_ns > self.last_stamp_ns + RESTART_GAP_NS)
         )
 
-    def add(self, item: Envelope) -> None:
+    def add(self, item: Envelope, content: bytes) -> None:
+        """Account ``item``, whose recorded message is ``content``."""
+        seen = self.contents.setdefault(item.seq, set())
+        if seen:
+            if hash(content) in seen:
+                self.duplicates += 1
+            else:
+                self.reused += 1
+        seen.add(hash(content))
         self.seqs.append(item.seq)
         self.run_ids.add(item.run_id)
         self.schemas[item.schema] += 1
@@ -853,7 +869,8 @@ class SeqAccount:
         self.last_stamp_ns = max(self.last_stamp_ns, item.stamp_ns)
 
     def to_dict(self) -> dict[str, Any]:
-        """First/last seq, count, gaps, missing, duplicates, leading, run ids and schemas."""
+        """First/last seq, count, gaps, missing, duplicates, reused seqs, leading, run ids and
+        schemas."""
         unique = sorted(set(self.seqs))
         steps = [b - a for a, b in itertools.pairwise(unique)]
         reordered = sum(1 for a, b in itertools.pairwise(self.seqs) if b < a)
@@ -867,7 +884,8 @@ class SeqAccount:
             "count": len(self.seqs),
             "gaps": sum(1 for step in steps if step > 1),
             "missing": sum(step - 1 for step in steps if step > 1),
-            "duplicates": len(self.seqs) - len(unique),
+            "duplicates": self.duplicates,
+            "reused": self.reused,
             "reordered": reordered,
             "leading": unique[0],
             "schemas": dict(self.schemas),
@@ -895,7 +913,7 @@ def bag_info(path: str | Path) -> dict[str, Any]:
                 instances = accounts.setdefault((item.topic, item.source, item.run_id), [])
                 if not instances or instances[-1].restarted_by(item.seq, item.stamp_ns):
                     instances.append(SeqAccount(item.topic, item.source, len(instances) + 1))
-                instances[-1].add(item)
+                instances[-1].add(item, message.data)
                 schemas[item.schema] += 1
     types = {t.topic: t.msgtype for t in facts.topics}
     return {
@@ -969,6 +987,8 @@ def format_info(info: dict[str, Any]) -> str:
             for key in ("gaps", "missing", "duplicates", "reordered")
             if pub[key]
         ]
+        if pub["reused"]:  # not copies: other messages under seqs seen already
+            problems.append(f"{pub['reused']} reused seqs (two publishers of one name and run?)")
         restart = f", process {pub['instance']}" if pub["instance"] > 1 else ""
         lines.append(
             f"  {SafeLogger.text(pub['topic'])} from {SafeLogger.text(pub['source'])} "

@@ -226,6 +226,29 @@ def test_an_earlier_export_is_replaced(bench_dir: Path) -> None:
     assert query(bench_dir / "arena.db", "SELECT COUNT(*) FROM runs") == [(len(np4_only),)]
 
 
+def test_scenarios_whose_names_give_one_file_name_get_a_log_each(tmp_path: Path) -> None:
+    """np4 and NP4 were both written to np4.log, the second over the first, and the first one's
+    runs were lost from the database; a name of no letters or digits was a hidden ``.log``. A
+    name empty before its instance's '/' is refused (it had an empty experiment name)."""
+    for empty in ("/", "/tmp/world.json"):
+        (tmp_path / arena.RUNS_FILE).write_text(json.dumps(dict(RECORDS[0], scenario=empty)))
+        with pytest.raises(arena.ArenaError, match=r"run record 0: its scenario .* before '/'"):
+            arena.export_arena(tmp_path)
+    records = [dict(RECORDS[0], scenario=name) for name in ("np4", "NP4", "np_4", "-")]
+    (tmp_path / arena.RUNS_FILE).write_text("".join(json.dumps(r) + "\n" for r in records))
+    export = arena.export_arena(tmp_path)
+    names = [log.name for log in export.logs]
+    assert len(set(names)) == 4 and all(re.fullmatch(r"[a-z0-9_]+\.log", n) for n in names)
+    assert [n.split("_")[0] for n in names] == ["np4", "np4", "np", "scenario"]
+    assert export.runs == 4
+    experiments = query(export.database, "SELECT name FROM experiments ORDER BY id")
+    assert sorted(name for (name,) in experiments) == sorted(["np4", "NP4", "np_4", "-"])
+    # A name alone keeps its plain file name, so a later export replaces its log.
+    (tmp_path / arena.RUNS_FILE).write_text(json.dumps(RECORDS[0]) + "\n")
+    export = arena.export_arena(tmp_path)
+    assert [p.name for p in (tmp_path / arena.LOG_DIR).iterdir()] == ["np4.log"]
+
+
 def test_missing_and_malformed_runs_files(tmp_path: Path) -> None:
     with pytest.raises(arena.ArenaError, match="run `lit bench` first"):
         arena.export_arena(tmp_path)

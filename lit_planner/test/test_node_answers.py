@@ -205,3 +205,68 @@ def test_the_ready_line_names_where_the_episodes_come_from() -> None:
     assert _episodes_shown(inference) == f"2 episodes on {PARAMETERS['scenario']}"
     assert _episodes_shown(inference | {"episodes_from": "training"}).startswith("2 episodes drawn")
     assert _episodes_shown(PARAMETERS | {"episodes": 0}) == "no episodes of its own"
+
+
+def test_a_copy_queued_while_its_original_is_read_is_answered_with_one_plan() -> None:
+    """A resent plan request can arrive while the first one is still being read into a job (its
+    scenario built, outside the queue's lock). Both used to find no job under their text and
+    both were planned. The copy check is made again under the lock the job is queued under: the
+    one read second waits for the other's job. Two service threads, without a ROS graph."""
+    import collections
+    import queue
+    import threading
+    from types import SimpleNamespace
+
+    from lit_planner import node
+
+    fake: typing.Any = SimpleNamespace(
+        envelopes={"reply": Publisher("planner", "run-p")},
+        params={"policy": "fixed", "seed": 1, "queue_limit": 4},
+        log=SimpleNamespace(info=lambda text: None, warning=lambda text: None, error=print),
+        _queue_lock=threading.Lock(),
+        _plan_copies=collections.OrderedDict(),
+        _stopping=threading.Event(),
+        _cancelled_early={},
+        _queued=0,
+        _requests=[],
+        _id_generations=collections.OrderedDict(),
+        _jobs=queue.Queue(),
+    )
+    first_reading, go_on = threading.Event(), threading.Event()
+
+    def job_from_request(payload: dict, seq: int | None = None) -> node.Job:
+        if not first_reading.is_set():  # the first read is slow: the copy is read and queued
+            first_reading.set()
+            assert go_on.wait(30)
+        return node.PlannerNode._job_from_request(fake, payload, seq)
+
+    fake._job_from_request = job_from_request
+    fake._problem_from_request = lambda p: node.PlannerNode._problem_from_request(fake, p)
+    fake._queue_plan = lambda *args: node.PlannerNode._queue_plan(fake, *args)
+    fake._plan_response = lambda job: _payload(2)
+    text = Publisher("my_client", "run-c").encode("PlanRequest", {"scenario": "np4"})
+    answers: list[typing.Any] = []
+
+    def serve() -> None:
+        response = SimpleNamespace(success=None, message="")
+        request = SimpleNamespace(load_namespace=text)
+        answers.append(node.PlannerNode._plan_answer(fake, request, response))
+
+    threads = [threading.Thread(target=serve, daemon=True) for _ in range(2)]
+    threads[0].start()
+    assert first_reading.wait(30)
+    threads[1].start()  # the copy: read at once, queued
+    job = fake._jobs.get(timeout=30)
+    go_on.set()  # the first one now finds the copy's job
+    for _ in range(300):
+        with fake._queue_lock:
+            if job.copies == 1:
+                break
+        threading.Event().wait(0.1)
+    assert job.copies == 1 and fake._queued == 1 and fake._jobs.empty()
+    job.result = {}
+    job.done.set()
+    for thread in threads:
+        thread.join(30)
+    assert len(answers) == 2 and all(answer.success for answer in answers)
+    assert fake._jobs.empty() and list(fake._plan_copies.values()) == [job]
