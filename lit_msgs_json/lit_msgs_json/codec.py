@@ -182,7 +182,7 @@ def loads(name: str, text: str | bytes) -> Any:
         SchemaError: the text is not JSON (rule ``json``) or violates the schema.
     """
     try:
-        obj = json.loads(text, parse_constant=_reject_constant, parse_int=_double_int)
+        obj = json.loads(text, parse_constant=reject_constant, parse_int=_double_int)
     except (ValueError, TypeError) as exc:  # JSONDecodeError and UnicodeDecodeError are ValueErrors
         raise SchemaError(
             name.removeprefix("lit_msgs_json/"), "$", "json", f"not valid JSON: {exc}"
@@ -307,7 +307,8 @@ def _non_finite_numbers(obj: object, path: str) -> Iterator[tuple[str, float]]:
             yield from _non_finite_numbers(value, f"{path}[{index}]")
 
 
-def _reject_constant(constant: str) -> float:
+def reject_constant(constant: str) -> float:
+    """``json.loads``'s ``parse_constant``: NaN and Infinity are not JSON (RFC 8259)."""
     raise ValueError(f"{constant} is not allowed in JSON")
 
 
@@ -374,7 +375,7 @@ def name_given_twice(text: str | bytes) -> tuple[str, str] | None:
                 seen.add(name)
         return made
 
-    document = json.loads(text, object_pairs_hook=pairs, parse_constant=_reject_constant)
+    document = json.loads(text, object_pairs_hook=pairs, parse_constant=reject_constant)
     if not found:
         return None
     paths: dict[int, str] = {}

@@ -41,6 +41,7 @@ from lit_msgs_json.codec import (
     name_given_twice,
     names_in,
     plain_json,
+    reject_constant,
     valid_envelope,
     validate,
 )
@@ -473,7 +474,7 @@ def _decode(text: object, accepted: frozenset[str] | None) -> Message:
         try:
             obj = json.loads(
                 text,  # type: ignore[arg-type]
-                parse_constant=_reject_constant,
+                parse_constant=reject_constant,
                 parse_float=parse_float,
                 parse_int=parse_int,
             )
@@ -820,7 +821,3 @@ def unicode_text(text: str) -> str:
 
 def _clip(text: str, limit: int) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
-def _reject_constant(constant: str) -> float:
-    raise ValueError(f"{constant} is not allowed in JSON")
