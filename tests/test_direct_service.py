@@ -77,6 +77,8 @@ SERVER = textwrap.dedent(
         if response.message.startswith("echo:lost:") and response.message not in lost:
             lost.add(response.message)
             return
+        if response.message.startswith("echo:mute:"):  # no answer to it or its copies
+            return
         send(response, header)
 
     service._service.send_response = lossy
@@ -122,6 +124,12 @@ CLIENT = textwrap.dedent(
         time.sleep(0.01)
     print("answered late", caller.answered_late(call), call in caller._overdue.values())
     print("after slow copies", caller.call("next-3", 10.0))
+    # A limit on copies: 2 sent (after 20 and 60 ms), none more in the 3 s without an answer
+    # (copies would go at 140 ms, 300 ms, 620 ms, ... without it).
+    before = caller.resent
+    print("limited copies", caller.call("mute:1", 3.0, 0.02, max_resends=2), caller.resent - before)
+    before = caller.resent
+    print("unlimited copies", caller.call("mute:2", 1.0, 0.02), caller.resent - before > 2)
     flag = sys.argv[1]
     print("defer-wait", caller.call("defer-wait:" + flag, 20.0))
     open(flag, "w").close()
@@ -164,6 +172,8 @@ def test_direct_service_and_wait_set_client_across_processes(ros: RosSystem, tmp
     # Copies after 20, 60 and 140 ms (each wait twice the last) until the 300 ms deadline.
     assert re.search(r"^slow copies None [123]$", out, re.MULTILINE), out
     assert "answered late True False" in out
+    assert "limited copies None 2" in out
+    assert "unlimited copies None True" in out
     assert "after slow copies (True, 'echo:next-3')" in out
     assert "slow-2 served 1" in out
     # Deferred work: after the answer (the client got it while the work was still waiting for
