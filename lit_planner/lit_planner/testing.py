@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -40,7 +41,7 @@ PYTEST_HANG_DUMP_S = 600
 CTEST_GLOB = "lit_planner/core/build/*/CTestTestfile.cmake"
 """Where the core's scikit-build-core build tree registers its GoogleTest binaries."""
 SANITIZE_DIR = "lit_planner/core/build-sanitize"
-"""``lit test --sanitize``'s build tree of the GoogleTest binaries (not the extension module)."""
+"""``lit test --sanitize``'s build tree of the GoogleTest binaries and the extension module."""
 SANITIZERS = "-fsanitize=address,undefined"
 """AddressSanitizer (with LeakSanitizer) and UndefinedBehaviorSanitizer."""
 SANITIZE_ENV = {
@@ -48,6 +49,27 @@ SANITIZE_ENV = {
     # Any undefined behaviour fails its test (the build makes it fatal too).
     "UBSAN_OPTIONS": "print_stacktrace=1:halt_on_error=1",
 }
+SANITIZE_PYTHON_TESTS = (
+    "lit_planner/test/test_planning_api.py",
+    "lit_planner/test/test_plan_cli.py",
+    "lit_planner/test/test_crosscheck.py",
+    "lit_planner/test/test_ompl2_checker.py",
+    "lit_planner/test/test_tensor_files.py",
+    "lit_planner/test/test_tensors_cli.py",
+    "lit_learner/test/test_learner_export.py",
+    "lit_learner/test/test_train_driver.py",
+)
+"""The Python tests that ``lit test --sanitize`` runs against the sanitized extension module: those
+that drive ``lit_core`` (planning, policies, tensors, training through the external policy)
+without ROS nodes, whose processes would run sanitized as well."""
+SANITIZE_PYTHON_ENV = {
+    # Python's own allocations are left at exit on purpose: leaks are checked by the C++ tests.
+    "ASAN_OPTIONS": "detect_leaks=0:abort_on_error=0",
+    "UBSAN_OPTIONS": "print_stacktrace=1:halt_on_error=1",
+}
+SANITIZER_REPORT = "sanitizer-report"
+"""Stem of the files the sanitizers write their reports to in the Python tests (``log_path``):
+pytest's capture of a test's output is lost when a report ends the process."""
 ROS_DOMAIN_IDS = range(1, 101)
 """Domains a test run may reserve (ROS allows 0-232; 0 is everyone's default, so avoid it)."""
 
@@ -82,8 +104,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--sanitize",
         action="store_true",
-        help=f"build the C++ tests with AddressSanitizer and UndefinedBehaviorSanitizer in "
-        f"{SANITIZE_DIR}/ and run them (ctest only; pytest is not run)",
+        help=f"build the C++ tests and the extension module with AddressSanitizer and "
+        f"UndefinedBehaviorSanitizer in {SANITIZE_DIR}/ and run the C++ tests and the Python "
+        "tests that drive the module without ROS (-R, -k, --no-ctest, --no-pytest and test "
+        "paths after -- apply)",
     )
     parser.add_argument("--no-ctest", action="store_true", help="skip the C++ tests")
     parser.add_argument("--no-pytest", action="store_true", help="skip the Python tests")
@@ -343,16 +367,18 @@ def find_ctest_dir(root: Path) -> Path | None:
     return candidates[-1].parent if candidates else None
 
 
-def sanitize_commands(root: Path, jobs: int) -> list[list[str]]:
-    """Configure and build :data:`SANITIZE_DIR`: the core's library and GoogleTest binaries with
-    :data:`SANITIZERS`, optimised with debug information (RelWithDebInfo) for readable reports."""
+def sanitize_commands(root: Path, jobs: int, pybind11_dir: str) -> list[list[str]]:
+    """Configure and build :data:`SANITIZE_DIR`: the core's library, GoogleTest binaries and
+    extension module (in the tree's top folder, for ``PYTHONPATH``) with :data:`SANITIZERS`,
+    optimised with debug information (RelWithDebInfo) for readable reports."""
     build = root / SANITIZE_DIR
     flags = f"{SANITIZERS} -fno-omit-frame-pointer -fno-sanitize-recover=undefined"
     return [
         ["cmake", "-S", str(root / "lit_planner" / "core"), "-B", str(build),
-         "-DLIT_BUILD_PYTHON=OFF", "-DLIT_INSTALL_CPP=OFF", "-DLIT_BUILD_TESTS=ON",
+         "-DLIT_BUILD_PYTHON=ON", "-DLIT_INSTALL_CPP=OFF", "-DLIT_BUILD_TESTS=ON",
+         f"-Dpybind11_DIR={pybind11_dir}", f"-DPython_EXECUTABLE={sys.executable}",
          "-DCMAKE_BUILD_TYPE=RelWithDebInfo", f"-DCMAKE_CXX_FLAGS={flags}",
-         f"-DCMAKE_EXE_LINKER_FLAGS={SANITIZERS}"],
+         f"-DCMAKE_EXE_LINKER_FLAGS={SANITIZERS}", f"-DCMAKE_MODULE_LINKER_FLAGS={SANITIZERS}"],
         ["cmake", "--build", str(build), "-j", str(jobs)],
     ]  # fmt: skip
 
@@ -361,14 +387,107 @@ def build_sanitized(root: Path, env: dict[str, str]) -> Path | str:
     """Build :data:`SANITIZE_DIR` (incremental); its path, or what went wrong."""
     if shutil.which("cmake") is None:
         return "cmake not found on PATH (Debian package cmake)"
-    print(f"lit test: building the C++ tests with sanitizers in {SANITIZE_DIR}", flush=True)
-    for step, command in zip(
-        ("configuring", "building"), sanitize_commands(root, os.cpu_count() or 1), strict=True
-    ):
+    try:
+        import pybind11
+    except ImportError:
+        return "pybind11 is not installed (run ./lit once to set up)"
+    print(
+        f"lit test: building the C++ tests and the extension module with sanitizers in "
+        f"{SANITIZE_DIR}",
+        flush=True,
+    )
+    commands = sanitize_commands(root, os.cpu_count() or 1, pybind11.get_cmake_dir())
+    for step, command in zip(("configuring", "building"), commands, strict=True):
         returncode = _run_runner(command, env, root)
         if returncode != 0:
             return f"{step} {SANITIZE_DIR} failed (cmake exited with {returncode})"
     return root / SANITIZE_DIR
+
+
+def sanitized_python_environment(
+    env: dict[str, str], build: Path, report_dir: Path
+) -> dict[str, str] | str:
+    """``env`` for Python tests against the sanitized extension module in ``build``, or what is
+    missing: the sanitizer runtime preloaded (the Python interpreter is not built with it), with
+    libstdc++ after it (ASan's interceptor of C++ exceptions finds nothing to forward to when
+    libstdc++ is loaded later, with the extension), ``build`` first on ``PYTHONPATH``, and the
+    reports written to :data:`SANITIZER_REPORT` files in ``report_dir`` unless the user's own
+    ``ASAN_OPTIONS`` / ``UBSAN_OPTIONS`` say otherwise."""
+    compiler = shutil.which("g++")
+    if compiler is None:
+        return "g++ not found on PATH (Debian package g++)"
+    libraries = []
+    for name in ("libasan.so", "libstdc++.so"):
+        found = subprocess.run(
+            [compiler, f"-print-file-name={name}"], capture_output=True, text=True, check=False
+        ).stdout.strip()
+        if not found or not Path(found).is_file():  # g++ prints the bare name when it has none
+            return f"{name} not found by {compiler} -print-file-name (it comes with g++)"
+        libraries.append(str(Path(found).resolve()))
+    sanitized = SANITIZE_PYTHON_ENV | env  # the user's own options win
+    for key in SANITIZE_PYTHON_ENV:
+        if key not in env:
+            sanitized[key] += f":log_path={report_dir / SANITIZER_REPORT}"
+    sanitized["LD_PRELOAD"] = ":".join(
+        [*libraries, *filter(None, env.get("LD_PRELOAD", "").split(":"))]
+    )
+    paths = [str(build), *filter(None, env.get("PYTHONPATH", "").split(os.pathsep))]
+    sanitized["PYTHONPATH"] = os.pathsep.join(paths)
+    return sanitized
+
+
+def sanitizer_reports(report_dir: Path) -> list[tuple[Path, str]]:
+    """The :data:`SANITIZER_REPORT` files in ``report_dir`` that report an error, with their
+    text (the runtime also writes warnings there, such as an unknown printf format)."""
+    reports = []
+    for path in sorted(report_dir.glob(f"{SANITIZER_REPORT}*")):
+        text = path.read_text(encoding="utf-8", errors="replace")
+        if re.search(r"ERROR: \w*Sanitizer|runtime error:|CHECK failed", text):
+            reports.append((path, text))
+    return reports
+
+
+def run_sanitized_pytest(
+    root: Path,
+    env: dict[str, str],
+    report_dir: Path,
+    build: Path,
+    keyword: str | None,
+    passthrough: list[str],
+) -> RunnerResult:
+    """The Python tests against the sanitized extension module in ``build``:
+    :data:`SANITIZE_PYTHON_TESTS`, or the test paths in ``passthrough``. Any sanitizer report
+    fails the run and is printed."""
+    result = RunnerResult("pytest")
+    sanitized = sanitized_python_environment(env, build, report_dir)
+    if isinstance(sanitized, str):
+        result.error = sanitized
+        return result
+    probe = subprocess.run(
+        [sys.executable, "-c", "import lit_core; print(lit_core.__file__)"],
+        env=sanitized, capture_output=True, text=True, timeout=300, check=False, cwd=root,
+    )  # fmt: skip
+    module = Path(probe.stdout.strip() or ".").resolve()
+    if probe.returncode != 0 or module.parent != build.resolve():
+        result.error = (
+            f"the sanitized lit_core in {build.relative_to(root)} is not the one imported "
+            f"({probe.stdout.strip() or probe.stderr.strip()[-2000:]})"
+        )
+        return result
+    defaults, _ = _pytest_targets(root, passthrough)
+    if defaults:  # no test paths given
+        passthrough = [str(root / path) for path in SANITIZE_PYTHON_TESTS] + passthrough
+    result = run_pytest(root, sanitized, report_dir, keyword, passthrough)
+    reports = sanitizer_reports(report_dir)
+    for path, text in reports:
+        lines = text.splitlines()
+        print(f"lit test: {path.name}:", *lines[:200], sep="\n", flush=True)
+        if len(lines) > 200:
+            print(f"({len(lines) - 200} more lines)", flush=True)
+    if reports:  # the pytest process a report ended wrote no report of its own
+        found = f"{len(reports)} sanitizer reports (printed above)"
+        result.error = f"{result.error}; {found}" if result.error else found
+    return result
 
 
 def run_ctest(
@@ -498,13 +617,6 @@ def run_pytest(
 def main(args: argparse.Namespace) -> int:
     """Run the tests selected by ``args``; the exit status of ``lit test``."""
     root = repo_root()
-    if args.sanitize and (args.no_ctest or args.keyword is not None or args.pytest_args):
-        print(
-            "lit test: --sanitize runs the C++ tests only; it does not go with --no-ctest, -k or "
-            "pytest arguments",
-            file=sys.stderr,
-        )
-        return 2
     domain, domain_lock = reserve_ros_domain()
     env = child_environment(root, domain)
     print(f"lit test: ROS_DOMAIN_ID={domain}, ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST", flush=True)
@@ -517,8 +629,13 @@ def main(args: argparse.Namespace) -> int:
                 if isinstance(built, str):
                     ctest.error = built
                 else:
-                    sanitized = SANITIZE_ENV | env  # the user's own options win
-                    ctest = run_ctest(root, sanitized, report_dir, args.ctest_regex, built)
+                    if not args.no_ctest:
+                        sanitized = SANITIZE_ENV | env  # the user's own options win
+                        ctest = run_ctest(root, sanitized, report_dir, args.ctest_regex, built)
+                    if not args.no_pytest:
+                        pytest = run_sanitized_pytest(
+                            root, env, report_dir, built, args.keyword, args.pytest_args
+                        )
             else:
                 ctest = (
                     RunnerResult("ctest")
