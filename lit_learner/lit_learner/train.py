@@ -32,7 +32,6 @@ import math
 import os
 import shlex
 import sys
-import threading
 import time
 import types
 import typing
@@ -805,12 +804,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-bag", action="store_true", help="do not record a bag")
 
 
-STOP_REQUESTED = threading.Event()
+STOP_REQUESTED = signals.Flag()
 """Set by ``lit train``'s SIGINT / SIGTERM handler: :func:`train` stops after the running
 episode."""
 
 
-FINISHING = threading.Event()
+FINISHING = signals.Flag()
 """Set by :func:`train` once its episodes are over (final checkpoint, curves, provenance and
 export follow): a signal then no longer stops at once, which could leave an export half
 written."""

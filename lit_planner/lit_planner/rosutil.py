@@ -19,6 +19,7 @@ import warnings
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+from lit_planner import signals
 from lit_planner.guarded_stdout import GuardedStdout
 
 LOCALHOST_ENV = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
@@ -32,6 +33,9 @@ EXPORT_SERVICE = "/lit/learner/export"
 MAX_EPISODE_BUDGET = 3600.0
 """Most seconds of a training episode's time budget: the maximum of ``time_budget`` in the
 DecideRequest and EpisodeEnd schemas."""
+MIN_EPISODE_BUDGET = 1e-6
+"""Fewest seconds of a training episode's time budget: the minimum of ``time_budget`` in the
+DecideRequest and EpisodeEnd schemas (the learner refuses less)."""
 MAX_INFERENCE_BUDGET = 86400.0
 """Most seconds of another policy's episode: the maximum ``planning_time`` of an Observation."""
 MAX_REQUEST_TIME = 600.0
@@ -866,13 +870,9 @@ def spin_node(
     except RCLError as exc:  # ROS arguments rcl cannot parse (`--ros-args -p` and no rule)
         program = os.path.basename(sys.argv[0])
         raise SystemExit(f"{program}: error: {exc}") from None
-    stop = threading.Event()
-
-    def request_stop(*_: object) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGTERM, request_stop)
-    signal.signal(signal.SIGINT, request_stop)
+    stop = signals.Flag()  # set by a signal, or when the executor's spin ends
+    signal.signal(signal.SIGTERM, stop.set)
+    signal.signal(signal.SIGINT, stop.set)
     owner = make_owner()
     node = owner.node
     freeze_startup_objects()
@@ -1049,7 +1049,7 @@ def _is_shutdown_race(exc: BaseException) -> bool:
     return isinstance(exc, (InvalidHandle, RCLError))
 
 
-def _spin(executor: Any, stop: threading.Event, stopping: threading.Event) -> None:
+def _spin(executor: Any, stop: signals.Flag, stopping: threading.Event) -> None:
     """:func:`spin_quietly`; ``stop`` is set when the spin ends (for any reason)."""
     try:
         spin_quietly(executor, stopping.is_set)

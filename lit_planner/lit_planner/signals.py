@@ -6,11 +6,48 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
+import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
 STOPS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 """What stops a command: Ctrl-C, ``kill PID``, the terminal closing."""
+
+
+class Flag:
+    """A flag that a signal handler may set (``signal.signal(SIGTERM, flag.set)``), and that the
+    main thread waits on: neither takes a lock.
+
+    A :class:`threading.Event` will not do: its ``wait()`` holds the event's (not reentrant) lock
+    for moments, and a signal handled in one of them, in the main thread, runs a ``set()`` that
+    waits for that lock for good. A node then no longer stopped on SIGTERM (a recorder, in 2 of 10
+    tries, left recording the next run into its bag)."""
+
+    POLL = 0.02
+    """Seconds between looks while :meth:`wait` waits."""
+
+    def __init__(self) -> None:
+        self._set = False
+
+    def set(self, *_: object) -> None:
+        """Set the flag (a signal handler's arguments are ignored)."""
+        self._set = True
+
+    def clear(self) -> None:
+        self._set = False
+
+    def is_set(self) -> bool:
+        return self._set
+
+    def wait(self, timeout: float) -> bool:
+        """Whether the flag is set, waiting up to ``timeout`` s for it."""
+        deadline = time.monotonic() + timeout
+        while not self._set:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return False
+            time.sleep(min(left, self.POLL))
+        return True
 
 
 @contextlib.contextmanager

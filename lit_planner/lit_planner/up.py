@@ -498,9 +498,9 @@ def run(args: argparse.Namespace) -> int:
     runs = (Path("runs") / run_id).absolute()  # absolute: the export service answers with it
     runs.mkdir(parents=True, exist_ok=True)
     system = System(args.domain_id, Path.cwd(), keep_lines=KEEP_LINES)
-    stop = threading.Event()
+    stop = signals.Flag()
     for number in signals.STOPS:  # SIGHUP too: the terminal closed, stop in order
-        signal.signal(number, lambda *_: stop.set())
+        signal.signal(number, stop.set)
     print(
         f"lit up: run {run_id} on ROS_DOMAIN_ID={args.domain_id} (localhost discovery); "
         "Ctrl-C stops everything",

@@ -43,3 +43,22 @@ def test_another_thread_installs_nothing() -> None:
     thread.start()
     thread.join()
     assert outcome == [before]
+
+
+def test_a_flag_is_set_by_a_signal_that_lands_inside_its_wait() -> None:
+    """The nodes' and ``lit up``'s stop flag: set by the handler of a signal sent while the main
+    thread waits on it, and it takes no lock a handler could wait for. A threading.Event's set()
+    from a handler that ran while the main thread held the event's lock (inside wait()) waited
+    for good: a node that ignored SIGTERM from then on."""
+    import os
+
+    flag = signals.Flag()
+    assert not flag.wait(0.0) and not flag.is_set()
+    timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGUSR1))
+    with signals.handling([signal.SIGUSR1], flag.set):
+        timer.start()
+        assert flag.wait(120.0)  # the handler ran in this thread, inside the wait
+    timer.join()
+    assert flag.is_set()
+    flag.clear()
+    assert not flag.is_set() and vars(flag) == {"_set": False}  # no lock anywhere
