@@ -28,6 +28,8 @@ from ros_helpers import ROOT, launcher_domain
         (["--time-budget", "3601"], "up to 3600 with --policy training, got 3601.0"),
         (["--policy", "tensor", "--time-budget", "86401"], "up to 86400 with --policy tensor"),
         (["--planner-param", "time_budget:=1e12"], "time_budget must be 0 (the scenario's) or at"),
+        # Below a microsecond the learner refuses every decision (5e-324 had failed its reward).
+        (["--time-budget", "1e-9"], "or at least 1e-06 s with policy training"),
         (["--episodes", "-1"], "--episodes must be 0"),
         (["--run-id", "../escape"], "--run-id '../escape': a folder name"),
         (["--run-id", "42"], "starts with a letter"),  # ROS would read -p run_id:=42 as a number

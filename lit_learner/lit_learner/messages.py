@@ -152,6 +152,9 @@ def _validate_features(where: str, features: Features, field: str) -> None:
 COST_TOLERANCE = 1e-9
 """Relative rounding a solution cost may fall below ``minimum_cost`` by (the planners compute the
 two through different code)."""
+MIN_TIME_BUDGET = 1e-6
+"""Seconds: the shortest episode budget taken (the schemas' DecideRequest / EpisodeEnd minimum);
+a budget below a microsecond is no query, and the search cost's floor underflowed for it."""
 
 
 def _validate_progress(
@@ -168,9 +171,12 @@ def _validate_progress(
         raise MessageError(
             f"{where}: planning_time {planning_time} must be finite and >= 0", field="planning_time"
         )
-    if not (math.isfinite(time_budget) and time_budget > 0.0):
+    if not (math.isfinite(time_budget) and time_budget >= MIN_TIME_BUDGET):
+        # 5e-324 passed "> 0", and the search cost's floor (search_floor * T) underflowed to 0:
+        # a ZeroDivisionError lost the transition (1e-300 gave a reward of about -700).
         raise MessageError(
-            f"{where}: time_budget {time_budget} must be finite and > 0", field="time_budget"
+            f"{where}: time_budget {time_budget} must be finite and at least {MIN_TIME_BUDGET:g} s",
+            field="time_budget",
         )
     if cost is not None and not cost > 0.0:
         raise MessageError(f"{where}: cost {cost} must be > 0 or None", field="cost")

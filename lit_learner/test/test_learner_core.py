@@ -137,8 +137,11 @@ def test_bad_messages_are_rejected_with_their_field() -> None:
     assert caught.value.field == "rho_local"
     with pytest.raises(MessageError, match=r"measure = 1.5 is not a number in \[0, 1\]"):
         core.decide(replace(good, measure=1.5))  # as DecideRequest's schema refuses it
-    with pytest.raises(MessageError, match="time_budget 0.0 must be finite and > 0"):
+    with pytest.raises(MessageError, match="time_budget 0.0 must be finite and at least 1e-06 s"):
         core.end_episode(EpisodeEnd("e", 1.0, 0.0, None, 1.0, 0, 0))
+    # 5e-324 > 0: the search cost's floor underflowed to 0 (a ZeroDivisionError lost the step).
+    with pytest.raises(MessageError, match="time_budget 5e-324 must be finite and at least"):
+        core.decide(replace(good, time_budget=5e-324))
     # A cost below the straight line's (1e-300 against 1) made c_min / c = 1e300: a reward that
     # is inf in the float32 buffer failed every gradient step that sampled it.
     for below in (replace(good, cost=1e-300), replace(good, cost=0.999)):

@@ -90,6 +90,8 @@ def validate(name: str, obj: object, *, plain: bool | None = None) -> None:
             )
         if error.validator == "const":  # jsonschema names the expected value only
             message += f", got {shown(error.instance)}"
+        if error.validator == "pattern" and error.validator_value == NO_CONTROL_CHARACTERS:
+            message = f"{shown(error.instance)} holds a control character (NUL, newline, ...)"
         message = _short(message, error.instance)
         # jsonschema names neither the size nor the limit (but for "should be non-empty" and
         # "is expected to be empty", the rules min 1 and max 0)
@@ -305,6 +307,11 @@ def _non_finite_numbers(obj: object, path: str) -> Iterator[tuple[str, float]]:
     elif isinstance(obj, (list, tuple)):
         for index, value in enumerate(obj):
             yield from _non_finite_numbers(value, f"{path}[{index}]")
+
+
+NO_CONTROL_CHARACTERS = "^[^\\u0000-\\u001f\\u007f-\\u009f]+$"
+"""The schemas' pattern of an id that goes into ROS headers and log lines (``request_id``): no C0
+or C1 control characters (a NUL ended a ``frame_id`` there)."""
 
 
 def reject_constant(constant: str) -> float:

@@ -84,6 +84,7 @@ from lit_planner.rosutil import (
     CANCEL_SERVICE,
     DECIDE_SERVICE,
     MAX_REQUEST_TIME,
+    MIN_EPISODE_BUDGET,
     PLAN_RESENDS,
     PLAN_SEND_ATTEMPTS,
     PLAN_SERVICE,
@@ -206,6 +207,11 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
     for name in ("time_budget", "episodes", "queue_limit", "wait_for_subscribers"):
         if not p[name] >= 0:  # also NaN
             return f"{name} must be 0 or more, got {p[name]}"
+    if p["policy"] == "training" and 0 < p["time_budget"] < MIN_EPISODE_BUDGET:
+        return (
+            f"time_budget must be 0 (the scenario's) or at least {MIN_EPISODE_BUDGET:g} s with "
+            f"policy training (the learner refuses less), got {p['time_budget']}"
+        )
     limit = episode_budget_limit(p["policy"])
     if not p["time_budget"] <= limit:
         # Beyond 3600 s every training decision and episode end failed their schemas (the

@@ -599,8 +599,9 @@ def markdown(summary: dict[str, Any]) -> str:
         ),
         (
             "- Times: every planner's clock starts after its setup(), at solve(). LIT*'s is its own "
-            "planning clock, started once solve() has read the start and goal (microseconds); its "
-            "first batch of samples is inside it. It pauses while an external policy answers "
+            "planning clock, started at solve(): reading the problem is inside it, as its first "
+            "batch of samples is (for runs before 2026-12-07 it started once solve() had read the "
+            "start and goal: microseconds for these single-goal scenarios). It pauses while an external policy answers "
             "(unused here) and while LIT* hands an event to the run's record (microseconds each; "
             "in runs before 2026-12-06 the fixed and fit policies' B decisions also computed there "
             "a path feature that these policies do not use, a few ms a run). The OMPL planners' "
