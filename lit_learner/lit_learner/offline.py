@@ -102,10 +102,11 @@ def run(args: argparse.Namespace) -> int:
             "both agents; the learner's own are warm-up 500 / 10000, batches of 64 / 256)"
         ) from None
     interval = recorded_decision_interval(args.bags, args.decision_interval)
-    episodes, skipped = read_episodes(args.bags)
+    # Progress bars on a terminal: the shipped training bag takes minutes (was silent).
+    episodes, skipped = read_episodes(args.bags, progress=None)
     if not episodes:
         raise ReplayError("no complete training episode in the given bags")
-    core = train_offline(episodes, config)
+    core = train_offline(episodes, config, progress=None)
     provenance = {
         "exported_by": "lit replay tensors",
         "bags": [str(Path(path).resolve()) for path in args.bags],
@@ -190,7 +191,7 @@ def bag_decision_interval(path: Path) -> int | None:
                 f"between 1 and {MAX_INTERVAL}"
             )
         return int(text)
-    if custom.get("lit.source") != "lit_train":
+    if custom.get("lit.source") != TRAIN_SOURCE:
         return None
     words = shlex.split(str(custom.get("lit.command", "")))
     if "train" not in words:
@@ -284,9 +285,13 @@ def _bag_custom_data(path: Path) -> dict[str, Any]:
     return dict(custom) if isinstance(custom, dict) else {}
 
 
+TRAIN_SOURCE = "lit_train"
+"""Envelope ``source`` (and bag ``lit.source``) of ``lit train``'s recordings."""
 RECORDED_AGAIN = "training episode recorded again (the later recording is used)"
 """Why an episode's earlier recording is left out: a ``lit train`` run resumed from an earlier
-checkpoint (``--rollback``, or after a second Ctrl-C) ran it again under the same id."""
+checkpoint (``--rollback``, or after a second Ctrl-C) ran it again under the same id. (A planner
+node restarted under the same run id numbers its episodes from 0 again too, but its learner,
+which went on, trained on both: those are episodes of their own.)"""
 INCOMPLETE = "incomplete training episode"
 NO_SUMMARY = "episode without its summary (cut off, or the summary lost)"
 """Why an episode whose decisions are there and whose EpisodeSummary is not is left out: its
@@ -313,14 +318,21 @@ class _Sessions:
         return session
 
 
-def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
+def read_episodes(
+    paths: list[Path], progress: bool | None = False
+) -> tuple[list[RecordedEpisode], Skipped]:
     """Complete training episodes (summary, and as many observations and decisions as the
     summary counts decisions), in the order their summaries were recorded. A message read twice
     (a bag given with its compacted or salvaged copy: the same topic, publisher, run and seq)
     counts once; it was paired twice, and the pairing failed on the second copy's earlier
-    times. An episode recorded again by a resumed run (same run and episode id, a later
-    publishing session) takes the place of its first recording with the content of its latest
-    one (the latest summary stamp): the episodes the resumed learner trained on."""
+    times. An episode recorded again by a resumed ``lit train`` run (same run and episode id, a
+    later publishing session) takes the place of its first recording with the content of its
+    latest one (the latest summary stamp): the episodes the resumed learner trained on. A planner
+    node's later session (the node restarted under the same run id, its episode numbers from 0
+    again) holds episodes of their own: the learner node trained on both. ``progress``: a
+    progress bar per bag on standard error (None: only on a terminal)."""
+    from tqdm import tqdm
+
     skipped = Skipped()
     found: dict[tuple[str, str, str, int], RecordedEpisode] = {}
     order: list[tuple[str, str, str, int]] = []
@@ -328,7 +340,11 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
     sessions = _Sessions()
     for path in paths:
         with BagReader(path) as reader:
-            for message in reader.messages():
+            for message in tqdm(
+                reader.messages(), total=reader.facts.messages, unit="msg", unit_scale=True,
+                desc=f"reading {Path(path).name}", disable=_no_bar(progress), leave=False,
+                dynamic_ncols=True,
+            ):  # fmt: skip
                 item = decode(message, skipped)
                 if not isinstance(item, Envelope) or not isinstance(item.payload, dict):
                     continue
@@ -364,16 +380,17 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
     if cut_off:
         skipped.counts[NO_SUMMARY] += cut_off
     # Each episode once, at its first recording's place, as its latest recording holds it.
-    latest: dict[tuple[str, str, str], RecordedEpisode] = {}
+    latest: dict[tuple[Any, ...], RecordedEpisode] = {}
     for key in order:
         episode = found[key]
         if episode.summary is None or episode.summary.get("mode") != "training":
             continue
-        kept = latest.setdefault(episode.key, episode)
+        identity = episode.key if episode.key[0] == TRAIN_SOURCE else key  # key: its session
+        kept = latest.setdefault(identity, episode)
         if kept is not episode:
             skipped.counts[RECORDED_AGAIN] += 1
             if episode.summary_stamp_ns > kept.summary_stamp_ns:
-                latest[episode.key] = episode
+                latest[identity] = episode
     complete = []
     for episode in latest.values():
         summary = episode.summary
@@ -396,6 +413,11 @@ def read_episodes(paths: list[Path]) -> tuple[list[RecordedEpisode], Skipped]:
             continue
         complete.append(episode)
     return complete, skipped
+
+
+def _no_bar(progress: bool | None) -> bool | None:
+    """tqdm's ``disable`` for ``progress`` (None: tqdm's own choice, a bar on a terminal only)."""
+    return None if progress is None else not progress
 
 
 def offline_config(
@@ -423,13 +445,20 @@ def offline_config(
     )
 
 
-def train_offline(episodes: list[RecordedEpisode], config: Any) -> Any:
+def train_offline(
+    episodes: list[RecordedEpisode], config: Any, progress: bool | None = False
+) -> Any:
     """A :class:`~lit_learner.core.LearnerCore` of ``config`` (:func:`offline_config`) trained
-    on ``episodes``."""
+    on ``episodes``; ``progress``: a progress bar on standard error (None: only on a
+    terminal)."""
+    from tqdm import tqdm
+
     from lit_learner.core import LearnerCore
 
     core = LearnerCore(config)
-    for episode in episodes:
+    for episode in tqdm(
+        episodes, unit="ep", desc="training", disable=_no_bar(progress), dynamic_ncols=True,
+    ):  # fmt: skip
         _replay_episode(core, episode)
     return core
 

@@ -52,6 +52,7 @@ from lit_learner.metrics import (
     histogram_column,
     plot_training_curves,
 )
+from lit_learner.offline import TRAIN_SOURCE
 from lit_planner import argtypes, signals
 
 TRAINING_SEEDS = (1_000_000, 2**32 - 1)
@@ -1635,7 +1636,7 @@ def _open_bag(state: DriverState, run_dir: Path) -> Any:
     return EpisodeRecording(
         unique_directory(parent, run_dir.resolve().name),
         state.run_id,
-        "lit_train",
+        TRAIN_SOURCE,
         metadata={
             "lit.run_folder": str(run_dir),
             # lit replay tensors records it with the tensors it retrains from this bag.

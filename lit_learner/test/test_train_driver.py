@@ -1308,6 +1308,56 @@ def _without_one_pair(source: Path, target: Path, victim: tuple[str, str, str]) 
     assert dropped == {"lit_msgs_json/Observation": 1, "lit_msgs_json/Decision": 1}
 
 
+def test_a_restarted_planner_nodes_episodes_are_kept_beside_the_first_ones(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A planner node restarted under the same run id numbers its episodes from 0 again (the same
+    ids, its seq from 0: a later publishing session). The learner node, which went on, trained on
+    both: lit replay tensors kept only the later ones, as for a resumed lit train run (whose
+    checkpoint had rolled the first ones back), which it still does."""
+    import json as json_module
+
+    from lit_learner import offline
+    from lit_planner import bag, replay
+
+    train.train(arguments(tmp_path / "run", episodes=3, scenarios="np4", checkpoint_every=0),
+                train.TrainingHooks(learner_config=small_config()))  # fmt: skip
+    (recorded,) = [p for p in tmp_path.iterdir() if (p / "metadata.yaml").exists()]
+    later = 10**10  # the restarted process sends 10 s after the first one's last message
+
+    def twice(source: str, target: Path) -> None:  # two processes of one publisher, one bag
+        skipped = replay.Skipped()
+        with replay.BagReader(recorded) as reader, bag.BagRecorder(target, run_id="r") as out:
+            messages = [m for m in reader.messages() if m.msgtype == bag.STRING_TYPE]
+            for topic in sorted({m.topic for m in messages}):
+                out.add_topic(topic, bag.STRING_TYPE)
+            for shift in (0, later):
+                for message in messages:
+                    item = replay.decode(message, skipped)
+                    assert isinstance(item, replay.Envelope)
+                    text = bag.typestore().deserialize_cdr(message.data, bag.STRING_TYPE).data
+                    envelope = json_module.loads(text)
+                    envelope["source"] = source
+                    envelope["stamp_ns"] += shift
+                    out.write_string(
+                        message.topic, json_module.dumps(envelope), message.log_ns + shift
+                    )
+
+    node_bag, train_bag = tmp_path / "node-bag", tmp_path / "train-bag"
+    twice("/lit_planner", node_bag)
+    twice(offline.TRAIN_SOURCE, train_bag)
+    capsys.readouterr()
+    first, _ = offline.read_episodes([recorded], progress=True)  # lit replay tensors: a terminal
+    assert len(first) == 3 and f"reading {recorded.name}" in capsys.readouterr().err
+    episodes, skipped = offline.read_episodes([node_bag])
+    assert [e.key[2] for e in episodes] == [e.key[2] for e in first] * 2
+    assert not skipped.counts[offline.RECORDED_AGAIN] and not skipped.counts[offline.INCOMPLETE]
+    episodes, skipped = offline.read_episodes([train_bag])
+    assert [e.key[2] for e in episodes] == [e.key[2] for e in first]
+    assert skipped.counts[offline.RECORDED_AGAIN] == 3
+    assert all(e.summary_stamp_ns > later for e in episodes)  # the later recordings
+
+
 def _copy_bag(source: Path, target: Path, drop: Callable[[Any], bool]) -> None:
     """Copy the envelopes of bag ``source`` to ``target``, leaving out those ``drop`` says."""
     from lit_planner import bag, replay
