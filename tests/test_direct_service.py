@@ -24,6 +24,7 @@ SERVER = textwrap.dedent(
     import rclpy
     from rclpy.signals import SignalHandlerOptions
     from diagnostic_msgs.srv import AddDiagnostics
+    from lit_planner import signals
     from lit_planner.rosutil import DirectService
 
     import os
@@ -58,8 +59,8 @@ SERVER = textwrap.dedent(
     holder = []
 
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    stop = signals.Flag()  # a handler takes no lock (an Event's set() could wait for good)
+    signal.signal(signal.SIGTERM, stop.set)
     node = rclpy.create_node("direct_test_server")
     service = DirectService(
         node,
@@ -83,7 +84,8 @@ SERVER = textwrap.dedent(
 
     service._service.send_response = lossy
     print("ready", flush=True)
-    stop.wait()
+    while not stop.wait(1.0):
+        pass
     service.shutdown()
     print("repeats", service.repeats, flush=True)
     print("thread alive after shutdown:", service._thread.is_alive(), flush=True)

@@ -92,7 +92,7 @@ def test_recorder_keeps_every_message_at_peak_rate(tmp_path: Path) -> None:
     for account in planner_accounts:
         assert account["leading"] == 0, account  # recording started with seq 0
         assert account["missing"] == 0 and account["gaps"] == 0, account
-        assert account["duplicates"] == 0, account
+        assert account["duplicates"] == 0 and account["reused"] == 0, account
 
     skipped = replay.Skipped()
     summaries = []

@@ -897,7 +897,7 @@ def test_sample_bag_info_and_bench_replay(tmp_path: Path) -> None:
         bag.BENCH_CONFIG_TOPIC: 1,
         bag.BENCH_RUN_TOPIC: 2,
     }
-    assert all(p["gaps"] == 0 and p["duplicates"] == 0 for p in info["publishers"])
+    assert all(p["gaps"] == p["duplicates"] == p["reused"] == 0 for p in info["publishers"])
     assert info["skipped"]["total"] == 0
 
     result = _replay("bench", SAMPLE, "--out", tmp_path / "out")

@@ -318,6 +318,13 @@ class _Sessions:
         return session
 
 
+def _identity(key: tuple[str, str, str, int]) -> tuple[Any, ...]:
+    """Which recordings (``key``: source, run id, episode id, publishing session) are one episode:
+    a ``lit train`` run's of one id in any session (a resumed run ran it again); a planner node's
+    of one id in one session (a restarted node numbers its episodes from 0 again)."""
+    return key[:3] if key[0] == TRAIN_SOURCE else key
+
+
 def read_episodes(
     paths: list[Path], progress: bool | None = False
 ) -> tuple[list[RecordedEpisode], Skipped]:
@@ -373,9 +380,11 @@ def read_episodes(
                     episode.summary_stamp_ns = item.stamp_ns
                     order.append(key)
     # Counted, not dropped without a word (the replay's "messages" line showed nothing of them).
-    summarized = {e.key for e in found.values() if e.summary is not None}  # e.g. run again
+    summarized = {_identity(k) for k, e in found.items() if e.summary is not None}  # run again
     cut_off = sum(
-        1 for e in found.values() if e.summary is None and e.decisions and e.key not in summarized
+        1
+        for k, e in found.items()
+        if e.summary is None and e.decisions and _identity(k) not in summarized
     )
     if cut_off:
         skipped.counts[NO_SUMMARY] += cut_off
@@ -385,7 +394,7 @@ def read_episodes(
         episode = found[key]
         if episode.summary is None or episode.summary.get("mode") != "training":
             continue
-        identity = episode.key if episode.key[0] == TRAIN_SOURCE else key  # key: its session
+        identity = _identity(key)
         kept = latest.setdefault(identity, episode)
         if kept is not episode:
             skipped.counts[RECORDED_AGAIN] += 1

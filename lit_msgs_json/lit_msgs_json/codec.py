@@ -90,7 +90,7 @@ def validate(name: str, obj: object, *, plain: bool | None = None) -> None:
             )
         if error.validator == "const":  # jsonschema names the expected value only
             message += f", got {shown(error.instance)}"
-        if error.validator == "pattern" and error.validator_value == NO_CONTROL_CHARACTERS:
+        if error.validator == "not" and error.validator_value == {"pattern": CONTROL_CHARACTER}:
             message = f"{shown(error.instance)} holds a control character (NUL, newline, ...)"
         message = _short(message, error.instance)
         # jsonschema names neither the size nor the limit (but for "should be non-empty" and
@@ -143,6 +143,12 @@ def _short(message: str, instance: object) -> str:
 def shown(value: object) -> str:
     """``value`` as JSON, cut short when long (the message may otherwise quote a whole file)."""
     text = json.dumps(value, default=repr, ensure_ascii=False)  # NaN as NaN (allow_nan)
+    # JSON escapes C0 controls only: DEL, C1 controls, lone surrogates and other characters that
+    # do not print are escaped too (a message quoting what it refuses carried it into logs).
+    text = "".join(
+        char if char.isprintable() else f"\\u{ord(char):04x}" if ord(char) <= 0xFFFF
+        else f"\\U{ord(char):08x}" for char in text
+    )  # fmt: skip
     return text if len(text) <= 80 else text[:77] + "..."
 
 
@@ -309,9 +315,10 @@ def _non_finite_numbers(obj: object, path: str) -> Iterator[tuple[str, float]]:
             yield from _non_finite_numbers(value, f"{path}[{index}]")
 
 
-NO_CONTROL_CHARACTERS = "^[^\\u0000-\\u001f\\u007f-\\u009f]+$"
-"""The schemas' pattern of an id that goes into ROS headers and log lines (``request_id``): no C0
-or C1 control characters (a NUL ended a ``frame_id`` there)."""
+CONTROL_CHARACTER = "[\\u0000-\\u001f\\u007f-\\u009f]"
+"""A C0 or C1 control character: the schemas refuse one in an id that goes into ROS headers and
+log lines (``request_id``: ``"not": {"pattern": ...}``; a NUL ended a ``frame_id`` there). A
+pattern of what is allowed, ``^[^...]+$``, let a final newline through: ``$`` matches before it."""
 
 
 def reject_constant(constant: str) -> float:

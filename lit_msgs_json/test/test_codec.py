@@ -220,9 +220,12 @@ def test_a_huge_violating_value_is_shortened_in_the_message() -> None:
         codec.validate("PlanRequest", {"scenario": "np4", "request_id": "日本" * 200})
     # A NUL ended the id on /lit/path (header.frame_id), where verify then missed its path.
     for schema, fields in (("PlanRequest", {"scenario": "np4"}), ("CancelRequest", {})):
-        for bad in ("\x00\n", "a\x00b", "tab\there", "\x85"):
-            with pytest.raises(SchemaError, match=r"\.request_id: .* holds a control character"):
+        for bad in ("\x00\n", "a\x00b", "tab\there", "\x85", "id\n"):  # "id\n": $ before \n
+            with pytest.raises(
+                SchemaError, match=r"\.request_id: .* holds a control character"
+            ) as caught:
                 codec.validate(schema, {**fields, "request_id": bad})
+            assert str(caught.value).isprintable()  # shown escaped: not carried into logs
         codec.validate(schema, {**fields, "request_id": "ψ_K run #3 é"})
 
 

@@ -838,8 +838,9 @@ class SeqAccount:
     """The highest seq seen."""
     last_stamp_ns: int = -1
     """The latest send time seen."""
-    contents: dict[int, set[int]] = field(default_factory=dict)
-    """Hashes of the recorded bytes of each seq's messages."""
+    contents: dict[int, int | set[int]] = field(default_factory=dict)
+    """Hash of the recorded bytes of each seq's message (a set once a seq has several: a set for
+    every seq took about 320 bytes a message)."""
     duplicates: int = 0
     """Messages recorded again: a seq seen before with the same bytes."""
     reused: int = 0
@@ -855,13 +856,15 @@ class SeqAccount:
 
     def add(self, item: Envelope, content: bytes) -> None:
         """Account ``item``, whose recorded message is ``content``."""
-        seen = self.contents.setdefault(item.seq, set())
-        if seen:
-            if hash(content) in seen:
-                self.duplicates += 1
-            else:
-                self.reused += 1
-        seen.add(hash(content))
+        digest = hash(content)
+        seen = self.contents.get(item.seq)
+        if seen is None:
+            self.contents[item.seq] = digest
+        elif seen == digest or (isinstance(seen, set) and digest in seen):
+            self.duplicates += 1
+        else:
+            self.reused += 1
+            self.contents[item.seq] = (seen if isinstance(seen, set) else {seen}) | {digest}
         self.seqs.append(item.seq)
         self.run_ids.add(item.run_id)
         self.schemas[item.schema] += 1

@@ -367,36 +367,42 @@ def find_ctest_dir(root: Path) -> Path | None:
     return candidates[-1].parent if candidates else None
 
 
-def sanitize_commands(root: Path, jobs: int, pybind11_dir: str) -> list[list[str]]:
-    """Configure and build :data:`SANITIZE_DIR`: the core's library, GoogleTest binaries and
-    extension module (in the tree's top folder, for ``PYTHONPATH``) with :data:`SANITIZERS`,
-    optimised with debug information (RelWithDebInfo) for readable reports."""
+def sanitize_commands(root: Path, jobs: int, pybind11_dir: str | None) -> list[list[str]]:
+    """Configure and build :data:`SANITIZE_DIR`: the core's library, GoogleTest binaries and,
+    given ``pybind11_dir``, the extension module (in the tree's top folder, for ``PYTHONPATH``)
+    with :data:`SANITIZERS`, optimised with debug information (RelWithDebInfo) for readable
+    reports."""
     build = root / SANITIZE_DIR
     flags = f"{SANITIZERS} -fno-omit-frame-pointer -fno-sanitize-recover=undefined"
+    python = (
+        ["-DLIT_BUILD_PYTHON=ON", f"-Dpybind11_DIR={pybind11_dir}",
+         f"-DPython_EXECUTABLE={sys.executable}", f"-DCMAKE_MODULE_LINKER_FLAGS={SANITIZERS}"]
+        if pybind11_dir is not None else ["-DLIT_BUILD_PYTHON=OFF"]
+    )  # fmt: skip
     return [
-        ["cmake", "-S", str(root / "lit_planner" / "core"), "-B", str(build),
-         "-DLIT_BUILD_PYTHON=ON", "-DLIT_INSTALL_CPP=OFF", "-DLIT_BUILD_TESTS=ON",
-         f"-Dpybind11_DIR={pybind11_dir}", f"-DPython_EXECUTABLE={sys.executable}",
+        ["cmake", "-S", str(root / "lit_planner" / "core"), "-B", str(build), *python,
+         "-DLIT_INSTALL_CPP=OFF", "-DLIT_BUILD_TESTS=ON",
          "-DCMAKE_BUILD_TYPE=RelWithDebInfo", f"-DCMAKE_CXX_FLAGS={flags}",
-         f"-DCMAKE_EXE_LINKER_FLAGS={SANITIZERS}", f"-DCMAKE_MODULE_LINKER_FLAGS={SANITIZERS}"],
+         f"-DCMAKE_EXE_LINKER_FLAGS={SANITIZERS}"],
         ["cmake", "--build", str(build), "-j", str(jobs)],
     ]  # fmt: skip
 
 
-def build_sanitized(root: Path, env: dict[str, str]) -> Path | str:
-    """Build :data:`SANITIZE_DIR` (incremental); its path, or what went wrong."""
+def build_sanitized(root: Path, env: dict[str, str], python: bool = True) -> Path | str:
+    """Build :data:`SANITIZE_DIR` (incremental), with the extension module when ``python``; its
+    path, or what went wrong."""
     if shutil.which("cmake") is None:
         return "cmake not found on PATH (Debian package cmake)"
-    try:
-        import pybind11
-    except ImportError:
-        return "pybind11 is not installed (run ./lit once to set up)"
-    print(
-        f"lit test: building the C++ tests and the extension module with sanitizers in "
-        f"{SANITIZE_DIR}",
-        flush=True,
-    )
-    commands = sanitize_commands(root, os.cpu_count() or 1, pybind11.get_cmake_dir())
+    pybind11_dir = None
+    if python:
+        try:
+            import pybind11
+        except ImportError:
+            return "pybind11 is not installed (run ./lit once to set up)"
+        pybind11_dir = pybind11.get_cmake_dir()
+    built = "the C++ tests and the extension module" if python else "the C++ tests"
+    print(f"lit test: building {built} with sanitizers in {SANITIZE_DIR}", flush=True)
+    commands = sanitize_commands(root, os.cpu_count() or 1, pybind11_dir)
     for step, command in zip(("configuring", "building"), commands, strict=True):
         returncode = _run_runner(command, env, root)
         if returncode != 0:
@@ -412,17 +418,22 @@ def sanitized_python_environment(
     libstdc++ after it (ASan's interceptor of C++ exceptions finds nothing to forward to when
     libstdc++ is loaded later, with the extension), ``build`` first on ``PYTHONPATH``, and the
     reports written to :data:`SANITIZER_REPORT` files in ``report_dir`` unless the user's own
-    ``ASAN_OPTIONS`` / ``UBSAN_OPTIONS`` say otherwise."""
-    compiler = shutil.which("g++")
-    if compiler is None:
-        return "g++ not found on PATH (Debian package g++)"
+    ``ASAN_OPTIONS`` / ``UBSAN_OPTIONS`` say otherwise. The runtime is the one of the compiler
+    that built ``build`` (its CMake cache's): GCC's (``CXX=clang++`` would want clang's)."""
+    compiler = _cmake_compiler(build) or shutil.which("g++")
+    if compiler is None or shutil.which(compiler) is None:
+        return f"{compiler or 'g++'} not found (Debian package g++)"
     libraries = []
     for name in ("libasan.so", "libstdc++.so"):
         found = subprocess.run(
             [compiler, f"-print-file-name={name}"], capture_output=True, text=True, check=False
         ).stdout.strip()
         if not found or not Path(found).is_file():  # g++ prints the bare name when it has none
-            return f"{name} not found by {compiler} -print-file-name (it comes with g++)"
+            return (
+                f"{name} not found by {compiler} -print-file-name: --sanitize preloads GCC's "
+                "runtime into Python; build with g++ (Debian package g++; remove "
+                f"{SANITIZE_DIR} after changing CXX)"
+            )
         libraries.append(str(Path(found).resolve()))
     sanitized = SANITIZE_PYTHON_ENV | env  # the user's own options win
     for key in SANITIZE_PYTHON_ENV:
@@ -434,6 +445,16 @@ def sanitized_python_environment(
     paths = [str(build), *filter(None, env.get("PYTHONPATH", "").split(os.pathsep))]
     sanitized["PYTHONPATH"] = os.pathsep.join(paths)
     return sanitized
+
+
+def _cmake_compiler(build: Path) -> str | None:
+    """The C++ compiler a CMake build tree was configured with (``CMAKE_CXX_COMPILER``)."""
+    try:
+        cache = (build / "CMakeCache.txt").read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return None
+    found = re.search(r"^CMAKE_CXX_COMPILER:\w+=(.+)$", cache, re.MULTILINE)
+    return found.group(1).strip() if found else None
 
 
 def sanitizer_reports(report_dir: Path) -> list[tuple[Path, str]]:
@@ -463,10 +484,14 @@ def run_sanitized_pytest(
     if isinstance(sanitized, str):
         result.error = sanitized
         return result
-    probe = subprocess.run(
-        [sys.executable, "-c", "import lit_core; print(lit_core.__file__)"],
-        env=sanitized, capture_output=True, text=True, timeout=300, check=False, cwd=root,
-    )  # fmt: skip
+    try:
+        probe = subprocess.run(
+            [sys.executable, "-c", "import lit_core; print(lit_core.__file__)"],
+            env=sanitized, capture_output=True, text=True, timeout=300, check=False, cwd=root,
+        )  # fmt: skip
+    except subprocess.TimeoutExpired:
+        result.error = "importing the sanitized lit_core took more than 300 s"
+        return result
     module = Path(probe.stdout.strip() or ".").resolve()
     if probe.returncode != 0 or module.parent != build.resolve():
         result.error = (
@@ -625,7 +650,7 @@ def main(args: argparse.Namespace) -> int:
             report_dir = Path(tmp)
             if args.sanitize:
                 ctest, pytest = RunnerResult("ctest"), RunnerResult("pytest")
-                built = build_sanitized(root, env)
+                built = build_sanitized(root, env, python=not args.no_pytest)
                 if isinstance(built, str):
                     ctest.error = built
                 else:

@@ -270,3 +270,15 @@ def test_a_copy_queued_while_its_original_is_read_is_answered_with_one_plan() ->
         thread.join(30)
     assert len(answers) == 2 and all(answer.success for answer in answers)
     assert fake._jobs.empty() and list(fake._plan_copies.values()) == [job]
+
+
+def test_the_shortest_episode_budget_is_one_number_everywhere() -> None:
+    """The schemas' minimum of an episode's time_budget, the learner's check, the planner node's
+    parameter check and the scale factors' floor (lit bench, lit train) say the same."""
+    from lit_learner.messages import MIN_TIME_BUDGET
+
+    from lit_planner import planning, rosutil
+
+    for name in ("DecideRequest", "EpisodeEnd"):
+        minimum = codec.load_schema(name)["properties"]["time_budget"]["minimum"]
+        assert minimum == rosutil.MIN_EPISODE_BUDGET == MIN_TIME_BUDGET == planning.MIN_TIME

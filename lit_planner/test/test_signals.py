@@ -47,9 +47,11 @@ def test_another_thread_installs_nothing() -> None:
 
 def test_a_flag_is_set_by_a_signal_that_lands_inside_its_wait() -> None:
     """The nodes' and ``lit up``'s stop flag: set by the handler of a signal sent while the main
-    thread waits on it, and it takes no lock a handler could wait for. A threading.Event's set()
-    from a handler that ran while the main thread held the event's lock (inside wait()) waited
-    for good: a node that ignored SIGTERM from then on."""
+    thread waits on it, and it holds no lock a handler could wait for (the last check: a signal
+    rarely lands in the moments an Event's wait() holds its lock, so no run of this test could
+    show that deadlock). A threading.Event's set() from a handler that ran while the main thread
+    held the event's lock (inside wait()) waited for good: a node that ignored SIGTERM from then
+    on."""
     import os
 
     flag = signals.Flag()

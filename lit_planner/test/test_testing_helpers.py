@@ -165,6 +165,8 @@ def test_lit_test_sanitize_builds_the_tests_and_the_module_apart(tmp_path: Path)
     assert "-fsanitize=address,undefined" in flags and "-fno-sanitize-recover=undefined" in flags
     assert "-DCMAKE_MODULE_LINKER_FLAGS=-fsanitize=address,undefined" in configure
     assert build == ["cmake", "--build", str(root / testing.SANITIZE_DIR), "-j", "2"]
+    configure, _ = testing.sanitize_commands(root, 2, None)  # --no-pytest: no module
+    assert "-DLIT_BUILD_PYTHON=OFF" in configure and not any("pybind11" in a for a in configure)
     (root / testing.SANITIZE_DIR).mkdir(parents=True)
     (root / testing.SANITIZE_DIR / "CTestTestfile.cmake").write_text("")
     assert testing.find_ctest_dir(root) is None  # never taken for the normal build
@@ -193,6 +195,15 @@ def test_the_sanitized_python_tests_preload_the_runtime_and_read_its_reports(
     assert env["PYTHONPATH"].split(os.pathsep) == [str(build), "/ros/site"]
     assert env["ASAN_OPTIONS"].endswith(f":log_path={tmp_path / testing.SANITIZER_REPORT}")
     assert env["UBSAN_OPTIONS"] == "mine=1"  # the user's own options win
+    # The runtime of the compiler the tree was configured with (a clang tree wants clang's).
+    build.mkdir()
+    cache = build / "CMakeCache.txt"
+    cache.write_text("CMAKE_CXX_COMPILER:FILEPATH=/nonexistent/clang++\n")
+    assert testing.sanitized_python_environment(user, build, tmp_path) == (
+        "/nonexistent/clang++ not found (Debian package g++)"
+    )
+    cache.write_text(f"CMAKE_CXX_COMPILER:FILEPATH={shutil.which('g++')}\n")
+    assert isinstance(testing.sanitized_python_environment(user, build, tmp_path), dict)
     report = testing.SANITIZER_REPORT
     (tmp_path / f"{report}.11").write_text("==11==AddressSanitizer: WARNING: unexpected format\n")
     assert testing.sanitizer_reports(tmp_path) == []
