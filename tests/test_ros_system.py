@@ -1091,6 +1091,15 @@ BAD_INPUT: list[tuple[str, list[str], bytes | None, str, str | None, str]] = [
         "soon",
     ),
     (
+        # A NUL cut /lit/path's frame_id there: the path no longer matched its request.
+        "plan: a NUL in request_id",
+        ["raw", PLAN, _bad_payload("PlanRequest", {"scenario": "np4"}, request_id="a\x00b")],
+        None,
+        "payload",
+        "$.payload.request_id",
+        "holds a control character",
+    ),
+    (
         "plan: start out of bounds",  # a negative first coordinate: `--start -5,...` parses
         ["plan", "--scenario", "np4", "--start", "-5,5,5,5"],
         None,

@@ -69,8 +69,11 @@ def validate(name: str, obj: object, *, plain: bool | None = None) -> None:
     short = name.removeprefix("lit_msgs_json/")
     validator = _validator(short)
     if plain or (plain is None and plain_json(obj)):
-        if _fast_validator(short).is_valid(obj):
-            return
+        try:
+            if _fast_validator(short).is_valid(obj):
+                return
+        except UnicodeEncodeError:  # a lone surrogate the (Rust) regex of a pattern cannot take
+            pass  # the Python validator below can
     else:
         for json_path, value in _non_finite_numbers(obj, "$"):
             raise SchemaError(short, json_path, "finite", f"{value!r} is not a finite number")
@@ -160,7 +163,10 @@ def valid_envelope(name: str, obj: object) -> bool:
     Raises:
         UnknownSchemaError: no schema of that name ships with the package.
     """
-    return bool(_fast_envelope_validator(name.removeprefix("lit_msgs_json/")).is_valid(obj))
+    try:
+        return bool(_fast_envelope_validator(name.removeprefix("lit_msgs_json/")).is_valid(obj))
+    except UnicodeEncodeError:  # a lone surrogate where a pattern applies: not known valid here
+        return False
 
 
 def prepare(names: Iterable[str]) -> None:

@@ -227,6 +227,9 @@ def test_a_huge_violating_value_is_shortened_in_the_message() -> None:
                 codec.validate(schema, {**fields, "request_id": bad})
             assert str(caught.value).isprintable()  # shown escaped: not carried into logs
         codec.validate(schema, {**fields, "request_id": "ψ_K run #3 é"})
+        # A lone surrogate (no control character; the envelopes refuse it as not Unicode text):
+        # the compiled validator's regex raised UnicodeEncodeError on it, out of validate().
+        codec.validate(schema, {**fields, "request_id": "\ud800"})
 
 
 def test_prepare_builds_the_validators_ahead_and_names_unknown_schemas() -> None:
