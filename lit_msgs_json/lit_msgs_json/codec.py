@@ -143,15 +143,33 @@ def _short(message: str, instance: object) -> str:
     return message
 
 
+CONTROL_ESCAPES = {
+    code: f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}"
+    for code in (
+        *range(0x20),
+        *range(0x7F, 0xA0),
+        0x2028,
+        0x2029,
+        *range(0x202A, 0x202F),
+        *range(0x2066, 0x206A),
+    )
+    if code != ord("\t")
+}
+"""Control characters (C0 but the tab, DEL, C1), the Unicode line and paragraph separators and
+the bidirectional overrides as ``\\x0a``, ``\\x1b``, ``\\u202e``, ...: text from a client (a
+request id, a source) split one log line into forged ones, coloured them with ANSI escapes,
+cut them at a NUL, or could reorder what a terminal shows."""
+
+
 def shown(value: object) -> str:
     """``value`` as JSON, cut short when long (the message may otherwise quote a whole file)."""
     text = json.dumps(value, default=repr, ensure_ascii=False)  # NaN as NaN (allow_nan)
-    # JSON escapes C0 controls only: DEL, C1 controls, lone surrogates and other characters that
-    # do not print are escaped too (a message quoting what it refuses carried it into logs).
-    text = "".join(
-        char if char.isprintable() else f"\\u{ord(char):04x}" if ord(char) <= 0xFFFF
-        else f"\\U{ord(char):08x}" for char in text
-    )  # fmt: skip
+    # JSON escapes C0 controls only: DEL, C1 controls, separators and lone surrogates are
+    # escaped as the nodes' loggers escape them (a message quoting what it refuses carried it
+    # into logs).
+    from lit_msgs_json.envelope import unicode_text
+
+    text = unicode_text(text).translate(CONTROL_ESCAPES)
     return text if len(text) <= 80 else text[:77] + "..."
 
 

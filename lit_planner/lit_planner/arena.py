@@ -565,7 +565,7 @@ def _run_time(record: Mapping[str, Any], time_limit: float | None) -> float | No
 
 def _log_names(scenarios: Iterable[str]) -> dict[str, str]:
     """A log file name for each scenario name: its letters and digits (``np4.log``), with a hash
-    of the name when that leaves nothing (``/`` alone) or is another scenario's too (``np4`` and
+    of the name when that leaves nothing (``-``) or is another scenario's too (``np4`` and
     ``NP4``: one log was written over the other, and its runs were lost from the database)."""
     stems = {name: _UNSAFE.sub("_", name.lower()).strip("_") for name in scenarios}
     counts = collections.Counter(stems.values())

@@ -12,22 +12,7 @@ from __future__ import annotations
 import os
 from typing import Any
 
-_CONTROL_ESCAPES = {
-    code: f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}"
-    for code in (
-        *range(0x20),
-        *range(0x7F, 0xA0),
-        0x2028,
-        0x2029,
-        *range(0x202A, 0x202F),
-        *range(0x2066, 0x206A),
-    )
-    if code != ord("\t")
-}
-"""Control characters (C0 but the tab, DEL, C1), the Unicode line and paragraph separators and
-the bidirectional overrides as ``\\x0a``, ``\\x1b``, ``\\u202e``, ...: text from a client (a
-request id, a source) split one log line into forged ones, coloured them with ANSI escapes,
-cut them at a NUL, or could reorder what a terminal shows."""
+from lit_msgs_json.codec import CONTROL_ESCAPES
 
 
 class SafeLogger:
@@ -58,7 +43,7 @@ class SafeLogger:
         """``message`` as text that encodes to UTF-8."""
         from lit_msgs_json.envelope import unicode_text
 
-        return unicode_text(str(message)).translate(_CONTROL_ESCAPES)
+        return unicode_text(str(message)).translate(CONTROL_ESCAPES)
 
     def debug(self, message: object, **kwargs: Any) -> Any:
         return self._logger.debug(self.text(message), **kwargs)
