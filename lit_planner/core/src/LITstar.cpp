@@ -745,6 +745,10 @@ namespace lit
         a->blacklist_.insert(b->id_);
         b->blacklist_.insert(a->id_);
         ++counters_.edgesInvalid;
+        // A queued forward edge over it (either way) would only be popped and dropped; left queued, its finite key
+        // could hold the front and decide when the searches hand over.
+        if (forwardQueue_)
+            forwardQueue_->removePair(a, b);
     }
 
     double LITstar::remainingChecks(const State *a, const State *b) const
@@ -805,12 +809,23 @@ namespace lit
                 }
                 done = fullCheck;
                 whitelist(from, to);
+                rekeyForwardEdges(from, to);
                 return true;
             }
             ++level;
         }
+        const bool progressed = level != done;
         done = level;
+        if (progressed)
+            rekeyForwardEdges(from, to);
         return true;
+    }
+
+    void LITstar::rekeyForwardEdges(State *a, State *b)
+    {
+        // A forward edge's effort key counts the checks left on the edge itself: fewer now, either direction.
+        if (forwardQueue_)
+            forwardQueue_->updatePair(a, b);
     }
 
     bool LITstar::checkLevel(const State *from, const State *to, unsigned int segments, unsigned int lo,

@@ -202,6 +202,8 @@ namespace lit
         void expandForward(litstar::State *state);
         /** \brief Edge checks: sparse to a bisection depth, or full; both reuse earlier checks. */
         bool checkEdge(litstar::State *a, litstar::State *b, unsigned int depth);
+        /** \brief Re-keys the queued forward edges between \e a and \e b after a check changed what is left. */
+        void rekeyForwardEdges(litstar::State *a, litstar::State *b);
         unsigned int &checkedDepth(litstar::State *a, litstar::State *b);
         unsigned int segmentCount(const litstar::State *a, const litstar::State *b) const;
         /** \brief Checks the points of bisection level \p level inside [lo, hi] (counted in \p points), left to

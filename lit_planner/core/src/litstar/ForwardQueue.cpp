@@ -34,12 +34,17 @@ namespace lit::litstar
         heap_.rebuild();
     }
 
+    ForwardQueue::Heap::Element *ForwardQueue::find(const State *source, const State *target) const
+    {
+        for (auto *element : source->outgoing_)
+            if (element->data->target == target)
+                return element;
+        return nullptr;
+    }
+
     bool ForwardQueue::contains(const State *source, const State *target) const
     {
-        for (const auto *element : source->outgoing_)
-            if (element->data->target == target)
-                return true;
-        return false;
+        return find(source, target) != nullptr;
     }
 
     void ForwardQueue::insert(State *source, State *target)
@@ -93,6 +98,32 @@ namespace lit::litstar
         }
     }
 
+    void ForwardQueue::updatePair(State *a, State *b)
+    {
+        for (auto *element : {find(a, b), find(b, a)})
+            if (element != nullptr)
+            {
+                keys_(*element->data);
+                heap_.update(element);
+            }
+    }
+
+    void ForwardQueue::erase(Heap::Element *element)
+    {
+        Edge *edge = element->data;
+        detach(element);
+        heap_.remove(element);
+        delete edge;
+    }
+
+    void ForwardQueue::removePair(State *a, State *b)
+    {
+        if (auto *element = find(a, b))
+            erase(element);
+        if (auto *element = find(b, a))
+            erase(element);
+    }
+
     void ForwardQueue::updateAll()
     {
         std::vector<Edge *> edges;
@@ -105,21 +136,9 @@ namespace lit::litstar
     void ForwardQueue::removeEdgesOf(State *state)
     {
         while (!state->outgoing_.empty())
-        {
-            Heap::Element *element = state->outgoing_.back();
-            Edge *edge = element->data;
-            detach(element);
-            heap_.remove(element);
-            delete edge;
-        }
+            erase(state->outgoing_.back());
         while (!state->incoming_.empty())
-        {
-            Heap::Element *element = state->incoming_.back();
-            Edge *edge = element->data;
-            detach(element);
-            heap_.remove(element);
-            delete edge;
-        }
+            erase(state->incoming_.back());
     }
 
     void ForwardQueue::clear()

@@ -47,6 +47,13 @@ namespace lit::litstar
         void updateIncoming(State *state);
         void updateOutgoing(State *state);
 
+        /** \brief Re-keys source -> target and target -> source where queued (after a check of the edge between
+         *  them changed its remaining checks). */
+        void updatePair(State *a, State *b);
+
+        /** \brief Removes source -> target and target -> source where queued (the edge between them is invalid). */
+        void removePair(State *a, State *b);
+
         /** \brief Re-keys every edge (after the reverse search restarts). */
         void updateAll();
 
@@ -66,6 +73,8 @@ namespace lit::litstar
     private:
         using Heap = ompl::BinaryHeap<Edge *, EdgeOrder>;
         void detach(Heap::Element *element);
+        Heap::Element *find(const State *source, const State *target) const;
+        void erase(Heap::Element *element);
 
         KeyFunction keys_;
         bool effortFirst_{true};
