@@ -28,7 +28,13 @@ import torch
 
 from lit_learner.agent import DDPGAgent
 from lit_learner.config import AGENT_NAMES, LearnerConfig, left_out_note
-from lit_learner.errors import CheckpointError, ConfigError, ExportError, NonFiniteWeights
+from lit_learner.errors import (
+    CheckpointError,
+    ConfigError,
+    ExportError,
+    NonFiniteWeights,
+    ReplayError,
+)
 from lit_learner.export import CHECKPOINT_FILE, TENSOR_FILES, policy_grid
 from lit_learner.messages import DecisionRequest, EpisodeEnd
 from lit_learner.networks import ActorSnapshot
@@ -485,7 +491,7 @@ class LearnerCore:
             raise CheckpointError(f"{path}: bad config in checkpoint: {exc}") from exc
         try:
             core._restore(state)
-        except CheckpointError as exc:
+        except (CheckpointError, ReplayError) as exc:
             raise CheckpointError(f"{path}: {exc}") from exc
         except (KeyError, TypeError, ValueError, IndexError, RuntimeError) as exc:
             # Parts missing or of the wrong shape (written by something else, or edited): one

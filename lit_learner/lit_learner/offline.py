@@ -417,11 +417,24 @@ def read_episodes(
             len(episode.observations) != len(episode.decisions)
             or not episode.decisions
             or len(episode.decisions) != counted
+            or not _every_solution(episode)
         ):
             skipped.counts[INCOMPLETE] += 1
             continue
         complete.append(episode)
     return complete, skipped
+
+
+def _every_solution(episode: RecordedEpisode) -> bool:
+    """Whether the episode's SolutionUpdates are its summary's improvements 1, 2, ..., n in
+    time order: a lost one (a gap in the recording) would give every later decision one
+    improvement too few, and its B step the reward of a step without one."""
+    assert episode.summary is not None
+    solutions = sorted(episode.solutions, key=lambda s: (s["planning_time"], s["improvement"]))
+    expected = episode.summary.get("improvements")
+    return isinstance(expected, int) and [s["improvement"] for s in solutions] == list(
+        range(1, expected + 1)
+    )
 
 
 def _no_bar(progress: bool | None) -> bool | None:
@@ -482,7 +495,7 @@ def _replay_episode(core: Any, episode: RecordedEpisode) -> None:
     problem = scenarios.get(summary["scenario"])
     budget = float(summary["time_budget"] or problem.time_budget)
     c_min = minimum_cost(problem)
-    solutions = sorted(episode.solutions, key=lambda s: s["planning_time"])
+    solutions = sorted(episode.solutions, key=lambda s: (s["planning_time"], s["improvement"]))
     times = [s["planning_time"] for s in solutions]
     episode_id = "|".join(episode.key)
     for observation, decision in zip(episode.observations, episode.decisions, strict=True):

@@ -274,12 +274,24 @@ class PrioritizedReplay:
         Returns:
             How many transitions were left out.
         """
+        n, position = state["size"], state["position"]
+        for name, value in (("size", n), ("position", position)):
+            if not isinstance(value, (int, np.integer)) or isinstance(value, bool):
+                raise ReplayError(f"replay {name} {value!r} is not a whole number")
+        # A ring that is not full was filled from 0 and writes next at its size; a full one
+        # writes next over its oldest item. Anything else leaves items inside the filled part
+        # that were never written (priority 0: every importance weight 0) or writes outside it.
+        if not 0 <= n <= self.capacity:
+            raise ReplayError(f"replay size {n} is outside 0..{self.capacity} (its capacity)")
+        if n < self.capacity and position != n:
+            raise ReplayError(f"replay position {position} of a ring of {n} not full is not {n}")
+        if not 0 <= position < self.capacity:
+            raise ReplayError(f"replay position {position} is outside 0..{self.capacity - 1}")
         self.tree.load_state_dict(state["tree"])
-        n = state["size"]
         for name in ("state", "action", "reward", "next_state", "terminated"):
             getattr(self, name)[:n] = state[name]
         self.size = n
-        self.position = state["position"]
+        self.position = position
         self.max_priority = state["max_priority"]
         leaves = self.tree.get(np.arange(n))
         good = (

@@ -347,8 +347,26 @@ def _checkpoint_with_a_pending_step(path: Path) -> dict[str, Any]:
         (("agents", "psi_K", "updates"), True, r"agents\['psi_K'\].updates is True"),
         (("pairing", "e", "last_time"), math.nan, r"pairing\['e'\].last_time is nan"),
         (("pairing", "e", "best_cost"), "1", r"pairing\['e'\].best_cost is '1'"),
+        # An edited replay position: the next transition was written at capacity - 3, and
+        # every commit after it failed.
+        (("agents", "B", "replay", "position"), -3, "replay position -3 of a ring of 0 not"),
+        (("agents", "B", "replay", "size"), -1, r"replay size -1 is outside 0\.\.100000"),
+        (("agents", "B", "replay", "position"), 0.0, r"replay position 0\.0 is not a whole"),
+        # Was a ReplayError out of load_checkpoint, not the CheckpointError it documents.
+        (("agents", "B", "replay", "tree", "capacity"), 7, "sum tree of capacity 7 loaded"),
     ],
-    ids=["version", "episodes", "pending", "updates", "time", "cost"],
+    ids=[
+        "version",
+        "episodes",
+        "pending",
+        "updates",
+        "time",
+        "cost",
+        "position",
+        "size",
+        "position-type",
+        "tree",
+    ],
 )
 def test_a_checkpoint_value_of_the_wrong_type_is_refused_at_load(
     tmp_path: Path, edit: tuple[str, ...], value: object, message: str

@@ -143,6 +143,14 @@ def test_short_run_writes_metrics_checkpoints_resumes_and_exports(
     rest, counts = read_episodes([gapped])
     assert [e.key for e in rest] == [e.key for e in episodes[1:]]
     assert counts.counts["incomplete training episode"] == 1
+    # A SolutionUpdate lost: every later decision of the episode counted one improvement too
+    # few, and the B step that ended at it was rewarded as a step without one.
+    solved = next(e for e in episodes if len(e.solutions) > 1)
+    lost = tmp_path / "lost-solution" / "bag"
+    _without_first(bag, lost, solved.key, ("lit_msgs_json/SolutionUpdate",))
+    rest, counts = read_episodes([lost])
+    assert [e.key for e in rest] == [e.key for e in episodes if e is not solved]
+    assert counts.counts["incomplete training episode"] == 1
     # The bag and a copy of it (a compacted or salvaged one): each message counts once.
     import shutil
 
@@ -1292,7 +1300,15 @@ def test_empty_scenarios_are_refused_not_the_default_mix(
 def _without_one_pair(source: Path, target: Path, victim: tuple[str, str, str]) -> None:
     """Copy bag ``source`` to ``target`` without the first observation and the first decision
     of episode ``victim`` (as a recording gap loses them)."""
-    dropped = {"lit_msgs_json/Observation": 0, "lit_msgs_json/Decision": 0}
+    _without_first(source, target, victim, ("lit_msgs_json/Observation", "lit_msgs_json/Decision"))
+
+
+def _without_first(
+    source: Path, target: Path, victim: tuple[str, str, str], schemas: tuple[str, ...]
+) -> None:
+    """Copy bag ``source`` to ``target`` without the first message of each of ``schemas`` of
+    episode ``victim``."""
+    dropped = dict.fromkeys(schemas, 0)
 
     def drop(item: Any) -> bool:
         if (
@@ -1305,7 +1321,7 @@ def _without_one_pair(source: Path, target: Path, victim: tuple[str, str, str]) 
         return False
 
     _copy_bag(source, target, drop)
-    assert dropped == {"lit_msgs_json/Observation": 1, "lit_msgs_json/Decision": 1}
+    assert dropped == dict.fromkeys(schemas, 1)
 
 
 def test_a_restarted_planner_nodes_episodes_are_kept_beside_the_first_ones(

@@ -280,6 +280,49 @@ def _episodes_shown(p: Mapping[str, Any]) -> str:
     return f"{p['episodes']} episodes on {p['scenario']}"
 
 
+RESEND_REPORT_EVERY = 60.0
+"""Seconds between the planner node's lines on learner requests sent again (and one at shutdown)."""
+
+
+class ResendTally:
+    """Counts learner requests sent again over the training episodes and words one line for them
+    at most every :data:`RESEND_REPORT_EVERY` s: the first episode that sent any is reported at
+    once, later ones are summed until the interval has passed (``flush`` reports what is left)."""
+
+    def __init__(self, now: float) -> None:
+        self._lock = threading.Lock()
+        self._last_report = now - RESEND_REPORT_EVERY
+        self._episodes = self._resent = self._by_copy = 0
+
+    def add(self, resent: int, by_copy: int, now: float) -> str | None:
+        """Adds one episode's counts; the line to log if one is due, else None."""
+        with self._lock:
+            self._episodes += 1
+            self._resent += resent
+            self._by_copy += by_copy
+            if now - self._last_report < RESEND_REPORT_EVERY:
+                return None
+            return self._report(now)
+
+    def flush(self, now: float) -> str | None:
+        """The line for what was not reported yet, or None."""
+        with self._lock:
+            return self._report(now) if self._episodes else None
+
+    def _report(self, now: float) -> str:
+        episodes = (
+            "1 training episode" if self._episodes == 1 else f"{self._episodes} training episodes"
+        )
+        line = (
+            f"{episodes} sent {self._resent} learner requests again (no answer within "
+            f"learner_resend or an eighth of the deadline, then twice as long, ...); "
+            f"{self._by_copy} calls answered through a copy"
+        )
+        self._last_report = now
+        self._episodes = self._resent = self._by_copy = 0
+        return line
+
+
 @dataclass
 class Job:
     """One query for the worker: a plan request (service) or an episode (training/inference)."""
@@ -386,6 +429,9 @@ class PlannerNode:
         answered in time."""
         self._missed_call: int | None = None
         """The request sequence of the latest call that missed (``ServiceCaller.last_overdue``)."""
+        self._resends = ResendTally(time.monotonic())
+        """Learner requests sent again, reported in one line at most every ``RESEND_REPORT_EVERY``
+        s (under load most episodes send some again: a line each drowned the log)."""
         self._jobs: queue.Queue[Job | None] = queue.Queue()
         self._queued = 0
         self._queue_lock = threading.Lock()
@@ -1226,11 +1272,13 @@ class PlannerNode:
         resent = self.learner.resent - episode.resent_before
         if resent:
             by_copy = self.learner.answered_by_copy - episode.answered_by_copy_before
-            self.log.info(
-                f"episode {job.episode_id}: {resent} learner requests sent again (no answer "
-                f"within learner_resend or an eighth of the deadline, then twice as long, ...); "
-                f"{by_copy} calls answered through a copy"
+            self.log.debug(
+                f"episode {job.episode_id}: {resent} learner requests sent again; {by_copy} "
+                f"calls answered through a copy"
             )
+            report = self._resends.add(resent, by_copy, time.monotonic())
+            if report:
+                self.log.info(report)
         if answer is None:
             self.log.warning(
                 f"episode {job.episode_id}: the learner did not take the episode end within "
@@ -1334,6 +1382,9 @@ class PlannerNode:
             self._jobs.put(None)
         self._cancel_service.shutdown(timeout=5.0)
         self._worker.join(timeout=30.0)
+        report = self._resends.flush(time.monotonic())
+        if report:
+            self.log.info(report)
         # The answers (unavailable, for the queued ones) go out from the executor's threads; a
         # node destroyed under a send still retrying lost it ("answer not sent: InvalidHandle").
         with self._answers_sent:

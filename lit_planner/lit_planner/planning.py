@@ -425,20 +425,60 @@ def _declared_output(path: Path) -> str | None:
     return name if name in TENSOR_FILES else None
 
 
+TENSOR_READS = 3
+"""Reads of a tensor and its sidecar that an export replacing them may cut into before
+:func:`load_tensor` gives up."""
+
+
 def load_tensor(path: str | Path, output: str) -> lit_core.LookupTensor:
     """Load the lookup tensor of ``output`` (``B`` or ``psi_K``) with the C++ reader.
 
     The sidecar gives the shape and value range that the C++ reader checks the file against
     (magic, version, dtype, order, shape, size, finiteness, range); the Python reader then checks
     the data against the sidecar's SHA-256, so a tensor replaced without its sidecar is caught.
+    An export replaces the two files one after the other: a read that either file was replaced
+    during (another inode, size or time afterwards) is done again, so the tensor returned is
+    the one whose bytes were hashed, not a false "SHA-256 differs" or a mix of two exports.
 
     Raises:
         TensorFileError: the file, its sidecar, or the pair is defective; names the problem.
     """
+    path = Path(path)  # the planner node names its fallback tensors with text
+    for _ in range(TENSOR_READS):
+        before = _file_versions(path)
+        try:
+            tensor = _load_tensor_once(path, output)
+        except TensorFileError:
+            if _file_versions(path) == before:
+                raise
+            continue
+        if _file_versions(path) == before:
+            return tensor
+    raise TensorFileError(
+        f"{path}: it or its sidecar was replaced during each of {TENSOR_READS} reads; "
+        "is an export writing this folder over and over?"
+    )
+
+
+def _file_versions(path: Path) -> tuple[tuple[int, int, int, int] | None, ...]:
+    """(device, inode, size, modification time) of the tensor and its sidecar, None for one
+    missing: os.replace gives a file another inode, and a write in place another size or time."""
+    versions = []
+    for file in (path, path.with_suffix(".json")):  # the sidecar (tensor_files.sidecar_path)
+        try:
+            stat = os.stat(file)
+        except OSError:
+            versions.append(None)
+            continue
+        versions.append((stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns))
+    return tuple(versions)
+
+
+def _load_tensor_once(path: Path, output: str) -> lit_core.LookupTensor:
+    """One read of :func:`load_tensor`."""
     # Imported here: it pulls in the JSON-Schema validator, which other policies never need.
     from lit_planner import tensor_files
 
-    path = Path(path)  # the planner node names its fallback tensors with text
     # The name first: a sidecar whose output.name says the other tensor failed the schema on
     # the rule that goes with the name ("$.output.rounding: 'none' was expected"), not this.
     declared = _declared_output(path)

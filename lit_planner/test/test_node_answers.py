@@ -282,3 +282,22 @@ def test_the_shortest_episode_budget_is_one_number_everywhere() -> None:
     for name in ("DecideRequest", "EpisodeEnd"):
         minimum = codec.load_schema(name)["properties"]["time_budget"]["minimum"]
         assert minimum == rosutil.MIN_EPISODE_BUDGET == MIN_TIME_BUDGET == planning.MIN_TIME
+
+
+def test_learner_resends_are_reported_in_one_line_a_minute_and_at_shutdown() -> None:
+    from lit_planner.node import RESEND_REPORT_EVERY, ResendTally
+
+    tally = ResendTally(now=100.0)
+    assert tally.flush(100.0) is None  # nothing sent again: no line
+    first = tally.add(3, 1, now=100.0)  # the first episode that sent any is reported at once
+    assert first is not None and first.startswith("1 training episode sent 3 learner requests")
+    assert "1 calls answered through a copy" in first
+    # Under load: every episode sends some again; they are summed, not a line each.
+    assert [tally.add(2, 0, now=100.0 + i) for i in range(1, 11)] == [None] * 10
+    due = tally.add(1, 2, now=100.0 + RESEND_REPORT_EVERY)
+    assert due is not None and due.startswith("11 training episodes sent 21 learner requests")
+    assert "2 calls answered through a copy" in due
+    assert tally.add(4, 0, now=101.0 + RESEND_REPORT_EVERY) is None
+    last = tally.flush(102.0 + RESEND_REPORT_EVERY)  # at shutdown: what was not reported yet
+    assert last is not None and last.startswith("1 training episode sent 4 learner requests")
+    assert tally.flush(103.0 + RESEND_REPORT_EVERY) is None

@@ -10,6 +10,7 @@ import dataclasses
 import itertools
 import json
 import math
+import os
 import re
 import time
 from pathlib import Path
@@ -970,3 +971,79 @@ def test_custom_worlds_check_edges_exactly() -> None:
         assert result["solved"] and result["path_check"]["ok"], (seed, result["path_check"])
     bitstar = plan(world, planner="bitstar", seed=3000, time=1.0)  # a few ms needed
     assert bitstar["solved"] and bitstar["path_check"]["ok"]
+
+
+def test_a_tensor_replaced_while_it_is_read_is_read_again(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An export into the folder a planner reads renames the sidecar, then the tensor: a read
+    between the two failed with a false "SHA-256 differs" (or, later in the read, loaded bytes
+    it never hashed). A read that either file was replaced during is done again."""
+    from lit_planner.tensors_cli import write_constant
+
+    from lit_planner import planning
+
+    folder, staging = tmp_path / "tensors", tmp_path / "staging"
+    folder.mkdir()
+    staging.mkdir()
+    write_constant(folder, b=100, psi_k=None)
+    write_constant(staging, b=150, psi_k=None)
+    real_once = planning._load_tensor_once
+    reads = 0
+
+    def read_in_the_middle_of_an_export(path: Path, output: str) -> Any:
+        nonlocal reads
+        reads += 1
+        if reads == 1:
+            os.replace(staging / "b_tensor.json", folder / "b_tensor.json")
+            try:
+                return real_once(path, output)  # the new sidecar with the old data
+            finally:
+                os.replace(staging / "b_tensor.npy", folder / "b_tensor.npy")
+        return real_once(path, output)
+
+    monkeypatch.setattr(planning, "_load_tensor_once", read_in_the_middle_of_an_export)
+    tensor = planning.load_tensor(folder / "b_tensor.npy", "B")
+    assert reads == 2 and tensor.trilinear(0.5, 0.5, 0.5) == 150.0
+
+    # Loaded whole, then replaced before the hash check is known to have read the same bytes.
+    write_constant(staging, b=120, psi_k=None)
+    reads = 0
+
+    def replaced_after_the_read(path: Path, output: str) -> Any:
+        nonlocal reads
+        reads += 1
+        tensor = real_once(path, output)
+        if reads == 1:
+            for name in ("b_tensor.json", "b_tensor.npy"):
+                os.replace(staging / name, folder / name)
+        return tensor
+
+    monkeypatch.setattr(planning, "_load_tensor_once", replaced_after_the_read)
+    assert planning.load_tensor(folder / "b_tensor.npy", "B").trilinear(0.5, 0.5, 0.5) == 120.0
+    assert reads == 2
+
+    # A defect that no replacement explains is reported at once, not read three times.
+    reads = 0
+    (folder / "b_tensor.npy").write_bytes((folder / "b_tensor.npy").read_bytes()[:-8])
+
+    def counted(path: Path, output: str) -> Any:
+        nonlocal reads
+        reads += 1
+        return real_once(path, output)
+
+    monkeypatch.setattr(planning, "_load_tensor_once", counted)
+    with pytest.raises(TensorFileError):
+        planning.load_tensor(folder / "b_tensor.npy", "B")
+    assert reads == 1
+
+    # Replaced during every read (an export writing the folder in a loop): an error, in time.
+    versions = itertools.count()
+    monkeypatch.setattr(planning, "_file_versions", lambda path: next(versions))
+    write_constant(staging, b=130, psi_k=None)
+    for name in ("b_tensor.json", "b_tensor.npy"):
+        os.replace(staging / name, folder / name)
+    reads = 0
+    with pytest.raises(TensorFileError, match="replaced during each of 3 reads"):
+        planning.load_tensor(folder / "b_tensor.npy", "B")
+    assert reads == planning.TENSOR_READS
