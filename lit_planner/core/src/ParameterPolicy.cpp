@@ -52,6 +52,8 @@ namespace lit
 
     double FitPolicy::batchSize(double xi, unsigned int n, double minBatch, double maxBatch)
     {
+        if (n == 0u)  // Lambda = (m_max + m_min) / 0: infinite, and the rule NaN
+            throw std::invalid_argument("FitPolicy: the rule needs a dimension of at least 1, got 0");
         const double sigmoid = 1.0 / (1.0 + std::exp(-10.0 * (xi - 0.5)));
         const double lambda = (maxBatch + minBatch) / static_cast<double>(n);
         const double psi = std::log1p(lambda * sigmoid) / std::log1p(lambda);

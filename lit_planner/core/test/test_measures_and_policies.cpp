@@ -43,6 +43,7 @@ TEST(FitPolicy, SigmoidLogRuleValues)
     EXPECT_NEAR(FitPolicy::batchSize(1.0, 8), 198.608, 1e-2);
     EXPECT_NEAR(FitPolicy::batchSize(0.5, 8), 159.171, 1e-2);
     EXPECT_NEAR(FitPolicy::batchSize(0.0, 8), 10.403, 1e-2);
+    EXPECT_THROW(FitPolicy::batchSize(0.5, 0), std::invalid_argument);  // was NaN
     // Lambda is a real division: n = 16 gives 12.5 (not 12).
     const double o = 1.0 / (1.0 + std::exp(-10.0 * (0.3 - 0.5)));
     EXPECT_NEAR(FitPolicy::batchSize(0.3, 16), 1.0 + 198.0 * std::log1p(12.5 * o) / std::log1p(12.5), 1e-9);

@@ -192,7 +192,8 @@ namespace lit
         }
         double decide(const DecisionContext &context) override;
 
-        /** \brief The rule itself: B for measure ratio xi = lambda(now) / lambda(first solution) in R^n. */
+        /** \brief The rule itself: B for measure ratio xi = lambda(now) / lambda(first solution) in R^n.
+         *  \throws std::invalid_argument for n = 0. */
         static double batchSize(double xi, unsigned int n, double minBatch = 1.0, double maxBatch = 199.0);
 
     private:
