@@ -17,13 +17,14 @@ import sys
 import textwrap
 import time
 from collections.abc import Sequence
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import pytest
 from lit_planner.bag import BagRecorder, envelope
 
-from lit_planner import bag, replay, scenarios
+from lit_planner import arena, bag, replay, scenarios
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "bags" / "samples" / "bench_np4"
@@ -1794,3 +1795,45 @@ def test_a_message_nested_deeper_than_the_stack_is_one_skipped_message(tmp_path:
     assert result.returncode == 0, result.stderr
     assert "not JSON" in result.stdout + result.stderr, result.stdout
     assert "RecursionError" not in result.stdout + result.stderr
+
+
+def test_a_run_record_whose_improvements_are_out_of_time_order_is_one_damaged_record(
+    tmp_path: Path,
+) -> None:
+    """A BenchRun whose improvements were not in time order passed its schema (which only
+    describes the order) and stopped `lit replay bench` with "ValueError: improvements must be in
+    time order", naming no record; `lit arena` sorted the same record quietly. The codec now
+    checks the order: the record is damage, counted and named, and the rest is replayed."""
+    sample = replay.read_bench([ROOT / "bags" / "samples" / "bench_np4"])
+    runs = [dict(run.payload) for run in sample.runs]
+    victim = next(i for i, run in enumerate(runs) if len(run["improvements"]) >= 2)
+    swapped = list(runs[victim]["improvements"])
+    swapped[0], swapped[1] = swapped[1], swapped[0]
+    runs[victim]["improvements"] = swapped
+    path = tmp_path / "out-of-order"
+    recording = bag.BenchRecording(path, sample.config.run_id, sample.config.payload)
+    recording.add_runs(runs)
+    recording.finish(datetime.now(UTC), 1.0)
+    recording.close()
+    table = _replay("bench", path, "--out", tmp_path / "table")
+    assert "Traceback" not in table.stderr and "ValueError" not in table.stderr, table.stderr
+    assert table.returncode == 1, table.stdout + table.stderr  # incomplete: one record left out
+    assert "1 skipped: 1 payload fails its schema" in table.stderr, table.stderr
+    verified = _replay("verify", path)  # names it
+    assert verified.returncode == 1, verified.stdout + verified.stderr
+    assert f"{bag.BENCH_RUN_TOPIC} seq {victim}: payload fails its schema" in verified.stdout
+    assert "improvements must be in time order" in verified.stdout, verified.stdout
+    kept = [json.loads(line) for line in (tmp_path / "table" / "runs.jsonl").open()]
+    assert len(kept) == len(runs) - 1
+    # The envelope decoder's one-pass check (codec.valid_envelope) holds it to the same rule.
+    from lit_msgs_json import codec
+
+    for index, run in enumerate(runs):
+        text = envelope(bag.BENCH_RUN_SCHEMA, index, "lit_bench", "r", run, stamp_ns=1)
+        assert codec.valid_envelope("BenchRun", json.loads(text)) == (index != victim)
+    # The same record in a runs.jsonl: lit arena refuses it with its line, as other damage.
+    lines = [json.dumps({"schema": bag.BENCH_RUN_SCHEMA, **run}) for run in runs]
+    (tmp_path / "runs" / "runs.jsonl").parent.mkdir()
+    (tmp_path / "runs" / "runs.jsonl").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    with pytest.raises(arena.ArenaError, match=f"runs.jsonl:{victim + 1}: not a valid run"):
+        arena.read_runs(tmp_path / "runs" / "runs.jsonl")

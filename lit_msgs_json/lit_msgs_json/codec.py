@@ -71,6 +71,7 @@ def validate(name: str, obj: object, *, plain: bool | None = None) -> None:
     if plain or (plain is None and plain_json(obj)):
         try:
             if _fast_validator(short).is_valid(obj):
+                _check_order(short, obj)
                 return
         except UnicodeEncodeError:  # a lone surrogate the (Rust) regex of a pattern cannot take
             pass  # the Python validator below can
@@ -106,6 +107,31 @@ def validate(name: str, obj: object, *, plain: bool | None = None) -> None:
                 f"{error.validator_value})"
             )
         raise SchemaError(short, error.json_path, str(error.validator), message)
+    _check_order(short, obj)
+
+
+def _check_order(short: str, obj: Any) -> None:
+    """The rules JSON Schema cannot say, for a document that passed its schema: a BenchRun's
+    improvements in time order (its schema describes them so; the curves and tables of
+    ``lit replay bench`` are computed on that order, and one record out of it stopped the
+    replay).
+
+    Raises:
+        SchemaError: rule ``order``, naming the first item out of order.
+    """
+    if short != "BenchRun":
+        return
+    improvements = obj.get("improvements") or []
+    for index in range(1, len(improvements)):
+        time, before = improvements[index][0], improvements[index - 1][0]
+        if time < before:
+            raise SchemaError(
+                short,
+                f"$.improvements[{index}]",
+                "order",
+                f"time {time!r} is before the previous improvement's {before!r}: improvements "
+                "must be in time order",
+            )
 
 
 def _exclusive_fields(error: Any) -> list[str] | None:
@@ -181,10 +207,17 @@ def valid_envelope(name: str, obj: object) -> bool:
     Raises:
         UnknownSchemaError: no schema of that name ships with the package.
     """
+    short = name.removeprefix("lit_msgs_json/")
     try:
-        return bool(_fast_envelope_validator(name.removeprefix("lit_msgs_json/")).is_valid(obj))
+        if not _fast_envelope_validator(short).is_valid(obj):
+            return False
     except UnicodeEncodeError:  # a lone surrogate where a pattern applies: not known valid here
         return False
+    try:
+        _check_order(short, obj["payload"])  # type: ignore[index]
+    except SchemaError:
+        return False
+    return True
 
 
 def prepare(names: Iterable[str]) -> None:
