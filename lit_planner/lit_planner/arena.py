@@ -641,6 +641,11 @@ def _setup_lines(
     if limit is not None:
         lines.append(f"Time limit per run: {limit:g} s. Memory was not limited.")
     lines.append("Every planner ran on Debian's OMPL 1.5.2 with the same validity checker.")
+    lines.append("A run's seed is LIT*'s seed for it; OMPL's planners draw from OMPL's "
+                 "process-wide generator, seeded once per benchmark from its first seed, so for "
+                 "them the seed names the query, not a seed of their own.")  # fmt: skip
+    lines.append("The seconds spent to collect the data are the runs' planning times added up "
+                 "(each planner's own clock), not the benchmark's wall time.")  # fmt: skip
     return lines
 
 

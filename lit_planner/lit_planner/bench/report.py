@@ -614,10 +614,13 @@ def markdown(summary: dict[str, Any]) -> str:
         if any(r.get("planner") == name for r in summary["runs"])
     ]
     if watched:
+        one = len(watched) == 1
         lines.append(
-            f"- {' and '.join(watched)} (OMPL 1.5.2's do not report intermediate solutions) "
-            "are watched by a thread that looks at their solutions every 50 µs, sharing the "
-            "machine's cores with them (in a one-off check about 18 % more CPU time than wall time)."
+            f"- {' and '.join(watched)} (OMPL 1.5.2's {'does' if one else 'do'} not report "
+            f"intermediate solutions) {'is' if one else 'are'} watched by a thread that looks at "
+            f"{'its' if one else 'their'} solutions every 50 µs, sharing the machine's cores with "
+            f"{'it' if one else 'them'} (in a one-off check about 18 % more CPU time than wall "
+            "time)."
         )
     lines.append("")
     return "\n".join(lines)
