@@ -465,6 +465,34 @@ def test_salvage_truncated_and_bit_flipped(tmp_path: Path) -> None:
     custom = replay.bag_info(tmp_path / "opcode-salvaged")["custom_data"]
     assert "through the summary's chunk index" in custom["lit.salvage"]
 
+    # Chunk 2's opcode damaged into a footer's (0x06 -> 0x02): reading took it for the end of
+    # the file, and every chunk after it was lost from a "successful" salvage. It is skipped, and
+    # the chunk read through the chunk index.
+    as_footer = bytearray(data)
+    as_footer[chunks[1]] = 0x02
+    (tmp_path / "as-footer.mcap").write_bytes(bytes(as_footer))
+    result = _replay("salvage", tmp_path / "as-footer.mcap")
+    assert result.returncode == 0, result.stderr
+    assert "its opcode says footer, but a footer ends the file" in result.stdout, result.stdout
+    assert f"read the chunk at byte {chunks[1]} (" in result.stdout
+    assert _recovered(result.stdout) == 300
+
+    # Chunk 2's records-length field one less or one more than its record holds (the records and
+    # their CRC intact): the chunk was dropped for its CRC, or the reading went out of step.
+    records_length = chunks[1] + 9 + 32  # after the times, sizes, CRC and an empty compression
+    assert data[records_length - 4 : records_length] == bytes(4)  # the compression name's length
+    for name, delta in (("shorter", -1), ("longer", 1)):
+        damaged = bytearray(data)
+        value = int.from_bytes(damaged[records_length : records_length + 8], "little") + delta
+        damaged[records_length : records_length + 8] = value.to_bytes(8, "little")
+        (tmp_path / f"{name}.mcap").write_bytes(bytes(damaged))
+        result = _replay("salvage", tmp_path / f"{name}.mcap")
+        assert result.returncode == 0, result.stderr
+        assert f"the chunk at byte {chunks[1]}: its records-length field says {value}" in (
+            result.stdout
+        ), result.stdout
+        assert _recovered(result.stdout) == 300, result.stdout
+
     # A damaged MCAP footer: the normal readers fail cleanly, salvage gets everything.
     footer = bytearray(data)
     footer[-8 - 20 + 7] ^= 0x01  # high byte of the footer's summary offset
@@ -1837,3 +1865,86 @@ def test_a_run_record_whose_improvements_are_out_of_time_order_is_one_damaged_re
     (tmp_path / "runs" / "runs.jsonl").write_text("\n".join(lines) + "\n", encoding="utf-8")
     with pytest.raises(arena.ArenaError, match=f"runs.jsonl:{victim + 1}: not a valid run"):
         arena.read_runs(tmp_path / "runs" / "runs.jsonl")
+
+
+def test_salvage_of_a_folder_leaves_out_an_empty_file_and_a_copys_messages(tmp_path: Path) -> None:
+    """An empty .mcap beside the bag's file (lit replay info sends such a folder to salvage to
+    be rebuilt) made salvage refuse the whole folder; a copy of the file beside it wrote every
+    message twice."""
+    path = _numbered_bag(tmp_path / "folder", 40)
+    (path / "empty.mcap").touch()
+    result = _replay("salvage", path, "-o", tmp_path / "without-empty")
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert f"{path / 'empty.mcap'}: left out: an empty file" in result.stdout
+    assert _recovered(result.stdout) == 40
+    (path / "empty.mcap").unlink()
+    shutil.copy(_mcap(path), path / "zz-copy.mcap")
+    result = _replay("salvage", path, "-o", tmp_path / "without-copy")
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert f"40 messages left out: {_mcap(path)} holds the same (a copy of it?)" in result.stdout
+    assert _recovered(result.stdout) == 40
+    info = replay.bag_info(tmp_path / "without-copy")
+    assert info["publishers"][0]["count"] == 40 and info["publishers"][0]["duplicates"] == 0
+    # Only empty files: nothing to read, said per file.
+    lone = tmp_path / "lone"
+    lone.mkdir()
+    (lone / "a.mcap").touch()
+    result = _replay("salvage", lone)
+    assert result.returncode == 2 and f"{lone / 'a.mcap'} is an empty file" in result.stderr
+
+
+def test_an_episode_summary_of_another_version_is_said_and_a_malformed_version_is_damage(
+    tmp_path: Path,
+) -> None:
+    """`lit replay bench` of a ROS run left out an EpisodeSummary of a newer version without a
+    word, and counted a version of "1" (text) or 0, which no LIT* writes, as that benign newer
+    version: verify passed such a bag."""
+    path = tmp_path / "versions"
+    with BagRecorder(path, run_id="v") as recorder:
+        recorder.add_topic("/lit/episode", bag.STRING_TYPE)
+        for seq, version in enumerate((None, 99, "1", 0)):
+            summary = _summary(episode_id=f"v/{seq}", solved=False, status="timeout", path_states=0)
+            document = json.loads(
+                envelope(replay.EPISODE_SCHEMA, seq, "planner", "v", summary, stamp_ns=1 + seq)
+            )
+            if version is not None:
+                document["version"] = version
+            recorder.write_string("/lit/episode", json.dumps(document), 10 + seq)
+    table = _replay("bench", path, "--out", tmp_path / "table")
+    assert table.returncode == 0, table.stdout + table.stderr
+    assert "1 messages of a version this LIT* does not read" in table.stderr, table.stderr
+    assert "warning: 3 skipped: 2 not an envelope, 1 unsupported version" in table.stderr
+    assert "version '1' is not a whole number >= 1" in table.stderr
+    rows = json.loads((tmp_path / "table" / "episodes.json").read_text(encoding="utf-8"))
+    assert sum(row["queries"] for row in rows) == 1, rows
+    verified = _replay("verify", path)
+    assert verified.returncode == 1, verified.stdout + verified.stderr
+    assert "2 LIT* messages are damaged" in verified.stdout, verified.stdout
+
+
+def test_a_bench_bag_whose_config_message_is_damaged_is_said_to_be_one(tmp_path: Path) -> None:
+    """A lit bench bag whose /lit/bench/config message was not JSON (or of a newer version) was
+    "not a lit bench bag; nor any EpisodeSummary of a ROS run"."""
+    from rosbags.rosbag2 import Reader
+
+    for name, text in (("damaged", "{"), ("newer", None)):
+        path = tmp_path / name
+        with Reader(SAMPLE) as reader, BagRecorder(path, run_id="x") as recorder:
+            for connection in reader.connections:
+                recorder.add_topic(connection.topic, connection.msgtype)
+            for connection, stamp, raw in reader.messages():
+                if connection.topic != bag.BENCH_CONFIG_TOPIC:
+                    recorder.write_raw(connection.topic, raw, stamp)
+                    continue
+                document = json.loads(bag.typestore().deserialize_cdr(raw, bag.STRING_TYPE).data)
+                document["version"] = 99
+                recorder.write_string(connection.topic, text or json.dumps(document), stamp)
+        result = _replay("bench", path, "--out", tmp_path / f"{name}-out")
+        assert result.returncode == 2, result.stdout + result.stderr
+        reason = "not JSON" if text else "unsupported version"
+        assert (
+            f"its {bag.BENCH_CONFIG_TOPIC} message is unusable ({bag.BENCH_CONFIG_TOPIC}"
+            in result.stderr
+        ), result.stderr
+        assert reason in result.stderr and "damaged or of a newer LIT*" in result.stderr
+        assert "EpisodeSummary" not in result.stderr

@@ -249,6 +249,11 @@ class Skipped:
         if len(self.examples) < self.max_examples:
             self.examples.append(f"{where}: {reason}" + (f" ({detail})" if detail else ""))
 
+    def merge(self, other: Skipped) -> None:
+        """Count ``other``'s messages here too (its examples while there is room)."""
+        self.counts.update(other.counts)
+        self.examples += other.examples[: max(0, self.max_examples - len(self.examples))]
+
     @property
     def total(self) -> int:
         """Messages skipped."""
@@ -736,7 +741,10 @@ def parse_envelope(text: str, topic: str, log_ns: int, skipped: Skipped) -> Enve
     if not isinstance(schema, str) or not known_schema(schema):
         skipped.add("unknown schema", where, str(schema))
         return None
-    if type(version) is not int or version not in supported_versions(schema):
+    if type(version) is not int or version < 1:  # damage, not a version some LIT* wrote
+        skipped.add("not an envelope", where, f"version {version!r} is not a whole number >= 1")
+        return None
+    if version not in supported_versions(schema):
         skipped.add("unsupported version", where, f"{schema} version {version!r}")
         return None
     integers = (seq, document["stamp_ns"])
@@ -1263,6 +1271,10 @@ class SalvageResult:
     notes: list[str] = field(default_factory=list)
     """Other damage found and what was done about it: records skipped, chunks read through the
     summary's chunk index."""
+    copies: dict[Path, int] = field(default_factory=dict)
+    """Messages left out as copies of those of an earlier file (same topic, time and bytes)."""
+    left_out: bool = False
+    """Not read: not a file, or empty (``reason`` says which)."""
 
 
 class _StrictStream:
@@ -1329,7 +1341,7 @@ def salvage(
         ReplayError: no bag there, the output exists, or nothing could be recovered.
     """
     source = _named(Path(source))
-    files = _mcap_files(source)
+    files, unusable = _mcap_files(source)
     if out is not None:
         target = Path(out)
     elif source.is_dir():
@@ -1343,6 +1355,9 @@ def salvage(
     for result in results:
         _read_mcap(result, gathered, keep_unverified)
     kept: list[tuple[Any, Any, int, bytes]] = []
+    # A message another file of the folder held already (the same topic, time and bytes: a
+    # copy of a file beside it, or a file metadata.yaml lists twice) is written once.
+    first_file: dict[tuple[str, int, bytes], Path] = {}
     for result, channel_id, log_ns, data in gathered.messages:
         channel = gathered.channels.get((result.file, channel_id))
         schema = (
@@ -1351,11 +1366,17 @@ def salvage(
         if channel is None or schema is None or not _cdr_ok(schema.name, data):
             result.dropped += 1
             continue
+        where = first_file.setdefault((channel.topic, log_ns, data), result.file)
+        if where != result.file:
+            result.copies[where] = result.copies.get(where, 0) + 1
+            continue
         kept.append((channel, schema, log_ns, data))
         result.messages[channel.topic] = result.messages.get(channel.topic, 0) + 1
+    results += [SalvageResult(path, 0, reason=why, left_out=True) for path, why in unusable.items()]
     if not kept:
         where = "; ".join(
-            f"{r.file}: stopped at byte {r.stopped_at}: {r.reason}"
+            f"{r.file}: "
+            + (r.reason if r.left_out else f"stopped at byte {r.stopped_at}: {r.reason}")
             + "".join(f"; damaged {damage}" for damage in r.damaged_chunks)
             for r in results
         )
@@ -1371,7 +1392,11 @@ def _named(path: Path) -> Path:
     return path.resolve() if path.name in ("", "..") else path
 
 
-def _mcap_files(source: Path) -> list[Path]:
+def _mcap_files(source: Path) -> tuple[list[Path], dict[Path, str]]:
+    """The MCAP files to read of bag folder or file ``source``, and those of a folder left out
+    with the reason (an empty file, a folder or a link to nothing named ``*.mcap``: `lit replay
+    info` sends such a folder here to be rebuilt from its other files, and salvage refused it
+    whole)."""
     if not source.exists():
         raise ReplayError(f"{source}: no such file or directory")
     if source.is_dir():
@@ -1384,12 +1409,16 @@ def _mcap_files(source: Path) -> list[Path]:
             raise ReplayError(f"{source} holds no .mcap file to salvage")
     else:
         files = [source]
+    unusable: dict[Path, str] = {}
     for path in files:
         if not path.is_file():  # a folder named *.mcap, a dangling link: raw OSError text before
-            raise ReplayError(f"{path} is not a file (a folder, or a link to nothing)")
-        if path.stat().st_size == 0:
-            raise ReplayError(f"{path} is an empty file")
-    return files
+            unusable[path] = "not a file (a folder, or a link to nothing)"
+        elif path.stat().st_size == 0:
+            unusable[path] = "an empty file"
+    usable = [path for path in files if path not in unusable]
+    if not usable:
+        raise ReplayError("; ".join(f"{path} is {why}" for path, why in unusable.items()))
+    return usable, unusable
 
 
 def _salvage_reader(stream: _StrictStream, size: int) -> Any:
@@ -1409,18 +1438,68 @@ def _salvage_reader(stream: _StrictStream, size: int) -> Any:
         """Where the chunks read whole start (the loop adds them)."""
         skipped: list[tuple[int, int, int]]
         """(start, opcode, length) of the records skipped for their opcode."""
+        misplaced_footers: list[tuple[int, int]]
+        """(start, length) of the footer records skipped for not ending the file."""
+        chunk_lengths: list[tuple[int, int, int]]
+        """(start, records length the chunk's field says, bytes its record holds) of the chunks
+        whose field disagrees with their record's length."""
 
         def _read_record(self, opcode: int, length: int) -> Any:
             self.last_start = stream.position - 9  # the opcode and length were just read
             if opcode not in known:
                 self.skipped.append((self.last_start, opcode, length))
+            # Only the end magic (or what the end of the file left of it) follows a footer.
+            if opcode == Opcode.FOOTER and self.last_start + 9 + length < size - len(_MCAP_MAGIC):
+                # A damaged opcode byte (a chunk's 0x06 read as 0x02) ended the reading as if
+                # the file ended there, and every chunk after it was lost: skipped, the chunk is
+                # read through the summary's chunk index.
+                self.misplaced_footers.append((self.last_start, length))
+                self._stream.read(length)
+                return None
+            if opcode == Opcode.CHUNK:
+                # By the record's length: a damaged records-length field inside the chunk cut
+                # its data short (its CRC then failed) or read past its record.
+                chunk, declared = _chunk_of_record(self._stream.read(length))
+                if declared != len(chunk.data):
+                    self.chunk_lengths.append((self.last_start, declared, len(chunk.data)))
+                return chunk
             return super()._read_record(opcode, length)
 
     # The size limit keeps a damaged length field from allocating gigabytes.
     source: Any = stream  # StreamReader only calls read(); its annotation lists file types
     reader = Reader(source, emit_chunks=True, record_size_limit=max(1, size))
     reader.chunk_starts, reader.skipped = set(), []
+    reader.misplaced_footers, reader.chunk_lengths = [], []
     return reader
+
+
+def _chunk_of_record(body: bytes) -> tuple[Any, int]:
+    """The chunk a CHUNK record's ``body`` holds, its records being everything after its fields
+    (as the record's length gives them), and the records length its own field says.
+
+    Raises:
+        ValueError: the fields do not fit in the body, or the compression name is not UTF-8.
+    """
+    import struct
+
+    from mcap.records import Chunk
+
+    try:
+        start_ns, end_ns, uncompressed_size, crc, name_length = struct.unpack_from("<QQQII", body)
+        fields = 32 + name_length + 8
+        compression = body[32 : fields - 8].decode("utf-8")
+        (declared,) = struct.unpack_from("<Q", body, fields - 8)
+    except (struct.error, UnicodeDecodeError) as error:
+        raise ValueError(f"chunk fields unreadable: {_error_text(error)}") from None
+    chunk = Chunk(
+        compression=compression,
+        data=body[fields:],
+        message_start_time=start_ns,
+        message_end_time=end_ns,
+        uncompressed_crc=crc,
+        uncompressed_size=uncompressed_size,
+    )
+    return chunk, declared
 
 
 def _read_mcap(result: SalvageResult, gathered: _Salvaged, keep_unverified: bool = False) -> None:
@@ -1463,6 +1542,16 @@ def _read_mcap(result: SalvageResult, gathered: _Salvaged, keep_unverified: bool
         result.notes.append(
             f"skipped the record at byte {start} ({9 + length} bytes): its opcode 0x{opcode:02x} "
             "is not an MCAP record type (a damaged byte, or a newer writer's record)"
+        )
+    for start, length in reader.misplaced_footers:
+        result.notes.append(
+            f"skipped the record at byte {start} ({9 + length} bytes): its opcode says footer, "
+            "but a footer ends the file (a damaged byte)"
+        )
+    for start, declared, actual in reader.chunk_lengths:
+        result.notes.append(
+            f"the chunk at byte {start}: its records-length field says {declared} bytes, its "
+            f"record holds {actual}; read by the record's length (a damaged field)"
         )
     if not footer:
         indexes = _summary_chunk_indexes(result, gathered)
@@ -1512,8 +1601,7 @@ def _read_indexed_chunks(
 ) -> None:
     """Read each chunk that ``indexes`` list and that was not read as a chunk (``read``: the
     chunk records' starts), at its indexed offset and length."""
-    from mcap.data_stream import ReadDataStream
-    from mcap.records import Chunk, Message
+    from mcap.records import Message
 
     for index in sorted(indexes, key=lambda i: i.chunk_start_offset):
         start, length = index.chunk_start_offset, index.chunk_length
@@ -1527,7 +1615,12 @@ def _read_indexed_chunks(
             body = handle.read(length - 9)
         messages = 0
         try:
-            chunk = Chunk.read(ReadDataStream(_StrictStream(_Bytes(body))))  # type: ignore[arg-type]
+            chunk, declared = _chunk_of_record(body)
+            if declared != len(chunk.data):
+                result.notes.append(
+                    f"the chunk at byte {start}: its records-length field says {declared} "
+                    f"bytes, the chunk index gives {len(chunk.data)}; read by the index's length"
+                )
             for inner in _chunk_records(chunk, keep_unverified):
                 gathered.take(inner, result)
                 messages += isinstance(inner, Message)
@@ -1620,30 +1713,19 @@ def _partial_chunk(
     """Read the complete inner records of the chunk at byte ``start`` that the end of the file
     cuts off. None when the chunk's own fields do not add up to ``length`` (a damaged length
     rather than a truncation)."""
-    import struct
-
-    from mcap.records import Chunk, Message
+    from mcap.records import Message
 
     with result.file.open("rb") as handle:
         handle.seek(start + 9)
         body = handle.read(min(length, result.size - start - 9))  # never a damaged length
     try:
-        start_ns, end_ns, uncompressed_size, crc, name_length = struct.unpack_from("<QQQII", body)
-        fields = 32 + name_length + 8
-        compression = body[32 : fields - 8].decode("utf-8")
-        (records_length,) = struct.unpack_from("<Q", body, fields - 8)
-    except (struct.error, UnicodeDecodeError):
+        chunk, records_length = _chunk_of_record(body)  # its data: the bytes present
+    except ValueError:
         return None
+    fields = len(body) - len(chunk.data)
     if fields + records_length != length:
         return None
-    chunk = Chunk(
-        compression=compression,
-        data=body[fields:],
-        message_start_time=start_ns,
-        message_end_time=end_ns,
-        uncompressed_crc=crc,
-        uncompressed_size=uncompressed_size,
-    )
+    compression = chunk.compression
     records = messages = 0
     end = 0
     try:
@@ -1804,8 +1886,14 @@ def _write_salvaged(
     custom.setdefault(bag.RUN_ID_KEY, ",".join(sorted(run_ids)) or "unknown")
     custom["lit.salvaged_from"] = str(source)
     custom["lit.salvage"] = "; ".join(
-        f"{r.file.name}: {r.reason}, read {r.stopped_at} of {r.size} bytes"
+        f"{r.file.name}: "
+        + (
+            f"left out: {r.reason}"
+            if r.left_out
+            else f"{r.reason}, read {r.stopped_at} of {r.size} bytes"
+        )
         + "".join(f"; {note}" for note in r.notes)
+        + "".join(f"; {n} messages left out as copies of {o.name}'s" for o, n in r.copies.items())
         + "".join(f"; damaged {damage}" for damage in r.damaged_chunks)  # UNVERIFIED kept ones
         for r in results
     )
@@ -1990,11 +2078,18 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
     custom_data: dict[str, str] = {}
     for path in paths:
         bag_config, bag_runs = None, []
+        unusable_config = ""  # what became of a config message left out
         with BagReader(path) as reader:
             if config is None:
                 custom_data = dict(reader.facts.custom_data)
             for message in reader.messages():
-                item = decode(message, skipped)
+                if message.topic == bag.BENCH_CONFIG_TOPIC:
+                    one = Skipped()
+                    item = decode(message, one)
+                    unusable_config = unusable_config or next(iter(one.examples), "")
+                    skipped.merge(one)
+                else:
+                    item = decode(message, skipped)
                 if not isinstance(item, Envelope) or not on_its_topic(item, skipped):
                     continue
                 if item.schema == bag.BENCH_CONFIG_SCHEMA:
@@ -2011,6 +2106,11 @@ def read_bench(paths: Sequence[str | Path]) -> BenchBag:
                         )
                 elif item.schema == bag.BENCH_RUN_SCHEMA and payload_ok(item, skipped):
                     bag_runs.append(item)
+        if bag_config is None and unusable_config:
+            raise ReplayError(
+                f"{path}: its {bag.BENCH_CONFIG_TOPIC} message is unusable ({unusable_config}): "
+                "a lit bench bag whose configuration is damaged or of a newer LIT*"
+            )
         if bag_config is None:
             raise NotBenchBagError(
                 f"{path}: no {bag.BENCH_CONFIG_TOPIC} message: not a lit bench bag", path
@@ -2405,6 +2505,9 @@ def _salvage(args: argparse.Namespace) -> int:
     target, results = salvage(args.bag, args.out, args.keep_unverified)
     total = 0
     for result in results:
+        if result.left_out:
+            print(f"{PROG} salvage: {result.file}: left out: {result.reason}")
+            continue
         print(
             f"{PROG} salvage: {result.file}: read {result.stopped_at} of {result.size} bytes; "
             + (
@@ -2418,6 +2521,8 @@ def _salvage(args: argparse.Namespace) -> int:
             print(f"  damaged {damage}")
         for note in result.notes:
             print(f"  {note}")
+        for other, count in result.copies.items():
+            print(f"  {count} messages left out: {other} holds the same (a copy of it?)")
         for topic, count in sorted(result.messages.items()):
             print(f"  {topic}: {count} messages recovered")
             total += count
@@ -2630,6 +2735,12 @@ def _bench_into(args: argparse.Namespace, out: Path) -> int:
             print(
                 f"{PROG} bench: warning: {skipped.line()}; the table leaves them out: "
                 + "; ".join(skipped.examples),
+                file=sys.stderr,
+            )
+        if skipped.counts["unsupported version"]:  # benign, but the table is short of them
+            print(
+                f"{PROG} bench: {skipped.counts['unsupported version']} messages of a version "
+                "this LIT* does not read (a newer one's?) left out; `lit replay info` lists them",
                 file=sys.stderr,
             )
         if not summaries:
