@@ -383,14 +383,22 @@ class TensorPolicyCache:
         """
         folder = default_tensors_dir() if tensors_dir is None else Path(tensors_dir)
         key = (os.path.abspath(folder), interpolation)
-        # Taken before reading: files that change during the read are read again next time.
         signature = tensor_files_signature(folder)
         with self._lock:
             cached = self._policies.get(key)
             if cached is not None and cached[0] == signature:
                 return cached[1]
             self._policies.pop(key, None)
-        policy = make_policy("tensor", folder, interpolation)
+        for _ in range(TENSOR_READS):
+            policy = make_policy("tensor", folder, interpolation)
+            # An export that replaced the B tensor and then the psi_K one while they were read
+            # gave a policy of one export's B and the other's psi_K: read again.
+            after = tensor_files_signature(folder)
+            if after == signature:
+                break
+            signature = after
+        else:
+            return policy  # changed during every read: not kept for files it may not match
         with self._lock:
             self._policies[key] = (signature, policy)
         return policy
@@ -400,18 +408,28 @@ def tensor_files_signature(folder: Path) -> tuple[object, ...]:
     """(device, inode, size, modification and change times in ns) of each tensor file and
     sidecar in ``folder``, None for a missing one: what :class:`TensorPolicyCache` compares (the
     change time is the one a copy that keeps the source's modification time cannot set)."""
-    signature: list[object] = []
-    for file_name in TENSOR_FILES.values():
-        for path in (folder / file_name, (folder / file_name).with_suffix(".json")):
-            try:
-                stat = path.stat()
-            except OSError:
-                signature.append(None)
-                continue
-            signature.append(
-                (stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns, stat.st_ctime_ns)
-            )
-    return tuple(signature)
+    return tuple(
+        version
+        for file_name in TENSOR_FILES.values()
+        for version in _file_versions(folder / file_name)
+    )
+
+
+def _file_versions(path: Path) -> tuple[tuple[int, ...] | None, ...]:
+    """(device, inode, size, modification and change times in ns) of the tensor ``path`` and of
+    its sidecar (``tensor_files.sidecar_path``), None for a missing one: os.replace gives a file
+    another inode, a write in place another size or time."""
+    versions: list[tuple[int, ...] | None] = []
+    for file in (path, path.with_suffix(".json")):
+        try:
+            stat = file.stat()
+        except OSError:
+            versions.append(None)
+            continue
+        versions.append(
+            (stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns, stat.st_ctime_ns)
+        )
+    return tuple(versions)
 
 
 def _declared_output(path: Path) -> str | None:
@@ -458,20 +476,6 @@ def load_tensor(path: str | Path, output: str) -> lit_core.LookupTensor:
         f"{path}: it or its sidecar was replaced during each of {TENSOR_READS} reads; "
         "is an export writing this folder over and over?"
     )
-
-
-def _file_versions(path: Path) -> tuple[tuple[int, int, int, int] | None, ...]:
-    """(device, inode, size, modification time) of the tensor and its sidecar, None for one
-    missing: os.replace gives a file another inode, and a write in place another size or time."""
-    versions = []
-    for file in (path, path.with_suffix(".json")):  # the sidecar (tensor_files.sidecar_path)
-        try:
-            stat = os.stat(file)
-        except OSError:
-            versions.append(None)
-            continue
-        versions.append((stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns))
-    return tuple(versions)
 
 
 def _load_tensor_once(path: Path, output: str) -> lit_core.LookupTensor:

@@ -1047,3 +1047,48 @@ def test_a_tensor_replaced_while_it_is_read_is_read_again(
     with pytest.raises(TensorFileError, match="replaced during each of 3 reads"):
         planning.load_tensor(folder / "b_tensor.npy", "B")
     assert reads == planning.TENSOR_READS
+
+
+def test_the_tensor_policy_cache_reads_again_when_an_export_replaced_a_tensor_meanwhile(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An export replaces the B tensor, then the psi_K one: a policy read between the two held
+    one export's B and the other's psi_K, and the cache kept it for the query. It reads again
+    when the files changed while it read, and does not keep a policy of files that changed
+    during every read."""
+    from lit_planner.tensors_cli import write_constant
+
+    from lit_planner import planning
+
+    folder, staging = tmp_path / "tensors", tmp_path / "staging"
+    folder.mkdir()
+    staging.mkdir()
+    write_constant(folder, b=100, psi_k=4.0)
+    write_constant(staging, b=100, psi_k=9.0)
+    real_make = planning.make_policy
+    reads = 0
+
+    def export_lands_during_the_first_read(*args: Any) -> Any:
+        nonlocal reads
+        reads += 1
+        policy = real_make(*args)
+        if (staging / "k_tensor.npy").exists():  # the new psi_K pair lands after the read
+            for name in ("k_tensor.json", "k_tensor.npy"):
+                os.replace(staging / name, folder / name)
+        return policy
+
+    monkeypatch.setattr(planning, "make_policy", export_lands_during_the_first_read)
+    cache = planning.TensorPolicyCache()
+    first = cache.get(folder)
+    assert reads == 2
+    result = plan("np4", "litstar", first, max_iterations=ITERATIONS, seed=3)
+    assert {d["value"] for d in result["decisions"] if d["kind"] == "psi_K"} == {9.0}
+    assert cache.get(folder) is first and reads == 2  # kept: unchanged since
+
+    versions = itertools.count()  # changed during every read
+    monkeypatch.setattr(planning, "tensor_files_signature", lambda folder: next(versions))
+    reads = 0
+    second = cache.get(folder)
+    assert reads == planning.TENSOR_READS
+    third = cache.get(folder)
+    assert third is not second and reads == 2 * planning.TENSOR_READS  # not kept
