@@ -456,12 +456,15 @@ def load_tensor(path: str | Path, output: str) -> lit_core.LookupTensor:
     the data against the sidecar's SHA-256, so a tensor replaced without its sidecar is caught.
     An export replaces the two files one after the other: a read that either file was replaced
     during (another inode, size or time afterwards) is done again, so the tensor returned is
-    the one whose bytes were hashed, not a false "SHA-256 differs" or a mix of two exports.
+    the one whose bytes were hashed and a read cut by an export is not a false "SHA-256
+    differs" (a read that falls wholly between the export's two renames still is one).
 
     Raises:
         TensorFileError: the file, its sidecar, or the pair is defective; names the problem.
     """
     path = Path(path)  # the planner node names its fallback tensors with text
+    if path.suffix != ".npy":  # no sidecar to watch: the read names the problem
+        return _load_tensor_once(path, output)
     for _ in range(TENSOR_READS):
         before = _file_versions(path)
         try:

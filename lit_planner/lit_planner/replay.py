@@ -742,7 +742,7 @@ def parse_envelope(text: str, topic: str, log_ns: int, skipped: Skipped) -> Enve
         skipped.add("unknown schema", where, str(schema))
         return None
     if type(version) is not int or version < 1:  # damage, not a version some LIT* wrote
-        skipped.add("not an envelope", where, f"version {version!r} is not a whole number >= 1")
+        skipped.add("not an envelope", where, f"version {version!r} is not an integer >= 1")
         return None
     if version not in supported_versions(schema):
         skipped.add("unsupported version", where, f"{schema} version {version!r}")
@@ -1356,7 +1356,7 @@ def salvage(
         _read_mcap(result, gathered, keep_unverified)
     kept: list[tuple[Any, Any, int, bytes]] = []
     # A message another file of the folder held already (the same topic, time and bytes: a
-    # copy of a file beside it, or a file metadata.yaml lists twice) is written once.
+    # copy of a file beside it) is written once.
     first_file: dict[tuple[str, int, bytes], Path] = {}
     for result, channel_id, log_ns, data in gathered.messages:
         channel = gathered.channels.get((result.file, channel_id))
@@ -1366,7 +1366,11 @@ def salvage(
         if channel is None or schema is None or not _cdr_ok(schema.name, data):
             result.dropped += 1
             continue
-        where = first_file.setdefault((channel.topic, log_ns, data), result.file)
+        where = (
+            first_file.setdefault((channel.topic, log_ns, data), result.file)
+            if len(files) > 1
+            else result.file
+        )
         if where != result.file:
             result.copies[where] = result.copies.get(where, 0) + 1
             continue
@@ -1421,7 +1425,7 @@ def _mcap_files(source: Path) -> tuple[list[Path], dict[Path, str]]:
     return usable, unusable
 
 
-def _salvage_reader(stream: _StrictStream, size: int) -> Any:
+def _salvage_reader(stream: _StrictStream, size: int, path: Path) -> Any:
     """A ``StreamReader`` that emits chunks and notes where each chunk record starts and which
     records it skipped for an unknown opcode (a damaged opcode byte: the stock reader skips such
     a record without a word, and a chunk's messages went missing from a "complete" file).
@@ -1440,16 +1444,19 @@ def _salvage_reader(stream: _StrictStream, size: int) -> Any:
         """(start, opcode, length) of the records skipped for their opcode."""
         misplaced_footers: list[tuple[int, int]]
         """(start, length) of the footer records skipped for not ending the file."""
-        chunk_lengths: list[tuple[int, int, int]]
-        """(start, records length the chunk's field says, bytes its record holds) of the chunks
-        whose field disagrees with their record's length."""
+        record_lengths: list[tuple[int, int, int]]
+        """(start, length the record says, length its chunk's fields give) of the chunk records
+        read by their records-length field."""
+        chunk_lengths: list[tuple[int, int, int, bool]]
+        """(start, records length the chunk's field says, bytes its record holds after the
+        fields, whether the chunk was left unread) of the chunks whose field and record length
+        disagree."""
 
         def _read_record(self, opcode: int, length: int) -> Any:
             self.last_start = stream.position - 9  # the opcode and length were just read
             if opcode not in known:
                 self.skipped.append((self.last_start, opcode, length))
-            # Only the end magic (or what the end of the file left of it) follows a footer.
-            if opcode == Opcode.FOOTER and self.last_start + 9 + length < size - len(_MCAP_MAGIC):
+            if opcode == Opcode.FOOTER and not _footer_ends_file(path, self.last_start, size):
                 # A damaged opcode byte (a chunk's 0x06 read as 0x02) ended the reading as if
                 # the file ended there, and every chunk after it was lost: skipped, the chunk is
                 # read through the summary's chunk index.
@@ -1457,11 +1464,22 @@ def _salvage_reader(stream: _StrictStream, size: int) -> Any:
                 self._stream.read(length)
                 return None
             if opcode == Opcode.CHUNK:
-                # By the record's length: a damaged records-length field inside the chunk cut
-                # its data short (its CRC then failed) or read past its record.
-                chunk, declared = _chunk_of_record(self._stream.read(length))
-                if declared != len(chunk.data):
-                    self.chunk_lengths.append((self.last_start, declared, len(chunk.data)))
+                # The whole record is read, so the next record starts where this one says it
+                # ends (a records-length field claiming more read on into the next record).
+                body = self._stream.read(length)
+                chunk, disagreement = _chunk_of_record(body)
+                if chunk is None and disagreement is not None:
+                    # The field claims more: the record's length may be the damaged one (short).
+                    # The rest of the records as the field gives them, when they check out,
+                    # also puts the reading back in step with the next record.
+                    extra = disagreement[0] - disagreement[1]
+                    if stream.position + extra <= size:
+                        by_field, _ = _chunk_of_record(body + self._stream.read(extra))
+                        if by_field is not None and _chunk_checks_out(by_field):
+                            self.record_lengths.append((self.last_start, length, length + extra))
+                            return by_field
+                if disagreement is not None:
+                    self.chunk_lengths.append((self.last_start, *disagreement, chunk is None))
                 return chunk
             return super()._read_record(opcode, length)
 
@@ -1469,13 +1487,24 @@ def _salvage_reader(stream: _StrictStream, size: int) -> Any:
     source: Any = stream  # StreamReader only calls read(); its annotation lists file types
     reader = Reader(source, emit_chunks=True, record_size_limit=max(1, size))
     reader.chunk_starts, reader.skipped = set(), []
-    reader.misplaced_footers, reader.chunk_lengths = [], []
+    reader.misplaced_footers, reader.chunk_lengths, reader.record_lengths = [], [], []
     return reader
 
 
-def _chunk_of_record(body: bytes) -> tuple[Any, int]:
-    """The chunk a CHUNK record's ``body`` holds, its records being everything after its fields
-    (as the record's length gives them), and the records length its own field says.
+def _footer_ends_file(path: Path, start: int, size: int) -> bool:
+    """Whether a footer record at byte ``start`` of ``path`` is the file's footer: the end magic
+    follows its 29 bytes, or what the end of the file left of it."""
+    with path.open("rb") as handle:
+        handle.seek(start + 29)  # opcode, length, summary start, summary offset start, CRC
+        after = handle.read(len(_MCAP_MAGIC))
+    return after == _MCAP_MAGIC or (
+        start + 29 + len(after) == size and _MCAP_MAGIC.startswith(after)
+    )
+
+
+def _chunk_fields(body: bytes) -> tuple[Any, int, int]:
+    """(the chunk of a CHUNK record's ``body`` with everything after its fields as its records,
+    the byte where they start, the records length its own field says).
 
     Raises:
         ValueError: the fields do not fit in the body, or the compression name is not UTF-8.
@@ -1499,7 +1528,49 @@ def _chunk_of_record(body: bytes) -> tuple[Any, int]:
         uncompressed_crc=crc,
         uncompressed_size=uncompressed_size,
     )
-    return chunk, declared
+    return chunk, fields, declared
+
+
+def _chunk_of_record(body: bytes) -> tuple[Any, tuple[int, int] | None]:
+    """The chunk a whole CHUNK record's ``body`` holds, and (the records length its own field
+    says, the bytes the record holds after the fields) when the two disagree and the record's
+    length was taken; None for the chunk when the field claims more than the record holds and
+    the record's records do not check out (the record's length may be the damaged one).
+
+    MCAP's reading comes first: the records as the field gives them, the rest of the record
+    padding. When that does not check out (its CRC, or without one its records reading to the
+    end) and all that follows the fields does, the field is the damaged one (it cut the data
+    short and the CRC failed).
+
+    Raises:
+        ValueError: the fields do not fit in the body, or the compression name is not UTF-8.
+    """
+    import dataclasses
+
+    by_record, fields, declared = _chunk_fields(body)
+    if fields + declared == len(body):
+        return by_record, None
+    if fields + declared > len(body):  # the field, or the record's length, is damaged
+        return by_record if _chunk_checks_out(by_record) else None, (declared, len(by_record.data))
+    by_field = dataclasses.replace(by_record, data=by_record.data[:declared])
+    if not _chunk_checks_out(by_field) and _chunk_checks_out(by_record):
+        return by_record, (declared, len(by_record.data))
+    return by_field, None
+
+
+def _chunk_checks_out(chunk: Any) -> bool:
+    """Whether a chunk's records match its CRC-32 (when written), or else read to their end."""
+    import zlib
+
+    try:
+        data = _chunk_data(chunk)
+        if chunk.uncompressed_crc:
+            return zlib.crc32(data) == chunk.uncompressed_crc
+        for _ in _inner_records(data, chunk):
+            pass
+    except Exception:  # noqa: BLE001 -- damaged records raise anything
+        return False
+    return True
 
 
 def _read_mcap(result: SalvageResult, gathered: _Salvaged, keep_unverified: bool = False) -> None:
@@ -1512,7 +1583,7 @@ def _read_mcap(result: SalvageResult, gathered: _Salvaged, keep_unverified: bool
     indexes: list[Any] = []
     with result.file.open("rb") as handle:
         stream = _StrictStream(handle)
-        reader = _salvage_reader(stream, result.size)
+        reader = _salvage_reader(stream, result.size, result.file)
         try:
             for record in reader.records:
                 if isinstance(record, Chunk):
@@ -1548,10 +1619,20 @@ def _read_mcap(result: SalvageResult, gathered: _Salvaged, keep_unverified: bool
             f"skipped the record at byte {start} ({9 + length} bytes): its opcode says footer, "
             "but a footer ends the file (a damaged byte)"
         )
-    for start, declared, actual in reader.chunk_lengths:
+    for start, said, given in reader.record_lengths:
+        result.notes.append(
+            f"the chunk at byte {start}: its record says {said} bytes, its fields give "
+            f"{given}; read by the fields (the record's length is damaged)"
+        )
+    for start, declared, actual, unread in reader.chunk_lengths:
         result.notes.append(
             f"the chunk at byte {start}: its records-length field says {declared} bytes, its "
-            f"record holds {actual}; read by the record's length (a damaged field)"
+            f"record holds {actual}; "
+            + (
+                "one of the two lengths is damaged: left to the summary's chunk index"
+                if unread
+                else "read by the record's length (the field's reading did not check out)"
+            )
         )
     if not footer:
         indexes = _summary_chunk_indexes(result, gathered)
@@ -1615,11 +1696,17 @@ def _read_indexed_chunks(
             body = handle.read(length - 9)
         messages = 0
         try:
-            chunk, declared = _chunk_of_record(body)
-            if declared != len(chunk.data):
+            chunk, disagreement = _chunk_of_record(body)
+            if chunk is None:
+                raise ValueError(
+                    f"its records-length field says {disagreement[0]} bytes, more than the "  # type: ignore[index]
+                    f"{disagreement[1]} the chunk index gives it"  # type: ignore[index]
+                )
+            if disagreement is not None:
                 result.notes.append(
-                    f"the chunk at byte {start}: its records-length field says {declared} "
-                    f"bytes, the chunk index gives {len(chunk.data)}; read by the index's length"
+                    f"the chunk at byte {start}: its records-length field says "
+                    f"{disagreement[0]} bytes, the chunk index gives {disagreement[1]}; read by "
+                    "the index's length (the field's reading did not check out)"
                 )
             for inner in _chunk_records(chunk, keep_unverified):
                 gathered.take(inner, result)
@@ -1719,10 +1806,9 @@ def _partial_chunk(
         handle.seek(start + 9)
         body = handle.read(min(length, result.size - start - 9))  # never a damaged length
     try:
-        chunk, records_length = _chunk_of_record(body)  # its data: the bytes present
+        chunk, fields, records_length = _chunk_fields(body)  # its data: the bytes present
     except ValueError:
         return None
-    fields = len(body) - len(chunk.data)
     if fields + records_length != length:
         return None
     compression = chunk.compression
@@ -2737,10 +2823,11 @@ def _bench_into(args: argparse.Namespace, out: Path) -> int:
                 + "; ".join(skipped.examples),
                 file=sys.stderr,
             )
-        if skipped.counts["unsupported version"]:  # benign, but the table is short of them
+        newer = skipped.counts["unsupported version"]
+        if newer:  # benign, but the table is short of them
             print(
-                f"{PROG} bench: {skipped.counts['unsupported version']} messages of a version "
-                "this LIT* does not read (a newer one's?) left out; `lit replay info` lists them",
+                f"{PROG} bench: {newer} message{'s' if newer > 1 else ''} of a version this LIT* "
+                "does not read (a newer one's?) left out; `lit replay info` lists them",
                 file=sys.stderr,
             )
         if not summaries:

@@ -698,6 +698,9 @@ def test_load_tensor_takes_a_path_as_text(tmp_path: Path) -> None:
     write_tensor_pair(tmp_path)
     for output, name in (("B", "b_tensor.npy"), ("psi_K", "k_tensor.npy")):
         assert load_tensor(str(tmp_path / name), output).trilinear(0.5, 0.5, 0.5) > 0
+    for text in (".", "", "/"):  # a path without a name: the error, not with_suffix's ValueError
+        with pytest.raises(TensorFileError, match="must end in .npy"):
+            load_tensor(text, "B")
 
 
 def test_the_tensor_policy_cache_reads_again_only_changed_files(
