@@ -507,6 +507,17 @@ def test_salvage_truncated_and_bit_flipped(tmp_path: Path) -> None:
         if delta < 0:
             assert "complete file" in result.stdout
             assert f"its record says {value} bytes" in result.stdout, result.stdout
+    # A flipped bit in the summary's copy of the schema name (the data section's copy intact):
+    # the later copy replaced the first, and every message of the schema was dropped.
+    name = bag.STRING_TYPE.encode()
+    summary_copy = data.rindex(name)
+    assert summary_copy > chunks[-1] and data.index(name) < chunks[0] + 100  # one copy each
+    renamed = bytearray(data)
+    renamed[summary_copy + len(name) - 1] ^= 0x02  # ...String -> ...Strinl
+    (tmp_path / "renamed.mcap").write_bytes(bytes(renamed))
+    result = _replay("salvage", tmp_path / "renamed.mcap")
+    assert result.returncode == 0, result.stderr
+    assert _recovered(result.stdout) == 300, result.stdout
     # Bytes after the end magic: the footer before them is still the file's footer.
     (tmp_path / "trailing.mcap").write_bytes(data + bytes(16))
     result = _replay("salvage", tmp_path / "trailing.mcap")

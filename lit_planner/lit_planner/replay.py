@@ -1307,16 +1307,31 @@ class _Salvaged:
     schemas: dict[tuple[Path, int], Any] = field(default_factory=dict)
     channels: dict[tuple[Path, int], Any] = field(default_factory=dict)
     messages: list[tuple[SalvageResult, int, int, bytes]] = field(default_factory=list)
+    unverified: set[tuple[str, Path, int]] = field(default_factory=set)
+    """Schemas and channels taken from a chunk whose CRC-32 failed or that was cut off."""
 
-    def take(self, record: object, result: SalvageResult) -> None:
+    def take(self, record: object, result: SalvageResult, verified: bool = True) -> None:
+        """Keep ``record``. A schema or channel id seen again keeps its first record, which is
+        the data section's (the summary repeats it), unless that one is unverified: a flipped
+        bit in the summary's copy of a schema name made salvage drop every message of it."""
         from mcap.records import Channel, Message, Schema
 
-        if isinstance(record, Schema):
-            self.schemas[(result.file, record.id)] = record
-        elif isinstance(record, Channel):
-            self.channels[(result.file, record.id)] = record
-        elif isinstance(record, Message):
+        if isinstance(record, Message):
             self.messages.append((result, record.channel_id, record.log_time, record.data))
+            return
+        if not isinstance(record, Schema | Channel):
+            return
+        kind, kept = (
+            ("schema", self.schemas) if isinstance(record, Schema) else ("channel", self.channels)
+        )
+        key = (result.file, record.id)
+        if key in kept and (kind, *key) not in self.unverified:
+            return
+        kept[key] = record
+        if verified:
+            self.unverified.discard((kind, *key))
+        else:
+            self.unverified.add((kind, *key))
 
 
 def salvage(
@@ -1589,8 +1604,8 @@ def _read_mcap(result: SalvageResult, gathered: _Salvaged, keep_unverified: bool
                 if isinstance(record, Chunk):
                     reader.chunk_starts.add(reader.last_start)
                     try:
-                        for inner in _chunk_records(record, keep_unverified):
-                            gathered.take(inner, result)
+                        for inner, verified in _chunk_records(record, keep_unverified):
+                            gathered.take(inner, result, verified)
                     except Exception as error:  # noqa: BLE001 -- damaged chunk content
                         result.damaged_chunks.append(
                             f"chunk ending at byte {stream.position}: {_error_text(error)}"
@@ -1708,8 +1723,8 @@ def _read_indexed_chunks(
                     f"{disagreement[0]} bytes, the chunk index gives {disagreement[1]}; read by "
                     "the index's length (the field's reading did not check out)"
                 )
-            for inner in _chunk_records(chunk, keep_unverified):
-                gathered.take(inner, result)
+            for inner, verified in _chunk_records(chunk, keep_unverified):
+                gathered.take(inner, result, verified)
                 messages += isinstance(inner, Message)
         except Exception as error:  # noqa: BLE001 -- the chunk itself is damaged too
             result.damaged_chunks.append(
@@ -1816,7 +1831,7 @@ def _partial_chunk(
     end = 0
     try:
         for end, inner in _inner_records(_chunk_data(chunk, partial=True), chunk):
-            gathered.take(inner, result)
+            gathered.take(inner, result, verified=False)  # cut off: no CRC to check
             records += 1
             messages += isinstance(inner, Message)
     except Exception:  # noqa: BLE001, S110 -- the cut (or damage) ends the readable records
@@ -1842,10 +1857,11 @@ def _magic_length(path: Path) -> int:
         return len(_MCAP_MAGIC) if handle.read(len(_MCAP_MAGIC)) == _MCAP_MAGIC else 0
 
 
-def _chunk_records(chunk: Any, keep_unverified: bool = False) -> Iterator[object]:
-    """The schema, channel and message records of a chunk, checked as they are read; of a chunk
-    whose CRC-32 (when written: 0 means none) does not match its records, none of its messages,
-    or with ``keep_unverified`` those that read (a changed digit still reads: unverified)."""
+def _chunk_records(chunk: Any, keep_unverified: bool = False) -> Iterator[tuple[object, bool]]:
+    """The schema, channel and message records of a chunk, checked as they are read, each with
+    whether the chunk's CRC-32 matched (when written: 0 means none, and counts as matched); of a
+    chunk whose CRC-32 does not match its records, none of its messages, or with
+    ``keep_unverified`` those that read (a changed digit still reads: unverified)."""
     import zlib
 
     from mcap.records import Message
@@ -1859,7 +1875,7 @@ def _chunk_records(chunk: Any, keep_unverified: bool = False) -> Iterator[object
             for _, record in _inner_records(data, chunk):
                 if keep_unverified or not isinstance(record, Message):
                     kept += isinstance(record, Message)
-                    yield record
+                    yield record, False
         except ValueError:
             pass
         raise ValueError(
@@ -1873,7 +1889,7 @@ def _chunk_records(chunk: Any, keep_unverified: bool = False) -> Iterator[object
             )
         )
     for _, record in _inner_records(data, chunk):
-        yield record
+        yield record, True
 
 
 def _chunk_data(chunk: Any, *, partial: bool = False) -> bytes:
