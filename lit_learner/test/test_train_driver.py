@@ -93,7 +93,14 @@ def test_planners_in_namespaces_draw_problems_of_their_own() -> None:
         for d in map(train.TrainingDistribution(names, train.draw_generator(7)).draw, range(20))
     ]  # lit train's and the root namespace's: the seed's own stream
     robot1, robot2 = problems("/robot1"), problems("/robot2")
-    assert robot1 == problems("/robot1")  # repeatable
+    # The same in every process (a hash() of the namespace would differ with PYTHONHASHSEED):
+    # a planner node restarted under /robot1 draws its problems again.
+    assert robot1[:4] == [
+        ("wg4", 0, 2076210052),
+        ("np8", 0, 3396848681),
+        ("rrd4", 2536, 1349753081),
+        ("rrd8", 7607, 1339967847),
+    ]
     assert len({tuple(root), tuple(robot1), tuple(robot2)}) == 3
     assert not {seed for *_, seed in robot1} & {seed for *_, seed in robot2}
 

@@ -159,11 +159,15 @@ def test_the_duplicate_server_watch_logs_both_ends_of_a_duplicate(monkeypatch: t
     error and its later info line to one call site, the line that ran the check."""
     import rclpy
     from lit_planner.safe_logger import SafeLogger
+    from lit_planner.testing import reserve_ros_domain
 
     from lit_planner import rosutil
 
+    # Its own domain on this host alone, also under a plain pytest (lit test exports both).
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")  # read by rclpy.init
+    domain, claim = reserve_ros_domain()
     context = rclpy.Context()
-    rclpy.init(args=[], context=context)
+    rclpy.init(args=[], context=context, domain_id=domain)
     try:
         node = rclpy.create_node("duplicate_watch_test", context=context)
         SafeLogger(node.get_logger())  # as the nodes make theirs
@@ -191,6 +195,8 @@ def test_the_duplicate_server_watch_logs_both_ends_of_a_duplicate(monkeypatch: t
         node.destroy_node()
     finally:
         rclpy.shutdown(context=context)
+        if claim is not None:
+            claim.close()
 
 
 def test_the_ready_line_names_where_the_episodes_come_from() -> None:
