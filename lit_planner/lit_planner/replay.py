@@ -1489,8 +1489,12 @@ def _salvage_reader(stream: _StrictStream, size: int, path: Path) -> Any:
                     # also puts the reading back in step with the next record.
                     extra = disagreement[0] - disagreement[1]
                     if stream.position + extra <= size:
-                        by_field, _ = _chunk_of_record(body + self._stream.read(extra))
+                        with path.open("rb") as handle:  # looked at, not taken from the stream
+                            handle.seek(stream.position)
+                            more = handle.read(extra)
+                        by_field, _ = _chunk_of_record(body + more)
                         if by_field is not None and _chunk_checks_out(by_field):
+                            self._stream.read(extra)
                             self.record_lengths.append((self.last_start, length, length + extra))
                             return by_field
                 if disagreement is not None:
