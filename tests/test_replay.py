@@ -518,6 +518,15 @@ def test_salvage_truncated_and_bit_flipped(tmp_path: Path) -> None:
     result = _replay("salvage", tmp_path / "renamed.mcap")
     assert result.returncode == 0, result.stderr
     assert _recovered(result.stdout) == 300, result.stdout
+    # The data section's copy damaged instead (inside chunk 1, whose CRC then fails): that
+    # chunk's messages are lost, the summary's intact copy serves every other chunk.
+    renamed = bytearray(data)
+    renamed[data.index(name) + len(name) - 1] ^= 0x02
+    (tmp_path / "renamed-first.mcap").write_bytes(bytes(renamed))
+    result = _replay("salvage", tmp_path / "renamed-first.mcap")
+    assert result.returncode == 0, result.stderr
+    assert "damaged chunk" in result.stdout and "does not match its records" in result.stdout
+    assert 250 < _recovered(result.stdout) < 300, result.stdout
     # Bytes after the end magic: the footer before them is still the file's footer.
     (tmp_path / "trailing.mcap").write_bytes(data + bytes(16))
     result = _replay("salvage", tmp_path / "trailing.mcap")
