@@ -457,7 +457,9 @@ def load_tensor(path: str | Path, output: str) -> lit_core.LookupTensor:
     An export replaces the two files one after the other: a read that either file was replaced
     during (another inode, size or time afterwards) is done again, so the tensor returned is
     the one whose bytes were hashed and a read cut by an export is not a false "SHA-256
-    differs" (a read that falls wholly between the export's two renames still is one).
+    differs". A read that fails while an export holds the folder (a read wholly between its
+    two renames saw the new sidecar beside the old tensor) waits for the export to end, for
+    ``tensor_files.EXPORT_WAIT`` seconds at most, and is done again.
 
     Raises:
         TensorFileError: the file, its sidecar, or the pair is defective; names the problem.
@@ -470,7 +472,7 @@ def load_tensor(path: str | Path, output: str) -> lit_core.LookupTensor:
         try:
             tensor = _load_tensor_once(path, output)
         except TensorFileError:
-            if _file_versions(path) == before:
+            if _file_versions(path) == before and not _export_ended(path.parent):
                 raise
             continue
         if _file_versions(path) == before:
@@ -479,6 +481,13 @@ def load_tensor(path: str | Path, output: str) -> lit_core.LookupTensor:
         f"{path}: it or its sidecar was replaced during each of {TENSOR_READS} reads; "
         "is an export writing this folder over and over?"
     )
+
+
+def _export_ended(folder: Path) -> bool:
+    """Whether an export was writing ``folder`` and has ended (``tensor_files.wait_for_exports``)."""
+    from lit_planner import tensor_files  # pulls in the JSON-Schema validator
+
+    return tensor_files.wait_for_exports(folder)
 
 
 def _load_tensor_once(path: Path, output: str) -> lit_core.LookupTensor:

@@ -24,6 +24,7 @@ import math
 import os
 import shutil
 import tempfile
+import time
 import tokenize
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -302,13 +303,7 @@ def stale_stages(directory: Path) -> list[Path]:
     counting as empty, which refused the export's own retry. An export holds a lock on its
     staging folder while it writes (``flock``: released by the kernel when the process ends,
     whatever its process id becomes), so a folder whose lock can be taken is stale."""
-    if not directory.is_dir():
-        return []
-    stale = []
-    for entry in directory.iterdir():
-        if entry.name.startswith(STAGE_PREFIX) and entry.is_dir() and not lock_held(entry):
-            stale.append(entry)
-    return stale
+    return [entry for entry in _stages(directory) if not lock_held(entry)]
 
 
 def holds_files(directory: Path) -> bool:
@@ -331,6 +326,36 @@ def lock_held(path: Path) -> bool:
     finally:
         os.close(descriptor)  # and with it a lock this took
     return False
+
+
+EXPORT_WAIT = 30.0
+"""Seconds :func:`wait_for_exports` waits at most for the exports writing a folder."""
+
+
+def wait_for_exports(directory: Path, timeout: float = EXPORT_WAIT) -> bool:
+    """Wait until no export holds a staging folder of :func:`staged_folder` in ``directory``
+    (its writes and its renames are done), for ``timeout`` seconds at most; whether one was
+    held and ended within it. A reader whose files disagree (a new sidecar beside the old
+    tensor) reads them again when this is True: the export was between its renames."""
+    held = [entry for entry in _stages(directory) if lock_held(entry)]
+    deadline = time.monotonic() + timeout
+    for stage in held:
+        while lock_held(stage):
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.02)
+    return bool(held)
+
+
+def _stages(directory: Path) -> list[Path]:
+    """The staging folders of :func:`staged_folder` in ``directory`` (none if it is not a folder)."""
+    if not directory.is_dir():
+        return []
+    return [
+        entry
+        for entry in directory.iterdir()
+        if entry.name.startswith(STAGE_PREFIX) and entry.is_dir()
+    ]
 
 
 @contextmanager

@@ -7,11 +7,13 @@ baselines get short budgets and their paths are only checked when they solved.
 from __future__ import annotations
 
 import dataclasses
+import fcntl
 import itertools
 import json
 import math
 import os
 import re
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -1050,6 +1052,58 @@ def test_a_tensor_replaced_while_it_is_read_is_read_again(
     with pytest.raises(TensorFileError, match="replaced during each of 3 reads"):
         planning.load_tensor(folder / "b_tensor.npy", "B")
     assert reads == planning.TENSOR_READS
+
+
+def test_a_tensor_read_wholly_between_an_exports_renames_waits_for_the_export(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A read that began and ended between an export's two renames saw the new sidecar beside
+    the old tensor, and no file changed while it read: a false "SHA-256 differs". The export
+    holds its staging folder's lock until its renames are done; the failed read waits for it
+    and reads again. A defect with no export in the folder is still reported at once."""
+    from lit_planner.tensors_cli import write_constant
+
+    from lit_planner import planning, tensor_files
+
+    folder, staging = tmp_path / "tensors", tmp_path / "staging"
+    folder.mkdir()
+    staging.mkdir()
+    write_constant(folder, b=100, psi_k=None)
+    write_constant(staging, b=150, psi_k=None)
+    stage = folder / f"{tensor_files.STAGE_PREFIX}export"
+    stage.mkdir()
+    lock = os.open(stage, os.O_RDONLY)
+    fcntl.flock(lock, fcntl.LOCK_EX)  # as staged_folder holds it from its writes to its end
+    os.replace(staging / "b_tensor.json", folder / "b_tensor.json")  # the first rename
+    real_once = planning._load_tensor_once
+    reads = 0
+
+    def counted(path: Path, output: str) -> Any:
+        nonlocal reads
+        reads += 1
+        return real_once(path, output)
+
+    def the_export_ends() -> None:
+        time.sleep(0.5)  # after the first read has failed
+        os.replace(staging / "b_tensor.npy", folder / "b_tensor.npy")
+        stage.rmdir()
+        os.close(lock)
+
+    monkeypatch.setattr(planning, "_load_tensor_once", counted)
+    export = threading.Thread(target=the_export_ends)
+    export.start()
+    try:
+        tensor = planning.load_tensor(folder / "b_tensor.npy", "B")
+    finally:
+        export.join()
+    assert tensor.trilinear(0.5, 0.5, 0.5) == 150.0 and reads >= 2
+
+    reads = 0  # no export: the mismatch is the files' own, reported at the first read
+    write_constant(staging, b=120, psi_k=None)
+    os.replace(staging / "b_tensor.json", folder / "b_tensor.json")
+    with pytest.raises(TensorFileError, match="SHA-256"):
+        planning.load_tensor(folder / "b_tensor.npy", "B")
+    assert reads == 1
 
 
 def test_the_tensor_policy_cache_reads_again_when_an_export_replaced_a_tensor_meanwhile(
