@@ -30,6 +30,10 @@ SCRIPT = textwrap.dedent(
     from lit_learner.node import LearnerNode
 
     learner = LearnerNode()
+    warnings = []
+    warn = learner.log.warning
+    learner.log.warning = lambda text, *args, **kwargs: (warnings.append(text),
+                                                         warn(text, *args, **kwargs))
     publisher = Publisher("planner/test", "run-1")
     key = "planner/test|run-1|e1"
 
@@ -141,6 +145,13 @@ SCRIPT = textwrap.dedent(
     ok_float, _ = call("DecideRequest", dict(more, planning_time=0.5, improvements=4.0,
                                              cost=1.4), other)
     learner.apply_commits()
+    # A client starting an episode at every request, and ending none, had a warning each time:
+    # now for the 1st, 10th, 100th, ... (e3 after e2 was the 1st; these are the 2nd to 12th).
+    flood = Publisher("planner/flood", "run-1")
+    for n in range(12):
+        call("DecideRequest", dict(decide("psi_K", 0.1), episode_id=f"f{n}"), flood)
+    learner.apply_commits()
+    out["replaced_said"] = [text for text in warnings if "started another one" in text]
     learner.checkpoint()
     from lit_learner.core import LearnerCore
     resumed = LearnerCore.load_checkpoint(f"{folder}/c.pt")
@@ -198,3 +209,9 @@ def test_decisions_answered_while_the_lock_is_taken_are_recorded_after_in_order(
     assert out["fewer_improvements"] == [True, False, "invalid-request", "$.payload.improvements"]
     assert out["higher_cost"] == [False, "invalid-request", "$.payload.cost"]
     assert out["float_count"] == [True, [0, 3, 4]]
+    said = out["replaced_said"]
+    assert len(said) == 2, said
+    assert (
+        "planner/test|run-1|e2 never ended (its planner started another one; 1 so far)" in said[0]
+    )
+    assert "f8 never ended (its planner started another one; 10 so far)" in said[1], said

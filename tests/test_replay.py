@@ -741,6 +741,8 @@ def bad_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     gone = base / "file_gone"  # a bag folder whose .mcap file was moved away
     shutil.copytree(good, gone)
     (gone / _mcap(good).name).unlink()
+    (base / "killed_early").mkdir()  # a writer killed before it wrote anything
+    (base / "killed_early" / "killed_early_0.mcap").touch()
     return {
         "missing": base / "missing",
         "empty directory": base / "empty_dir",
@@ -749,6 +751,7 @@ def bad_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         "bit flip": base / "flipped.mcap",
         "not a bag": base / "notes.txt",
         "listed file gone": gone,
+        "folder of an empty file": base / "killed_early",
     }
 
 
@@ -764,6 +767,12 @@ def test_bad_input_is_one_line_exit_2(
         "bit flip": "its HEADER record at byte 8 claims",
         "not a bag": "not an MCAP file" if command == "salvage" else "is not a bag",
         "listed file gone": "lists good.mcap, which is not there (no .mcap file is left",
+        # It advised salvage, which then refused the empty file.
+        "folder of an empty file": (
+            "killed_early_0.mcap is an empty file"
+            if command == "salvage"
+            else "has no metadata.yaml and its .mcap file is empty: nothing was recorded"
+        ),
     }
     for case, path in bad_inputs.items():
         out = tmp_path / f"tensors-{case}"
@@ -1523,6 +1532,38 @@ def test_replay_outputs_beside_checked_in_bags_are_ignored_by_git() -> None:
     assert tracked.stdout == ""
 
 
+def test_verify_of_a_bag_that_lost_run_records_is_incomplete(tmp_path: Path) -> None:
+    """A salvage that dropped a damaged chunk (the first runs of a lit bench bag) left a bag
+    whose every remaining path was valid, and verify passed it (exit 0) without a word about
+    the runs that were gone. Runs missing between a publisher's seqs, and a bench bag's runs
+    before its first recorded one, make it incomplete (exit 1); the runs of a ROS recording
+    that began late are not counted."""
+    world = scenarios.get("np4")
+    around = [list(world.start), [-0.15, 0.1, 0.0, 0.0], [0.15, 0.1, 0.0, 0.0], list(world.goal)]
+    record = _bench_run(scenario="np4", instance=0, solved=True, planner="x", run=0)
+    payload = {**record, "path": around, "path_valid": True}
+
+    def bench_bag(name: str, seqs: Sequence[int]) -> Path:
+        with BagRecorder(tmp_path / name, run_id="v") as recorder:
+            recorder.add_topic(bag.BENCH_RUN_TOPIC, bag.STRING_TYPE)
+            for seq in seqs:
+                text = envelope(bag.BENCH_RUN_SCHEMA, seq, "lit_bench", "v", payload, stamp_ns=seq)
+                recorder.write_string(bag.BENCH_RUN_TOPIC, text, 10 + seq)
+        return tmp_path / name
+
+    whole = _replay("verify", bench_bag("whole", [0, 1, 2, 3]))
+    assert whole.returncode == 0, whole.stdout + whole.stderr
+    assert "incomplete" not in whole.stdout
+    for name, seqs, missing in (("gap", [0, 1, 3], 1), ("head", [3, 4], 3)):
+        result = _replay("verify", bench_bag(name, seqs))
+        assert result.returncode == 1, result.stdout + result.stderr
+        assert f"{len(seqs)} paths checked: {len(seqs)} valid, 0 invalid" in result.stdout
+        assert f"and {missing} run records are missing" in result.stdout, result.stdout
+    # Both halves of a run given together: nothing is missing.
+    together = _replay("verify", bench_bag("first", [0, 1]), bench_bag("second", [2, 3]))
+    assert together.returncode == 0, together.stdout + together.stderr
+
+
 def test_verify_of_a_bag_with_unreadable_lit_messages_is_incomplete(tmp_path: Path) -> None:
     """Valid paths, but one LIT* message that cannot be read and one from another program: the
     unreadable one makes verify exit 1 (not everything was checked); the foreign one does not."""
@@ -1547,7 +1588,7 @@ def test_verify_of_a_bag_with_unreadable_lit_messages_is_incomplete(tmp_path: Pa
     assert result.returncode == 1, result.stdout + result.stderr
     assert "1 paths checked: 1 valid, 0 invalid" in result.stdout
     assert (
-        "verify: incomplete: 0 recorded runs could not be checked and 1 LIT* messages are damaged"
+        "verify: incomplete: 0 recorded runs could not be checked, 1 LIT* messages are damaged"
         in (result.stdout)
     )
     # A different record under the first one's topic, source, run, seq and stamp is no copy of it

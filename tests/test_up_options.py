@@ -130,6 +130,7 @@ def test_bad_options_start_nothing(tmp_path: Path, options: list[str], message: 
         # These hung until a timeout, or failed with a traceback after the first part's 20 s.
         (["system-bench", "--budget", "-1"], "--budget must be a finite positive number"),
         (["system-bench", "--budget", "0"], "--budget must be a finite positive number"),
+        (["system-bench", "--budget", "5000"], "--budget must be 1e-06 to 3600 s"),
         (["system-bench", "--seed", "-1"], "--seed must be between 0"),
         (
             ["system-bench", "--scenarios", "foo", "--calls", "0", "--kills", "0"],

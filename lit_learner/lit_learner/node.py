@@ -270,6 +270,8 @@ class LearnerNode:
         ``_queue_lock``: ``episode_timeout``)."""
         self._crowded_out = 0
         """Open episodes abandoned because ``max_open_episodes`` were open (serving thread)."""
+        self._replaced = 0
+        """Episodes abandoned because their planner started another one (``_queue_lock``)."""
         self._sources_full = False
         """Whether a planner beyond ``max_sources`` was left out of the provenance (warned once)."""
         self._open_episode: dict[str, str] = {}
@@ -596,8 +598,18 @@ class LearnerNode:
         of ms; the serving thread used to wait for it before taking the next request, and the
         planner's 50 ms decision deadline ran out. ``abandoned``: the same planner's previous
         episode, whose end never came, is abandoned first."""
-        first = None if abandoned is None else (abandoned, "its planner started another one")
+        first = None
         with self._queue_lock:
+            if abandoned is not None:
+                # Said for the 1st, 10th, 100th, ... (a client starting episodes it never ends
+                # gave a warning for every request).
+                self._replaced += 1
+                first = (
+                    abandoned,
+                    f"its planner started another one; {self._replaced} so far"
+                    if math.log10(self._replaced).is_integer()
+                    else "",
+                )
             self._unapplied.append((decision, a_norm, source, first))
         self.apply_commits(block=False)
 

@@ -180,6 +180,8 @@ def crosscheck(
         raise ValueError(f"--runs must be at least 1, got {runs}")
     if not (math.isfinite(time) and time > 0):
         raise ValueError(f"--time must be a finite positive number of seconds, got {time}")
+    if time > planning.MAX_TIME:  # refused by the first plan, after the run's first line
+        raise ValueError(f"--time must be at most {planning.MAX_TIME:g} s, got {time:g}")
     if not (math.isfinite(tolerance) and tolerance >= 0):
         raise ValueError(f"--tolerance must be a non-negative fraction, got {tolerance}")
     unknown = [name for name in planners if name not in OMPL2_PLANNERS]

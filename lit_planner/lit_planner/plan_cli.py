@@ -247,4 +247,6 @@ def summary_lines(result: Mapping[str, Any], scenario: Scenario) -> list[str]:
 def _duration(seconds: float) -> str:
     if not math.isfinite(seconds):
         return "-"
+    if 0.0 < seconds < 5e-5:  # "0.0 ms" for a budget of 1e-9 s
+        return f"{seconds * 1e6:.3g} µs"
     return f"{seconds * 1e3:.1f} ms" if seconds < 1.0 else f"{seconds:.3f} s"

@@ -128,8 +128,8 @@ def query_for(scenario: Scenario | str) -> lit_core.Query:
     Raises:
         ScenarioError: an unknown scenario name.
     """
-    if isinstance(scenario, str):
-        scenario = scenarios.get(scenario)
+    if not isinstance(scenario, Scenario):
+        scenario = scenarios.get(scenario)  # a name, or an error naming what was given
     return lit_core.Query(
         list(scenario.lower),
         list(scenario.upper),
@@ -435,10 +435,12 @@ def _file_versions(path: Path) -> tuple[tuple[int, ...] | None, ...]:
 def _declared_output(path: Path) -> str | None:
     """The output (``B`` or ``psi_K``) that the sidecar of ``path`` names, read without its
     schema; None when it names none of them or does not read (the full check says why)."""
+    from lit_planner import tensor_files  # pulls in the JSON-Schema validator
+
     try:
-        document = json.loads(path.with_suffix(".json").read_bytes())
+        document = json.loads(tensor_files.read_sidecar_bytes(path.with_suffix(".json")))
         name = document["output"]["name"]
-    except (OSError, ValueError, KeyError, TypeError):
+    except (TensorFileError, ValueError, KeyError, TypeError, RecursionError):
         return None
     return name if name in TENSOR_FILES else None
 

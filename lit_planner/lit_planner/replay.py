@@ -521,7 +521,15 @@ def _check_readable(path: Path) -> None:
             foreign = _not_ros2(path)
             if foreign:
                 raise ReplayError(f"{path}: {foreign}")
-            if any(entry.suffix == ".mcap" for entry in entries):
+            mcaps = [entry for entry in entries if entry.suffix == ".mcap"]
+            if mcaps and not any(e.is_file() and e.stat().st_size > 0 for e in mcaps):
+                # salvage refuses such a folder too ("is an empty file"): no hint to it
+                raise ReplayError(
+                    f"{path} has no metadata.yaml and its .mcap file"
+                    + ("s are" if len(mcaps) > 1 else " is")
+                    + " empty: nothing was recorded (a writer killed before its first write?)"
+                )
+            if mcaps:
                 raise ReplayError(
                     f"{path} has no metadata.yaml: its writer did not finish (killed?); recover it "
                     f"with `lit replay salvage {path}`"
@@ -1030,6 +1038,22 @@ class VerifyReport:
     unchecked: Skipped = field(default_factory=Skipped)
     seen: dict[tuple[str, str, str, int, int], bytes] = field(default_factory=dict)
     """The records checked (:func:`read_before`: a copy's are checked once)."""
+    seqs: dict[tuple[str, str, str, str], set[int]] = field(default_factory=dict)
+    """The seqs of the run records read, by (schema, topic, source, run id)."""
+
+    def missing(self) -> int:
+        """Run records absent from the bags: the numbers missing between a publisher's first
+        and last seq, and for ``lit bench``'s records (whose writer numbers them from 0 in the
+        bag it writes) those before its first one. A recording that began after a ROS
+        publisher had sent episodes does not count them as missing; records lost at a bag's end
+        cannot be counted."""
+        missing = 0
+        for (schema, *_), seqs in self.seqs.items():
+            ordered = sorted(seqs)
+            missing += sum(b - a - 1 for a, b in itertools.pairwise(ordered))
+            if schema == bag.BENCH_RUN_SCHEMA:
+                missing += ordered[0]
+        return missing
 
 
 VERIFIED_SCHEMAS = frozenset({bag.BENCH_RUN_SCHEMA, EPISODE_SCHEMA})
@@ -1045,6 +1069,9 @@ def verify_bag(path: str | Path, report: VerifyReport) -> Skipped:
     with BagReader(path) as reader:
         for message in reader.messages():
             item = decode(message, skipped)
+            if isinstance(item, Envelope) and item.schema in VERIFIED_SCHEMAS and item.seq >= 0:
+                key = (item.schema, item.topic, item.source, item.run_id)
+                report.seqs.setdefault(key, set()).add(item.seq)
             if isinstance(item, Envelope | Trajectory):
                 again = read_before(report.seen, item, message.data)
                 if again is not None:
@@ -2585,12 +2612,15 @@ def _verify(args: argparse.Namespace) -> int:
     for example in report.unchecked.examples + skipped.examples[: skipped.max_examples]:
         print(f"  {example}")
     damaged = skipped.damaged
-    if not report.invalid and (damaged or report.unchecked.total):
+    missing = report.missing()
+    if not report.invalid and (damaged or report.unchecked.total or missing):
         print(
             f"{PROG} verify: incomplete: {report.unchecked.total} recorded runs could not be "
-            f"checked and {damaged} LIT* messages are damaged (see above)"
+            f"checked, {damaged} LIT* messages are damaged (see above) and {missing} run records "
+            "are missing (their publishers' seq numbers are absent: lost in recording, or "
+            "dropped by damage or salvage)"
         )
-    return 1 if report.invalid or damaged or report.unchecked.total else 0
+    return 1 if report.invalid or damaged or report.unchecked.total or missing else 0
 
 
 def _compact(args: argparse.Namespace) -> int:

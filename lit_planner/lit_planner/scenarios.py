@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import re
+import sys
 import zlib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -523,7 +524,8 @@ memory on a single edge."""
 def _check_extent(lower: np.ndarray, upper: np.ndarray, resolution: float) -> None:
     """The space's sizes must keep the planner's arithmetic finite: its diagonal, its measure
     (the informed-set ratios divide by it) and the collision-check spacing (resolution x the
-    largest size), which must be positive."""
+    largest size, which LIT* steps by, must be positive; resolution x the diagonal, OMPL's
+    longest valid segment, at least the machine epsilon)."""
     with np.errstate(over="ignore", under="ignore"):
         extent = upper - lower
         diagonal = float(np.sqrt(np.sum(np.square(extent))))
@@ -543,6 +545,14 @@ def _check_extent(lower: np.ndarray, upper: np.ndarray, resolution: float) -> No
             f"the world is too small: its volume or its collision-check spacing underflows "
             f"(smallest size {float(np.min(extent)):.3g})"
         )
+    if resolution * diagonal < sys.float_info.epsilon:
+        # OMPL's set-up refuses it ("The longest valid segment ... must be positive"): every
+        # planner failed with that RuntimeError, which the planner node answered as internal.
+        raise ScenarioError(
+            f"the world is too small: its collision-check spacing (resolution x diagonal, "
+            f"{resolution * diagonal:.3g}) is below OMPL's smallest, the machine epsilon "
+            f"{sys.float_info.epsilon:.3g}"
+        )
 
 
 def seed_for(family: str, dim: int, instance: int) -> int:
@@ -561,19 +571,27 @@ def names() -> list[str]:
     return [f"{family}{dim}" for family in FAMILIES for dim in LISTED_DIMS]
 
 
-def get(name: str, instance: int | None = None) -> Scenario:
+def get(name: str, instance: int | None = None, *, suffix: bool = True) -> Scenario:
     """The scenario called ``name`` (``np8``, ``rrd8``, ``rrd8/3``); instance defaults to 0.
+    ``suffix=False``: for a caller that takes the instance separately (``lit bench``), whose
+    error for an unknown name then gives no ``rrd8/3`` example.
 
     Raises:
         ScenarioError: unknown family, malformed name, dimension outside ``MIN_DIM..MAX_DIM``, an
             instance other than 0 for a fixed family, or a suffix contradicting ``instance``.
     """
+    if not isinstance(name, str):  # re's TypeError named no input
+        raise ScenarioError(
+            f"a scenario is a name such as {DEFAULT_SCENARIO!r} or a Scenario, not "
+            f"{type(name).__name__} {name!r}"
+        )
     match = _NAME_PATTERN.fullmatch(name)
     if match is None or match["family"] not in FAMILIES:
         raise ScenarioError(
-            f"unknown scenario {name!r}: expected <family><dim>[/<instance>] with family one of "
+            f"unknown scenario {name!r}: expected <family><dim>{'[/<instance>]' if suffix else ''} "
+            "with family one of "
             f"{sorted(FAMILIES)} and numbers without leading zeros, e.g. {DEFAULT_SCENARIO!r} or "
-            "'rrd8/3'"
+            + ("'rrd8/3'" if suffix else "'rrd8'")
         )
     family, dim = match["family"], int(match["dim"])
     if not MIN_DIM <= dim <= MAX_DIM:

@@ -124,10 +124,17 @@ def _check(args: argparse.Namespace) -> str | None:
     from lit_planner import scenarios
     from lit_planner.errors import LitPlannerError
     from lit_planner.planning import MAX_SEED
+    from lit_planner.rosutil import MAX_EPISODE_BUDGET, MIN_EPISODE_BUDGET
 
     if args.episodes or args.kills:  # the parts that plan
         if not (math.isfinite(args.budget) and args.budget > 0):
             return f"--budget must be a finite positive number of seconds, got {args.budget}"
+        if not MIN_EPISODE_BUDGET <= args.budget <= MAX_EPISODE_BUDGET:
+            # Both parts train (the planner node refused it only after the nodes had started).
+            return (
+                f"--budget must be {MIN_EPISODE_BUDGET:g} to {MAX_EPISODE_BUDGET:g} s (a training "
+                f"episode's time budget), got {args.budget:g}"
+            )
         if not 0 <= args.seed < MAX_SEED:  # the tensor part draws with --seed + 1
             return f"--seed must be between 0 and {MAX_SEED - 1}, got {args.seed}"
         try:

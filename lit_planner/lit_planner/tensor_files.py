@@ -23,6 +23,7 @@ import itertools
 import math
 import os
 import shutil
+import stat
 import tempfile
 import time
 import tokenize
@@ -391,6 +392,32 @@ def staged_folder(directory: Path, remove: Sequence[str] = ()) -> Iterator[Path]
         raise
 
 
+MAX_SIDECAR_BYTES = 1 << 20
+"""The largest sidecar read (those written are about 2 KB)."""
+
+
+def read_sidecar_bytes(side: Path) -> bytes:
+    """The bytes of the sidecar ``side``: a regular file (links followed) of at most
+    :data:`MAX_SIDECAR_BYTES`. Opened without blocking and checked before it is read: a named
+    pipe in its place held the planner node's reading thread (and every later query) for good,
+    and a link to ``/dev/zero`` read until memory ran out.
+
+    Raises:
+        TensorFileError: it cannot be opened, is not a regular file, or is larger.
+    """
+    try:
+        descriptor = os.open(side, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError as error:
+        raise TensorFileError(f"{side}: cannot be read ({error.strerror})") from None
+    with os.fdopen(descriptor, "rb") as stream:
+        if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+            raise TensorFileError(f"{side}: not a regular file (a pipe, device or folder?)")
+        data = stream.read(MAX_SIDECAR_BYTES + 1)
+    if len(data) > MAX_SIDECAR_BYTES:
+        raise TensorFileError(f"{side}: larger than {MAX_SIDECAR_BYTES} bytes: not a sidecar")
+    return data
+
+
 def read_sidecar(path_npy: str | Path) -> TensorSidecar:
     """Read and validate the sidecar that sits next to ``path_npy``.
 
@@ -405,7 +432,7 @@ def read_sidecar(path_npy: str | Path) -> TensorSidecar:
     if not side.is_file():
         raise TensorFileError(f"{path}: no sidecar next to it (expected {side})")
     try:
-        doc = lit_msgs_json.loads(SIDECAR_SCHEMA, side.read_bytes())
+        doc = lit_msgs_json.loads(SIDECAR_SCHEMA, read_sidecar_bytes(side))
     except lit_msgs_json.SchemaError as exc:
         raise TensorFileError(f"{side}: {exc}") from exc
     sidecar = TensorSidecar.from_dict(doc, side)

@@ -165,6 +165,8 @@ def test_bad_arguments_exit_2() -> None:
         ("--scenarios", "np4,np4", "scenario given twice: np4"),
         ("--scenarios", "np4,np4/0", "scenario given twice: np4"),  # instance 0 is np4 itself
         ("--planners", "bitstar,bitstar", "planner given twice: bitstar"),
+        # Refused by the first plan, after the run's first line had been printed.
+        ("--time", "1e12", "--time must be at most 1e+09 s, got 1e+12"),
     ):
         process = subprocess.run(
             [sys.executable, "-m", "lit_planner.cli", "crosscheck", option, value, "--runs", "1"],
@@ -172,6 +174,7 @@ def test_bad_arguments_exit_2() -> None:
         )  # fmt: skip
         assert process.returncode == 2, process.stderr
         assert label in process.stderr, process.stderr
+        assert process.stdout == "" and "lit crosscheck: np4" not in process.stderr, process
     # The tensors of litstar-tensor: named, and checked before the first run (a missing folder
     # was reported after the first run's progress line); refused for another variant.
     for options, message in (

@@ -178,6 +178,56 @@ def test_plan_bad_input_is_one_line(args: list[str], message: str) -> None:
     assert len(lines) == 1 and lines[0].startswith("lit plan: ") and message in lines[0]
 
 
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--planners", "foo"], "no planner 'foo'; expected one of litstar-tensor, litstar-fit"),
+        (["--planners", "litstar"], "no planner 'litstar'; expected one of litstar-tensor"),
+        (["--scenarios", "xx9"], "unknown scenario 'xx9': expected <family><dim> with"),
+        (["--scenarios", "rrd4/5"], "give the instance with --instance"),
+    ],
+)
+def test_bench_bad_input_suggests_only_what_bench_takes(
+    tmp_path: Path, args: list[str], message: str
+) -> None:
+    """The hints came from lit plan's lists: 'litstar' (which lit bench then refused as not one
+    of its planners) and the example 'rrd8/3' (refused: the instance goes in --instance)."""
+    process = lit("bench", *args, "--out", str(tmp_path / "out"), "--no-bag")
+    assert process.returncode == 2 and process.stdout == ""
+    lines = process.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("lit bench: ") and message in lines[0], lines
+    assert "rrd8/3" not in lines[0] and "litstar," not in lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_readme_json_example_is_what_lit_plan_gives_apart_from_the_times() -> None:
+    """The README calls its `lit plan --json` example repeatable exactly apart from the times;
+    a change of the search (fewer iterations to the first solution) left five of its numbers
+    stale. Every value but the times, and the shortened path and decisions, is compared."""
+    command = "./lit plan --scenario np8 --planner litstar --policy fixed --iterations 3000 --seed 7 --json"
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = readme.split(f"$ {command}\n```\n```json\n", 1)[1].split("\n```", 1)[0]
+    shown = json.loads(block)
+    process = lit(*command.split()[1:])
+    assert process.returncode == 0, process.stderr
+    actual = json.loads(process.stdout)
+    times = {"t_init", "time"}
+    for key, value in shown.items():
+        if key in times:
+            continue
+        if key == "improvements":  # [time, cost] pairs
+            assert [c for _, c in value] == [c for _, c in actual[key]]
+        elif key == "path":  # shortened: its ends
+            assert value[0] == actual[key][0] and value[-1] == actual[key][-1]
+        elif key == "decisions":  # shortened: its first
+            assert {k: v for k, v in value[0].items() if k != "time"} == {
+                k: v for k, v in actual[key][0].items() if k != "time"
+            }
+        else:
+            assert value == actual[key], key
+    assert set(shown) == set(actual)
+
+
 def test_seed_0_plans_litstar_without_ompls_warning() -> None:
     """LIT* takes seed 0 (its own generator); OMPL's global one warned that it used 1 instead."""
     process = lit("plan", "--seed", "0", "--iterations", "200", "--json")

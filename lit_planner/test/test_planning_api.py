@@ -693,6 +693,50 @@ def test_a_sidecar_naming_the_other_tensor_is_refused_by_that_name(tmp_path: Pat
         make_policy("tensor", tmp_path)
 
 
+@pytest.mark.parametrize("kind", ["pipe", "device", "nested", "huge"])
+def test_a_sidecar_that_is_no_small_regular_file_is_refused_without_waiting(
+    tmp_path: Path, kind: str
+) -> None:
+    """A named pipe in place of the sidecar held the planner node's reading thread in open()
+    for good (every later query hung, whatever its policy), a link to /dev/zero read until
+    memory ran out, and JSON nested 100 000 deep escaped as a RecursionError (an "internal"
+    answer): each is a TensorFileError naming the file, at once."""
+    write_tensor_pair(tmp_path, k=False)
+    side = tmp_path / "b_tensor.json"
+    side.unlink()
+    if kind == "pipe":
+        os.mkfifo(side)
+    elif kind == "device":
+        side.symlink_to("/dev/zero")
+    elif kind == "nested":
+        side.write_text("[" * 100_000)
+    else:
+        side.write_bytes(b" " * (tf.MAX_SIDECAR_BYTES + 1))
+    outcome: list[BaseException | None] = []
+
+    def read() -> None:
+        try:
+            make_policy("tensor", tmp_path)
+        except BaseException as error:  # noqa: BLE001 -- handed to the test's thread
+            outcome.append(error)
+        else:
+            outcome.append(None)
+
+    reader = threading.Thread(target=read, daemon=True)  # a hung open() cannot be joined
+    reader.start()
+    reader.join(60)
+    hung = reader.is_alive()
+    if hung and kind == "pipe":
+        with open(side, "wb"):  # opens the pipe's other end: the reader goes on
+            pass
+        reader.join(10)
+    assert not hung, "the read of the sidecar did not end"
+    assert isinstance(outcome[0], TensorFileError), repr(outcome[0])
+    assert "b_tensor" in str(outcome[0])
+    if kind == "huge":
+        assert "larger than 1048576 bytes" in str(outcome[0])
+
+
 def test_load_tensor_takes_a_path_as_text(tmp_path: Path) -> None:
     """The planner node names its fallback tensors with text: the sidecar's name check took only
     a Path ('str' object has no attribute 'with_suffix'), and every fallback of every training
@@ -844,6 +888,18 @@ def test_an_unknown_planner_parameter_is_a_planner_error_naming_the_known_ones(
         planning.plan("np4", "litstar", "fixed", time=0.05, params={"decision_interval": "-3"})
     with pytest.raises(PlannerError, match=r"'decision_interval': it was stored as 1, not the"):
         planning.plan("np4", "litstar", "fixed", time=0.05, params={"decision_interval": "0"})
+    # The fixed policy's B, given with a policy that decides B: it was ignored without a word.
+    for policy in ("fit", "tensor"):
+        with pytest.raises(
+            PlannerError, match=rf"batch_size is the fixed policy's B, and the '{policy}' policy"
+        ):
+            planning.plan("np4", "litstar", policy, time=0.05, params={"batch_size": 20})
+    # OMPL's planners took any rewire factor (AIT* ran with -3): LIT*'s range for every planner.
+    for planner in ("aitstar", "bitstar", "irrtstar"):
+        for factor in (-3, 0, "inf", 2e6):
+            with pytest.raises(PlannerError, match=r"rewire factor must be a number in \(0, 1e6\]"):
+                planning.plan("np4", planner, time=0.05, params={"rewire_factor": factor})
+    assert planning.plan("np4", "aitstar", time=0.05, params={"rewire_factor": 1.5})["solved"]
     # checked before OMPL's setParam, which would print an error line of its own
     assert "was not found" not in capfd.readouterr().err
 
@@ -852,6 +908,15 @@ def test_query_for_takes_a_scenario_or_its_name() -> None:
     from lit_planner.errors import ScenarioError
 
     from lit_planner import planning
+
+    # Anything else was re's TypeError ("expected string or bytes-like object"), naming nothing.
+    for wrong in (42, None, ["np4"]):
+        with pytest.raises(
+            ScenarioError, match=r"a scenario is a name such as 'np8' or a Scenario"
+        ):
+            planning.query_for(wrong)  # type: ignore[arg-type]
+        with pytest.raises(ScenarioError, match=rf"not {type(wrong).__name__} "):
+            planning.plan(wrong)  # type: ignore[arg-type]
 
     by_name, by_object = planning.query_for("np4"), planning.query_for(scenarios.get("np4"))
     assert by_name.dimension == by_object.dimension == 4

@@ -483,6 +483,8 @@ def test_check_path_refuses_a_resolution_too_fine_for_its_exact_search() -> None
         (-1e308, 1e308, "too large"),  # the size overflows: the planner node once ran out of memory
         (-1e307, 1e307, "too large"),  # finite size, overflowing diagonal and volume
         (-1e-300, 1e-300, "too small"),  # volume and check spacing underflow
+        # OMPL's set-up refused its spacing: every planner failed (the node's "internal" error).
+        (0.0, 1e-15, "below OMPL's smallest, the machine epsilon"),
     ],
 )
 def test_custom_world_sizes_that_break_the_arithmetic_are_refused(

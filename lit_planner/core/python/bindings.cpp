@@ -298,6 +298,17 @@ namespace
                 }
                 const std::string rejected =
                     "planner " + plannerName + " rejected the value '" + value + "' of its parameter '" + key + "'";
+                if (litstar && key == "batch_size" && litstar->getPolicyName() != "fixed")
+                    throw py::value_error(rejected + ": batch_size is the fixed policy's B, and the '" +
+                                          litstar->getPolicyName() + "' policy decides B itself");
+                if (!litstar && key == "rewire_factor")
+                {
+                    // OMPL's setters take any number (AIT* with -3 ran without a word); LIT*'s range for all.
+                    char *end = nullptr;
+                    const double factor = std::strtod(value.c_str(), &end);
+                    if (end == value.c_str() || *end != '\0' || !(std::isfinite(factor) && factor > 0.0 && factor <= 1e6))
+                        throw py::value_error(rejected + ": the rewire factor must be a number in (0, 1e6]");
+                }
                 bool accepted = false;
                 if (litstar)
                     litstar->noteRefusedParameter("");

@@ -115,6 +115,10 @@ namespace lit
             throw ompl::Exception("LITstar: the batch size must be between 1 and 2^31 - 1");
         if (policy_ && policy_->name() == "fixed")
             policy_ = fixedPolicy(batchSize);
+        else if (policy_)
+            OMPL_WARN("LITstar: batch_size %u is the fixed policy's B; the '%s' policy decides B itself (the value is "
+                      "kept for a later setPolicyName(\"fixed\"))",
+                      batchSize, policy_->name().c_str());
         fixedBatchSize_ = batchSize;
     }
     ParameterPolicyPtr LITstar::fixedPolicy(unsigned int batchSize) const
@@ -300,6 +304,7 @@ namespace lit
         firstSolutionMeasure_ = 0.0;
         warnedUnusableBatchSize_ = false;
         warnedUnusableFactor_ = false;
+        reportedShortBatch_ = false;
         goalRead_.reset();
         startsRead_.clear();
         goalsGrow_ = false;
@@ -335,6 +340,11 @@ namespace lit
         };
         if (!std::equal(starts.begin(), starts.end(), startsRead_.begin(), startsRead_.end(), sameBits))
             return "the start states changed";
+        // Every edge's check count, and the sparse-check progress kept per edge, are in steps of this resolution.
+        const ompl::base::StateSpacePtr &space = si_->getStateSpace();
+        if (space->getLongestValidSegmentLength() != longestValidSegment_ ||
+            std::max(1u, space->getValidSegmentCountFactor()) != segmentCountFactor_)
+            return "the state validity checking resolution changed";
         return {};
     }
 
@@ -428,7 +438,9 @@ namespace lit
             {
                 std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>> scratch(
                     si_->allocState(), [this](ompl::base::State *state) { si_->freeState(state); });
-                for (; goals.size() < limit && draws < 10u * limit; ++draws)
+                // The termination condition is asked between draws, as PlannerInputStates::nextGoal(ptc) does (a
+                // region mostly in collision with a slow checker held solve() for all of them).
+                for (; goals.size() < limit && draws < 10u * limit && !ptc(); ++draws)
                 {
                     region->sampleGoal(scratch.get());
                     if (si_->satisfiesBounds(scratch.get()) && si_->isValid(scratch.get()))
@@ -438,6 +450,11 @@ namespace lit
             OMPL_INFORM("%s: planning to %zu goal samples of the goal region (%zu of %zu draws out of bounds or in "
                         "collision)",
                         getName().c_str(), goals.size(), draws - goals.size(), draws);
+        }
+        if (goals.empty() && goalsGrow_ && ptc())
+        {
+            statusMessage_ = "the termination condition came before a valid sample of the goal region";
+            return ompl::base::PlannerStatus::TIMEOUT;
         }
         if (goals.empty())
         {
@@ -1207,7 +1224,14 @@ namespace lit
         auto path = std::make_shared<ompl::geometric::PathGeometric>(si_);
         for (State *s : bestPathStates_)
             path->append(s->raw_);
-        pdef_->addSolutionPath(path, false, 0.0, getName());
+        // With its cost and whether it satisfies the objective, as OMPL's optimizing planners file theirs
+        // (PlannerSolution::cost_ and ProblemDefinition::hasOptimizedSolution() read them).
+        ompl::base::PlannerSolution solution(path);
+        solution.setPlannerName(getName());
+        const ompl::base::OptimizationObjectivePtr &objective = pdef_->getOptimizationObjective();
+        const ompl::base::Cost cost(bestCost_);
+        solution.setOptimized(objective, cost, objective && objective->isSatisfied(cost));
+        pdef_->addSolutionPath(solution);
     }
 
     void LITstar::improveApproximation()
@@ -1225,8 +1249,18 @@ namespace lit
         pruneDue_ = false;
         counters_.prunedSamples += pruned;
         const std::size_t checksBefore = graph_->validDraws() + graph_->invalidDraws();
-        graph_->addBatch(batchSize_, bestCost_, [this] { return shouldStop(); });
-        counters_.collisionChecks += graph_->validDraws() + graph_->invalidDraws() - checksBefore;
+        const std::size_t added = graph_->addBatch(batchSize_, bestCost_, [this] { return shouldStop(); });
+        const std::size_t draws = graph_->validDraws() + graph_->invalidDraws() - checksBefore;
+        counters_.collisionChecks += draws;
+        if (added < batchSize_ && !reportedShortBatch_ &&
+            draws >= litstar::RandomGeometricGraph::MAX_DRAWS_PER_SAMPLE * batchSize_)
+        {
+            reportedShortBatch_ = true;
+            OMPL_INFORM("%s: batch %zu ended with %zu of its %u samples, after %zu draws (%zu per sample at most): "
+                        "the informed set is almost all in collision (reported once per problem)",
+                        getName().c_str(), static_cast<std::size_t>(counters_.batches + 1u), added, batchSize_, draws,
+                        litstar::RandomGeometricGraph::MAX_DRAWS_PER_SAMPLE);
+        }
         counters_.validSamples = graph_->validDraws();
         counters_.invalidSamples = graph_->invalidDraws();
         ++counters_.batches;

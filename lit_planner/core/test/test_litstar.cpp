@@ -7,6 +7,7 @@
 #include <ompl/base/MotionValidator.h>
 #include <ompl/base/OptimizationObjective.h>
 #include <ompl/base/PlannerData.h>
+#include <ompl/base/objectives/PathLengthOptimizationObjective.h>
 #include <ompl/base/ScopedState.h>
 #include <ompl/base/goals/GoalLazySamples.h>
 #include <ompl/base/goals/GoalSpace.h>
@@ -116,6 +117,35 @@ namespace
         {
             if (level >= ompl::msg::LOG_WARN)
                 warnings.push_back(text);
+        }
+    };
+
+    /** \brief Every line OMPL logs while it lives, informational ones included (it sets OMPL's level to info and
+     *  installs itself as the output handler; both are put back when it goes). */
+    struct CapturedMessages : ompl::msg::OutputHandler
+    {
+        std::vector<std::string> lines;
+        ompl::msg::LogLevel previousLevel = ompl::msg::getLogLevel();
+        CapturedMessages()
+        {
+            ompl::msg::setLogLevel(ompl::msg::LOG_INFO);
+            ompl::msg::useOutputHandler(this);
+        }
+        ~CapturedMessages() override
+        {
+            ompl::msg::restorePreviousOutputHandler();
+            ompl::msg::setLogLevel(previousLevel);
+        }
+        CapturedMessages(const CapturedMessages &) = delete;
+        CapturedMessages &operator=(const CapturedMessages &) = delete;
+        void log(const std::string &text, ompl::msg::LogLevel, const char *, int) override
+        {
+            lines.push_back(text);
+        }
+        std::size_t count(const std::string &part) const
+        {
+            return static_cast<std::size_t>(std::count_if(lines.begin(), lines.end(), [&part](const std::string &line)
+                                                          { return line.find(part) != std::string::npos; }));
         }
     };
 
@@ -1446,4 +1476,117 @@ TEST(LITstar, ASpaceThatIsNotRnIsRefusedAtEverySolve)
             << "attempt " << attempt;
         EXPECT_FALSE(planner->isSetup());
     }
+}
+
+TEST(LITstar, ARunLimitedByIterationsAloneEndsWhereAlmostNothingIsFree)
+{
+    // One iteration draws a whole batch, which drew until it had B valid samples: where nothing but the start and
+    // the goal is free, a run limited by iterations alone (no time, a termination condition that never comes) never
+    // ended. A batch now ends after MAX_DRAWS_PER_SAMPLE draws per sample, reported once.
+    BoxProblem problem = test::narrowPassage(2, 1e-3);
+    problem.si->setStateValidityChecker(
+        [](const ompl::base::State *state)
+        {
+            const double *x = state->as<ompl::base::RealVectorStateSpace::StateType>()->values;
+            return std::abs(x[1]) == 0.0 && std::abs(std::abs(x[0]) - 0.2) == 0.0;  // the start and the goal only
+        });
+    auto planner = std::make_shared<LITstar>(problem.si);
+    planner->setMaxIterations(4u);
+    planner->setProblemDefinition(problem.pdef);
+    const std::string reportText = "the informed set is almost all in collision";
+    ompl::base::PlannerStatus status;
+    std::size_t reports = 0u;
+    {
+        const CapturedMessages messages;
+        status = planner->solve(ompl::base::plannerNonTerminatingCondition());
+        reports = messages.count(reportText);
+    }
+    EXPECT_EQ(status, ompl::base::PlannerStatus::TIMEOUT);
+    EXPECT_EQ(planner->counters().iterations, 4u);
+    EXPECT_EQ(planner->counters().validSamples, 0u);
+    EXPECT_EQ(planner->counters().invalidSamples,
+              planner->counters().batches * 100u * lit::litstar::RandomGeometricGraph::MAX_DRAWS_PER_SAMPLE);  // B = 100
+    EXPECT_EQ(reports, 1u);
+}
+
+TEST(LITstar, FilesItsSolutionsWithTheirCostAndWhetherTheySatisfyTheObjective)
+{
+    // The problem definition's solutions had cost 0 and never counted as optimized, so hasOptimizedSolution() was
+    // false even when LIT* stopped because its path met the objective's threshold (OMPL's BIT* files both).
+    for (const double threshold : {0.0, 10.0})
+    {
+        BoxProblem problem = test::narrowPassage(4, 1e-3);
+        auto objective = std::make_shared<ompl::base::PathLengthOptimizationObjective>(problem.si);
+        objective->setCostThreshold(ompl::base::Cost(threshold));
+        problem.pdef->setOptimizationObjective(objective);
+        auto planner = batchLimited(problem, 3u);
+        auto recorder = std::make_shared<Recorder>();
+        planner->addListener(recorder);
+        ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()),
+                  ompl::base::PlannerStatus::EXACT_SOLUTION);
+        // One per improvement, the best first (OMPL sorts them by cost); the threshold 10 is met at the first.
+        const std::vector<ompl::base::PlannerSolution> solutions = problem.pdef->getSolutions();
+        ASSERT_EQ(solutions.size(), threshold > 0.0 ? 1u : recorder->solutions.size());
+        EXPECT_EQ(solutions[0].cost_.value(), planner->bestCost()) << threshold;
+        EXPECT_EQ(problem.pdef->hasOptimizedSolution(), threshold > 0.0);
+        for (const ompl::base::PlannerSolution &solution : solutions)
+        {
+            EXPECT_EQ(solution.optimized_, threshold > 0.0);
+            EXPECT_EQ(solution.plannerName_, planner->getName());
+            EXPECT_NEAR(solution.path_->as<ompl::geometric::PathGeometric>()->length(), solution.cost_.value(), 1e-9);
+        }
+    }
+}
+
+TEST(LITstar, TheTerminationConditionIsAskedBetweenAGoalRegionsDraws)
+{
+    // A goal region inside the wall: its first reading made up to 1000 draws, each checked, without asking the
+    // termination condition (a slow checker held solve() long after it). It is asked between draws now, and a stop
+    // before any valid goal sample is a timeout that says so (the next solve() reads the region again).
+    BoxProblem problem = test::narrowPassage(4, 1e-3);
+    auto region = std::make_shared<ompl::base::GoalSpace>(problem.si);
+    auto box = std::make_shared<ompl::base::RealVectorStateSpace>(4);
+    ompl::base::RealVectorBounds bounds(4);
+    bounds.setLow(-0.05);
+    bounds.setHigh(0.0);
+    bounds.setLow(0, -0.09);
+    bounds.setHigh(0, 0.09);
+    box->setBounds(bounds);
+    region->setSpace(box);
+    problem.pdef->setGoal(region);
+    auto planner = batchLimited(problem, 3u);
+    int asked = 0;
+    const ompl::base::PlannerTerminationCondition fifthTime([&asked] { return ++asked > 5; });
+    const std::uint64_t before = problem.checker->calls();
+    EXPECT_EQ(planner->solve(fifthTime), ompl::base::PlannerStatus::TIMEOUT);
+    EXPECT_LE(problem.checker->calls() - before, 6u);  // the start's check, at most five draws
+    EXPECT_NE(planner->statusMessage().find("the termination condition came before a valid sample of the goal region"),
+              std::string::npos)
+        << planner->statusMessage();
+}
+
+TEST(LITstar, ANewValidityCheckingResolutionStartsTheSearchOver)
+{
+    // The resolution was read once per problem: after setStateValidityCheckingResolution() and setup() the next
+    // solve() went on checking edges in the old steps (a resolution of 1e-10 given by mistake and then taken back
+    // kept throwing until clear()). Each edge's sparse-check progress is in those steps, so the search starts over.
+    BoxProblem problem = test::narrowPassage(4, 1e-3);
+    auto planner = batchLimited(problem, 2u);
+    planner->setSeed(5u);
+    ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    const std::uint64_t firstChecks = planner->counters().collisionChecks;
+    problem.si->setStateValidityCheckingResolution(4e-3);
+    problem.si->setup();
+    const std::string reportText = "the state validity checking resolution changed";
+    ompl::base::PlannerStatus status;
+    std::size_t reports = 0u;
+    {
+        const CapturedMessages messages;
+        status = planner->solve(ompl::base::plannerNonTerminatingCondition());
+        reports = messages.count(reportText);
+    }
+    EXPECT_EQ(status, ompl::base::PlannerStatus::EXACT_SOLUTION);
+    EXPECT_EQ(reports, 1u);
+    EXPECT_EQ(planner->counters().batches, 2u);  // two batches of the new search, not none after the old two
+    EXPECT_LT(planner->counters().collisionChecks, firstChecks);  // edges in steps four times as long
 }

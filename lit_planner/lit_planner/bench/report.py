@@ -715,7 +715,10 @@ def _paper_range(rows: dict[str, Any]) -> list[str]:
         elif untested:
             line += " not testable on any scenario"
         if untested:
-            line += " (too few queries that either policy solved for a 99 % interval)"
+            line += (
+                f" (fewer than {stats.MIN_RUNS_FOR_INTERVAL} queries that either policy solved: "
+                f"a 99 % interval needs {stats.MIN_RUNS_FOR_INTERVAL})"
+            )
     return [line + ".", ""]
 
 

@@ -325,6 +325,7 @@ namespace lit
         double neighbourFactor_{M_E};
         /** \brief An unusable policy answer (not a number; psi_K <= 0) was reported for this problem, per parameter. */
         bool warnedUnusableBatchSize_{false};
+        bool reportedShortBatch_{false};  // a batch that its draw limit ended (once per problem)
         /** \brief The goal read when the problem was initialised (a replaced one starts the search over). */
         std::weak_ptr<ompl::base::Goal> goalRead_;
         /** \brief The problem definition's start states (coordinates) when the problem was read. */

@@ -166,9 +166,13 @@ namespace lit::litstar
         // Reused until a valid sample takes it; freed however the loop ends (a user's validity checker may throw).
         const auto freeState = [this](ompl::base::State *state) { si_->freeState(state); };
         std::unique_ptr<ompl::base::State, decltype(freeState)> raw(nullptr, freeState);
-        while (added < batchSize && failures < 10u)
+        const std::size_t maxDraws =
+            batchSize > std::numeric_limits<std::size_t>::max() / MAX_DRAWS_PER_SAMPLE ?
+                std::numeric_limits<std::size_t>::max() :
+                MAX_DRAWS_PER_SAMPLE * batchSize;
+        while (added < batchSize && failures < 10u && draws < maxDraws)
         {
-            if (stop && ++draws % STOP_CHECK_INTERVAL == 0u && stop())
+            if (++draws % STOP_CHECK_INTERVAL == 0u && stop && stop())
                 break;
             if (!raw)
                 raw.reset(si_->allocState());

@@ -103,9 +103,12 @@ namespace lit::litstar
 
         /** \brief Draws samples from the informed set of \e maxCost until \e batchSize valid ones were added;
          *  invalid draws are kept in X_invalid. \e stop (if given) is asked every STOP_CHECK_INTERVAL draws and
-         *  ends the batch early when true. Returns the number of valid samples added. */
+         *  ends the batch early when true. At most MAX_DRAWS_PER_SAMPLE * \e batchSize draws are made: a set almost
+         *  all in collision ends the batch with fewer (a run limited by iterations alone never ended). Returns the
+         *  number of valid samples added. */
         std::size_t addBatch(std::size_t batchSize, double maxCost, const std::function<bool()> &stop = {});
         static constexpr std::size_t STOP_CHECK_INTERVAL = 64u;
+        static constexpr std::size_t MAX_DRAWS_PER_SAMPLE = 1000u;
 
         /** \brief Adds a valid sample at \e x (no validity check; for tests and hand-built graphs). */
         State *addValidSample(const std::vector<double> &x);
