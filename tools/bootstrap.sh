@@ -10,7 +10,8 @@
 #   e. the C++ core (lit_core extension + GoogleTest binaries) built and installed into .venv
 #
 # Environment: LIT_FORCE_SETUP=1 redoes every step; LIT_ENV_CACHE overrides ~/.cache/lit;
-# LIT_PYTHON overrides the interpreter (default python3.11).
+# LIT_PYTHON overrides the interpreter (default python3.11); LIT_SETUP_STOP_AFTER=shared-env stops
+# after step b (docker/Dockerfile builds that layer from requirements.lock and this script alone).
 set -euo pipefail
 
 ROOT="$(cd -- "$(dirname -- "${BASH_SOURCE[0]}")/.." && pwd -P)"
@@ -65,6 +66,11 @@ for pkg in "${DEB_PACKAGES[@]}"; do
   grep -qxF "$pkg install ok installed" <<<"$installed" || missing+=("$pkg")
 done
 if [ "${#missing[@]}" -gt 0 ]; then
+  if [ "$(id -u)" -ne 0 ] && ! command -v sudo >/dev/null 2>&1; then
+    # as_root would fail with "sudo: command not found", twice, and no word on what to do.
+    die "set-up needs these Debian packages, and installing them needs root (no sudo here): \
+run as root: apt-get install ${missing[*]}"
+  fi
   say "installing Debian packages: ${missing[*]}"
   # Another apt-get (another checkout's setup, unattended upgrades) may hold dpkg's lock: wait
   # for it up to 10 minutes instead of failing at once.
@@ -74,7 +80,8 @@ if [ "${#missing[@]}" -gt 0 ]; then
   }
   if ! apt_install "${missing[@]}"; then
     say "apt-get install failed; running apt-get update and retrying once"
-    as_root env DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 update >&2
+    as_root env DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 update >&2 \
+      || die "apt-get update failed (no network to the Debian mirrors, or apt's lists are locked?)"
     apt_install "${missing[@]}" || die "could not install Debian packages: ${missing[*]}"
   fi
 fi
@@ -142,6 +149,10 @@ for d in m.distributions():
 fi
 SHARED_SITE="$(echo "$SHARED"/lib/python3*/site-packages)"
 [ -d "$SHARED_SITE" ] || die "no site-packages in $SHARED"
+if [ "${LIT_SETUP_STOP_AFTER:-}" = shared-env ]; then
+  say "stopping after the shared environment (LIT_SETUP_STOP_AFTER=shared-env)"
+  exit 0
+fi
 
 # ---------------------------------------------------------------- c. per-checkout .venv
 # The .venv is tied to one shared env (and so to one Python); another one means a new .venv.
@@ -236,7 +247,10 @@ fi
 
 # ---------------------------------------------------------------- e. C++ core
 CORE="$ROOT/lit_planner/core"
-core_hash="$( { echo "deps $DEPS_KEY"; cd "$CORE" && find . -path ./build -prune -o -type f -print0 \
+# Build trees are left out: build/ (this one) and build-*/ (lit test --sanitize's, whose ctest
+# rewrites its logs at every run: each next ./lit rebuilt the core).
+core_hash="$( { echo "deps $DEPS_KEY"; cd "$CORE" \
+  && find . \( -path ./build -o -path './build-*' \) -prune -o -type f -print0 \
   | LC_ALL=C sort -z | xargs -0 -r sha256sum; } | hash_stdin)"
 # Also rebuild when the installed module or the ctest tree went missing behind the stamp's back.
 if ! stamp_ok core "$core_hash" \
