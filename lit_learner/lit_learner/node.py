@@ -137,12 +137,17 @@ NODE_EXPORTER = "lit_learner_node"
 """``provenance.exported_by`` of the node's exports."""
 
 
+REPLACED = "its planner started another one"
+"""Why an episode whose planner began another one was abandoned (its end never came)."""
+
+
 def foreign_tensor_files(folder: Path) -> list[str]:
     """The tensor files (``.npy`` or sidecar) in ``folder`` that are not a learner node's export
     (whose sidecar's provenance says ``exported_by: lit_learner_node``). The node's export
     replaces and removes the tensor files there: it must not take the shipped tensors, or those
     of ``lit train``, with them."""
-    from lit_planner.tensor_files import sidecar_path
+    from lit_planner.errors import TensorFileError
+    from lit_planner.tensor_files import read_sidecar_bytes, sidecar_path
 
     from lit_learner.export import TENSOR_FILES
 
@@ -152,8 +157,9 @@ def foreign_tensor_files(folder: Path) -> list[str]:
         if not (tensor.exists() or sidecar.exists()):
             continue
         try:
-            exporter = json.loads(sidecar.read_bytes())["provenance"]["exported_by"]
-        except (OSError, ValueError, KeyError, TypeError):
+            # Not read_bytes(): a named pipe there held the node's start for good.
+            exporter = json.loads(read_sidecar_bytes(sidecar))["provenance"]["exported_by"]
+        except (TensorFileError, ValueError, KeyError, TypeError, RecursionError):
             exporter = None
         if exporter != NODE_EXPORTER:
             found.append(tensor.name if tensor.exists() else sidecar.name)
@@ -271,7 +277,7 @@ class LearnerNode:
         self._crowded_out = 0
         """Open episodes abandoned because ``max_open_episodes`` were open (serving thread)."""
         self._replaced = 0
-        """Episodes abandoned because their planner started another one (``_queue_lock``)."""
+        """Episodes abandoned because their planner started another one (under ``_lock``)."""
         self._sources_full = False
         """Whether a planner beyond ``max_sources`` was left out of the provenance (warned once)."""
         self._open_episode: dict[str, str] = {}
@@ -598,18 +604,8 @@ class LearnerNode:
         of ms; the serving thread used to wait for it before taking the next request, and the
         planner's 50 ms decision deadline ran out. ``abandoned``: the same planner's previous
         episode, whose end never came, is abandoned first."""
-        first = None
+        first = None if abandoned is None else (abandoned, REPLACED)
         with self._queue_lock:
-            if abandoned is not None:
-                # Said for the 1st, 10th, 100th, ... (a client starting episodes it never ends
-                # gave a warning for every request).
-                self._replaced += 1
-                first = (
-                    abandoned,
-                    f"its planner started another one; {self._replaced} so far"
-                    if math.log10(self._replaced).is_integer()
-                    else "",
-                )
             self._unapplied.append((decision, a_norm, source, first))
         self.apply_commits(block=False)
 
@@ -631,6 +627,15 @@ class LearnerNode:
             if abandoned is not None and self.core.abandon_episode(abandoned[0]):
                 self._work.notify_all()  # its stored transitions' gradient steps are due
                 episode, why = abandoned
+                if why == REPLACED:
+                    # Said for the 1st, 10th, 100th, ... (a client starting episodes it never
+                    # ends gave a warning for every request).
+                    self._replaced += 1
+                    why = (
+                        f"{REPLACED}; {self._replaced} so far"
+                        if math.log10(self._replaced).is_integer()
+                        else ""
+                    )
                 if why:  # not said again for every crowded-out episode (see _serve)
                     self.log.warning(
                         f"episode {episode} never ended ({why}): its open steps are dropped, the "

@@ -5,6 +5,7 @@ read: no ROS needed. The ROS tests (tests/test_ros_system.py) run the node."""
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -70,3 +71,29 @@ def test_the_end_of_training_export_waits_for_the_owed_gradient_steps(
     assert LearnerNode._export_due(node, progress) is due  # type: ignore[arg-type]
     off = SimpleNamespace(**{**vars(node), "params": {**PARAMETERS, "max_episodes": 0}})
     assert LearnerNode._export_due(off, progress) is False  # type: ignore[arg-type]
+
+
+def test_an_export_folder_with_a_pipe_for_a_sidecar_is_foreign_without_waiting(
+    tmp_path: Path,
+) -> None:
+    """The node's start reads the sidecars in its export_dir (whose files are not its own?): a
+    named pipe there held it in open() for good. Read without blocking, the pipe is a file of
+    something else, which the node refuses to replace."""
+    import os
+    import threading
+
+    from lit_learner.node import foreign_tensor_files
+
+    os.mkfifo(tmp_path / "b_tensor.json")
+    found: list[list[str]] = []
+    reader = threading.Thread(target=lambda: found.append(foreign_tensor_files(tmp_path)))
+    reader.daemon = True  # a hung open() cannot be joined
+    reader.start()
+    reader.join(60)
+    hung = reader.is_alive()
+    if hung:
+        with open(tmp_path / "b_tensor.json", "wb"):  # the other end: the reader goes on
+            pass
+        reader.join(10)
+    assert not hung, "the sidecar's read did not end"
+    assert found == [["b_tensor.json"]]

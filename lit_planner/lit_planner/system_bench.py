@@ -129,8 +129,9 @@ def _check(args: argparse.Namespace) -> str | None:
     if args.episodes or args.kills:  # the parts that plan
         if not (math.isfinite(args.budget) and args.budget > 0):
             return f"--budget must be a finite positive number of seconds, got {args.budget}"
-        if not MIN_EPISODE_BUDGET <= args.budget <= MAX_EPISODE_BUDGET:
-            # Both parts train (the planner node refused it only after the nodes had started).
+        if args.episodes and not MIN_EPISODE_BUDGET <= args.budget <= MAX_EPISODE_BUDGET:
+            # Part 2 trains with it (the planner node refused it only after the nodes had
+            # started); part 3's episodes have a budget of their own.
             return (
                 f"--budget must be {MIN_EPISODE_BUDGET:g} to {MAX_EPISODE_BUDGET:g} s (a training "
                 f"episode's time budget), got {args.budget:g}"

@@ -429,7 +429,7 @@ def read_sidecar(path_npy: str | Path) -> TensorSidecar:
     side = sidecar_path(path)
     if not path.is_file():
         raise TensorFileError(f"{path}: tensor file not found")
-    if not side.is_file():
+    if not (side.exists() or side.is_symlink()):  # anything else there: read_sidecar_bytes says
         raise TensorFileError(f"{path}: no sidecar next to it (expected {side})")
     try:
         doc = lit_msgs_json.loads(SIDECAR_SCHEMA, read_sidecar_bytes(side))

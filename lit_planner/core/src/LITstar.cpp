@@ -390,6 +390,7 @@ namespace lit
         // bounds or in collision instead of OMPL's warning for each.
         std::vector<std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>>> owned;
         std::vector<const ompl::base::State *> goals;
+        bool stoppedReading = false;  // a stop came while a goal region was sampled
         const auto keep = [&](const ompl::base::State *g)
         {
             if (!finite(g))
@@ -438,10 +439,16 @@ namespace lit
             {
                 std::unique_ptr<ompl::base::State, std::function<void(ompl::base::State *)>> scratch(
                     si_->allocState(), [this](ompl::base::State *state) { si_->freeState(state); });
-                // The termination condition is asked between draws, as PlannerInputStates::nextGoal(ptc) does (a
-                // region mostly in collision with a slow checker held solve() for all of them).
-                for (; goals.size() < limit && draws < 10u * limit && !ptc(); ++draws)
+                // The termination condition and the time budget are asked between draws, as
+                // PlannerInputStates::nextGoal(ptc) does (a region mostly in collision with a slow checker held
+                // solve() for all of them).
+                for (; goals.size() < limit && draws < 10u * limit; ++draws)
                 {
+                    if (shouldStop())
+                    {
+                        stoppedReading = true;
+                        break;
+                    }
                     region->sampleGoal(scratch.get());
                     if (si_->satisfiesBounds(scratch.get()) && si_->isValid(scratch.get()))
                         keep(scratch.get());
@@ -451,9 +458,10 @@ namespace lit
                         "collision)",
                         getName().c_str(), goals.size(), draws - goals.size(), draws);
         }
-        if (goals.empty() && goalsGrow_ && ptc())
+        if (goals.empty() && stoppedReading)
         {
-            statusMessage_ = "the termination condition came before a valid sample of the goal region";
+            statusMessage_ = "the termination condition or the time budget came before a valid sample of the goal "
+                             "region";
             return ompl::base::PlannerStatus::TIMEOUT;
         }
         if (goals.empty())
@@ -552,7 +560,10 @@ namespace lit
             {
                 accumulatedTime_ = 0.0;  // nothing was planned: the next solve() reads the problem anew
                 pis_.restart();  // the next solve() reads the start and goals again (the start was taken already)
-                OMPL_ERROR("%s: %s", getName().c_str(), statusMessage_.c_str());
+                if (status == ompl::base::PlannerStatus::TIMEOUT)  // a stop while reading: no error in the problem
+                    OMPL_INFORM("%s: %s", getName().c_str(), statusMessage_.c_str());
+                else
+                    OMPL_ERROR("%s: %s", getName().c_str(), statusMessage_.c_str());
                 return status;
             }
         }
@@ -1252,8 +1263,7 @@ namespace lit
         const std::size_t added = graph_->addBatch(batchSize_, bestCost_, [this] { return shouldStop(); });
         const std::size_t draws = graph_->validDraws() + graph_->invalidDraws() - checksBefore;
         counters_.collisionChecks += draws;
-        if (added < batchSize_ && !reportedShortBatch_ &&
-            draws >= litstar::RandomGeometricGraph::MAX_DRAWS_PER_SAMPLE * batchSize_)
+        if (graph_->lastBatchCapped() && !reportedShortBatch_)
         {
             reportedShortBatch_ = true;
             OMPL_INFORM("%s: batch %zu ended with %zu of its %u samples, after %zu draws (%zu per sample at most): "

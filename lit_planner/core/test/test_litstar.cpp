@@ -1560,9 +1560,17 @@ TEST(LITstar, TheTerminationConditionIsAskedBetweenAGoalRegionsDraws)
     const std::uint64_t before = problem.checker->calls();
     EXPECT_EQ(planner->solve(fifthTime), ompl::base::PlannerStatus::TIMEOUT);
     EXPECT_LE(problem.checker->calls() - before, 6u);  // the start's check, at most five draws
-    EXPECT_NE(planner->statusMessage().find("the termination condition came before a valid sample of the goal region"),
-              std::string::npos)
-        << planner->statusMessage();
+    const std::string stopped = "the termination condition or the time budget came before a valid sample of the "
+                                "goal region";
+    EXPECT_NE(planner->statusMessage().find(stopped), std::string::npos) << planner->statusMessage();
+    // So is LIT*'s own time budget (lit_core.solve's limit), here one already spent when the first draw is due.
+    auto budgeted = std::make_shared<LITstar>(problem.si);
+    budgeted->setTimeBudget(1e-9);
+    budgeted->setProblemDefinition(problem.pdef);
+    const std::uint64_t beforeBudgeted = problem.checker->calls();
+    EXPECT_EQ(budgeted->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::TIMEOUT);
+    EXPECT_LE(problem.checker->calls() - beforeBudgeted, 1u);  // the start's check
+    EXPECT_NE(budgeted->statusMessage().find(stopped), std::string::npos) << budgeted->statusMessage();
 }
 
 TEST(LITstar, ANewValidityCheckingResolutionStartsTheSearchOver)

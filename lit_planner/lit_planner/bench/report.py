@@ -716,8 +716,8 @@ def _paper_range(rows: dict[str, Any]) -> list[str]:
             line += " not testable on any scenario"
         if untested:
             line += (
-                f" (fewer than {stats.MIN_RUNS_FOR_INTERVAL} queries that either policy solved: "
-                f"a 99 % interval needs {stats.MIN_RUNS_FOR_INTERVAL})"
+                f" (fewer than {stats.MIN_RUNS_FOR_INTERVAL} queries that either policy solved, "
+                f"which a 99 % interval needs, or a query recorded twice)"
             )
     return [line + ".", ""]
 

@@ -499,6 +499,7 @@ def run_benchmark(
         # Not on a terminal (a log file, CI): a frame every 30 s at most, not 10 a second (a
         # 15 s --quick run left 13 KB of them).
         mininterval=0.1 if on_terminal else 30.0,
+        maxinterval=10.0 if on_terminal else 30.0,  # tqdm's monitor redraws after maxinterval
         bar_format="{desc} |{bar}| {percentage:3.0f}% of planning time [{elapsed}<{remaining}]",
     )
     with bar:

@@ -170,10 +170,14 @@ namespace lit::litstar
             batchSize > std::numeric_limits<std::size_t>::max() / MAX_DRAWS_PER_SAMPLE ?
                 std::numeric_limits<std::size_t>::max() :
                 MAX_DRAWS_PER_SAMPLE * batchSize;
+        bool stopped = false;
         while (added < batchSize && failures < 10u && draws < maxDraws)
         {
             if (++draws % STOP_CHECK_INTERVAL == 0u && stop && stop())
+            {
+                stopped = true;
                 break;
+            }
             if (!raw)
                 raw.reset(si_->allocState());
             if (!sampler_.sample(maxCost, raw.get()))
@@ -193,6 +197,7 @@ namespace lit::litstar
                 ++invalidDraws_;
             }
         }
+        lastBatchCapped_ = added < batchSize && failures < 10u && !stopped && draws >= maxDraws;
         ++version_;
         return added;
     }

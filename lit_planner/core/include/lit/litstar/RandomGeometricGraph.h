@@ -109,6 +109,11 @@ namespace lit::litstar
         std::size_t addBatch(std::size_t batchSize, double maxCost, const std::function<bool()> &stop = {});
         static constexpr std::size_t STOP_CHECK_INTERVAL = 64u;
         static constexpr std::size_t MAX_DRAWS_PER_SAMPLE = 1000u;
+        /** \brief Whether the last addBatch() ended at its draw limit, short of its samples. */
+        bool lastBatchCapped() const
+        {
+            return lastBatchCapped_;
+        }
 
         /** \brief Adds a valid sample at \e x (no validity check; for tests and hand-built graphs). */
         State *addValidSample(const std::vector<double> &x);
@@ -318,6 +323,7 @@ namespace lit::litstar
         std::size_t version_{0u};
         std::size_t invalidDraws_{0u};
         std::size_t validDraws_{0u};
+        bool lastBatchCapped_{false};
         /** \brief Scratch buffers of scanNeighbours (kept to avoid an allocation per scan). */
         std::vector<std::pair<double, State *>> candidates_;
         std::vector<std::pair<double, State *>> merged_;
