@@ -57,6 +57,27 @@ GRACE = 20.0
 _domains = itertools.count()
 
 
+def run_node_script(script: str, *args: str) -> tuple[subprocess.CompletedProcess[str], Any]:
+    """Run ``script`` (Python that drives a node's class with rclpy, and prints ``RESULT <json>``
+    last) in a child process of its own, so rclpy's global state stays out of pytest's, in a ROS
+    domain of its own with localhost discovery; the process and the decoded RESULT. Fails the
+    test when the script fails or prints no RESULT."""
+    domain, lock = reserve_domain()
+    try:
+        env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain))
+        process = subprocess.run(
+            [sys.executable, "-c", script, *args],
+            env=env, capture_output=True, text=True, timeout=300, check=False,
+        )  # fmt: skip
+    finally:
+        if lock is not None:
+            lock.close()
+    assert process.returncode == 0, process.stdout[-2000:] + process.stderr[-3000:]
+    line = next((x for x in process.stdout.splitlines() if x.startswith("RESULT ")), None)
+    assert line is not None, process.stdout[-2000:] + process.stderr[-3000:]
+    return process, json.loads(line.removeprefix("RESULT "))
+
+
 def reserve_domain() -> tuple[int, DomainClaim]:
     """A ``ROS_DOMAIN_ID`` for one test from :data:`DOMAIN_RANGE`, and the claim reserving it
     (``lit test``'s own reservation, searched from the PID and a per-process counter). The test

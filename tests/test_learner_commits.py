@@ -8,14 +8,10 @@ ROS domain of its own; its decide callback is called directly, as its serving th
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 import textwrap
 from pathlib import Path
 
-from ros_helpers import reserve_domain
+from ros_helpers import run_node_script
 
 SCRIPT = textwrap.dedent(
     """
@@ -168,19 +164,7 @@ SCRIPT = textwrap.dedent(
 def test_decisions_answered_while_the_lock_is_taken_are_recorded_after_in_order(
     tmp_path: Path,
 ) -> None:
-    domain, lock = reserve_domain()
-    try:
-        env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain))
-        process = subprocess.run(
-            [sys.executable, "-c", SCRIPT, str(tmp_path)],
-            env=env, capture_output=True, text=True, timeout=300, check=False,
-        )  # fmt: skip
-    finally:
-        if lock is not None:
-            lock.close()
-    assert process.returncode == 0, process.stdout[-2000:] + process.stderr[-3000:]
-    line = next(x for x in process.stdout.splitlines() if x.startswith("RESULT "))
-    out = json.loads(line.removeprefix("RESULT "))
+    _, out = run_node_script(SCRIPT, str(tmp_path))
     # Answered at once, recorded later: nothing reached the core while the lock was taken.
     assert out["answered"] == [True, True, True]
     assert out["queued"] == 3 and out["recorded_while_locked"] is False

@@ -807,20 +807,30 @@ class LearnerNode:
             foreign = foreign_tensor_files(folder)
             if foreign:
                 raise ExportError(foreign_problem(folder, foreign))
-            with self._lock:  # the serving thread adds planners meanwhile
-                planners, progress = sorted(self.core.sources), self._progress()
-            record = {
+            record: dict[str, Any] = {
                 "exported_by": NODE_EXPORTER,
                 "reason": why,
                 "run_id": self.run_id,
-                "planners": planners,
-                "episodes": progress[0],
                 "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             }
+            at_export: list[tuple[int, int]] = []
+
+            @contextlib.contextmanager
+            def frozen_with_progress() -> Iterator[None]:
+                # The planners and progress of the state copied under the same locks: read
+                # before them, a gradient step or an episode end between the two made the
+                # sidecars lag the checkpoint they name.
+                with self._frozen():
+                    progress = self._progress()
+                    record["planners"] = sorted(self.core.sources)
+                    record["episodes"] = progress[0]
+                    at_export.append(progress)
+                    yield
+
             paths, left_out = self.core.export_trained(
-                folder, record, lock=self._frozen(), remove_others=True
+                folder, record, lock=frozen_with_progress(), remove_others=True
             )
-            self._at_export = progress
+            self._at_export = at_export[0]
         tensors = [path.name for name, path in paths.items() if name != "checkpoint"]
         self.log.info(
             f"exported to {folder} ({why}): "

@@ -89,6 +89,7 @@ from lit_planner.rosutil import (
     PLAN_SEND_ATTEMPTS,
     PLAN_SERVICE,
     TOPICS,
+    CallInterrupted,
     DirectService,
     DuplicateServerWatch,
     ServiceCaller,
@@ -888,7 +889,13 @@ class PlannerNode:
 
         training = p["policy"] == "training"
         if training:
-            if self.learner.wait(p["learner_wait"]):
+            try:
+                # Interrupted by a shutdown, which then destroys the client: a wait still
+                # polling it raised InvalidHandle, and the node exited 1 with a traceback.
+                found = self.learner.wait(p["learner_wait"], interrupted=self._stopping.is_set)
+            except CallInterrupted:
+                return
+            if found:
                 self.log.info(f"learner service {p['learner_service']} found")
             else:
                 self.log.warning(
@@ -953,11 +960,13 @@ class PlannerNode:
         volatile, so episodes published before they match would not reach them."""
         publishers = [*self.publishers.values(), self.path_publisher]
         deadline = time.monotonic() + timeout
-        while min(p.get_subscription_count() for p in publishers) < count:
-            if time.monotonic() > deadline or self._stopping.is_set():
+        while not self._stopping.is_set():  # asked first: shutdown() then lets the node go
+            if min(p.get_subscription_count() for p in publishers) >= count:
+                return True
+            if time.monotonic() > deadline:
                 return False
             time.sleep(0.05)
-        return True
+        return False
 
     def _work(self) -> None:
         import lit_core
@@ -1394,12 +1403,17 @@ class PlannerNode:
                 lambda: self._unanswered <= 0, timeout=SHUTDOWN_SEND_WAIT
             ):
                 self.log.warning(f"{self._unanswered} plan answers still unsent at shutdown")
-        if not self._worker.is_alive():
+        # The episodes thread ends at once now (its waits look at _stopping, its queued episode
+        # was answered): it may still be using the learner client and the publishers.
+        self._driver.join(timeout=DRIVER_JOIN)
+        if not self._worker.is_alive() and not self._driver.is_alive():
             self.learner.destroy()
         if not flush_publishers([*self.publishers.values(), self.path_publisher]):
             self.log.warning("some subscribers did not acknowledge the last messages")
 
 
+DRIVER_JOIN = 5.0
+"""Seconds the shutdown waits for the episodes thread (it ends within one poll of its waits)."""
 SHUTDOWN_SEND_WAIT = 3.0
 """Seconds the shutdown waits for plan answers still being sent (to a client matching late)."""
 

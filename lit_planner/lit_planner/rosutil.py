@@ -181,18 +181,22 @@ def service_qos() -> Any:
 
 def flush_publishers(publishers: Sequence[Any], timeout: float = 5.0) -> bool:
     """Wait until every matched reliable subscriber has acknowledged everything published, at
-    most ``timeout`` s per publisher. Call before a node exits: the last messages still queued in
-    DDS would otherwise die with the process (``seq`` accounting cannot see a lost tail).
+    most ``timeout`` s for all the publishers together (it was per publisher: five slow ones
+    could take longer than ``lit up`` gives a node to stop). Call before a node exits: the last
+    messages still queued in DDS would otherwise die with the process (``seq`` accounting cannot
+    see a lost tail).
 
     Returns:
         True when everything was acknowledged.
     """
     from rclpy.duration import Duration
 
-    return all(
-        publisher.wait_for_all_acked(Duration(nanoseconds=int(timeout * 1e9)))
-        for publisher in publishers
-    )
+    deadline = time.monotonic() + timeout
+    for publisher in publishers:
+        left = max(0.0, deadline - time.monotonic())
+        if not publisher.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9))):
+            return False
+    return True
 
 
 def freeze_startup_objects() -> None:

@@ -1,4 +1,5 @@
-"""``rosutil.spin_quietly``: which errors of a spin it lets through, hides or reports.
+"""``rosutil.spin_quietly``: which errors of a spin it lets through, hides or reports (and
+``rosutil.flush_publishers``'s one deadline for all publishers).
 
 The executor here is a stand-in whose ``spin`` raises; the ROS tests (tests/) run the real
 executors through the same function.
@@ -51,3 +52,28 @@ def test_a_ctrl_c_in_the_spin_ends_it_quietly(monkeypatch, capsys):
     monkeypatch.setattr(rclpy, "ok", lambda *a, **k: True)
     spin_quietly(RaisingExecutor(KeyboardInterrupt()), lambda: False)
     assert capsys.readouterr().err == ""
+
+
+def test_flush_publishers_waits_at_most_its_timeout_for_all_publishers_together() -> None:
+    """The timeout applied to each publisher in turn: the planner node's five publishers could
+    wait 25 s at shutdown, more than ``lit up`` gives a node to stop."""
+    import time
+
+    from lit_planner.rosutil import flush_publishers
+
+    class Publisher:
+        def __init__(self, takes: float) -> None:
+            self.takes, self.given = takes, None
+
+        def wait_for_all_acked(self, timeout) -> bool:
+            self.given = timeout.nanoseconds / 1e9
+            time.sleep(min(self.takes, self.given))
+            return self.takes <= self.given
+
+    slow, late = Publisher(0.3), Publisher(0.0)
+    assert flush_publishers([slow, late], timeout=1.0)
+    assert slow.given == pytest.approx(1.0, abs=0.01)
+    assert late.given <= 0.7  # what the first one left of the second
+    stuck, never = Publisher(5.0), Publisher(0.0)
+    assert not flush_publishers([stuck, never], timeout=0.2)
+    assert never.given is None  # not asked once the time is up
