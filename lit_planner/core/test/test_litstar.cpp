@@ -149,6 +149,15 @@ namespace
         }
     };
 
+    /** \brief solve() with a termination condition that never comes; its status, and how many of the lines OMPL
+     *  logged meanwhile (informational ones included) hold \e part. */
+    std::pair<ompl::base::PlannerStatus, std::size_t> solveCountingLines(LITstar &planner, const std::string &part)
+    {
+        const CapturedMessages messages;
+        const ompl::base::PlannerStatus status = planner.solve(ompl::base::plannerNonTerminatingCondition());
+        return {status, messages.count(part)};
+    }
+
     /** \brief A LIT* planner on \e problem that stops after \e batches batches. */
     std::shared_ptr<LITstar> batchLimited(const BoxProblem &problem, unsigned int batches)
     {
@@ -1493,14 +1502,7 @@ TEST(LITstar, ARunLimitedByIterationsAloneEndsWhereAlmostNothingIsFree)
     auto planner = std::make_shared<LITstar>(problem.si);
     planner->setMaxIterations(4u);
     planner->setProblemDefinition(problem.pdef);
-    const std::string reportText = "the informed set is almost all in collision";
-    ompl::base::PlannerStatus status;
-    std::size_t reports = 0u;
-    {
-        const CapturedMessages messages;
-        status = planner->solve(ompl::base::plannerNonTerminatingCondition());
-        reports = messages.count(reportText);
-    }
+    const auto [status, reports] = solveCountingLines(*planner, "the informed set is almost all in collision");
     EXPECT_EQ(status, ompl::base::PlannerStatus::TIMEOUT);
     EXPECT_EQ(planner->counters().iterations, 4u);
     EXPECT_EQ(planner->counters().validSamples, 0u);
@@ -1585,14 +1587,7 @@ TEST(LITstar, ANewValidityCheckingResolutionStartsTheSearchOver)
     const std::uint64_t firstChecks = planner->counters().collisionChecks;
     problem.si->setStateValidityCheckingResolution(4e-3);
     problem.si->setup();
-    const std::string reportText = "the state validity checking resolution changed";
-    ompl::base::PlannerStatus status;
-    std::size_t reports = 0u;
-    {
-        const CapturedMessages messages;
-        status = planner->solve(ompl::base::plannerNonTerminatingCondition());
-        reports = messages.count(reportText);
-    }
+    const auto [status, reports] = solveCountingLines(*planner, "the state validity checking resolution changed");
     EXPECT_EQ(status, ompl::base::PlannerStatus::EXACT_SOLUTION);
     EXPECT_EQ(reports, 1u);
     EXPECT_EQ(planner->counters().batches, 2u);  // two batches of the new search, not none after the old two
