@@ -10,7 +10,6 @@ is one actor forward pass (plus pairing and a replay insert).
 from __future__ import annotations
 
 import copy
-import fcntl
 import glob
 import hashlib
 import os
@@ -426,21 +425,25 @@ class LearnerCore:
     def write_checkpoint(state: dict[str, Any], path: str | Path) -> None:
         """Write a :meth:`checkpoint_state` atomically (a temporary file renamed into place).
 
-        The writer holds a lock (``flock``) on its temporary file: the temporary files of
-        ``path`` that no writer holds (a process killed while it wrote) are removed first, where
-        they piled up beside the checkpoints."""
-        from lit_planner.tensor_files import lock_held
+        The writer holds a lock (``flock``) on its temporary file from its creation: the
+        temporary files of ``path`` that no writer holds (a process killed while it wrote) are
+        removed first, where they piled up beside the checkpoints."""
+        from lit_planner.tensor_files import held_new, remove_unheld
 
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         for stale in path.parent.glob(f"{glob.escape(path.name)}.*.tmp"):
             # Only files as a writer leaves them (a link or folder of that name is not ours).
-            if stale.is_file() and not stale.is_symlink() and not lock_held(stale):
-                stale.unlink(missing_ok=True)
+            if stale.is_file() and not stale.is_symlink():
+                remove_unheld(stale)
         temporary = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
-        holder = os.open(temporary, os.O_WRONLY | os.O_CREAT, 0o644)
+
+        def create() -> Path:
+            os.close(os.open(temporary, os.O_WRONLY | os.O_CREAT, 0o644))
+            return temporary
+
+        temporary, holder = held_new(create)
         try:
-            fcntl.flock(holder, fcntl.LOCK_EX)
             try:
                 torch.save(_arrays_as_tensors(state), temporary)
             except RuntimeError as error:  # torch's writer: a full disk is "unexpected pos ..."

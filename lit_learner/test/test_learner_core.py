@@ -420,6 +420,50 @@ def test_a_killed_writers_temporary_checkpoint_is_removed(tmp_path: Path) -> Non
     LearnerCore.load_checkpoint(path)
 
 
+def test_a_checkpoint_is_written_while_another_writer_cleans_up_beside_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Another writer of the same checkpoint (another thread or process) removes the temporary
+    files no writer holds. It came between this writer's creation of its temporary file and its
+    lock, and again while torch wrote the file anew under that name, unheld: the write ended in
+    FileNotFoundError. The temporary file is held from before torch writes it."""
+    import os
+
+    import lit_learner.core as core_module
+
+    path = tmp_path / "final.ckpt"
+    state = LearnerCore(LearnerConfig(seed=0)).checkpoint_state()
+
+    def other_writer() -> None:  # its own thread: its own temporary file
+        thread = threading.Thread(target=LearnerCore.write_checkpoint, args=(state, path))
+        thread.start()
+        thread.join()
+
+    real_open, real_save = os.open, core_module.torch.save
+    gaps = []  # where the other writer cleaned up: this writer's own calls only
+    this_writer = threading.get_ident()
+
+    def open_then_clean(name: Any, flags: int, *args: Any, **kwargs: Any) -> int:
+        descriptor = real_open(name, flags, *args, **kwargs)
+        mine = threading.get_ident() == this_writer
+        if mine and flags & os.O_CREAT and str(name).endswith(".tmp") and not gaps:
+            gaps.append(name)  # this writer's, just created
+            other_writer()
+        return descriptor
+
+    def save_then_clean(obj: Any, name: Any, *args: Any, **kwargs: Any) -> None:
+        real_save(obj, name, *args, **kwargs)
+        if threading.get_ident() == this_writer and len(gaps) == 1:
+            gaps.append(name)
+            other_writer()
+
+    monkeypatch.setattr(os, "open", open_then_clean)
+    monkeypatch.setattr(core_module.torch, "save", save_then_clean)
+    LearnerCore.write_checkpoint(state, path)
+    assert len(gaps) == 2 and [p.name for p in tmp_path.iterdir()] == [path.name]
+    LearnerCore.load_checkpoint(path)
+
+
 def test_a_flipped_bit_in_a_checkpoint_is_refused(tmp_path: Path) -> None:
     """torch.load does not check the archive's CRCs: a checkpoint with a bit flipped in an
     actor's weights was loaded and trained on without a word."""

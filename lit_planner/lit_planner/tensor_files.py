@@ -27,7 +27,7 @@ import stat
 import tempfile
 import time
 import tokenize
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -298,6 +298,54 @@ STAGE_PREFIX = ".staged-"
 """Names of :func:`staged_folder`'s folders: ``.staged-<random>``."""
 
 
+def held_new(create: Callable[[], Path]) -> tuple[Path, int]:
+    """A new file or folder made by ``create`` (which returns its path), and a descriptor of it
+    that holds its ``flock``: the sign to :func:`remove_unheld` that a process still writes it.
+    Another process's clean-up can come between the creation and the lock; it takes the lock
+    itself before it removes (:func:`remove_unheld`), so the lock taken here is on the removed
+    entry, seen here as such, and ``create`` makes another. (Locked only after it was checked,
+    an entry removed in that gap left the writer writing into nothing.)"""
+    while True:
+        path = create()
+        try:
+            descriptor = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+        except FileNotFoundError:
+            continue  # removed before it could be opened
+        try:
+            fcntl.flock(descriptor, fcntl.LOCK_EX)
+            if os.path.samestat(os.fstat(descriptor), os.stat(path)):  # links followed, as opened
+                return path, descriptor
+        except FileNotFoundError:
+            pass  # removed while the lock was awaited
+        except BaseException:
+            os.close(descriptor)
+            raise
+        os.close(descriptor)
+
+
+def remove_unheld(path: Path) -> bool:
+    """Remove the file or folder ``path`` unless a process holds its ``flock`` (a writer's own
+    temporary entry: :func:`held_new`); whether it was removed. The lock is taken here for the
+    removal, so a writer that locks its brand-new entry meanwhile finds it removed."""
+    try:
+        descriptor = os.open(path, os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW)
+    except OSError:
+        return False  # gone meanwhile, or a link: not a writer's
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        if not os.path.samestat(os.fstat(descriptor), os.lstat(path)):
+            return False  # replaced since it was opened
+        if stat.S_ISDIR(os.fstat(descriptor).st_mode):
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
+        return True
+    except (BlockingIOError, FileNotFoundError):
+        return False
+    finally:
+        os.close(descriptor)  # and with it the lock taken here
+
+
 def stale_stages(directory: Path) -> list[Path]:
     """The staging folders of :func:`staged_folder` in ``directory`` that no export holds: one
     killed (SIGKILL, a power cut) before its end left them, and they kept the folder from
@@ -372,12 +420,11 @@ def staged_folder(directory: Path, remove: Sequence[str] = ()) -> Iterator[Path]
     created = not directory.exists()
     directory.mkdir(parents=True, exist_ok=True)
     try:
-        for stale in stale_stages(directory):
-            shutil.rmtree(stale, ignore_errors=True)
-        stage = Path(tempfile.mkdtemp(prefix=STAGE_PREFIX, dir=directory))
-        lock = os.open(stage, os.O_RDONLY)
+        for stale in _stages(directory):
+            remove_unheld(stale)
+        # Locked while this export writes (stale_stages), from before anything is written.
+        stage, lock = held_new(lambda: Path(tempfile.mkdtemp(prefix=STAGE_PREFIX, dir=directory)))
         try:
-            fcntl.flock(lock, fcntl.LOCK_EX)  # held while this export writes (stale_stages)
             yield stage
             for name in remove:
                 (directory / name).unlink(missing_ok=True)

@@ -410,3 +410,56 @@ def test_what_a_killed_export_left_does_not_block_its_retry(tmp_path: Path) -> N
     with tf.staged_folder(folder) as retry:
         (retry / "b_tensor.npy").write_bytes(b"whole")
     assert [p.name for p in folder.iterdir()] == ["b_tensor.npy"]
+
+
+def test_an_export_whose_new_stage_another_export_cleans_up_writes_into_a_stage_of_its_own(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Another export's clean-up can come between the creation of a staging folder and its
+    lock, when it is not yet held: it removed the folder, and this export's writes then went
+    into nothing (FileNotFoundError). The clean-up takes the lock before it removes, and the
+    export takes another staging folder when it finds its own removed."""
+    import tempfile
+
+    folder = tmp_path / "export"
+    folder.mkdir()
+    real_mkdtemp = tempfile.mkdtemp
+    made: list[Path] = []
+
+    def mkdtemp(*args: object, **kwargs: object) -> str:
+        name = real_mkdtemp(*args, **kwargs)  # type: ignore[call-overload]
+        made.append(Path(name))
+        if len(made) == 1:  # the other export starts just after this folder was made
+            with tf.staged_folder(folder) as other:
+                (other / "k_tensor.npy").write_bytes(b"other")
+        return name
+
+    monkeypatch.setattr(tf.tempfile, "mkdtemp", mkdtemp)
+    with tf.staged_folder(folder) as stage:
+        (stage / "b_tensor.npy").write_bytes(b"whole")
+    assert stage not in made[:2] and len(made) == 3  # its first was removed, the other's done
+    assert sorted(p.name for p in folder.iterdir()) == ["b_tensor.npy", "k_tensor.npy"]
+
+
+def test_remove_unheld_removes_only_what_no_process_holds(tmp_path: Path) -> None:
+    """remove_unheld removes a file or folder that no process holds, and nothing else: not an
+    entry of held_new while its descriptor is open, nor a link, nor a missing name."""
+    import os
+    import tempfile
+
+    free_file, free_folder = tmp_path / "a.tmp", tmp_path / "b"
+    free_file.write_bytes(b"x")
+    (free_folder / "c").mkdir(parents=True)
+    assert tf.remove_unheld(free_file) and tf.remove_unheld(free_folder)
+    assert not free_file.exists() and not free_folder.exists()
+    held, descriptor = tf.held_new(lambda: Path(tempfile.mkdtemp(dir=tmp_path)))
+    try:
+        assert not tf.remove_unheld(held) and held.is_dir() and tf.lock_held(held)
+    finally:
+        os.close(descriptor)
+    assert tf.remove_unheld(held) and not held.exists()
+    target = tmp_path / "target.tmp"
+    target.write_bytes(b"y")
+    (tmp_path / "link.tmp").symlink_to(target)
+    assert not tf.remove_unheld(tmp_path / "link.tmp") and target.exists()
+    assert not tf.remove_unheld(tmp_path / "missing.tmp")
