@@ -429,6 +429,47 @@ def test_paired_ratios_follow_the_rule_for_failures() -> None:
     assert worse["t_init"]["improvement_percent"] is None
 
 
+def test_a_paired_median_of_failures_ratios_says_no_improvement() -> None:
+    """A failure's ratio (0 when only the reference failed) stands for an order, not a size.
+    Averaged with a finite ratio in the middle of an even sample it gave a median no pair had
+    (5 equal queries and 5 the reference failed: 0.5, "50 % better"), and as the median it put
+    "+100 % cheaper" against runs without a cost (LIT* dearer in every query both solved)."""
+
+    def record(seed: int, planner: str, t: float | None, cost: float = 1.0) -> dict[str, Any]:
+        base = _record(seed, planner, solved=t is not None)
+        if t is not None:
+            base["t_init"], base["c_init"] = t, cost
+        return base
+
+    ours = [record(seed, "litstar-tensor", 1.0) for seed in range(10)]
+    theirs = [record(seed, "litstar-fit", 1.0 if seed < 5 else None) for seed in range(10)]
+    even = report.paired(ours, theirs)
+    assert (even["pairs"], even["only_litstar_solved"], even["only_reference_solved"]) == (10, 5, 0)
+    for metric in ("t_init", "c_init"):
+        assert even[metric]["ratio"]["median"] == 0.0
+        assert even[metric]["improvement_percent"] is None
+        assert even[metric]["ratio"]["ci"] is not None  # the interval is the ranks': still valid
+    dearer = [record(seed, "litstar-tensor", 1.0, cost=1.2) for seed in range(10)]
+    few = [record(seed, "litstar-fit", 1.0 if seed < 4 else None) for seed in range(10)]
+    odd = report.paired(dearer, few)
+    assert odd["c_init"]["ratio"]["median"] == 0.0 and odd["c_init"]["improvement_percent"] is None
+    # Both kinds in the middle: inf, as a median with half its runs failed is.
+    both = report.paired(
+        [record(0, "litstar-tensor", None), record(1, "litstar-tensor", 1.0)],
+        [record(0, "litstar-fit", 1.0), record(1, "litstar-fit", None)],
+    )
+    assert (both["only_litstar_solved"], both["only_reference_solved"]) == (1, 1)
+    assert both["t_init"]["ratio"]["median"] == "inf"
+    assert both["t_init"]["improvement_percent"] is None
+    rows = {"np4": {"paired": even}, "np8": {"paired": both}}
+    table = "\n".join(report._paired_table(rows))
+    assert "| np4 | 10 (5 only LIT* solved) | 0.000 " in table
+    assert "| np8 | 2 (1 only LIT*, 1 only FIT* solved) | ∞ " in table
+    assert "a median that is such a ratio has no ⇑." in table
+    assert "such a ratio" not in "\n".join(report._paired_table({"np4": {"paired": dict(
+        even, only_litstar_solved=0)}}))  # fmt: skip
+
+
 def test_summary_compares_the_same_queries_pairwise(tmp_path: Any) -> None:
     parts = _summary()
     for record in parts["records"]:

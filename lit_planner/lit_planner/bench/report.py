@@ -8,6 +8,7 @@ convention of ``lit plan --json``: ``null`` times and costs for a run without a 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
@@ -333,7 +334,9 @@ PAIRED_RULE = (
     "reference (an unsolved run counts as infinite: ratio inf when only LIT* failed, 0 when only "
     "the reference failed; pairs where both failed are left out); the median of the ratios with "
     "its 99% interval (the interval rule above); improvement = (1 - ratio) x 100, so an interval "
-    "of the ratio that contains 1 means no difference at this confidence"
+    "of the ratio that contains 1 means no difference at this confidence. When a middle ratio "
+    "is such a failure's (0 or inf), the median is that value and has no improvement: a 0 "
+    "averaged with a finite ratio, or a ratio 0 of a cost against no cost, is no gain"
 )
 """The paired comparison in words, written into both outputs (summary.json's ``statistics``)."""
 
@@ -357,14 +360,25 @@ def paired(
     pairs = [(m, r) for m, r in pairs if solved_in_budget(m) or solved_in_budget(r)]
     if not pairs:
         return None
-    result: dict[str, Any] = {"pairs": len(pairs)}
+    result: dict[str, Any] = {
+        "pairs": len(pairs),
+        "only_litstar_solved": sum(not solved_in_budget(r) for _, r in pairs),
+        "only_reference_solved": sum(not solved_in_budget(m) for m, _ in pairs),
+    }
     for metric in PAIRED_METRICS:
         ratios = [
             _ratio(record_value(mine, metric), record_value(ref, metric)) for mine, ref in pairs
         ]
         estimate = stats.median_with_interval(ratios)
+        # A failure's ratio (0 or inf) stands for an order, not a size: in the middle it is the
+        # median (inf + x is inf already; 0 and x averaged gave a ratio no pair had), and no
+        # improvement is said (a 0 put "+100 % cheaper" against a run without a cost).
+        middle = sorted(ratios)[(len(ratios) - 1) // 2 : len(ratios) // 2 + 1]
+        censored = [value for value in middle if value == 0.0 or math.isinf(value)]
+        if censored:  # inf when the middle holds both (failures dominate, as in every median)
+            estimate = dataclasses.replace(estimate, median=max(censored))
         improvement = None
-        if math.isfinite(estimate.median):
+        if not censored:
             improvement = (1.0 - estimate.median) * 100.0
         result[metric] = {"ratio": median_summary(estimate), "improvement_percent": improvement}
     return result
@@ -731,6 +745,12 @@ def _paired_table(rows: dict[str, Any]) -> list[str]:
             "Query by query (each seed under both policies): the median of LIT*'s value over "
             "FIT*'s, with its 99% interval; ⇑ = (1 − ratio) × 100. An interval that contains 1: "
             "no difference detected at this confidence. Queries that neither solved are left out."
+            + (
+                " A query that only one of them solved has the ratio 0 (only LIT*) or ∞ (only "
+                "FIT*); a median that is such a ratio has no ⇑."
+                if any(_one_sided(row.get("paired")) for row in rows.values())
+                else ""
+            )
         ),
         "",
         "| scenario | queries | t_init ratio | t_init ⇑ (%) | c_init ratio | c_init ⇑ (%) |",
@@ -742,12 +762,28 @@ def _paired_table(rows: dict[str, Any]) -> list[str]:
             lines.append(f"| {name} | 0 | — | — | — | — |")
             continue
         t, c = pair["t_init"], pair["c_init"]
+        alone = [
+            f"{count} only {who}"
+            for count, who in (
+                (pair.get("only_litstar_solved", 0), "LIT*"),
+                (pair.get("only_reference_solved", 0), "FIT*"),
+            )
+            if count
+        ]
+        queries = f"{pair['pairs']} ({', '.join(alone)} solved)" if alone else f"{pair['pairs']}"
         lines.append(
-            f"| {name} | {pair['pairs']} | {fmt_median(t['ratio'], 3)} "
+            f"| {name} | {queries} | {fmt_median(t['ratio'], 3)} "
             f"| {fmt_percent(t['improvement_percent'])} | {fmt_median(c['ratio'], 3)} "
             f"| {fmt_percent(c['improvement_percent'])} |"
         )
     return lines + [""]
+
+
+def _one_sided(pair: dict[str, Any] | None) -> bool:
+    """Whether a paired comparison has queries that only one planner solved."""
+    return pair is not None and bool(
+        pair.get("only_litstar_solved", 0) or pair.get("only_reference_solved", 0)
+    )
 
 
 def _comparison_table(
