@@ -983,6 +983,12 @@ namespace lit
             return;  // the reverse search only has to reach the start
         collectNeighbours(state);
         connectExpandedNeighbours(state);
+        offerReverseEdges(state);
+    }
+
+    void LITstar::offerReverseEdges(State *state)
+    {
+        state->reverseK_ = currentK_;
         const double costToGo = state->reverseCost_;
         for (std::size_t i = 0; i < neighbours_.size(); ++i)
         {
@@ -1035,6 +1041,13 @@ namespace lit
         currentK_ = adaptiveNeighborSize(state);
         collectNeighbours(state);
         connectExpandedNeighbours(state);
+        // The reverse search expanded this state with the k of its time (the last decided one). A policy that
+        // decided a larger k since lists neighbours here that the reverse search was never offered from it: their
+        // cost-to-go through this state stayed unknown (only the edges into it were offered), and forward edges
+        // into them were ordered as if the new edge did not exist. (A constant psi_K keeps one k per batch.)
+        if (!state->isStart_ && state->reverseTag_ == reverseTag_ && std::isfinite(state->reverseCost_) &&
+            currentK_ > state->reverseK_)
+            offerReverseEdges(state);
         for (std::size_t i = 0; i < neighbours_.size(); ++i)
         {
             State *other = neighbours_[i];

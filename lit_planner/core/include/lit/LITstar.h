@@ -199,6 +199,9 @@ namespace lit
         ParameterPolicyPtr fixedPolicy(unsigned int batchSize) const;
         void restartReverseSearch();
         void expandReverse(litstar::State *state);
+        /** \brief Offers the reverse search the edges from \a state (in the reverse tree) to the neighbours just
+         *  collected (neighbours_), and records their k as state->reverseK_. */
+        void offerReverseEdges(litstar::State *state);
         void expandForward(litstar::State *state);
         /** \brief Edge checks: sparse to a bisection depth, or full; both reuse earlier checks. */
         bool checkEdge(litstar::State *a, litstar::State *b, unsigned int depth);

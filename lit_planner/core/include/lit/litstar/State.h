@@ -52,6 +52,9 @@ namespace lit::litstar
         double reverseEffort_{infinity};
         /** \brief Parent towards the goal in the reverse tree. */
         State *reverseParent_{nullptr};
+        /** \brief The k of this state's latest offer of its reverse edges (its reverse expansion, or a forward
+         *  expansion with a larger k), valid while reverseTag_ is current. */
+        std::size_t reverseK_{0u};
 
         /** \brief Forward tree: cost-to-come g, parent, children, and the cost of the parent edge. */
         double costToCome_{infinity};
