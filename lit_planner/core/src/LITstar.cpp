@@ -296,6 +296,7 @@ namespace lit
         bestCost_ = infinity;
         pruneDue_ = false;
         bestPathStates_.clear();
+        rhoLocalBPending_ = false;
         improvements_ = 0u;
         counters_ = LITstarCounters{};
         accumulatedTime_ = 0.0;
@@ -1217,6 +1218,7 @@ namespace lit
         for (State *s : bestPathStates_)
             s->pinned_ = false;
         bestPathStates_.clear();
+        rhoLocalBPending_ = false;
         for (State *s = goal; s != nullptr; s = s->forwardParent_)
         {
             s->pinned_ = true;
@@ -1289,8 +1291,15 @@ namespace lit
         ++counters_.batches;
         sparseDepth_ = 1u;
         currentK_ = neighbourCount(neighbourFactor_);
-        if (policy_->needsFeatures() && !bestPathStates_.empty())
-            rhoLocalB_ = pathLocalRatio();
+        // rho_local,B of this batch is read only by the psi_K decisions made before the next solution (which
+        // computes its own): most batches make none. Its inputs are fixed here (the samples do not change until the
+        // next batch; the path and the radius are kept), and it is computed at the first decision that reads it.
+        rhoLocalBPending_ = policy_->needsFeatures() && !bestPathStates_.empty();
+        if (rhoLocalBPending_)
+        {
+            rhoLocalBPath_ = bestPathRawStates();
+            rhoLocalBRadius_ = graph_->radius(rewireFactor_, getMeasure());
+        }
         restartReverseSearch();
         for (State *start : graph_->starts())
             if (start->costToGoLowerBound_ < bestCost_)  // a start farther from every goal cannot improve it
@@ -1372,6 +1381,11 @@ namespace lit
         context.features.rhoGlobal = graph_->ratioCalc();
         context.features.measure =
             context.hasSolution ? measureFeature(dimension_, context.informedMeasure, spaceMeasure_) : 1.0;
+        if (rhoLocalBPending_ && !bestPathStates_.empty())
+        {
+            rhoLocalB_ = graph_->localRatioCalc(rhoLocalBPath_, nullptr, rhoLocalBRadius_).first;
+            rhoLocalBPending_ = false;
+        }
         context.features.rhoLocalB = bestPathStates_.empty() ? context.features.rhoGlobal : rhoLocalB_;
         context.features.rhoLocalK = context.features.rhoGlobal;
         return context;
@@ -1401,9 +1415,11 @@ namespace lit
 
     void LITstar::adaptiveBatchsize()
     {
-        DecisionContext context = makeContext(DecisionKind::BatchSize);
         const bool observed = std::any_of(listeners_.begin(), listeners_.end(),
                                           [](const auto &listener) { return listener->observesFeatures(); });
+        if (policy_->needsFeatures() || observed)
+            rhoLocalBPending_ = false;  // computed below for this solution's path, replacing the batch's
+        DecisionContext context = makeContext(DecisionKind::BatchSize);
         if (!policy_->needsFeatures() && !observed)
             context.features.rhoLocalB = std::numeric_limits<double>::quiet_NaN();  // not computed
         else

@@ -323,7 +323,12 @@ namespace lit
          * is the same) yet costs O(samples): it rebuilt the packed coordinate arrays every batch. */
         bool pruneDue_{false};
         std::vector<litstar::State *> bestPathStates_;
-        double rhoLocalB_{0.0};
+        mutable double rhoLocalB_{0.0};
+        /** \brief rho_local,B of the current batch is still to be computed (from rhoLocalBPath_ and
+         *  rhoLocalBRadius_, the batch's path and radius) when a decision first reads it. */
+        mutable bool rhoLocalBPending_{false};
+        std::vector<const ompl::base::State *> rhoLocalBPath_;
+        double rhoLocalBRadius_{0.0};
         unsigned int batchSize_{100u};
         double neighbourFactor_{M_E};
         /** \brief An unusable policy answer (not a number; psi_K <= 0) was reported for this problem, per parameter. */
