@@ -461,6 +461,17 @@ def test_a_paired_median_of_failures_ratios_says_no_improvement() -> None:
     assert (both["only_litstar_solved"], both["only_reference_solved"]) == (1, 1)
     assert both["t_init"]["ratio"]["median"] == "inf"
     assert both["t_init"]["improvement_percent"] is None
+    # The verdict from the medians names a scenario whose FIT* median is a failure's (it was
+    # counted as not in the range without a word, though LIT* solved more than half).
+    medians = {
+        "improvement_percent": {"t_init": None, "c_init": None},
+        "reference_medians": {"t_init": "inf", "c_init": "inf"},
+        "litstar_medians": {"t_init": 0.01, "c_init": 1.2},
+    }
+    (verdict, _) = report._paper_range({"rrd8": medians})
+    assert "point estimates, without an interval) none (0 of 1), no percentage on rrd8 (FIT*" in (
+        verdict
+    )
     rows = {"np4": {"paired": even}, "np8": {"paired": both}}
     table = "\n".join(report._paired_table(rows))
     assert "| np4 | 10 (5 only LIT* solved) | 0.000 " in table

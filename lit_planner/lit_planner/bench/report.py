@@ -707,11 +707,20 @@ def _paper_range(rows: dict[str, Any]) -> list[str]:
     def listed(names: list[str], of: int) -> str:
         return f"{', '.join(names) or 'none'} ({len(names)} of {of})"
 
+    def undecided(row: dict[str, Any]) -> bool:  # LIT* solved, FIT*'s median is a failure
+        medians = row.get("reference_medians", {}), row.get("litstar_medians", {})
+        return medians[0].get("t_init") == "inf" and medians[1].get("t_init") not in (None, "inf")
+
     line = (
         f"The paper's range (t_init at least {PAPER_SMALLEST_GAIN:g} % better than FIT*'s, "
         "initial cost not worse): from the medians (point estimates, without an interval) "
         f"{listed([n for n, r in rows.items() if reached(r)], len(rows))}"
     )
+    if open_ones := [n for n, r in rows.items() if undecided(r)]:
+        line += (
+            f", no percentage on {', '.join(open_ones)} (FIT* solved at most half of its runs "
+            "in time, LIT* more: its median t_init is infinite)"
+        )
     if any("paired" in row for row in rows.values()):
         testable = [n for n, r in rows.items() if intervals(r) is not None]
         untested = [n for n in rows if n not in testable]
