@@ -508,6 +508,25 @@ def test_the_example_client_of_your_own_plans_and_cancels(ros: RosSystem) -> Non
     _no_traceback(planner)
 
 
+def test_the_example_client_keeps_discovery_on_this_host_and_finds_lit_ups_domain() -> None:
+    """Run as the README says, without either variable, it used ROS's defaults: multicast
+    discovery on every interface (which this project never sends) and domain 0, where no node of
+    ``lit up`` runs. A user's own choice of either is kept."""
+    import importlib.util
+
+    example = Path(__file__).resolve().parents[1] / "lit_planner" / "examples" / "plan_client.py"
+    spec = importlib.util.spec_from_file_location("plan_client", example)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    bare: dict[str, str] = {}
+    module.local_environment(bare)
+    assert bare == {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "ROS_DOMAIN_ID": "42"}
+    chosen = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "ROS_DOMAIN_ID": "7"}
+    module.local_environment(chosen)
+    assert chosen == {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "ROS_DOMAIN_ID": "7"}
+
+
 @pytest.mark.parametrize("how", ["timeout", "sigint", "sigterm"])
 def test_lit_call_plan_cancels_the_query_it_stops_waiting_for(ros: RosSystem, how: str) -> None:
     """``lit call plan`` that stops waiting (its ``--timeout``, Ctrl-C or SIGTERM) cancels its

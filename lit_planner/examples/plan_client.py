@@ -6,6 +6,9 @@ plan service then answers with what the planner found until then (status ``cance
 
     python3 lit_planner/examples/plan_client.py --scenario np8 --time 0.5
 
+It keeps DDS discovery on this host and uses ROS domain 42, as ``lit up`` and the nodes do,
+unless ``ROS_AUTOMATIC_DISCOVERY_RANGE`` or ``ROS_DOMAIN_ID`` say otherwise.
+
 Exit status: 0 with a PlanResponse, 1 with an Error (the node's verdict on the request), 2 when
 no planner node answered. The README's "Your own client" says what each part is for.
 """
@@ -14,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 import uuid
@@ -31,6 +35,14 @@ SERVICE_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
+
+
+def local_environment(environ: dict[str, str] | os._Environ[str] = os.environ) -> None:
+    """This project's defaults for a ROS process, where the environment gives none: discovery
+    on this host only (Fast DDS's own default sends multicast on every interface) and domain 42,
+    where ``lit up`` and the nodes run by default (ROS's default, 0, would not find them)."""
+    environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    environ.setdefault("ROS_DOMAIN_ID", "42")
 
 
 class Envelopes:
@@ -77,6 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
 
+    local_environment()  # read by rclpy.init
     rclpy.init()
     node = rclpy.create_node(f"plan_client_{uuid.uuid4().hex[:8]}")
     prefix = args.namespace.rstrip("/")

@@ -25,7 +25,8 @@ from lit_planner.guarded_stdout import GuardedStdout
 LOCALHOST_ENV = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
 """Environment every entry point sets unless the user already chose: DDS discovery on loopback."""
 DEFAULT_DOMAIN_ID = 42
-"""``ROS_DOMAIN_ID`` of ``lit up`` / ``lit demo`` / ``lit call`` when the user has not set one."""
+"""``ROS_DOMAIN_ID`` of ``lit up``, ``lit call`` and the nodes when the user has not set one
+(``lit demo``'s is its own, 91)."""
 DECIDE_SERVICE = "/lit/learner/decide"
 """The learner's decision service (absolute: one learner serves planners in any namespace)."""
 EXPORT_SERVICE = "/lit/learner/export"
