@@ -107,9 +107,15 @@ class DDPGAgent:
         return (value - lo) / (hi - lo)
 
     def executed(self, a_norm: float) -> float:
-        """The value the planner executes for a_norm: rounded (B) and clamped to the range."""
+        """The value the planner executes for a_norm: :meth:`value_of` its action value."""
         lo, hi = self.config.action_min, self.config.action_max
-        value = lo + a_norm * (hi - lo)
+        return self.value_of(lo + a_norm * (hi - lo))
+
+    def value_of(self, value: float) -> float:
+        """The value the planner executes for an action value (z*): rounded (B) and clamped to
+        the range. (A z* taken through a_norm and back first could land an ulp below a .5: B =
+        112.5 became 112.4999... and was rounded down.)"""
+        lo, hi = self.config.action_min, self.config.action_max
         if self.config.rounding == "half_away_from_zero":
             value = round_half_away_from_zero(value)
         return min(max(value, lo), hi)
@@ -119,14 +125,14 @@ class DDPGAgent:
     ) -> tuple[float, float]:
         """(executed value, its a_norm) for one decision; ``snapshot`` as for :meth:`policy`."""
         if explore and self.warming_up:
-            a_norm = float(self.rng.uniform(0.0, 1.0))
+            value = self.executed(float(self.rng.uniform(0.0, 1.0)))
         else:
-            a_norm = self.normalise(self.policy(features, snapshot))
+            value = self.policy(features, snapshot)
             if explore:
-                a_norm = min(
-                    max(a_norm + float(self.rng.normal(0.0, self.config.noise_std)), 0.0), 1.0
-                )
-        value = self.executed(a_norm)
+                a_norm = self.normalise(value) + float(self.rng.normal(0.0, self.config.noise_std))
+                value = self.executed(min(max(a_norm, 0.0), 1.0))
+            else:
+                value = self.value_of(value)
         return value, self.normalise(value)
 
     # ------------------------------------------------------------------ learning

@@ -188,7 +188,7 @@ class LearnerCore:
         if self.trains(request.agent):
             value, a_norm = agent.act(request.features, request.explore, snapshot)
             return Choice(value, a_norm, version)
-        value = agent.executed(agent.normalise(agent.policy(request.features, snapshot)))
+        value = agent.value_of(agent.policy(request.features, snapshot))
         return Choice(value, None, version)
 
     def publish(self) -> None:
@@ -214,11 +214,15 @@ class LearnerCore:
         """A decision that was already taken (``executed`` is the value the planner applied):
         pairs and stores it exactly as :meth:`decide` would have, without choosing an action.
         Offline training from recorded runs (``lit replay tensors``) feeds decisions this way;
-        DDPG learns off-policy, so actions of other policies (fallbacks) are usable too."""
+        DDPG learns off-policy, so actions of other policies (fallbacks) are usable too, if the
+        agent can take them: a value outside its range (the fixed psi_K = e below 3) opens no
+        step (it was stored as 3, an action the planner had not executed); the step before it
+        is closed as usual."""
         request.validate()
         agent = self.agents[request.agent]
-        if self.trains(request.agent):
-            self._step(request, min(max(agent.normalise(executed), 0.0), 1.0))
+        a_norm = agent.normalise(executed)
+        if self.trains(request.agent) and -_RANGE_SLACK <= a_norm <= 1.0 + _RANGE_SLACK:
+            self._step(request, min(max(a_norm, 0.0), 1.0))
         else:
             self._step(request, None)
 
@@ -675,6 +679,10 @@ _TENSOR_DTYPES = frozenset(
     np.dtype(t) for t in (np.float32, np.float64, np.int32, np.int64, np.uint8, np.bool_)
 )
 
+
+_RANGE_SLACK = 1e-9
+"""How far (in a_norm) a recorded value may lie outside its agent's range and still be taken as
+the range's end: rounding only (the planner clamps to the range)."""
 
 _WRITE_FAILED = ("unexpected pos", "failed writing")
 """Words of torch's writer when the file could not be written (a full disk: "unexpected pos 64 vs

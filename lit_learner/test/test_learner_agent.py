@@ -42,7 +42,17 @@ def test_warm_up_actions_are_uniform_then_near_the_policy() -> None:
     greedy = agent.normalise(agent.policy((0.5, 0.5, 0.5)))
     assert abs(noisy.mean() - greedy) < 0.01 and noisy.std() == pytest.approx(0.05, rel=0.1)
     value, a_norm = agent.act((0.5, 0.5, 0.5), explore=False)
-    assert a_norm == greedy and value == agent.executed(greedy)
+    assert a_norm == greedy and value == agent.value_of(agent.policy((0.5, 0.5, 0.5)))
+
+
+def test_a_half_is_rounded_away_from_zero_whatever_its_way_through_a_norm() -> None:
+    """B's z* = 112.5 taken through a_norm and back was 112.4999... and gave 112, not 113."""
+    b = DDPGAgent(AgentConfig.batch_size_agent(), seed=0)
+    for half in (112.5, 123.5, 20.5, 199.5):
+        assert b.value_of(half) == half + 0.5
+    assert b.executed(b.normalise(112.5)) == 112.0  # the round trip this no longer takes
+    b.policy = lambda features, snapshot=None: 112.5  # type: ignore[method-assign]
+    assert b.act((0.5, 0.5, 0.5), explore=False) == (113.0, b.normalise(113.0))
 
 
 @pytest.mark.parametrize("seed", [3, 7])

@@ -121,7 +121,30 @@ def test_untrained_agent_acts_noise_free_and_stores_nothing() -> None:
     request = next(m for m in script(1) if isinstance(m, DecisionRequest) and m.agent == "B")
     agent = core.agents["B"]
     greedy = core.policy("B", request.features)
-    assert core.decide(request) == agent.executed(agent.normalise(greedy))
+    assert core.decide(request) == agent.value_of(greedy)
+
+
+def test_a_recorded_value_outside_the_agents_range_opens_no_step() -> None:
+    """lit replay tensors records the planner's decisions: a fixed fallback psi_K = e (below the
+    agent's 3) was stored as the action 3, which the planner had not executed. It opens no step
+    now; the step before it is closed at it as usual."""
+    import math
+
+    from lit_learner.messages import EpisodeEnd
+
+    def request(t: float) -> DecisionRequest:
+        return DecisionRequest("psi_K", "e", 0.1, 0.2, 0.3, t, 2.0, None, 1.0, 0, 0)
+
+    def stored(values: list[float]) -> list[float]:
+        core = LearnerCore(small_config())
+        for step, value in enumerate(values):
+            core.record(request(0.1 * (step + 1)), value)
+        core.end_episode(EpisodeEnd("e", 1.0, 2.0, None, 1.0, 0, 0))
+        replay = core.agents["psi_K"].replay
+        return sorted(float(a) for a in replay.action[: len(replay)])
+
+    assert stored([9.0, math.e, 15.0]) == [0.5, 1.0]  # 9 closed at e, 15 at the end
+    assert stored([9.0, 3.0, 15.0]) == [0.0, 0.5, 1.0]  # the range's end is an action
 
 
 def test_bad_messages_are_rejected_with_their_field() -> None:
