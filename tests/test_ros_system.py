@@ -522,6 +522,9 @@ def test_the_example_client_keeps_discovery_on_this_host_and_finds_lit_ups_domai
     bare: dict[str, str] = {}
     module.local_environment(bare)
     assert bare == {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "ROS_DOMAIN_ID": "42"}
+    blank = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "", "ROS_DOMAIN_ID": " "}  # ROS's defaults too
+    module.local_environment(blank)
+    assert blank == {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "ROS_DOMAIN_ID": "42"}
     chosen = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "ROS_DOMAIN_ID": "7"}
     module.local_environment(chosen)
     assert chosen == {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "ROS_DOMAIN_ID": "7"}

@@ -6,7 +6,8 @@ are published in the planner's decision order) give each decision's features, pl
 executed value; its SolutionUpdate messages give the improvements and path states up to that time;
 the summary gives the budget, the final state and the scenario (for c_min). Each decision is fed to
 :meth:`~lit_learner.core.LearnerCore.record` (the executed value, not a new action: DDPG learns
-off-policy, so fallback decisions count too), each episode is closed with
+off-policy, so fallback decisions count too, but for values outside the agent's range: the fixed
+fallback psi_K = e opens no step), each episode is closed with
 :meth:`~lit_learner.core.LearnerCore.end_episode` (which runs the gradient steps), and the result is
 exported as lookup tensors.
 

@@ -41,8 +41,9 @@ def local_environment(environ: dict[str, str] | os._Environ[str] = os.environ) -
     """This project's defaults for a ROS process, where the environment gives none: discovery
     on this host only (Fast DDS's own default sends multicast on every interface) and domain 42,
     where ``lit up`` and the nodes run by default (ROS's default, 0, would not find them)."""
-    environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    environ.setdefault("ROS_DOMAIN_ID", "42")
+    for name, default in (("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST"), ("ROS_DOMAIN_ID", "42")):
+        if not environ.get(name, "").strip():  # set but empty: ROS takes its own default
+            environ[name] = default
 
 
 class Envelopes:

@@ -85,10 +85,13 @@ def declare_parameters(node: Any, defaults: Mapping[str, Any], program: str) -> 
 
 
 def localhost_environment() -> None:
-    """Keep DDS discovery on this host unless the user set a range; set a domain id if unset."""
-    for key, value in LOCALHOST_ENV.items():
-        os.environ.setdefault(key, value)
-    os.environ.setdefault("ROS_DOMAIN_ID", str(DEFAULT_DOMAIN_ID))
+    """Keep DDS discovery on this host unless the user set a range; set a domain id if unset. A
+    variable set but empty counts as unset (rcl would take its own default: domain 0, where
+    ``lit up`` and ``lit call`` resolve an empty one to 42)."""
+    defaults = {**LOCALHOST_ENV, "ROS_DOMAIN_ID": str(DEFAULT_DOMAIN_ID)}
+    for key, value in defaults.items():
+        if not os.environ.get(key, "").strip():
+            os.environ[key] = value
 
 
 DUPLICATE_CHECK_PERIOD = 5.0

@@ -304,13 +304,17 @@ def held_new(create: Callable[[], Path]) -> tuple[Path, int]:
     Another process's clean-up can come between the creation and the lock; it takes the lock
     itself before it removes (:func:`remove_unheld`), so the lock taken here is on the removed
     entry, seen here as such, and ``create`` makes another. (Locked only after it was checked,
-    an entry removed in that gap left the writer writing into nothing.)"""
+    an entry removed in that gap left the writer writing into nothing.) An entry that cannot be
+    locked is removed, and the error goes on."""
     while True:
         path = create()
         try:
-            descriptor = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+            descriptor = _open_to_lock(path)
         except FileNotFoundError:
             continue  # removed before it could be opened
+        except BaseException:
+            _discard(path)
+            raise
         try:
             fcntl.flock(descriptor, fcntl.LOCK_EX)
             if os.path.samestat(os.fstat(descriptor), os.stat(path)):  # links followed, as opened
@@ -319,6 +323,7 @@ def held_new(create: Callable[[], Path]) -> tuple[Path, int]:
             pass  # removed while the lock was awaited
         except BaseException:
             os.close(descriptor)
+            _discard(path)
             raise
         os.close(descriptor)
 
@@ -326,9 +331,11 @@ def held_new(create: Callable[[], Path]) -> tuple[Path, int]:
 def remove_unheld(path: Path) -> bool:
     """Remove the file or folder ``path`` unless a process holds its ``flock`` (a writer's own
     temporary entry: :func:`held_new`); whether it was removed. The lock is taken here for the
-    removal, so a writer that locks its brand-new entry meanwhile finds it removed."""
+    removal, so a writer that locks its brand-new entry meanwhile finds it removed. An entry
+    that cannot be opened or locked (a link, another user's, a lock the file system refuses) is
+    left alone."""
     try:
-        descriptor = os.open(path, os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW)
+        descriptor = _open_to_lock(path, follow=False)
     except OSError:
         return False  # gone meanwhile, or a link: not a writer's
     try:
@@ -340,10 +347,28 @@ def remove_unheld(path: Path) -> bool:
         else:
             path.unlink(missing_ok=True)
         return True
-    except (BlockingIOError, FileNotFoundError):
+    except OSError:  # held (BlockingIOError), gone, or not lockable here
         return False
     finally:
         os.close(descriptor)  # and with it the lock taken here
+
+
+def _open_to_lock(path: Path, follow: bool = True) -> int:
+    """A descriptor of ``path`` that an exclusive ``flock`` can be taken on: a file's is opened
+    for writing, which NFS needs (it emulates flock with a byte-range lock), a folder's for
+    reading (the only way a folder opens)."""
+    no_follow = 0 if follow else os.O_NOFOLLOW
+    is_folder = os.path.isdir(path) if follow else stat.S_ISDIR(os.lstat(path).st_mode)
+    mode = os.O_RDONLY | os.O_DIRECTORY if is_folder else os.O_RDWR
+    return os.open(path, mode | os.O_CLOEXEC | no_follow)
+
+
+def _discard(path: Path) -> None:
+    """Remove an entry :func:`held_new` made and could not lock (errors ignored)."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        path.unlink(missing_ok=True)
 
 
 def stale_stages(directory: Path) -> list[Path]:
@@ -365,13 +390,15 @@ def lock_held(path: Path) -> bool:
     """Whether a process holds an ``flock`` on ``path`` (a file or folder that its writer locks
     while it writes: an export's staging folder, a checkpoint's temporary file)."""
     try:
-        descriptor = os.open(path, os.O_RDONLY)
+        descriptor = _open_to_lock(path)
     except OSError:
         return False  # gone meanwhile
     try:
         fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
         return True
+    except OSError:
+        return False  # no lock on this file system: nobody holds one either
     finally:
         os.close(descriptor)  # and with it a lock this took
     return False
