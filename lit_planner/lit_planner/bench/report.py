@@ -718,8 +718,8 @@ def _paper_range(rows: dict[str, Any]) -> list[str]:
     )
     if open_ones := [n for n, r in rows.items() if undecided(r)]:
         line += (
-            f", no percentage on {', '.join(open_ones)} (FIT* solved at most half of its runs "
-            "in time, LIT* more: its median t_init is infinite)"
+            f", no percentage on {', '.join(open_ones)} (FIT*'s median t_init is infinite: it "
+            "solved at most half of its runs in time, LIT* more)"
         )
     if any("paired" in row for row in rows.values()):
         testable = [n for n, r in rows.items() if intervals(r) is not None]
