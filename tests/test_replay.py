@@ -596,7 +596,7 @@ def test_sigterm_leaves_no_half_written_output(command: str, tmp_path: Path) -> 
     SIGTERM used to leave half a compacted bag, and an interrupted bench a plots/ folder that then
     blocked the rerun ("exists and is not empty")."""
     shipped = ROOT / "bags" / "shipped"
-    source = shipped / ("train-20261130c" if command == "compact" else "tensor-paper-20261206")
+    source = shipped / ("train-20261130c" if command == "compact" else "tensor-paper-20261207")
     out = tmp_path / "out"
     args = [source, out] if command == "compact" else [source, "--out", out]
     process = subprocess.Popen(

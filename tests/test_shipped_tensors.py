@@ -81,8 +81,8 @@ def test_shipped_tensors_trace_to_their_training_bag(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("bag", "summary"),
     [
-        ("tensor-eval-20261206", "evaluation_summary.md"),
-        ("tensor-paper-20261206", "paper/summary.md"),
+        ("tensor-eval-20261207", "evaluation_summary.md"),
+        ("tensor-paper-20261207", "paper/summary.md"),
     ],
 )
 def test_shipped_evaluations_are_what_their_bags_give(
