@@ -297,6 +297,7 @@ namespace lit
         pruneDue_ = false;
         bestPathStates_.clear();
         rhoLocalBPending_ = false;
+        rhoLocalBPath_.clear();
         improvements_ = 0u;
         counters_ = LITstarCounters{};
         accumulatedTime_ = 0.0;
@@ -479,14 +480,13 @@ namespace lit
         dimension_ = si_->getStateDimension();
         longestValidSegment_ = si_->getStateSpace()->getLongestValidSegmentLength();
         segmentCountFactor_ = std::max(1u, si_->getStateSpace()->getValidSegmentCountFactor());
-        const ompl::base::MotionValidator *validator = si_->getMotionValidator().get();
-        customMotionValidator_ =
-            validator != nullptr && dynamic_cast<const ompl::base::DiscreteMotionValidator *>(validator) == nullptr;
         spaceMeasure_ = si_->getSpaceMeasure();
         if (interpolated_ == nullptr)
             interpolated_ = si_->allocState();
         point_.assign(dimension_, 0.0);
         bestPathStates_.clear();  // they belonged to the graph replaced here
+        rhoLocalBPending_ = false;
+        rhoLocalBPath_.clear();
         if (!seedSet_)
         {
             if (!seedSource_)
@@ -576,6 +576,10 @@ namespace lit
                               typeid(*checker) == typeid(BoxWorldValidityChecker) ?
                           std::static_pointer_cast<const BoxWorldValidityChecker>(si_->getStateValidityChecker()) :
                           nullptr;
+        // Likewise the motion validator: a custom one is asked about every edge the resolution's points pass.
+        const ompl::base::MotionValidator *validator = si_->getMotionValidator().get();
+        customMotionValidator_ =
+            validator != nullptr && dynamic_cast<const ompl::base::DiscreteMotionValidator *>(validator) == nullptr;
         batchLimitReached_ = false;
         statusMessage_.clear();
         {
@@ -1219,6 +1223,7 @@ namespace lit
             s->pinned_ = false;
         bestPathStates_.clear();
         rhoLocalBPending_ = false;
+        rhoLocalBPath_.clear();
         for (State *s = goal; s != nullptr; s = s->forwardParent_)
         {
             s->pinned_ = true;
@@ -1230,10 +1235,10 @@ namespace lit
         std::vector<const ompl::base::State *> states;
         for (State *s : bestPathStates_)
             states.push_back(s->raw_);
+        if (first)
+            forwardQueue_->setEffortFirst(false);  // epsilon: infinity -> 1 (before the caller's code, which may throw)
         if (const auto &callback = pdef_->getIntermediateSolutionCallback())
             callback(this, states, ompl::base::Cost(bestCost_));
-        if (first)
-            forwardQueue_->setEffortFirst(false);  // epsilon: infinity -> 1
 
         SolutionEvent event;
         event.time = planningTime();
@@ -1294,12 +1299,8 @@ namespace lit
         // rho_local,B of this batch is read only by the psi_K decisions made before the next solution (which
         // computes its own): most batches make none. Its inputs are fixed here (the samples do not change until the
         // next batch; the path and the radius are kept), and it is computed at the first decision that reads it.
-        rhoLocalBPending_ = policy_->needsFeatures() && !bestPathStates_.empty();
-        if (rhoLocalBPending_)
-        {
-            rhoLocalBPath_ = bestPathRawStates();
-            rhoLocalBRadius_ = graph_->radius(rewireFactor_, getMeasure());
-        }
+        // They are kept whatever the policy: a policy set between two solve() calls may read them.
+        keepPathForRhoLocalB();
         restartReverseSearch();
         for (State *start : graph_->starts())
             if (start->costToGoLowerBound_ < bestCost_)  // a start farther from every goal cannot improve it
@@ -1338,6 +1339,24 @@ namespace lit
         for (const State *s : bestPathStates_)
             path.push_back(s->raw_);
         return path;
+    }
+
+    bool LITstar::featuresObserved() const
+    {
+        return std::any_of(listeners_.begin(), listeners_.end(),
+                           [](const auto &listener) { return listener->observesFeatures(); });
+    }
+
+    void LITstar::keepPathForRhoLocalB()
+    {
+        rhoLocalBPending_ = !bestPathStates_.empty();
+        if (rhoLocalBPending_)
+        {
+            rhoLocalBPath_ = bestPathRawStates();
+            rhoLocalBRadius_ = graph_->radius(rewireFactor_, getMeasure());
+        }
+        else
+            rhoLocalBPath_.clear();
     }
 
     double LITstar::pathLocalRatio() const
@@ -1381,12 +1400,20 @@ namespace lit
         context.features.rhoGlobal = graph_->ratioCalc();
         context.features.measure =
             context.hasSolution ? measureFeature(dimension_, context.informedMeasure, spaceMeasure_) : 1.0;
-        if (rhoLocalBPending_ && !bestPathStates_.empty())
+        if (bestPathStates_.empty())
+            context.features.rhoLocalB = context.features.rhoGlobal;
+        else if (!policy_->needsFeatures() && !featuresObserved())
+            context.features.rhoLocalB = std::numeric_limits<double>::quiet_NaN();  // not computed
+        else
         {
-            rhoLocalB_ = graph_->localRatioCalc(rhoLocalBPath_, nullptr, rhoLocalBRadius_).first;
-            rhoLocalBPending_ = false;
+            if (rhoLocalBPending_)
+            {
+                rhoLocalB_ = graph_->localRatioCalc(rhoLocalBPath_, nullptr, rhoLocalBRadius_).first;
+                rhoLocalBPending_ = false;
+                rhoLocalBPath_.clear();
+            }
+            context.features.rhoLocalB = rhoLocalB_;
         }
-        context.features.rhoLocalB = bestPathStates_.empty() ? context.features.rhoGlobal : rhoLocalB_;
         context.features.rhoLocalK = context.features.rhoGlobal;
         return context;
     }
@@ -1415,13 +1442,10 @@ namespace lit
 
     void LITstar::adaptiveBatchsize()
     {
-        const bool observed = std::any_of(listeners_.begin(), listeners_.end(),
-                                          [](const auto &listener) { return listener->observesFeatures(); });
-        if (policy_->needsFeatures() || observed)
-            rhoLocalBPending_ = false;  // computed below for this solution's path, replacing the batch's
+        const bool observed = featuresObserved();
         DecisionContext context = makeContext(DecisionKind::BatchSize);
         if (!policy_->needsFeatures() && !observed)
-            context.features.rhoLocalB = std::numeric_limits<double>::quiet_NaN();  // not computed
+            keepPathForRhoLocalB();  // not computed now (NaN in the context); a policy set later may read it
         else
         {
             // A policy that ignores the features (fixed, fit) does not pay for them: they are

@@ -773,6 +773,95 @@ TEST(LITstar, AMotionValidatorOfTheUsersOwnIsAsked)
     EXPECT_GT(planner->bestCost(), 2.0 * std::hypot(0.2, 0.3) - 1e-9);  // around the fence's end
 }
 
+TEST(LITstar, AMotionValidatorSetBetweenTwoSolvesIsAsked)
+{
+    // The checker is read at every solve(), the validator was read once per problem: one set after a first solve()
+    // (here one that only reads the problem) was never asked, and the straight line it refuses came back.
+    struct Wall : ompl::base::MotionValidator
+    {
+        using MotionValidator::MotionValidator;
+        bool checkMotion(const ompl::base::State *a, const ompl::base::State *b) const override
+        {
+            const auto *x = a->as<ompl::base::RealVectorStateSpace::StateType>()->values;
+            const auto *y = b->as<ompl::base::RealVectorStateSpace::StateType>()->values;
+            return si_->isValid(b) && (x[0] < 0.0) == (y[0] < 0.0);  // nothing crosses x0 = 0
+        }
+        bool checkMotion(const ompl::base::State *a, const ompl::base::State *b,
+                         std::pair<ompl::base::State *, double> &) const override
+        {
+            return checkMotion(a, b);
+        }
+    };
+    BoxWorld world;
+    world.lower.assign(2u, -0.5);
+    world.upper.assign(2u, 0.5);
+    BoxProblem problem = makeBoxProblem(world, {-0.2, 0.0}, {0.2, 0.0}, 1e-3);
+    auto planner = batchLimited(problem, 3u);
+    planner->solve(ompl::base::PlannerTerminationCondition([] { return true; }));
+    problem.si->setMotionValidator(std::make_shared<Wall>(problem.si.get()));
+    problem.si->setup();
+    EXPECT_NE(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    EXPECT_FALSE(std::isfinite(planner->bestCost()));
+}
+
+TEST(LITstar, APolicySetAfterTheFirstSolutionReadsTheCurrentPathFeature)
+{
+    // rho_local,B was computed at a solution only for a policy or listener that reads it, and its value kept for the
+    // psi_K decisions until the next batch: a feature policy set after a solution found with the fixed policy read
+    // 0 (or the previous problem's value). A policy that reads no features gets NaN, as in its B decisions.
+    struct Recording : ParameterPolicy
+    {
+        bool features{true};
+        const LITstar *planner{nullptr};
+        std::vector<std::pair<double, double>> seen;  // rho_local,B given, and the path's over the current samples
+        std::string name() const override
+        {
+            return "recording";
+        }
+        bool needsFeatures() const override
+        {
+            return features;
+        }
+        double decide(const DecisionContext &context) override
+        {
+            if (context.kind == DecisionKind::NeighbourFactor)
+                seen.emplace_back(context.features.rhoLocalB, planner->computeFeatures().rhoLocalB);
+            return context.kind == DecisionKind::BatchSize ? 100.0 : M_E;
+        }
+    };
+    int telling[2] = {0, 0};  // queries whose path ratio is not 0, which a stale 0 would match
+    for (const bool features : {true, false})
+        for (unsigned int seed = 1u; seed <= 6u; ++seed)
+        {
+            BoxProblem problem = test::narrowPassage(2, 1e-3);
+            auto planner = std::make_shared<LITstar>(problem.si);
+            planner->setSeed(seed);
+            planner->setMaxBatches(10u);
+            planner->setProblemDefinition(problem.pdef);  // the fixed policy, no listener
+            bool solved = false;
+            problem.pdef->setIntermediateSolutionCallback(
+                [&solved](const ompl::base::Planner *, const std::vector<const ompl::base::State *> &,
+                          const ompl::base::Cost) { solved = true; });
+            ASSERT_EQ(planner->solve(ompl::base::PlannerTerminationCondition([&solved] { return solved; })),
+                      ompl::base::PlannerStatus::EXACT_SOLUTION);
+            auto policy = std::make_shared<Recording>();
+            policy->features = features;
+            policy->planner = planner.get();
+            planner->setPolicy(policy);
+            planner->solve(ompl::base::plannerNonTerminatingCondition());
+            ASSERT_FALSE(policy->seen.empty()) << "seed " << seed;
+            const auto [given, path] = policy->seen.front();
+            ASSERT_TRUE(std::isfinite(path)) << "seed " << seed;
+            telling[features ? 1 : 0] += path > 0.0;
+            if (features)
+                EXPECT_EQ(given, path) << "seed " << seed;
+            else
+                EXPECT_TRUE(std::isnan(given)) << "seed " << seed << ": " << given;
+        }
+    EXPECT_GE(telling[0], 2);
+    EXPECT_GE(telling[1], 2);
+}
+
 TEST(LITstar, AClearedSolutionIsHandedBackWithTheStatusThatReportsIt)
 {
     // solve() answered EXACT_SOLUTION with no path in the problem definition after the caller cleared it.

@@ -242,6 +242,11 @@ namespace lit
         double getMeasure() const;
         /** \brief rho_local,B alone: the mean local ratio along the best path (rho_global without one). */
         double pathLocalRatio() const;
+        /** \brief A listener reads the features of B decisions. */
+        bool featuresObserved() const;
+        /** \brief Keeps the best path and the radius for rho_local,B, to be computed when a decision first reads
+         *  it (nothing to keep without a path). */
+        void keepPathForRhoLocalB();
         /** \brief The OMPL states of the best path (empty without a solution). */
         std::vector<const ompl::base::State *> bestPathRawStates() const;
         double decide(DecisionContext &context);
@@ -323,11 +328,13 @@ namespace lit
          * is the same) yet costs O(samples): it rebuilt the packed coordinate arrays every batch. */
         bool pruneDue_{false};
         std::vector<litstar::State *> bestPathStates_;
+        /** \brief rho_local,B of the best path over the current samples, unless pending. */
         mutable double rhoLocalB_{0.0};
-        /** \brief rho_local,B of the current batch is still to be computed (from rhoLocalBPath_ and
-         *  rhoLocalBRadius_, the batch's path and radius) when a decision first reads it. */
+        /** \brief rho_local,B is still to be computed (from rhoLocalBPath_ and rhoLocalBRadius_, the path and radius
+         *  kept at the batch's start, or at a solution whose B decision did not compute it) when a decision first
+         *  reads it. */
         mutable bool rhoLocalBPending_{false};
-        std::vector<const ompl::base::State *> rhoLocalBPath_;
+        mutable std::vector<const ompl::base::State *> rhoLocalBPath_;
         double rhoLocalBRadius_{0.0};
         unsigned int batchSize_{100u};
         double neighbourFactor_{M_E};
