@@ -1222,14 +1222,13 @@ namespace lit
         for (State *s : bestPathStates_)
             s->pinned_ = false;
         bestPathStates_.clear();
-        rhoLocalBPending_ = false;
-        rhoLocalBPath_.clear();
         for (State *s = goal; s != nullptr; s = s->forwardParent_)
         {
             s->pinned_ = true;
             bestPathStates_.push_back(s);
         }
         std::reverse(bestPathStates_.begin(), bestPathStates_.end());
+        keepPathForRhoLocalB();  // before the caller's code below, which may throw; the B decision may compute it
 
         addBestPathToProblem();
         std::vector<const ompl::base::State *> states;
@@ -1443,10 +1442,13 @@ namespace lit
     void LITstar::adaptiveBatchsize()
     {
         const bool observed = featuresObserved();
-        DecisionContext context = makeContext(DecisionKind::BatchSize);
-        if (!policy_->needsFeatures() && !observed)
-            keepPathForRhoLocalB();  // not computed now (NaN in the context); a policy set later may read it
-        else
+        if (policy_->needsFeatures() || observed)
+        {
+            rhoLocalBPending_ = false;  // computed below for this solution's path, with the clock paused if need be
+            rhoLocalBPath_.clear();
+        }
+        DecisionContext context = makeContext(DecisionKind::BatchSize);  // rho_local,B: NaN if nobody reads it
+        if (policy_->needsFeatures() || observed)
         {
             // A policy that ignores the features (fixed, fit) does not pay for them: they are
             // computed only for the listeners then, with the clock paused.

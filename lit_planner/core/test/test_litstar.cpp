@@ -804,16 +804,23 @@ TEST(LITstar, AMotionValidatorSetBetweenTwoSolvesIsAsked)
     EXPECT_FALSE(std::isfinite(planner->bestCost()));
 }
 
-TEST(LITstar, APolicySetAfterTheFirstSolutionReadsTheCurrentPathFeature)
+TEST(LITstar, PsiKDecisionsAfterASolutionReadTheCurrentPathFeature)
 {
     // rho_local,B was computed at a solution only for a policy or listener that reads it, and its value kept for the
     // psi_K decisions until the next batch: a feature policy set after a solution found with the fixed policy read
-    // 0 (or the previous problem's value). A policy that reads no features gets NaN, as in its B decisions.
+    // 0 (or the previous problem's value), and so did one whose solution callback threw before the B decision. A
+    // policy that reads no features gets NaN, as in its B decisions.
+    struct Decision
+    {
+        std::size_t batches;
+        double given;
+        double path;  // the path's ratio over the current samples
+    };
     struct Recording : ParameterPolicy
     {
         bool features{true};
         const LITstar *planner{nullptr};
-        std::vector<std::pair<double, double>> seen;  // rho_local,B given, and the path's over the current samples
+        std::vector<Decision> seen;  // psi_K decisions after the first solution
         std::string name() const override
         {
             return "recording";
@@ -824,42 +831,64 @@ TEST(LITstar, APolicySetAfterTheFirstSolutionReadsTheCurrentPathFeature)
         }
         double decide(const DecisionContext &context) override
         {
-            if (context.kind == DecisionKind::NeighbourFactor)
-                seen.emplace_back(context.features.rhoLocalB, planner->computeFeatures().rhoLocalB);
+            if (context.kind == DecisionKind::NeighbourFactor && context.hasSolution)
+                seen.push_back({context.batches, context.features.rhoLocalB, planner->computeFeatures().rhoLocalB});
             return context.kind == DecisionKind::BatchSize ? 100.0 : M_E;
         }
     };
-    int telling[2] = {0, 0};  // queries whose path ratio is not 0, which a stale 0 would match
-    for (const bool features : {true, false})
+    enum class Case
+    {
+        FeaturePolicySetAfter,
+        PlainPolicySetAfter,
+        CallbackThrows
+    };
+    for (const Case which : {Case::FeaturePolicySetAfter, Case::PlainPolicySetAfter, Case::CallbackThrows})
+    {
+        int telling = 0;  // queries whose first decision after the solution is in its batch, with a ratio above 0
         for (unsigned int seed = 1u; seed <= 6u; ++seed)
         {
             BoxProblem problem = test::narrowPassage(2, 1e-3);
             auto planner = std::make_shared<LITstar>(problem.si);
             planner->setSeed(seed);
             planner->setMaxBatches(10u);
-            planner->setProblemDefinition(problem.pdef);  // the fixed policy, no listener
+            auto policy = std::make_shared<Recording>();
+            policy->features = which != Case::PlainPolicySetAfter;
+            policy->planner = planner.get();
+            if (which == Case::CallbackThrows)
+                planner->setPolicy(policy);
+            planner->setProblemDefinition(problem.pdef);  // else the fixed policy until the solution; no listener
             bool solved = false;
             problem.pdef->setIntermediateSolutionCallback(
-                [&solved](const ompl::base::Planner *, const std::vector<const ompl::base::State *> &,
-                          const ompl::base::Cost) { solved = true; });
-            ASSERT_EQ(planner->solve(ompl::base::PlannerTerminationCondition([&solved] { return solved; })),
-                      ompl::base::PlannerStatus::EXACT_SOLUTION);
-            auto policy = std::make_shared<Recording>();
-            policy->features = features;
-            policy->planner = planner.get();
-            planner->setPolicy(policy);
+                [&solved, which](const ompl::base::Planner *, const std::vector<const ompl::base::State *> &,
+                                 const ompl::base::Cost) {
+                    if (!solved && which == Case::CallbackThrows)
+                    {
+                        solved = true;
+                        throw std::runtime_error("the caller's callback");
+                    }
+                    solved = true;
+                });
+            if (which == Case::CallbackThrows)
+                EXPECT_THROW(planner->solve(ompl::base::plannerNonTerminatingCondition()), std::runtime_error);
+            else
+                ASSERT_EQ(planner->solve(ompl::base::PlannerTerminationCondition([&solved] { return solved; })),
+                          ompl::base::PlannerStatus::EXACT_SOLUTION);
+            ASSERT_TRUE(solved && policy->seen.empty());
+            const std::size_t batches = planner->counters().batches;
+            if (which != Case::CallbackThrows)
+                planner->setPolicy(policy);
             planner->solve(ompl::base::plannerNonTerminatingCondition());
             ASSERT_FALSE(policy->seen.empty()) << "seed " << seed;
-            const auto [given, path] = policy->seen.front();
-            ASSERT_TRUE(std::isfinite(path)) << "seed " << seed;
-            telling[features ? 1 : 0] += path > 0.0;
-            if (features)
-                EXPECT_EQ(given, path) << "seed " << seed;
+            const Decision first = policy->seen.front();
+            ASSERT_TRUE(std::isfinite(first.path)) << "seed " << seed;
+            telling += first.batches == batches && first.path > 0.0;
+            if (which == Case::PlainPolicySetAfter)
+                EXPECT_TRUE(std::isnan(first.given)) << "seed " << seed << ": " << first.given;
             else
-                EXPECT_TRUE(std::isnan(given)) << "seed " << seed << ": " << given;
+                EXPECT_EQ(first.given, first.path) << "seed " << seed;
         }
-    EXPECT_GE(telling[0], 2);
-    EXPECT_GE(telling[1], 2);
+        EXPECT_GE(telling, 1) << static_cast<int>(which);
+    }
 }
 
 TEST(LITstar, AClearedSolutionIsHandedBackWithTheStatusThatReportsIt)
