@@ -298,6 +298,8 @@ namespace lit
         bestPathStates_.clear();
         rhoLocalBPending_ = false;
         rhoLocalBPath_.clear();
+        batchSize_ = static_cast<unsigned int>(std::max(1, policy_->initialBatchSize()));
+        neighbourFactor_ = policy_->initialNeighbourFactor();
         improvements_ = 0u;
         counters_ = LITstarCounters{};
         accumulatedTime_ = 0.0;

@@ -891,6 +891,35 @@ TEST(LITstar, PsiKDecisionsAfterASolutionReadTheCurrentPathFeature)
     }
 }
 
+TEST(LITstar, ClearGoesBackToThePolicysInitialParameters)
+{
+    // currentBatchSize() and currentNeighbourFactor() reported the cleared problem's last decisions.
+    struct Constant : ParameterPolicy
+    {
+        std::string name() const override
+        {
+            return "constant";
+        }
+        int initialBatchSize() const override
+        {
+            return 30;
+        }
+        double decide(const DecisionContext &context) override
+        {
+            return context.kind == DecisionKind::BatchSize ? 37.0 : 7.0;
+        }
+    };
+    BoxProblem problem = test::narrowPassage(2, 1e-3);
+    auto planner = batchLimited(problem, 3u);
+    planner->setPolicy(std::make_shared<Constant>());
+    ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    EXPECT_EQ(planner->currentBatchSize(), 37u);
+    EXPECT_EQ(planner->currentNeighbourFactor(), 7.0);
+    planner->clear();
+    EXPECT_EQ(planner->currentBatchSize(), 30u);
+    EXPECT_EQ(planner->currentNeighbourFactor(), M_E);
+}
+
 TEST(LITstar, AClearedSolutionIsHandedBackWithTheStatusThatReportsIt)
 {
     // solve() answered EXACT_SOLUTION with no path in the problem definition after the caller cleared it.

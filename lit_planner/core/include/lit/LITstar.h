@@ -132,7 +132,7 @@ namespace lit
         {
             return statusMessage_;
         }
-        /** \brief Current B and psi_K. */
+        /** \brief Current B and psi_K (the policy's initial ones after clear() and before a problem is solved). */
         unsigned int currentBatchSize() const
         {
             return batchSize_;
@@ -360,7 +360,6 @@ namespace lit
          *  points, answers and call count, without two virtual calls and an OMPL state per check); else null. */
         std::shared_ptr<const BoxWorldValidityChecker> boxChecker_;
         std::vector<double> point_;
-        std::vector<litstar::State *> scratch_;
         /** \brief The neighbours of the state being expanded and their distances (collectNeighbours(); kept to avoid
          *  two allocations per expansion). The k nearest take their distances from the graph's cache, which holds
          *  distance()'s values to the bit: each neighbour's distance was computed up to three times per expansion. */
