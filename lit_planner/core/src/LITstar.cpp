@@ -114,7 +114,7 @@ namespace lit
         if (batchSize == 0u || batchSize > static_cast<unsigned int>(std::numeric_limits<int>::max()))
             throw ompl::Exception("LITstar: the batch size must be between 1 and 2^31 - 1");
         if (policy_ && policy_->name() == "fixed")
-            policy_ = fixedPolicy(batchSize);
+            setPolicy(fixedPolicy(batchSize));
         else if (policy_)
             OMPL_WARN("LITstar: batch_size %u is the fixed policy's B; the '%s' policy decides B itself (the value is "
                       "kept for a later setPolicyName(\"fixed\"))",
@@ -159,9 +159,9 @@ namespace lit
     void LITstar::setPolicyName(const std::string &name)
     {
         if (name == "fixed")
-            policy_ = fixedPolicy(fixedBatchSize_);
+            setPolicy(fixedPolicy(fixedBatchSize_));
         else if (name == "fit")
-            policy_ = std::make_shared<FitPolicy>();
+            setPolicy(std::make_shared<FitPolicy>());
         else
             throw ompl::Exception("LITstar: policy '" + name +
                                   "' cannot be set by name (use 'fixed' or 'fit'; tensor and external policies "
@@ -176,6 +176,12 @@ namespace lit
         if (!policy)
             throw ompl::Exception("LITstar: the policy must not be null");
         policy_ = std::move(policy);
+        // The new policy's B until a solution (B is decided at improvements), and its psi_K until its first decision,
+        // or throughout if it decides none: the previous policy's values are not carried over.
+        if (!std::isfinite(bestCost_))
+            batchSize_ = static_cast<unsigned int>(std::max(1, policy_->initialBatchSize()));
+        if (!std::isfinite(bestCost_) || !policy_->decidesNeighbourFactor())
+            neighbourFactor_ = policy_->initialNeighbourFactor();
         // getBatchSize() and the batch_size parameter (what OMPL's Benchmark records) report a fixed policy's B.
         if (policy_->name() == "fixed")
             fixedBatchSize_ = static_cast<unsigned int>(policy_->initialBatchSize());

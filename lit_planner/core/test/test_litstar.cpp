@@ -912,11 +912,22 @@ TEST(LITstar, ClearGoesBackToThePolicysInitialParameters)
     BoxProblem problem = test::narrowPassage(2, 1e-3);
     auto planner = batchLimited(problem, 3u);
     planner->setPolicy(std::make_shared<Constant>());
+    EXPECT_EQ(planner->currentBatchSize(), 30u);
     ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
     EXPECT_EQ(planner->currentBatchSize(), 37u);
     EXPECT_EQ(planner->currentNeighbourFactor(), 7.0);
     planner->clear();
     EXPECT_EQ(planner->currentBatchSize(), 30u);
+    EXPECT_EQ(planner->currentNeighbourFactor(), M_E);
+    // A policy that decides no psi_K, set after a solution, plans with its own (e), not the previous policy's 7;
+    // B stays the last decision until the next solution.
+    ASSERT_EQ(planner->solve(ompl::base::plannerNonTerminatingCondition()), ompl::base::PlannerStatus::EXACT_SOLUTION);
+    EXPECT_EQ(planner->currentNeighbourFactor(), 7.0);
+    planner->setPolicyName("fit");
+    EXPECT_EQ(planner->currentNeighbourFactor(), M_E);
+    EXPECT_EQ(planner->currentBatchSize(), 37u);
+    planner->setMaxBatches(6u);
+    planner->solve(ompl::base::plannerNonTerminatingCondition());
     EXPECT_EQ(planner->currentNeighbourFactor(), M_E);
 }
 

@@ -132,7 +132,9 @@ namespace lit
         {
             return statusMessage_;
         }
-        /** \brief Current B and psi_K (the policy's initial ones after clear() and before a problem is solved). */
+        /** \brief Current B and psi_K: the policy's initial ones until it decides them (B at a solution, psi_K at an
+         *  expansion), also after clear() and after setPolicy() (psi_K there also after a solution when the new
+         *  policy decides none). */
         unsigned int currentBatchSize() const
         {
             return batchSize_;
