@@ -89,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
         print("lit system-bench: --calls, --episodes and --kills are all 0: nothing to measure",
               file=sys.stderr)  # fmt: skip
         return 2
-    problem = _check(args) or set_domain_id(args, DEFAULT_DOMAIN_ID)
+    # The domain first: it needs no imports (_check's load torch, whose import runs ldconfig)
+    problem = set_domain_id(args, DEFAULT_DOMAIN_ID) or _check(args)
     if problem is not None:
         print(f"lit system-bench: {problem}", file=sys.stderr)
         return 2

@@ -486,7 +486,8 @@ def run(args: argparse.Namespace) -> int:
     # "" is refused by _check, not replaced by the default id
     run_id = args.run_id if args.run_id is not None else time.strftime("up-%Y%m%d-%H%M%S")
     bag = None if args.no_record else (args.bag or default_bag_root() / run_id).absolute()
-    problem = _check(args, run_id, bag) or set_domain_id(args, DEFAULT_DOMAIN_ID)
+    # The domain first: it needs no imports (_check's load torch, whose import runs ldconfig)
+    problem = set_domain_id(args, DEFAULT_DOMAIN_ID) or _check(args, run_id, bag)
     if problem is not None:
         print(f"lit up: {problem}", file=sys.stderr)
         return 2
