@@ -4,8 +4,11 @@ our choices, not the paper's, and are recorded in every exported tensor's sideca
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import asdict, dataclass, field
 from typing import Any
+
+import numpy as np
 
 from lit_learner.errors import ConfigError
 
@@ -76,14 +79,28 @@ class AgentConfig:
     def __post_init__(self) -> None:
         if self.name not in AGENT_NAMES:
             raise ConfigError(f"agent name {self.name!r} is not one of {AGENT_NAMES}")
-        if len(self.consequents) != 3 or min(self.consequents) >= max(self.consequents):
-            raise ConfigError(f"{self.name}: consequents {self.consequents} do not span a range")
+        # min() and max() skip a NaN: (20, nan, 200) passed, and every decision then failed.
+        if not (
+            len(self.consequents) == 3
+            and all(_is_number(c) for c in self.consequents)
+            and min(self.consequents) < max(self.consequents)
+        ):
+            raise ConfigError(
+                f"{self.name}: consequents {self.consequents} must be three finite numbers "
+                f"spanning a range"
+            )
         if self.rounding not in ("half_away_from_zero", "none"):
             raise ConfigError(f"{self.name}: unknown rounding {self.rounding!r}")
         if not 0.0 < self.tau <= 1.0:
             raise ConfigError(f"{self.name}: tau {self.tau} not in (0, 1]")
         if not 0.0 <= self.gamma <= 1.0:
             raise ConfigError(f"{self.name}: gamma {self.gamma} not in [0, 1]")
+        for name in ("batch_size", "buffer_size", "warmup", "beta_steps"):
+            if not _is_int(getattr(self, name)):
+                raise ConfigError(f"{self.name}: {name} {getattr(self, name)!r} is not an integer")
+        for name in ("lr_actor", "lr_critic"):
+            if not (_is_number(getattr(self, name)) and getattr(self, name) > 0.0):
+                raise ConfigError(f"{self.name}: {name} {getattr(self, name)} must be > 0")
         if self.batch_size < 1 or self.buffer_size < self.batch_size:
             raise ConfigError(
                 f"{self.name}: batch_size {self.batch_size} must be >= 1 and <= buffer_size "
@@ -93,15 +110,44 @@ class AgentConfig:
             raise ConfigError(
                 f"{self.name}: warmup {self.warmup} must be >= batch_size {self.batch_size}"
             )
-        if self.priority_eps <= 0.0:
+        if not (_is_number(self.priority_eps) and self.priority_eps > 0.0):
             raise ConfigError(f"{self.name}: priority_eps {self.priority_eps} must be > 0")
         if self.beta_steps < 1:
             raise ConfigError(f"{self.name}: beta_steps {self.beta_steps} must be >= 1")
+        # beta below 0 gave importance weights above 1, a NaN beta NaN weights and a loss blamed
+        # on the networks.
+        for name in ("beta_start", "beta_end"):
+            if not (_is_number(getattr(self, name)) and 0.0 <= getattr(self, name) <= 1.0):
+                raise ConfigError(f"{self.name}: {name} {getattr(self, name)} not in [0, 1]")
         for name in ("alpha", "noise_std", "logit_penalty"):
-            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0.0):
+            if not (_is_number(getattr(self, name)) and getattr(self, name) >= 0.0):
                 raise ConfigError(f"{self.name}: {name} {getattr(self, name)} must be >= 0")
-        if not (math.isfinite(self.fuzzy_sigma) and self.fuzzy_sigma > 0.0):
-            raise ConfigError(f"{self.name}: fuzzy_sigma {self.fuzzy_sigma} must be > 0")
+        if not (
+            len(self.fuzzy_centres) == 3
+            and all(_is_number(c) for c in self.fuzzy_centres)
+            and self.fuzzy_centres[0] < self.fuzzy_centres[1] < self.fuzzy_centres[2]
+        ):
+            raise ConfigError(
+                f"{self.name}: fuzzy_centres {self.fuzzy_centres} must be three increasing "
+                f"finite numbers"
+            )
+        # 2 sigma^2 is a divisor: 1e-200 passed and made it 0.
+        if not (_is_number(self.fuzzy_sigma) and 1e-6 <= self.fuzzy_sigma <= 1e6):
+            raise ConfigError(f"{self.name}: fuzzy_sigma {self.fuzzy_sigma} not in [1e-6, 1e6]")
+        if not (
+            self.conv_kernels
+            and all(_is_int(k) and k >= 1 and k % 2 == 1 for k in self.conv_kernels)
+            and _is_int(self.conv_channels)
+            and self.conv_channels >= 1
+            and self.hidden
+            and all(_is_int(h) and h >= 1 for h in self.hidden)
+        ):
+            raise ConfigError(
+                f"{self.name}: conv_kernels {self.conv_kernels} (odd, >= 1), conv_channels "
+                f"{self.conv_channels} and hidden {self.hidden} (each >= 1) do not make a network"
+            )
+        if not (_is_number(self.actor_last_init) and self.actor_last_init >= 0.0):
+            raise ConfigError(f"{self.name}: actor_last_init {self.actor_last_init} must be >= 0")
 
     @property
     def action_min(self) -> float:
@@ -221,6 +267,14 @@ class LearnerConfig:
             )
         if self.device != "cpu":
             raise ConfigError(f"device {self.device!r}: the learner runs on the CPU only")
+        # Both failed later, inside torch or numpy, as a bare ValueError or RuntimeError.
+        if not (_is_int(self.seed) and 0 <= self.seed < 2**62):
+            raise ConfigError(f"seed {self.seed!r} must be an integer in [0, 2^62)")
+        if not (_is_int(self.num_threads) and self.num_threads >= 1):
+            raise ConfigError(f"num_threads {self.num_threads!r} must be an integer >= 1")
+        for name in ("train_b", "train_k"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"{name} {getattr(self, name)!r} is not true or false")
 
     def agent(self, name: str) -> AgentConfig:
         """The config of agent ``name``."""
@@ -245,6 +299,20 @@ class LearnerConfig:
         rest = {k: v for k, v in doc.items() if k not in ("b", "k", "reward")}
         reward = {"w_search": 0.0, **doc["reward"]}  # likewise without the K search cost
         return cls(b=agent(doc["b"]), k=agent(doc["k"]), reward=RewardConfig(**reward), **rest)
+
+
+def _is_number(value: Any) -> bool:
+    """A finite real number (not a bool)."""
+    return (
+        isinstance(value, numbers.Real)
+        and not isinstance(value, (bool, np.bool_))
+        and math.isfinite(value)
+    )
+
+
+def _is_int(value: Any) -> bool:
+    """An integer (not a bool)."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
 
 
 def _jsonable(value: Any) -> Any:

@@ -377,6 +377,11 @@ def _checkpoint_with_a_pending_step(path: Path) -> dict[str, Any]:
         (("agents", "B", "replay", "position"), 0.0, r"replay position 0\.0 is not a whole"),
         # Was a ReplayError out of load_checkpoint, not the CheckpointError it documents.
         (("agents", "B", "replay", "tree", "capacity"), 7, "sum tree of capacity 7 loaded"),
+        # Config values its checks let through failed in torch or numpy: a bare ValueError or
+        # RuntimeError out of load_checkpoint, and a traceback out of lit train --resume.
+        (("config", "b", "lr_actor"), -1.0, r"bad config in checkpoint: B: lr_actor -1\.0 must"),
+        (("config", "num_threads"), 0, r"bad config in checkpoint: num_threads 0 must be"),
+        (("config", "seed"), -1, r"bad config in checkpoint: seed -1 must be"),
     ],
     ids=[
         "version",
@@ -389,6 +394,9 @@ def _checkpoint_with_a_pending_step(path: Path) -> dict[str, Any]:
         "size",
         "position-type",
         "tree",
+        "learning-rate",
+        "threads",
+        "seed",
     ],
 )
 def test_a_checkpoint_value_of_the_wrong_type_is_refused_at_load(
@@ -675,10 +683,23 @@ def test_configs_that_would_divide_by_zero_or_diverge_are_refused() -> None:
                 {"w_c": float("nan")}, {"nu_min": float("nan")}, {"nu_min": -1.0}):  # fmt: skip
         with pytest.raises(ConfigError, match=next(iter(bad))):
             RewardConfig(**bad)
+    nan = float("nan")
+    # Each was accepted and failed later: a NaN consequent or centre at every decision (min and
+    # max skip a NaN), sigma 1e-200 as a division by zero, beta -0.5 as importance weights
+    # above 1, a NaN beta or priority_eps as NaN losses blamed on the networks.
     for bad in ({"fuzzy_sigma": 0.0}, {"noise_std": -0.1}, {"alpha": -1.0},
-                {"logit_penalty": float("inf")}):  # fmt: skip
+                {"logit_penalty": float("inf")}, {"consequents": (3.0, nan, 15.0)},
+                {"consequents": (3.0, 9.0)}, {"fuzzy_sigma": 1e-200},
+                {"fuzzy_centres": (0.0, nan, 1.0)}, {"fuzzy_centres": (1.0, 0.5, 0.0)},
+                {"beta_start": -0.5}, {"beta_end": nan}, {"priority_eps": nan},
+                {"lr_actor": -1.0}, {"lr_critic": nan}, {"batch_size": 64.0},
+                {"conv_kernels": (3, 4)}, {"hidden": ()}, {"actor_last_init": nan}):  # fmt: skip
         with pytest.raises(ConfigError, match=next(iter(bad))):
             AgentConfig.neighbour_agent(**bad)
+    for bad in ({"seed": -1}, {"seed": 1.5}, {"num_threads": 0}, {"train_b": "yes"}):
+        with pytest.raises(ConfigError, match=next(iter(bad))):
+            LearnerConfig(**bad)
+    LearnerConfig(seed=np.int64(3))  # a numpy integer is an integer
     RewardConfig(w_search=0.0, nu_min=0.0)  # allowed: no search cost, no kappa floor
 
 
