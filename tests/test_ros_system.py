@@ -213,6 +213,15 @@ def test_the_planner_node_uses_its_tensors_as_trained_and_sees_them_change(
     error = result.json()
     assert "k_tensor.npy" in error["message"] and "not finite" in error["message"], error
     assert error["code"] == "unavailable", error  # the file's fault: not "internal"
+    # The same text sent again once the files are repaired is planned: the copy of an answer
+    # kept for resent requests ("unavailable": try again later) answered it before, for good.
+    resent = json.dumps(
+        {"schema": "lit_msgs_json/PlanRequest", "version": 1, "seq": 0, "stamp_ns": 1,
+         "source": "resender", "run_id": "r1",
+         "payload": {"scenario": "np4", "max_iterations": 5000, "request_id": "again"}}
+    ).encode()  # fmt: skip
+    result = ros.call("--payload-only", "raw", "/lit/planner/plan", "-", stdin=resent)
+    assert result.returncode == 1 and result.json()["code"] == "unavailable", result
     # Cut short (a copy that stopped half-way), then whole again but not the data its sidecar's
     # SHA-256 names: each answered with an Error naming the file and the defect.
     whole = (folder / "k_tensor.npy").read_bytes()
@@ -231,6 +240,9 @@ def test_the_planner_node_uses_its_tensors_as_trained_and_sees_them_change(
     np.save(folder / "k_tensor.npy", values)
     result = plan()
     assert result.returncode == 0 and result.json()["solved"] is True, result
+    result = ros.call("--payload-only", "raw", "/lit/planner/plan", "-", stdin=resent)
+    assert result.returncode == 0 and result.json()["solved"] is True, result
+    assert result.json()["request_id"] == "again", result
     assert planner.running()
     _no_traceback(planner)
 

@@ -147,7 +147,8 @@ ID_GENERATIONS = 4096
 PLAN_COPIES_KEPT = 32
 """Answered plan requests, the latest, whose copies (the same text from the same client: a
 request sent again because its answer was slow to come) are answered with their result instead
-of being planned again (``PlannerNode._plan_copies``; those queued or running are all kept)."""
+of being planned again (``PlannerNode._plan_copies``; those queued or running are all kept; one
+answered ``unavailable`` for its tensor files is not: its copies are planned again)."""
 EXECUTOR_THREADS = 8
 """The planner node's executor threads at least; more for a long queue (``PlannerNode.threads``)."""
 SPARE_THREADS = 3
@@ -998,6 +999,12 @@ class PlannerNode:
                     self._running = None
                     if job in self._requests:
                         self._requests.remove(job)
+                    if isinstance(job.error, TensorFileError):
+                        # "unavailable": try again later. A copy sent once the files were
+                        # repaired got this answer again, and the same text never planned.
+                        # (Copies waiting now still get it: they came while it was the answer.)
+                        for key in [k for k, kept in self._plan_copies.items() if kept is job]:
+                            del self._plan_copies[key]
                 job.done.set()
 
     def _run(self, job: Job) -> None:
