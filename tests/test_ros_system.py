@@ -1392,7 +1392,21 @@ def test_bad_input_is_answered_with_errors(ros: RosSystem) -> None:
     error = result.json()
     assert error["code"] == "invalid-request", error
     assert error["field"] == "$.payload.planning_time", error
+    assert error["rule"] == "order", error
     assert "before the previous message's 0.5" in error["message"], error
+    # Two planners' episodes whose names joined with bars read alike ("/a|x", "r", "e" and "/a",
+    # "x|r", "e") are two episodes: they were one, and the second's earlier time was refused.
+    for source, run_id, planning_time in (("/a|x", "r", 0.5), ("/a", "x|r", 0.2)):
+        text = json.dumps(
+            _envelope(
+                "DecideRequest",
+                _decide_payload(planning_time=planning_time, episode_id="e"),
+                source=source,
+                run_id=run_id,
+            )
+        )
+        result = ros.call("--payload-only", "raw", DECIDE, text)
+        assert result.returncode == 0 and result.json()["agent"] == "B", (source, result)
 
     result = ros.call("--payload-only", "plan", "--scenario", "np4", "--iterations", "2000")
     assert result.returncode == 0, result

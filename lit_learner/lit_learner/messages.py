@@ -12,6 +12,17 @@ Features = tuple[float, float, float]
 """Raw features (rho_global, rho_local, measure), each in [0, 1]."""
 
 
+def episode_key(source: str, run_id: str, episode_id: str) -> str:
+    """The learner core's episode id of a client's episode: ``source|run_id|episode_id``, each
+    part's backslashes and bars escaped with a backslash. Joined as they were, ("pl|X", "r", "e")
+    and ("pl", "X|r", "e") were one episode: two planners' steps paired into one transition."""
+
+    def escaped(part: str) -> str:
+        return part.replace("\\", "\\\\").replace("|", "\\|")
+
+    return "|".join(escaped(part) for part in (source, run_id, episode_id))
+
+
 @dataclass(frozen=True)
 class DecisionRequest:
     """The planner asks agent ``agent`` for a value; also carries the reward information."""

@@ -4,7 +4,8 @@
   ``load_namespace`` holds a DecideRequest or EpisodeEnd envelope, the response's ``message`` the
   DecideResponse / EpisodeEndResponse, or an Error with ``success = false``).
 - Episodes of several planners are kept apart: the learner core sees the episode as
-  ``<source>|<run_id>|<episode_id>`` (source = the planner node's fully qualified name).
+  ``<source>|<run_id>|<episode_id>`` (source = the planner node's fully qualified name; a ``|``
+  or ``\\`` within a part is escaped with a backslash: ``messages.episode_key``).
 - Answers a decision from the actor snapshots published after the last gradient step, without
   any lock, and pairs and stores it after the answer is sent: at once when the core's lock is
   free, else (a checkpoint is copying the state) as soon as it is, in order; an episode end
@@ -64,7 +65,7 @@ from lit_planner.safe_logger import SafeLogger
 
 from lit_learner.errors import ExportError, PairingError, ReplayError
 from lit_learner.errors import MessageError as CoreMessageError
-from lit_learner.messages import DecisionRequest, EpisodeEnd
+from lit_learner.messages import DecisionRequest, EpisodeEnd, episode_key
 from lit_learner.pairing import check_order
 
 NODE_NAME = "lit_learner"
@@ -438,7 +439,7 @@ class LearnerNode:
             self.log.warning(f"rejected: {exc}")
             return response
         payload = message.payload
-        episode = f"{message.source}|{message.run_id}|{payload['episode_id']}"
+        episode = episode_key(message.source, message.run_id, payload["episode_id"])
         try:
             if message.name == "DecideRequest":
                 decision = DecisionRequest(
@@ -573,6 +574,9 @@ class LearnerNode:
                     "invalid-request",
                     str(exc),
                     field=_payload_field(exc),
+                    # The episode's messages go back (in time, improvements or cost): rule null
+                    # said nothing of which rule it broke.
+                    rule="order" if isinstance(exc, PairingError) else None,
                     request_schema=message.name,
                     request_seq=message.seq,
                 )

@@ -487,7 +487,7 @@ def train_offline(
 
 
 def _replay_episode(core: Any, episode: RecordedEpisode) -> None:
-    from lit_learner.messages import DecisionRequest, EpisodeEnd
+    from lit_learner.messages import DecisionRequest, EpisodeEnd, episode_key
     from lit_learner.train import BUDGET_TOLERANCE, minimum_cost
     from lit_planner import scenarios
 
@@ -498,7 +498,7 @@ def _replay_episode(core: Any, episode: RecordedEpisode) -> None:
     c_min = minimum_cost(problem)
     solutions = sorted(episode.solutions, key=lambda s: (s["planning_time"], s["improvement"]))
     times = [s["planning_time"] for s in solutions]
-    episode_id = "|".join(episode.key)
+    episode_id = episode_key(*episode.key)
     for observation, decision in zip(episode.observations, episode.decisions, strict=True):
         kind = decision["kind"]
         at = observation["planning_time"]

@@ -275,3 +275,12 @@ def test_state_round_trip() -> None:
     copy.load_state_dict(pairing.state_dict())
     nxt = request("B", "e", 2.0, 0.3, improvements=2, cost=2.5)
     assert copy.step(nxt, 0.3) == pairing.step(nxt, 0.3)
+
+
+def test_episode_keys_of_different_clients_differ_whatever_bars_their_names_hold() -> None:
+    from lit_learner.messages import episode_key
+
+    assert episode_key("/lit/planner", "run", "ep-1") == "/lit/planner|run|ep-1"  # as before
+    names = [("pl|X", "r", "e"), ("pl", "X|r", "e"), ("pl", "X", "r|e"), ("pl\\", "|r", "e"),
+             ("pl\\|", "r", "e"), ("pl", "\\|r", "e"), ("", "", "pl|X|r|e")]  # fmt: skip
+    assert len({episode_key(*name) for name in names}) == len(names)

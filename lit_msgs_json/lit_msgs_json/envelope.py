@@ -153,7 +153,9 @@ class MessageError(ValueError):
         """JSON path relative to the envelope, e.g. ``$.payload.rho_global``; None if none."""
         self.rule = rule
         """Broken rule: a JSON Schema keyword (``minimum``, ``required``, ...) or ``finite``,
-        ``json``, ``max-bytes``, ``max-depth``, ``version``, ``schema``; None if none."""
+        ``json``, ``max-bytes``, ``max-depth``, ``version``, ``schema``, or one of the nodes'
+        own (``valid-state``, ``litstar-only``, ``order``: an episode's messages went back);
+        None if none."""
         self.request_schema = request_schema
         """Short name of the schema the message claimed, when it was readable."""
         self.request_seq = request_seq
