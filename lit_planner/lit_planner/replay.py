@@ -2184,6 +2184,8 @@ class BenchBag:
     already, each as ``<topic> seq <n> of run <id> in <bag>``."""
     custom_data: dict[str, str] = field(default_factory=dict)
     """The ``custom_data`` of the first bag, which holds the configuration used."""
+    warnings: list[str] = field(default_factory=list)
+    """What ``replay bench`` read around (a malformed timing in the first bag's metadata)."""
 
 
 def read_bench(paths: Sequence[str | Path]) -> BenchBag:
@@ -2358,12 +2360,19 @@ def replay_bench(paths: Sequence[str | Path], out: Path) -> tuple[dict[str, Any]
         # from before 2026-12-05 and interrupted runs: from the configuration's stamp to the
         # last run record's, which leaves out the set-up before the first.)
         try:
-            finished = datetime.fromisoformat(timing[bag.BENCH_FINISHED_KEY])
-            duration = float(timing[bag.BENCH_DURATION_KEY])
-            if not (math.isfinite(duration) and duration >= 0):
+            recorded_finished = datetime.fromisoformat(timing[bag.BENCH_FINISHED_KEY])
+            recorded_duration = float(timing[bag.BENCH_DURATION_KEY])
+            if not (math.isfinite(recorded_duration) and recorded_duration >= 0):
                 raise ValueError(f"duration {timing[bag.BENCH_DURATION_KEY]!r}")
+            finished, duration = recorded_finished, recorded_duration
         except ValueError as error:
-            raise ReplayError(f"malformed bench timing in the bag's metadata: {error}") from None
+            # It stopped every replay of the bag for good (salvage and compact copy it), and did
+            # not name the bag: the span of the records stands in, as for a bag without it.
+            recorded.warnings.append(
+                f"{paths[0]}: malformed {bag.BENCH_FINISHED_KEY} / {bag.BENCH_DURATION_KEY} in "
+                f"its metadata.yaml ({error}); the header's finish time and duration are those "
+                "of the configuration's and the last run record's stamps instead"
+            )
     planned = config.runs * len(config.scenarios) * len(config.planners)
     incomplete = None
     if len(recorded.runs) < planned:
@@ -2893,6 +2902,8 @@ def _bench_into(args: argparse.Namespace, out: Path) -> int:
         return 0
     if recorded.skipped.total:
         print(f"{PROG} bench: {recorded.skipped.line()}", file=sys.stderr)
+    for warning in recorded.warnings:
+        print(f"{PROG} bench: warning: {warning}", file=sys.stderr)
     if recorded.duplicates:
         print(
             f"{PROG} bench: warning: {len(recorded.duplicates)} duplicate run records ignored (an "
