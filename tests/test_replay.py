@@ -2040,3 +2040,89 @@ def test_a_bench_bag_whose_config_message_is_damaged_is_said_to_be_one(tmp_path:
         ), result.stderr
         assert reason in result.stderr and "damaged or of a newer LIT*" in result.stderr
         assert "EpisodeSummary" not in result.stderr
+
+
+def _bag_with_other_programs_topics(path: Path, json_topic: bool) -> list[bytes]:
+    """A bag as a robot's own recorder writes it: a LIT* topic, a topic of a message type ROS 2
+    Jazzy does not have (its definition, with a nested type, in the file), and with
+    ``json_topic`` one serialized as JSON. Returns the custom type's serialized messages."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    definition = "Reading[] readings\nstring frame\n" + "=" * 80 + "\n"
+    definition += "MSG: acme_msgs/Reading\nfloat64 value\nint32 sensor\n"
+    store.register(get_types_from_msg(definition, "acme_msgs/msg/Readings"))
+    readings, reading = store.types["acme_msgs/msg/Readings"], store.types["acme_msgs/msg/Reading"]
+    text = store.types[bag.STRING_TYPE]
+    custom = [
+        store.serialize_cdr(
+            readings(readings=[reading(value=0.5 * i, sensor=i)], frame=f"f{i}"),
+            "acme_msgs/msg/Readings",
+        )
+        for i in range(4)
+    ]
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        writer.set_custom_data(bag.RUN_ID_KEY, "r1")
+        observations = writer.add_connection("/lit/observation", bag.STRING_TYPE, typestore=store)
+        acme = writer.add_connection("/acme/readings", "acme_msgs/msg/Readings", typestore=store)
+        for seq in range(3):
+            writer.write(
+                observations, 10 + seq, store.serialize_cdr(text(data=_obs(seq)), bag.STRING_TYPE)
+            )
+        for stamp, data in enumerate(custom):
+            writer.write(acme, 20 + stamp, data)
+        if json_topic:
+            other = writer.add_connection(
+                "/acme/json", bag.STRING_TYPE, typestore=store, serialization_format="json"
+            )
+            writer.write(other, 30, b'{"data": "hello"}')
+    return custom
+
+
+def test_another_programs_message_types_are_kept_and_what_cannot_be_is_named(
+    tmp_path: Path,
+) -> None:
+    """A topic of a type ROS 2 Jazzy lacks (the file carries its definition): salvage dropped
+    its messages, saying only "N unusable messages dropped", and compact failed with "TypesysError:
+    Type ... is unknown". A topic serialized as JSON: info, verify and bench called the bag damaged
+    and sent the user to salvage."""
+    from mcap.reader import make_reader
+
+    def acme(path: Path) -> list[bytes]:
+        (file,) = path.glob("*.mcap")
+        with file.open("rb") as stream:
+            return [m.data for _, _, m in make_reader(stream).iter_messages(["/acme/readings"])]
+
+    source = tmp_path / "robot"
+    custom = _bag_with_other_programs_topics(source, json_topic=False)
+    salvaged = _replay("salvage", source, "-o", tmp_path / "salvaged")
+    assert salvaged.returncode == 0, salvaged.stdout + salvaged.stderr
+    assert "dropped" not in salvaged.stdout, salvaged.stdout
+    assert "/acme/readings: 4 messages recovered" in salvaged.stdout, salvaged.stdout
+    assert acme(tmp_path / "salvaged") == custom
+    compacted = _replay("compact", source, tmp_path / "compacted")
+    assert compacted.returncode == 0, compacted.stdout + compacted.stderr
+    assert acme(tmp_path / "compacted") == custom
+    for copy in ("salvaged", "compacted"):  # readable, its definition kept
+        info = replay.bag_info(tmp_path / copy)
+        assert {t["topic"]: t["type"] for t in info["topics"]}["/acme/readings"] == (
+            "acme_msgs/msg/Readings"
+        )
+
+    source = tmp_path / "robot-json"
+    _bag_with_other_programs_topics(source, json_topic=True)
+    for command in ("info", "verify"):
+        _assert_clean_error(
+            _replay(command, source), "topics not serialized as CDR: /acme/json (json)"
+        )
+    assert "damaged" not in _replay("info", source).stderr
+    salvaged = _replay("salvage", source, "-o", tmp_path / "salvaged-json")
+    assert salvaged.returncode == 0, salvaged.stdout + salvaged.stderr
+    assert (
+        "1 messages dropped: /acme/json: serialized as 'json', not CDR, which lit replay does "
+        "not read (the source keeps them)"
+    ) in salvaged.stdout, salvaged.stdout
+    assert acme(tmp_path / "salvaged-json") == custom
+    info = replay.bag_info(tmp_path / "salvaged-json")
+    assert "/acme/json: serialized as 'json'" in info["custom_data"]["lit.salvage"]

@@ -327,7 +327,7 @@ class BagReader:
             self._reader = Reader(self.path)
             self._reader.open()
         except Exception as error:  # noqa: BLE001 -- damaged files raise anything
-            foreign = _not_ros2(self.path)
+            foreign = _not_ros2(self.path) or _not_cdr(self.path)
             if foreign:
                 raise ReplayError(f"{self.path}: {foreign}") from None
             reason = _mcap_damage(self.path) or _metadata_damage(self.path) or _describe(error)
@@ -662,6 +662,38 @@ def _mcap_damage(path: Path) -> str | None:
                 f"than the file's {size}: the record's length is damaged"
             )
     return None
+
+
+def _not_cdr(path: Path) -> str | None:
+    """The topics of bag ``path`` serialized otherwise than as CDR, which rosbags' reader refuses
+    for the whole bag, in words; None when there are none (or none can be told). The error
+    blamed damage and sent the user to salvage, which cannot make such a topic readable."""
+    topics: dict[str, str] = {}
+    metadata_file = path / "metadata.yaml"
+    try:
+        if path.is_dir() and metadata_file.is_file():  # what rosbags reads
+            for entry in load_metadata(metadata_file).get("topics_with_message_count") or []:
+                meta = entry["topic_metadata"]
+                topics[str(meta["name"])] = str(meta.get("serialization_format", "cdr"))
+        else:
+            from mcap.reader import make_reader
+
+            for file in sorted(path.glob("*.mcap")) if path.is_dir() else [path]:
+                with file.open("rb") as handle:
+                    summary = make_reader(handle).get_summary()
+                for channel in (summary.channels if summary else {}).values():
+                    topics[channel.topic] = channel.message_encoding
+    except Exception:  # noqa: BLE001, S110 -- damage: reported elsewhere
+        pass
+    odd = {topic: form for topic, form in topics.items() if form != "cdr"}
+    if not odd:
+        return None
+    named = ", ".join(f"{topic} ({form})" for topic, form in sorted(odd.items()))
+    return (
+        f"topics not serialized as CDR: {named}; rosbags, which lit replay reads bags with, "
+        "reads no bag that holds one (this is not damage: `lit replay salvage` writes a copy "
+        "without them)"
+    )
 
 
 def _metadata_damage(path: Path) -> str | None:
@@ -1291,8 +1323,10 @@ class SalvageResult:
     messages: dict[str, int] = field(default_factory=dict)
     """Messages recovered per topic."""
     dropped: int = 0
-    """Messages read but dropped: no channel or schema, a type unknown to the typestore, or
-    bytes that do not deserialize."""
+    """Messages read but dropped: no channel or schema, a definition that does not parse, a
+    serialization other than CDR, or bytes that do not deserialize."""
+    dropped_why: dict[str, int] = field(default_factory=dict)
+    """The dropped messages per topic and reason (``<topic>: <reason>``)."""
     damaged_chunks: list[str] = field(default_factory=list)
     """Chunks whose inner records broke off (the records before the break are kept)."""
     notes: list[str] = field(default_factory=list)
@@ -1405,8 +1439,16 @@ def salvage(
         schema = (
             gathered.schemas.get((result.file, channel.schema_id)) if channel is not None else None
         )
-        if channel is None or schema is None or not _cdr_ok(schema.name, data):
+        why = (
+            f"channel {channel_id}: no channel record"
+            if channel is None
+            else f"{channel.topic}: no schema record"
+            if schema is None
+            else _unusable(channel, schema, data)
+        )
+        if why is not None:
             result.dropped += 1
+            result.dropped_why[why] = result.dropped_why.get(why, 0) + 1
             continue
         where = (
             first_file.setdefault((channel.topic, log_ns, data), result.file)
@@ -1988,18 +2030,64 @@ class _Bytes:
         return piece
 
 
-def _cdr_ok(msgtype: str, data: bytes) -> bool:
-    """Whether ``data`` deserializes as ``msgtype`` (which the Jazzy typestore must know)."""
-    store = bag.typestore()
-    if msgtype not in store.types:
-        return False
+def _unusable(channel: Any, schema: Any, data: bytes) -> str | None:
+    """Why a salvaged message of ``channel`` cannot be kept (``<topic>: <reason>``), None when it
+    deserializes: with the Jazzy typestore, or for a type that lacks with the definition the file
+    carries (such messages were dropped, without their topic or the reason being named)."""
+    if channel.message_encoding != "cdr":
+        return (
+            f"{channel.topic}: serialized as {channel.message_encoding!r}, not CDR, which lit "
+            "replay does not read (the source keeps them)"
+        )
     try:
-        message = store.deserialize_cdr(data, msgtype)
-        if msgtype == bag.STRING_TYPE:
+        store = _store_for(schema.name, schema.encoding, bytes(schema.data))
+    except ValueError as error:
+        return f"{channel.topic}: {error}"
+    try:
+        message = store.deserialize_cdr(data, schema.name)
+        if schema.name == bag.STRING_TYPE:
             message.data.encode("utf-8")
     except Exception:  # noqa: BLE001 -- damaged CDR raises anything
-        return False
-    return True
+        return f"{channel.topic}: bytes that do not deserialize as {schema.name}"
+    return None
+
+
+@cache
+def _store_for(msgtype: str, encoding: str, definition: bytes) -> Any:
+    """The typestore that reads ``msgtype``: rosbags' Jazzy one when it knows the type, else a
+    copy of it that also holds ``definition`` (a bag's schema record: ``ros2msg`` or ``ros2idl``
+    text, with the types it uses), so another program's messages are kept.
+
+    Raises:
+        ValueError: the type is not Jazzy's and the definition does not give it.
+    """
+    if msgtype in bag.typestore().types:
+        return bag.typestore()
+    from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
+
+    parse = {"ros2msg": get_types_from_msg, "ros2idl": get_types_from_idl}.get(encoding)
+    if parse is None:
+        raise ValueError(
+            f"{msgtype} is not a ROS 2 Jazzy type and its definition is of encoding "
+            f"{encoding!r}, not ros2msg or ros2idl"
+        )
+    try:
+        text = definition.decode("utf-8")
+        types = parse(text) if encoding == "ros2idl" else parse(text, msgtype)
+        store = get_typestore(Stores.ROS2_JAZZY)
+        store.register(types)
+        store.hash_rihs01(msgtype)  # the definition is whole: every type it uses is known
+    except Exception as error:  # noqa: BLE001 -- rosbags' parsers raise many kinds
+        raise ValueError(
+            f"{msgtype} is not a ROS 2 Jazzy type and the definition the file carries does not "
+            f"give it ({_describe(error)})"
+        ) from None
+    if msgtype not in store.types:
+        raise ValueError(
+            f"{msgtype} is not a ROS 2 Jazzy type and the definition the file carries does not "
+            "define it"
+        )
+    return store
 
 
 def _write_salvaged(
@@ -2026,6 +2114,7 @@ def _write_salvaged(
             else f"{r.reason}, read {r.stopped_at} of {r.size} bytes"
         )
         + "".join(f"; {note}" for note in r.notes)
+        + "".join(f"; {n} messages dropped ({why})" for why, n in r.dropped_why.items())
         + "".join(f"; {n} messages left out as copies of {o.name}'s" for o, n in r.copies.items())
         + "".join(f"; damaged {damage}" for damage in r.damaged_chunks)  # UNVERIFIED kept ones
         for r in results
@@ -2050,6 +2139,7 @@ def _write_salvaged(
                 lambda c=channel: profiles(c),
                 log_ns,
                 data,
+                lambda s=schema: _store_for(s.name, s.encoding, bytes(s.data)),
             )
             for channel, schema, log_ns, data in kept
         ),
@@ -2059,12 +2149,15 @@ def _write_salvaged(
 def _write_bag(
     writer: Any,
     custom: dict[str, str],
-    messages: Iterable[tuple[Any, str, str, Callable[[], list[Any]], int, bytes]],
+    messages: Iterable[
+        tuple[Any, str, str, Callable[[], list[Any]], int, bytes, Callable[[], Any]]
+    ],
 ) -> int:
     """Write ``messages`` — (connection key, topic, type, offered QoS profiles (called once per
-    connection), log time, serialized data) — into the unopened ``writer`` with ``custom`` as its
-    ``custom_data``, and close it; on a failure the half-written bag folder is removed. Returns the
-    number of messages written."""
+    connection), log time, serialized data, the typestore that knows the type (called once per
+    connection)) — into the unopened ``writer`` with ``custom`` as its ``custom_data``, and close
+    it; on a failure the half-written bag folder is removed. Returns the number of messages
+    written."""
     # The source's chunk size would misstate the copy's (compact writes 1 MiB chunks).
     custom = {**custom, "lit.chunk_bytes": str(writer.chunk_bytes)}
     for key, value in custom.items():
@@ -2081,11 +2174,11 @@ def _write_bag(
     connections: dict[Any, Any] = {}
     count = 0
     try:
-        for key, topic, msgtype, profiles, log_ns, data in messages:
+        for key, topic, msgtype, profiles, log_ns, data, store in messages:
             connection = connections.get(key)
             if connection is None:
                 connection = writer.add_connection(
-                    topic, msgtype, typestore=bag.typestore(), offered_qos_profiles=profiles()
+                    topic, msgtype, typestore=store(), offered_qos_profiles=profiles()
                 )
                 connections[key] = connection
             writer.write(connection, log_ns, data)
@@ -2104,6 +2197,23 @@ def _write_bag(
             ) from None
         raise
     return count
+
+
+def _connection_store(source: Path, connection: Any) -> Any:
+    """The typestore that knows the type of a bag's ``connection``: Jazzy's, else one with the
+    definition the bag carries (compact failed on another program's type with "TypesysError:
+    Type '...' is unknown", naming neither the bag nor the topic).
+
+    Raises:
+        ReplayError: the type is not Jazzy's and the bag's definition does not give it.
+    """
+    from rosbags.interfaces import MessageDefinitionFormat
+
+    encoding = "ros2idl" if connection.msgdef.format == MessageDefinitionFormat.IDL else "ros2msg"
+    try:
+        return _store_for(connection.msgtype, encoding, connection.msgdef.data.encode("utf-8"))
+    except ValueError as error:
+        raise ReplayError(f"{source}: topic {connection.topic}: {error}") from None
 
 
 def _salvaged_custom_data(source: Path) -> dict[str, str]:
@@ -2148,7 +2258,15 @@ def compact(source: str | Path, out: str | Path) -> dict[str, Any]:
             bag.ChunkedWriter(target, chunk_bytes=bag.MAX_CHUNK_BYTES, compress=True),
             custom,
             (
-                (c.id, c.topic, c.msgtype, lambda c=c: c.ext.offered_qos_profiles, stamp, data)
+                (
+                    c.id,
+                    c.topic,
+                    c.msgtype,
+                    lambda c=c: c.ext.offered_qos_profiles,
+                    stamp,
+                    data,
+                    lambda c=c: _connection_store(source, c),
+                )
                 for c, stamp, data in reader.raw_messages()
             ),
         )
@@ -2666,6 +2784,8 @@ def _salvage(args: argparse.Namespace) -> int:
             print(f"  damaged {damage}")
         for note in result.notes:
             print(f"  {note}")
+        for why, count in result.dropped_why.items():
+            print(f"  {count} messages dropped: {why}")
         for other, count in result.copies.items():
             print(f"  {count} messages left out: {other} holds the same (a copy of it?)")
         for topic, count in sorted(result.messages.items()):
