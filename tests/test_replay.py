@@ -809,6 +809,20 @@ def test_an_empty_metadata_file_is_named(tmp_path: Path) -> None:
         _assert_clean_error(_replay(command, copy), "its metadata.yaml is empty")
 
 
+def test_a_duration_in_the_metadata_that_is_no_number_is_named(tmp_path: Path) -> None:
+    """rosbags' own words were "TypeError: can only concatenate str (not "int") to str"."""
+    copy = _sample_copy(tmp_path, "wordy")
+    metadata = copy / "metadata.yaml"
+    text = metadata.read_text()
+    assert text.startswith("rosbag2_bagfile_information:\n") and "\n  duration:\n" in text
+    head, tail = text.split("\n  duration:\n    nanoseconds: ", 1)
+    metadata.write_text(head + "\n  duration:\n    nanoseconds: abc\n" + tail.split("\n", 1)[1])
+    for command in ("info", "verify", "bench"):
+        _assert_clean_error(
+            _replay(command, copy), "its metadata.yaml's duration.nanoseconds is 'abc', not a whole"
+        )
+
+
 def test_custom_data_that_is_not_a_mapping_is_named(tmp_path: Path) -> None:
     """A list there failed every reader with "dictionary update sequence element #0 ..."."""
     copy = _sample_copy(tmp_path, "listed")

@@ -475,6 +475,11 @@ class LearnerCore:
         """
         path = Path(path)
         if not path.is_file():
+            # A folder there was "not found": the learner node then seemed to look elsewhere.
+            if path.is_dir():
+                raise CheckpointError(f"{path}: a folder, not a checkpoint file")
+            if path.exists():
+                raise CheckpointError(f"{path}: not a regular file, so not a checkpoint")
             raise CheckpointError(f"{path}: checkpoint not found")
         damage = _archive_damage(path)
         if damage is not None:  # torch.load does not check: a flipped bit was trained on

@@ -338,6 +338,8 @@ def test_deciding_while_another_thread_trains() -> None:
 def test_missing_checkpoint(tmp_path: Path) -> None:
     with pytest.raises(CheckpointError, match="checkpoint not found"):
         LearnerCore.load_checkpoint(tmp_path / "none.pt")
+    with pytest.raises(CheckpointError, match="a folder, not a checkpoint file"):
+        LearnerCore.load_checkpoint(tmp_path)  # was "not found" too
 
 
 def test_a_checkpoint_with_parts_missing_is_one_error(tmp_path: Path) -> None:

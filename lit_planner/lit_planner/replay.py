@@ -705,10 +705,30 @@ def _metadata_damage(path: Path) -> str | None:
     try:
         if not metadata_file.read_text(encoding="utf-8", errors="replace").strip():
             return "its metadata.yaml is empty"
-        load_metadata(metadata_file)
+        info = load_metadata(metadata_file)
     except (OSError, ReplayError) as error:
         return str(error)
+    # rosbags computes with these and said "TypeError: can only concatenate str (not "int") to
+    # str" of a duration that is not a number.
+    duration, start = info.get("duration"), info.get("starting_time")
+    numbers = {
+        "duration.nanoseconds": duration.get("nanoseconds") if isinstance(duration, dict) else 0,
+        "starting_time.nanoseconds_since_epoch": (
+            start.get("nanoseconds_since_epoch") if isinstance(start, dict) else 0
+        ),
+        "message_count": info.get("message_count"),
+    }
+    for entry in info.get("topics_with_message_count") or []:
+        if isinstance(entry, dict) and not _whole(entry.get("message_count")):
+            numbers["message_count of a topic"] = entry.get("message_count")
+    for name, value in numbers.items():
+        if value is not None and not _whole(value):
+            return f"its metadata.yaml's {name} is {value!r}, not a whole number"
     return None
+
+
+def _whole(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def load_metadata(path: Path) -> dict[str, Any]:
