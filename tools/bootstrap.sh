@@ -44,7 +44,11 @@ DEB_PACKAGES=(g++ cmake ninja-build libompl-dev libeigen3-dev libboost-dev
               libboost-serialization-dev libboost-filesystem-dev libboost-system-dev
               libfcl-dev libgtest-dev googletest)
 PYTHON="${LIT_PYTHON:-python3.11}"
-if ! command -v "$PYTHON" >/dev/null 2>&1; then
+if [ -n "${LIT_PYTHON:-}" ] && ! command -v "$PYTHON" >/dev/null 2>&1; then
+  # It was replaced by Debian's python3.11 without a word (and a new environment built for it).
+  die "LIT_PYTHON=$LIT_PYTHON is not an interpreter on this machine; set it to one, or unset it \
+for python3.11"
+elif ! command -v "$PYTHON" >/dev/null 2>&1; then
   # No pyenv/other 3.11 on PATH: Debian 12's own 3.11 with venv and headers does the job.
   DEB_PACKAGES+=(python3.11 python3.11-venv python3.11-dev)
   PYTHON=python3.11
@@ -79,6 +83,9 @@ run as root: apt-get install ${missing[*]}"
       --no-install-recommends "$@" >&2
   }
   if ! apt_install "${missing[@]}"; then
+    # A sudo that refuses (not in sudoers, a password without a terminal) was blamed on the network.
+    as_root true 2>/dev/null || die "installing Debian packages needs root, and sudo refused: \
+run as root: apt-get install ${missing[*]}"
     say "apt-get install failed; running apt-get update and retrying once"
     as_root env DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 update >&2 \
       || die "apt-get update failed (no network to the Debian mirrors, or apt's lists are locked?)"
@@ -116,6 +123,7 @@ if [ ! -f "$SHARED/.complete" ] || [ "$FORCE" = 1 ]; then
       rm -f "$SHARED"
     elif [ -e "$SHARED" ]; then
       say "removing incomplete or forced shared environment $SHARED"
+      rm -f "$SHARED/.complete"  # first: a removal cut short leaves an environment marked incomplete
       rm -rf "$SHARED"
     fi
     say "creating shared environment $SHARED (Python ${PY_VERSION%% *})"
@@ -123,8 +131,9 @@ if [ ! -f "$SHARED/.complete" ] || [ "$FORCE" = 1 ]; then
     say "installing requirements.lock into the shared environment"
     "$SHARED/bin/python" -m pip install --quiet --no-input -r "$LOCK" \
       || die "pip install -r requirements.lock failed (the incomplete env is rebuilt next time)"
-    "$SHARED/bin/python" -m pip check >/dev/null \
-      || die "inconsistent shared environment $SHARED (pip check)"
+    "$SHARED/bin/python" -m pip check >&2 \
+      || die "inconsistent shared environment $SHARED (pip check, above): requirements.lock pins \
+versions that do not fit together"
     # Report packages pip pulled in that the lock does not pin (the lock should be complete).
     # (.egg-info directories bundled inside the ros-* wheels are not distributions of their own.)
     unpinned="$("$SHARED/bin/python" -c 'import importlib.metadata as m
@@ -155,8 +164,10 @@ if [ "${LIT_SETUP_STOP_AFTER:-}" = shared-env ]; then
 fi
 
 # ---------------------------------------------------------------- c. per-checkout .venv
-# The .venv is tied to one shared env (and so to one Python); another one means a new .venv.
-if ! stamp_ok env "$SHARED" || [ ! -x "$VENV/bin/python" ]; then
+# The .venv is tied to one shared env (and so to one Python) and to where the checkout is (its
+# scripts, .pth files and ctest tree hold absolute paths: a copied checkout ran and tested the
+# original's code, a moved one failed at every command); either changing means a new .venv.
+if ! stamp_ok env "$SHARED $VENV" || [ ! -x "$VENV/bin/python" ]; then
   [ -e "$VENV" ] && say "recreating $VENV" || say "creating $VENV"
   rm -rf "$VENV"
   # No pip of its own: pip, setuptools, pytest, ... come from the shared env, and a bundled older
@@ -197,12 +208,15 @@ PYEOF
   # Launchers for the shared env's commands (pytest, ruff, pip, ...) that run under .venv's
   # interpreter, so they see the checkout's editable packages too.
   shebang="#!$SHARED/bin/python"
+  # An environment of the former key is reached through a link: its scripts name its own path.
+  real_shebang="#!$(readlink -f "$SHARED")/bin/python"
   for tool in "$SHARED"/bin/*; do
     name="$(basename "$tool")"
     case "$name" in python*|activate*|Activate*) continue ;; esac
     [ -f "$tool" ] || continue  # bin/__pycache__ and the like
     [ -e "$VENV/bin/$name" ] && continue
-    if [ "$(head -c "${#shebang}" "$tool" | tr -d '\0')" = "$shebang" ]; then
+    if [ "$(head -c "${#shebang}" "$tool" | tr -d '\0')" = "$shebang" ] \
+        || [ "$(head -c "${#real_shebang}" "$tool" | tr -d '\0')" = "$real_shebang" ]; then
       sed "1s|^#!.*|#!$VENV/bin/python|" "$tool" >"$VENV/bin/$name"
       chmod +x "$VENV/bin/$name"
     else
@@ -211,7 +225,7 @@ PYEOF
   done
   "$VENV/bin/python" -c 'import numpy, pytest, pybind11, scikit_build_core, rclpy, rosbags' \
     || die "$VENV cannot import the shared packages from $SHARED_SITE"
-  stamp_set env "$SHARED"
+  stamp_set env "$SHARED $VENV"
 fi
 PIP=("$VENV/bin/python" -m pip --no-input --disable-pip-version-check)
 
