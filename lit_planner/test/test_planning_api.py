@@ -457,6 +457,33 @@ def test_ctrl_c_in_an_external_policy_ends_the_solve(stop: type[BaseException]) 
     assert plan("np4", policy="fit", max_iterations=10)["counters"]["iterations"] == 10  # usable
 
 
+@pytest.mark.parametrize("where", ["__float__", "__repr__"])
+def test_ctrl_c_while_an_answer_converts_ends_the_solve(where: str) -> None:
+    """An answer whose __float__ (or, when it is no number, whose __repr__) raised
+    KeyboardInterrupt was counted as a failed answer: the plan went on to its budget."""
+
+    class Answer:
+        def __repr__(self) -> str:
+            raise KeyboardInterrupt
+
+    if where == "__float__":
+
+        def interrupting(self: Answer) -> float:
+            raise KeyboardInterrupt
+
+        Answer.__float__ = interrupting  # type: ignore[attr-defined]
+    calls = []
+
+    def answered(context: lit_core.DecisionContext) -> object:
+        calls.append(context.kind)
+        return Answer()
+
+    policy = make_policy("external", callback=answered)
+    with pytest.raises(KeyboardInterrupt):
+        plan("np4", policy=policy, max_iterations=ITERATIONS)
+    assert len(calls) == 1 and policy.failures == 0
+
+
 def test_external_policy_time_is_not_planning_time() -> None:
     sleep = 0.002
     calls = 0
@@ -582,10 +609,13 @@ def test_invalid_start_and_goal_are_reported(planner: str) -> None:
     scenario = scenarios.get("np4")
     in_wall = dataclasses.replace(scenario, start=(0.0, 0.0, 0.0, 0.0))
     outside = dataclasses.replace(scenario, goal=(0.7, 0.0, 0.0, 0.0))
+    # An ulp outside: OMPL's bounds check let it through, and the box check called it a collision.
+    barely = dataclasses.replace(scenario, start=(math.nextafter(-0.5, -1.0), 0.0, 0.0, 0.0))
     assert not query_for(in_wall).is_valid(list(in_wall.start))
     for problem, status, words in (
         (in_wall, "invalid_start", "start is in collision"),
         (outside, "invalid_goal", "goal is out of bounds"),
+        (barely, "invalid_start", "start is out of bounds"),
     ):
         result = plan(problem, planner, time=0.05)
         assert result["status"] == status and words in result["message"]
@@ -901,6 +931,11 @@ def test_an_unknown_planner_parameter_is_a_planner_error_naming_the_known_ones(
             with pytest.raises(PlannerError, match=r"rewire factor must be a number in \(0, 1e6\]"):
                 planning.plan("np4", planner, time=0.05, params={"rewire_factor": factor})
     assert planning.plan("np4", "aitstar", time=0.05, params={"rewire_factor": 1.5})["solved"]
+    # A batch of no samples: AIT* failed an assertion and aborted the process (BIT*, ABIT*: never
+    # solved, without a word).
+    for planner in ("aitstar", "bitstar", "abitstar"):
+        with pytest.raises(PlannerError, match=r"'samples_per_batch': a batch needs at least 1"):
+            planning.plan("np4", planner, time=0.05, params={"samples_per_batch": 0})
     # checked before OMPL's setParam, which would print an error line of its own
     assert "was not found" not in capfd.readouterr().err
 
@@ -996,6 +1031,23 @@ def test_a_lookup_tensors_grid_index_outside_its_shape_is_an_index_error(tmp_pat
     for index in ((101, 0, 0), (0, 101, 0), (0, 0, 101), (10**7, 10**7, 10**7)):
         with pytest.raises(IndexError, match=r"is outside the shape \(101, 101, 101\)"):
             tensor.at(*index)
+    # A folder was opened and read as "basic_string::_M_replace_aux", a ValueError of no kind.
+    with pytest.raises(lit_core.TensorError, match="is a folder, not a tensor file"):
+        lit_core.LookupTensor.load(str(tmp_path), list(sidecar.shape), *sidecar.value_range)
+
+
+def test_the_core_refuses_a_listener_for_an_ompl_planner_and_measures_of_no_dimension() -> None:
+    """lit_core.solve ignored a listener for the OMPL planners (it refused a policy), and the
+    measure helpers gave 0 for n = 0 and the space's measure for a NaN cost."""
+    query = query_for(scenarios.get("np4"))
+    with pytest.raises(ValueError, match="a listener is called by litstar only; bitstar calls"):
+        lit_core.solve(query, "bitstar", time=0.05, listener=object())
+    for bad in ((0, 1.0, 0.5, 1.0), (2, math.nan, 0.5, 1.0)):
+        with pytest.raises(ValueError, match="informed_measure needs n >= 1"):
+            lit_core.informed_measure(*bad)
+    with pytest.raises(ValueError, match="measure_feature needs n >= 1"):
+        lit_core.measure_feature(0, 0.5, 1.0)
+    assert lit_core.informed_measure(2, math.inf, 0.5, 1.0) == 1.0  # no solution: the space
 
 
 _AIT_THROWS = """

@@ -200,11 +200,12 @@ namespace
         for (double v : x)
             if (!std::isfinite(v))
                 return std::string(what) + " has a non-finite coordinate";
-        ompl::base::ScopedState<> state(problem.si);
+        // Compared exactly: OMPL's satisfiesBounds allows an ulp or so outside, which the box check then called
+        // "in collision".
+        const auto &bounds = problem.si->getStateSpace()->as<ompl::base::RealVectorStateSpace>()->getBounds();
         for (std::size_t i = 0; i < x.size(); ++i)
-            state[i] = x[i];
-        if (!problem.si->satisfiesBounds(state.get()))
-            return std::string(what) + " is out of bounds";
+            if (x[i] < bounds.low[i] || x[i] > bounds.high[i])
+                return std::string(what) + " is out of bounds";
         if (!problem.checker->isValidPoint(x.data()))
             return std::string(what) + " is in collision";
         return "";
@@ -279,6 +280,8 @@ namespace
             {
                 if (policy)
                     throw py::value_error("policies apply to litstar only, not to " + plannerName);
+                if (!listenerObject.is_none())  // it was ignored without a word
+                    throw py::value_error("a listener is called by litstar only; " + plannerName + " calls none");
                 if (maxIterations != 0u || maxBatches != 0u || !(time > 0.0))
                     throw py::value_error(plannerName + " stops on time only: give a positive time");
                 planner = makeOmplPlanner(plannerName, problem.si);
@@ -308,6 +311,15 @@ namespace
                     const double factor = std::strtod(value.c_str(), &end);
                     if (end == value.c_str() || *end != '\0' || !(std::isfinite(factor) && factor > 0.0 && factor <= 1e6))
                         throw py::value_error(rejected + ": the rewire factor must be a number in (0, 1e6]");
+                }
+                if (!litstar && key == "samples_per_batch")
+                {
+                    // 0: AIT* failed an assertion and aborted the whole process; BIT* and ABIT* ran their budget
+                    // without a sample.
+                    char *end = nullptr;
+                    const double samples = std::strtod(value.c_str(), &end);
+                    if (end == value.c_str() || *end != '\0' || !(samples >= 1.0))
+                        throw py::value_error(rejected + ": a batch needs at least 1 sample");
                 }
                 bool accepted = false;
                 if (litstar)
@@ -357,17 +369,18 @@ namespace
                 py::gil_scoped_release release;
                 if (litstar)
                     plannerStatus = planner->solve(cancelCondition);
-                else if (plannerName != "aitstar" && plannerName != "irrtstar")
-                    // BIT* and ABIT* report each solution through the callback; RRT-Connect stops at its first,
-                    // which the code below records. (A watcher thread for them too cost them a share of a core:
-                    // about 18 % more CPU than wall time, and on one core about 15 % fewer checks for BIT* within
-                    // its budget, in a review helper's one-off measurements.)
+                else if (plannerName != "aitstar")
+                    // BIT*, ABIT* and Informed RRT* report each solution through the callback (Informed RRT*
+                    // adds its solution to the problem only when solve() ends, which is what a watcher saw);
+                    // RRT-Connect stops at its first, which the code below records. (A watcher thread for them
+                    // too cost them a share of a core: about 18 % more CPU than wall time, and about 15-16 %
+                    // fewer checks within the budget for BIT* and for Informed RRT*, in review helpers'
+                    // one-off measurements.)
                     plannerStatus = planner->solve(ompl::base::plannerOrTerminationCondition(
                         ompl::base::timedPlannerTerminationCondition(time), cancelCondition));
                 else
                 {
-                    // OMPL 1.5.2's AIT* and Informed RRT* do not call the intermediate-solution callback (seen
-                    // here: Informed RRT*'s first solution came at the end of its budget), so a watcher thread
+                    // OMPL 1.5.2's AIT* does not call the intermediate-solution callback, so a watcher thread
                     // polls the problem definition's solutions every 50 microseconds.
                     std::atomic<bool> done{false};
                     std::mutex mutex;
@@ -542,8 +555,24 @@ PYBIND11_MODULE(lit_core, m)
     m.def("planner_names", &plannerNames);
 
     m.def("unit_ball_measure", &unitBallMeasure, py::arg("n"));
-    m.def("informed_measure", &informedMeasure, py::arg("n"), py::arg("cost"), py::arg("cmin"), py::arg("space_measure"));
-    m.def("measure_feature", &measureFeature, py::arg("n"), py::arg("informed"), py::arg("space_measure"));
+    // n = 0 gave 0 (n - 1 wrapped around), a NaN cost the whole space (taken for "no solution").
+    m.def(
+        "informed_measure",
+        [](unsigned int n, double cost, double cmin, double spaceMeasure) {
+            if (n == 0u || std::isnan(cost) || !std::isfinite(cmin) || std::isnan(spaceMeasure))
+                throw py::value_error("informed_measure needs n >= 1, a cost (inf: none), a finite cmin and a "
+                                      "space measure");
+            return informedMeasure(n, cost, cmin, spaceMeasure);
+        },
+        py::arg("n"), py::arg("cost"), py::arg("cmin"), py::arg("space_measure"));
+    m.def(
+        "measure_feature",
+        [](unsigned int n, double informed, double spaceMeasure) {
+            if (n == 0u || std::isnan(informed) || std::isnan(spaceMeasure))
+                throw py::value_error("measure_feature needs n >= 1 and measures that are numbers");
+            return measureFeature(n, informed, spaceMeasure);
+        },
+        py::arg("n"), py::arg("informed"), py::arg("space_measure"));
     m.def("fit_batch_size", [](double xi, unsigned int n) { return FitPolicy::batchSize(xi, n); }, py::arg("xi"), py::arg("n"),
           "FIT*'s sigmoid-log batch rule (m_min = 1, m_max = 199), unrounded.");
 
@@ -701,19 +730,34 @@ PYBIND11_MODULE(lit_core, m)
                              throw PythonPolicyAbort(std::move(error));
                          throw;
                      }
+                     // Converted here, not with cast<double>(), which clears the error: a KeyboardInterrupt raised
+                     // while the answer converts (its __float__) or is shown (its __repr__) was counted as one failed
+                     // answer, and the plan went on.
+                     const auto abortOnInterrupt = [] {
+                         py::error_already_set error;
+                         if (!error.matches(PyExc_Exception))
+                             throw PythonPolicyAbort(std::move(error));
+                     };
+                     const double value = PyFloat_AsDouble(answer.ptr());
+                     if (!(value == -1.0 && PyErr_Occurred()))
+                         return value;
+                     abortOnInterrupt();  // else the error is dropped: an answer that is no number is a failure
+                     // An int beyond a double's range (10**400) does not convert either.
+                     std::string shown;
                      try
                      {
-                         return answer.cast<double>();
+                         shown = py::repr(answer);
                      }
-                     catch (const py::cast_error &)
+                     catch (py::error_already_set &error)
                      {
-                         // An int beyond a double's range (10**400) does not convert either.
-                         std::string shown = py::repr(answer);
-                         if (shown.size() > 60u)
-                             shown = shown.substr(0, 57u) + "...";
-                         throw std::runtime_error("external policy answered " + shown + " for " +
-                                                  toString(context.kind) + ", expected a number a double can hold");
+                         if (!error.matches(PyExc_Exception))
+                             throw PythonPolicyAbort(std::move(error));
+                         shown = "an object of type " + std::string(Py_TYPE(answer.ptr())->tp_name);
                      }
+                     if (shown.size() > 60u)
+                         shown = shown.substr(0, 57u) + "...";
+                     throw std::runtime_error("external policy answered " + shown + " for " + toString(context.kind) +
+                                              ", expected a number a double can hold");
                  };
                  // The py::function must be released with the GIL held.
                  return std::make_shared<ExternalPolicy>(std::move(call), decidesNeighbourFactor);

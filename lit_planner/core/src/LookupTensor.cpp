@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <limits>
@@ -93,6 +94,9 @@ namespace lit
 
     LookupTensor LookupTensor::load(const std::string &path, const TensorSpec &spec)
     {
+        std::error_code ignored;
+        if (std::filesystem::is_directory(path, ignored))  // opened, and read as "basic_string::_M_replace_aux"
+            fail(path, "is a folder, not a tensor file");
         std::ifstream in(path, std::ios::binary);
         if (!in)
             fail(path, "cannot be opened");

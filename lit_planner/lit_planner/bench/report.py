@@ -622,19 +622,12 @@ def markdown(summary: dict[str, Any]) -> str:
             "clock is wall time. Every planner gets the same budget."
         ),
     ]
-    watched = [
-        label(name)
-        for name in ("aitstar", "irrtstar")
-        if any(r.get("planner") == name for r in summary["runs"])
-    ]
-    if watched:
-        one = len(watched) == 1
+    if any(r.get("planner") == "aitstar" for r in summary["runs"]):
+        # Informed RRT* was watched too until 2026-12-07: it reports through the callback.
         lines.append(
-            f"- {' and '.join(watched)} (OMPL 1.5.2's {'does' if one else 'do'} not report "
-            f"intermediate solutions) {'is' if one else 'are'} watched by a thread that looks at "
-            f"{'its' if one else 'their'} solutions every 50 µs, sharing the machine's cores with "
-            f"{'it' if one else 'them'} (in a one-off check about 18 % more CPU time than wall "
-            "time)."
+            f"- {label('aitstar')} (OMPL 1.5.2's does not report intermediate solutions) is "
+            "watched by a thread that looks at its solutions every 50 µs, sharing the machine's "
+            "cores with it (in a one-off check about 18 % more CPU time than wall time)."
         )
     lines.append("")
     return "\n".join(lines)
