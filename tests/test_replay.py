@@ -2140,3 +2140,53 @@ def test_another_programs_message_types_are_kept_and_what_cannot_be_is_named(
     assert acme(tmp_path / "salvaged-json") == custom
     info = replay.bag_info(tmp_path / "salvaged-json")
     assert "/acme/json: serialized as 'json'" in info["custom_data"]["lit.salvage"]
+
+
+def test_a_type_without_its_definition_or_with_two_is_not_copied_under_a_wrong_one(
+    tmp_path: Path,
+) -> None:
+    """compact wrote a type whose definition the bag does not carry as a type without fields,
+    and salvage wrote the messages of two files with two definitions of one type under the
+    first file's."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    def record(path: Path, definition: str, emptied: bool = False) -> None:
+        store = get_typestore(Stores.ROS2_JAZZY)
+        store.register(get_types_from_msg(definition, "acme_msgs/msg/Level"))
+        level = store.types["acme_msgs/msg/Level"]
+        with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+            writer.set_custom_data(bag.RUN_ID_KEY, "r1")
+            kept = {"msgdef": "", "rihs01": store.hash_rihs01("acme_msgs/msg/Level")}
+            acme = writer.add_connection(
+                "/acme/level", "acme_msgs/msg/Level", **(kept if emptied else {"typestore": store})
+            )
+            for stamp in range(3):
+                value = stamp + 0.5 if "float64" in definition else stamp
+                writer.write(
+                    acme, 10 + stamp, store.serialize_cdr(level(value=value), level.__msgtype__)
+                )
+
+    record(tmp_path / "bare", "float64 value\n", emptied=True)
+    _assert_clean_error(
+        _replay("compact", tmp_path / "bare", tmp_path / "bare-compacted"),
+        "topic /acme/level: acme_msgs/msg/Level is not a ROS 2 Jazzy type and the file carries "
+        "no definition of it",
+    )
+    _assert_clean_error(  # its only topic: nothing is left, and the error says why
+        _replay("salvage", tmp_path / "bare", "-o", tmp_path / "bare-salvaged"),
+        "3 messages dropped (/acme/level: acme_msgs/msg/Level is not a ROS 2 Jazzy type and the "
+        "file carries no definition of it)",
+    )
+
+    record(tmp_path / "two", "float64 value\n")
+    record(tmp_path / "other", "int32 value\n")
+    (other,) = (tmp_path / "other").glob("*.mcap")
+    shutil.copy2(other, tmp_path / "two" / "zz-other.mcap")  # read after the folder's own file
+    salvaged = _replay("salvage", tmp_path / "two", "-o", tmp_path / "two-salvaged")
+    assert salvaged.returncode == 0, salvaged.stdout + salvaged.stderr
+    assert (
+        "3 messages dropped: /acme/level: its definition of acme_msgs/msg/Level differs from the "
+        "one its earlier messages came with"
+    ) in salvaged.stdout, salvaged.stdout
+    assert "/acme/level: 3 messages recovered" in salvaged.stdout, salvaged.stdout

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -15,6 +15,9 @@ from lit_learner.errors import ConfigError
 AGENT_NAMES = ("B", "psi_K")
 """The two agents: batch size B and neighbour factor psi_K."""
 FIXED_VALUES = {"B": "B = 100", "psi_K": "psi_K = e"}
+MAX_SEED = 2**63 - 2
+"""The largest learner seed: the psi_K agent's (seed + 1) is still a 64-bit signed integer, as a
+ROS parameter and torch's seed take."""
 """What the ``tensor`` policy plays for an agent whose tensor a folder lacks."""
 
 
@@ -77,6 +80,7 @@ class AgentConfig:
     (seen as the B agent stuck at B = 20, and as 2 of 8 seeds of the one-step bandit at 1.0)."""
 
     def __post_init__(self) -> None:
+        _make_plain(self)
         if self.name not in AGENT_NAMES:
             raise ConfigError(f"agent name {self.name!r} is not one of {AGENT_NAMES}")
         # min() and max() skip a NaN: (20, nan, 200) passed, and every decision then failed.
@@ -91,9 +95,9 @@ class AgentConfig:
             )
         if self.rounding not in ("half_away_from_zero", "none"):
             raise ConfigError(f"{self.name}: unknown rounding {self.rounding!r}")
-        if not 0.0 < self.tau <= 1.0:
+        if not (_is_number(self.tau) and 0.0 < self.tau <= 1.0):
             raise ConfigError(f"{self.name}: tau {self.tau} not in (0, 1]")
-        if not 0.0 <= self.gamma <= 1.0:
+        if not (_is_number(self.gamma) and 0.0 <= self.gamma <= 1.0):
             raise ConfigError(f"{self.name}: gamma {self.gamma} not in [0, 1]")
         for name in ("batch_size", "buffer_size", "warmup", "beta_steps"):
             if not _is_int(getattr(self, name)):
@@ -222,14 +226,15 @@ class RewardConfig:
     """K: path states are divided by this before weighting with w_s."""
 
     def __post_init__(self) -> None:
+        _make_plain(self)
         # Divisors and log arguments: 0 gave a ZeroDivisionError at the first reward.
         for name in ("search_floor", "t_hat_min", "path_states_scale"):
-            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0.0):
+            if not (_is_number(getattr(self, name)) and getattr(self, name) > 0.0):
                 raise ConfigError(f"rewards: {name} {getattr(self, name)} must be > 0")
         for name in ("w_t", "w_c", "w_u", "w_s", "w_search", "nu", "kappa_offset"):
-            if not math.isfinite(getattr(self, name)):
+            if not _is_number(getattr(self, name)):
                 raise ConfigError(f"rewards: {name} {getattr(self, name)} is not a number")
-        if not (math.isfinite(self.nu_min) and self.nu_min >= 0.0):  # kappa's floor
+        if not (_is_number(self.nu_min) and self.nu_min >= 0.0):  # kappa's floor
             raise ConfigError(f"rewards: nu_min {self.nu_min} must be a number >= 0")
 
     def to_dict(self) -> dict[str, Any]:
@@ -260,6 +265,7 @@ class LearnerConfig:
     makes results independent of the machine's core count."""
 
     def __post_init__(self) -> None:
+        _make_plain(self)
         if self.b.name != "B" or self.k.name != "psi_K":
             raise ConfigError(
                 f"LearnerConfig.b must be the B agent and .k the psi_K agent, got "
@@ -268,8 +274,8 @@ class LearnerConfig:
         if self.device != "cpu":
             raise ConfigError(f"device {self.device!r}: the learner runs on the CPU only")
         # Both failed later, inside torch or numpy, as a bare ValueError or RuntimeError.
-        if not (_is_int(self.seed) and 0 <= self.seed < 2**62):
-            raise ConfigError(f"seed {self.seed!r} must be an integer in [0, 2^62)")
+        if not (_is_int(self.seed) and 0 <= self.seed <= MAX_SEED):
+            raise ConfigError(f"seed {self.seed!r} must be an integer in [0, 2^63 - 2]")
         if not (_is_int(self.num_threads) and self.num_threads >= 1):
             raise ConfigError(f"num_threads {self.num_threads!r} must be an integer >= 1")
         for name in ("train_b", "train_k"):
@@ -303,11 +309,32 @@ class LearnerConfig:
 
 def _is_number(value: Any) -> bool:
     """A finite real number (not a bool)."""
-    return (
-        isinstance(value, numbers.Real)
-        and not isinstance(value, (bool, np.bool_))
-        and math.isfinite(value)
-    )
+    if not isinstance(value, numbers.Real) or isinstance(value, (bool, np.bool_)):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an int beyond a float's range (10**400 in an edited checkpoint)
+        return False
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with numpy scalars as Python's own numbers and lists as tuples: np.int64 and
+    np.float32 passed the checks and then failed the sidecar's JSON at the first export."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, np.floating):
+        return float(value)
+    if isinstance(value, (tuple, list)):
+        return tuple(_plain(item) for item in value)
+    return value
+
+
+def _make_plain(config: Any) -> None:
+    """:func:`_plain` on every field of the frozen dataclass ``config``."""
+    for item in fields(config):
+        object.__setattr__(config, item.name, _plain(getattr(config, item.name)))
 
 
 def _is_int(value: Any) -> bool:

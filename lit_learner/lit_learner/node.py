@@ -63,6 +63,7 @@ from lit_planner.rosutil import (
 )
 from lit_planner.safe_logger import SafeLogger
 
+from lit_learner.config import MAX_SEED
 from lit_learner.errors import ExportError, PairingError, ReplayError
 from lit_learner.errors import MessageError as CoreMessageError
 from lit_learner.messages import DecisionRequest, EpisodeEnd, episode_key
@@ -117,6 +118,8 @@ def parameter_problem(p: Mapping[str, Any]) -> str | None:
     for name in ("checkpoint_every", "max_episodes", "seed", "wait_for_subscribers"):
         if p[name] < 0:
             return f"{name} must be 0 or more, got {p[name]}"
+    if p["seed"] > MAX_SEED:  # the learner's own bound; beyond it the node stopped with a traceback
+        return f"seed must be at most 2^63 - 2, got {p['seed']}"
     for name in ("max_open_episodes", "max_sources"):
         if p[name] < 1:
             return f"{name} must be 1 or more, got {p[name]}"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import threading
 from dataclasses import replace
@@ -701,7 +702,19 @@ def test_configs_that_would_divide_by_zero_or_diverge_are_refused() -> None:
     for bad in ({"seed": -1}, {"seed": 1.5}, {"num_threads": 0}, {"train_b": "yes"}):
         with pytest.raises(ConfigError, match=next(iter(bad))):
             LearnerConfig(**bad)
-    LearnerConfig(seed=np.int64(3))  # a numpy integer is an integer
+    # numpy's numbers are taken as Python's (they failed the sidecar's JSON at the first export)
+    plain = LearnerConfig(seed=np.int64(3), b=AgentConfig.batch_size_agent(tau=np.float32(0.5)))
+    assert type(plain.seed) is int and type(plain.b.tau) is float
+    json.dumps(plain.to_dict())
+    assert LearnerConfig(seed=2**63 - 2).seed == 2**63 - 2  # the psi_K agent's is 2^63 - 1
+    for bad in ({"seed": 2**63 - 1}, {"seed": True}):
+        with pytest.raises(ConfigError, match="seed"):
+            LearnerConfig(**bad)
+    for bad in ({"tau": True}, {"gamma": 10**400}, {"lr_actor": 10**400}):
+        with pytest.raises(ConfigError, match=next(iter(bad))):
+            AgentConfig.neighbour_agent(**bad)
+    with pytest.raises(ConfigError, match="w_t"):
+        RewardConfig(w_t=10**400)
     RewardConfig(w_search=0.0, nu_min=0.0)  # allowed: no search cost, no kappa floor
 
 

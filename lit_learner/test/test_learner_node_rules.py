@@ -97,3 +97,15 @@ def test_an_export_folder_with_a_pipe_for_a_sidecar_is_foreign_without_waiting(
         reader.join(10)
     assert not hung, "the sidecar's read did not end"
     assert found == [["b_tensor.json"]]
+
+
+def test_a_seed_beyond_the_learners_bound_is_a_parameter_problem(tmp_path: Path) -> None:
+    """A seed of 2^63 - 1 passed the node's check and then stopped it with a traceback (the
+    learner's config refuses it: its psi_K agent's seed, one more, would overflow)."""
+    from lit_learner.node import parameter_problem
+
+    params = {**PARAMETERS, "export_dir": str(tmp_path)}
+    assert parameter_problem({**params, "seed": 2**63 - 2}) is None
+    assert parameter_problem({**params, "seed": 2**63 - 1}) == (
+        "seed must be at most 2^63 - 2, got 9223372036854775807"
+    )

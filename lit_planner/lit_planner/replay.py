@@ -1454,6 +1454,9 @@ def salvage(
     # A message another file of the folder held already (the same topic, time and bytes: a
     # copy of a file beside it) is written once.
     first_file: dict[tuple[str, int, bytes], Path] = {}
+    # A type Jazzy lacks is written with the definition its topic's first message came with: one
+    # that came with another (two files recorded apart) would be written under the wrong one.
+    definitions: dict[tuple[str, str], bytes] = {}
     for result, channel_id, log_ns, data in gathered.messages:
         channel = gathered.channels.get((result.file, channel_id))
         schema = (
@@ -1466,6 +1469,13 @@ def salvage(
             if schema is None
             else _unusable(channel, schema, data)
         )
+        if why is None and schema.name not in bag.typestore().types:
+            first = definitions.setdefault((channel.topic, schema.name), bytes(schema.data))
+            if first != bytes(schema.data):
+                why = (
+                    f"{channel.topic}: its definition of {schema.name} differs from the one its "
+                    "earlier messages came with"
+                )
         if why is not None:
             result.dropped += 1
             result.dropped_why[why] = result.dropped_why.get(why, 0) + 1
@@ -1486,6 +1496,7 @@ def salvage(
             f"{r.file}: "
             + (r.reason if r.left_out else f"stopped at byte {r.stopped_at}: {r.reason}")
             + "".join(f"; damaged {damage}" for damage in r.damaged_chunks)
+            + "".join(f"; {n} messages dropped ({why})" for why, n in r.dropped_why.items())
             for r in results
         )
         raise ReplayError(f"nothing to salvage from {source} ({where})")
@@ -2072,7 +2083,6 @@ def _unusable(channel: Any, schema: Any, data: bytes) -> str | None:
     return None
 
 
-@cache
 def _store_for(msgtype: str, encoding: str, definition: bytes) -> Any:
     """The typestore that reads ``msgtype``: rosbags' Jazzy one when it knows the type, else a
     copy of it that also holds ``definition`` (a bag's schema record: ``ros2msg`` or ``ros2idl``
@@ -2081,32 +2091,39 @@ def _store_for(msgtype: str, encoding: str, definition: bytes) -> Any:
     Raises:
         ValueError: the type is not Jazzy's and the definition does not give it.
     """
+    store = _store_or_why(msgtype, encoding, definition)
+    if isinstance(store, str):
+        raise ValueError(store)  # noqa: TRY004 -- a reason, not a type error
+    return store
+
+
+@cache
+def _store_or_why(msgtype: str, encoding: str, definition: bytes) -> Any:
+    """:func:`_store_for`'s store, or why there is none (kept too: a definition that does not
+    parse was parsed again, and a typestore built, for each of its messages)."""
     if msgtype in bag.typestore().types:
         return bag.typestore()
     from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
 
+    unknown = f"{msgtype} is not a ROS 2 Jazzy type and"
     parse = {"ros2msg": get_types_from_msg, "ros2idl": get_types_from_idl}.get(encoding)
     if parse is None:
-        raise ValueError(
-            f"{msgtype} is not a ROS 2 Jazzy type and its definition is of encoding "
-            f"{encoding!r}, not ros2msg or ros2idl"
-        )
+        return f"{unknown} its definition is of encoding {encoding!r}, not ros2msg or ros2idl"
     try:
         text = definition.decode("utf-8")
+    except UnicodeDecodeError:
+        return f"{unknown} the definition the file carries is not UTF-8 text"
+    if not text.strip():  # it parses, as a type without fields, which no message is
+        return f"{unknown} the file carries no definition of it"
+    try:
         types = parse(text) if encoding == "ros2idl" else parse(text, msgtype)
         store = get_typestore(Stores.ROS2_JAZZY)
         store.register(types)
         store.hash_rihs01(msgtype)  # the definition is whole: every type it uses is known
     except Exception as error:  # noqa: BLE001 -- rosbags' parsers raise many kinds
-        raise ValueError(
-            f"{msgtype} is not a ROS 2 Jazzy type and the definition the file carries does not "
-            f"give it ({_describe(error)})"
-        ) from None
+        return f"{unknown} the definition the file carries does not give it ({_describe(error)})"
     if msgtype not in store.types:
-        raise ValueError(
-            f"{msgtype} is not a ROS 2 Jazzy type and the definition the file carries does not "
-            "define it"
-        )
+        return f"{unknown} the definition the file carries does not define it"
     return store
 
 
@@ -2229,7 +2246,9 @@ def _connection_store(source: Path, connection: Any) -> Any:
     """
     from rosbags.interfaces import MessageDefinitionFormat
 
-    encoding = "ros2idl" if connection.msgdef.format == MessageDefinitionFormat.IDL else "ros2msg"
+    encoding = {MessageDefinitionFormat.IDL: "ros2idl", MessageDefinitionFormat.MSG: "ros2msg"}.get(
+        connection.msgdef.format, "none"
+    )
     try:
         return _store_for(connection.msgtype, encoding, connection.msgdef.data.encode("utf-8"))
     except ValueError as error:
