@@ -15,10 +15,11 @@ from numpy.typing import NDArray
 from lit_learner.config import AgentConfig
 from lit_learner.fuzzy import fuzzify
 from lit_learner.networks import Actor
+from lit_planner import tensor_files
 
 EXPORT_CHUNK = 1 << 16
 """Grid points per actor forward pass during export."""
-TENSOR_FILES = {"B": "b_tensor.npy", "psi_K": "k_tensor.npy"}
+TENSOR_FILES = tensor_files.TENSOR_FILES
 """File name of each agent's tensor (the planner's ``tensor`` policy looks for these)."""
 CHECKPOINT_FILE = "checkpoint.pt"
 """Name of the checkpoint saved next to the tensors and hashed into their sidecars."""

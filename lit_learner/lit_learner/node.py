@@ -150,10 +150,10 @@ def foreign_tensor_files(folder: Path) -> list[str]:
     (whose sidecar's provenance says ``exported_by: lit_learner_node``). The node's export
     replaces and removes the tensor files there: it must not take the shipped tensors, or those
     of ``lit train``, with them."""
+    # Not lit_learner.export's: it imports torch, whose import starts `ldconfig -p`, and lit up
+    # checks this before it starts anything (a refusal test caught that child).
     from lit_planner.errors import TensorFileError
-    from lit_planner.tensor_files import read_sidecar_bytes, sidecar_path
-
-    from lit_learner.export import TENSOR_FILES
+    from lit_planner.tensor_files import TENSOR_FILES, read_sidecar_bytes, sidecar_path
 
     found = []
     for name in TENSOR_FILES.values():

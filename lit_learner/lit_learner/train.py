@@ -1052,7 +1052,6 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
     from lit_planner.scenarios import split_names
 
     from lit_learner.config import LearnerConfig
-    from lit_learner.core import LearnerCore
     from lit_planner import planning
 
     hooks = hooks or TrainingHooks()
@@ -1114,6 +1113,8 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
         state = DriverState.load(state_path(checkpoint))
         # Before the checks that trust the driver state's episode (a later checkpoint, the metrics
         # rows): a driver state of another checkpoint sent the user to --rollback first.
+        from lit_learner.core import LearnerCore  # torch: after the options' checks (below)
+
         core = LearnerCore.load_checkpoint(checkpoint)
         warning = core.load_warning()
         if warning:
@@ -1256,6 +1257,10 @@ def train(args: argparse.Namespace, hooks: TrainingHooks | None = None) -> Train
             config = dataclasses.replace(
                 config, reward=dataclasses.replace(config.reward, w_search=w_search)
             )
+        # torch (whose import starts `ldconfig -p`) only once the options passed their checks: a
+        # refused --export /proc/x did start that child.
+        from lit_learner.core import LearnerCore
+
         core = LearnerCore(config)
         rng = draw_generator(seed)
     distribution = TrainingDistribution(state.scenarios, rng)  # checks the names first

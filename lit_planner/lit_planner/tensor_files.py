@@ -49,6 +49,9 @@ AXIS_NAMES = ("rho_global", "rho_local", "measure")
 """Axis names in C order."""
 TENSOR_SHAPE = (GRID_SIZE,) * len(AXIS_NAMES)
 """Shape of every lookup tensor."""
+TENSOR_FILES = {"B": "b_tensor.npy", "psi_K": "k_tensor.npy"}
+"""File name of each output's lookup tensor inside a tensor folder (sidecars: same stem, .json);
+the planner's ``tensor`` policy looks for these and the learner exports them."""
 TENSOR_DTYPE = np.dtype("<f4")
 """On-disk dtype: little-endian float32."""
 SIDECAR_SCHEMA = "lit_msgs_json/TensorSidecar"
