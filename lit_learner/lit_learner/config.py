@@ -15,10 +15,10 @@ from lit_learner.errors import ConfigError
 AGENT_NAMES = ("B", "psi_K")
 """The two agents: batch size B and neighbour factor psi_K."""
 FIXED_VALUES = {"B": "B = 100", "psi_K": "psi_K = e"}
+"""What the ``tensor`` policy plays for an agent whose tensor a folder lacks."""
 MAX_SEED = 2**63 - 2
 """The largest learner seed: the psi_K agent's (seed + 1) is still a 64-bit signed integer, as a
 ROS parameter and torch's seed take."""
-"""What the ``tensor`` policy plays for an agent whose tensor a folder lacks."""
 
 
 def left_out_note(agent: str, why: str) -> str:
@@ -85,7 +85,8 @@ class AgentConfig:
             raise ConfigError(f"agent name {self.name!r} is not one of {AGENT_NAMES}")
         # min() and max() skip a NaN: (20, nan, 200) passed, and every decision then failed.
         if not (
-            len(self.consequents) == 3
+            isinstance(self.consequents, tuple)
+            and len(self.consequents) == 3
             and all(_is_number(c) for c in self.consequents)
             and min(self.consequents) < max(self.consequents)
         ):
@@ -127,7 +128,8 @@ class AgentConfig:
             if not (_is_number(getattr(self, name)) and getattr(self, name) >= 0.0):
                 raise ConfigError(f"{self.name}: {name} {getattr(self, name)} must be >= 0")
         if not (
-            len(self.fuzzy_centres) == 3
+            isinstance(self.fuzzy_centres, tuple)
+            and len(self.fuzzy_centres) == 3
             and all(_is_number(c) for c in self.fuzzy_centres)
             and self.fuzzy_centres[0] < self.fuzzy_centres[1] < self.fuzzy_centres[2]
         ):
@@ -139,10 +141,12 @@ class AgentConfig:
         if not (_is_number(self.fuzzy_sigma) and 1e-6 <= self.fuzzy_sigma <= 1e6):
             raise ConfigError(f"{self.name}: fuzzy_sigma {self.fuzzy_sigma} not in [1e-6, 1e6]")
         if not (
-            self.conv_kernels
+            isinstance(self.conv_kernels, tuple)
+            and self.conv_kernels
             and all(_is_int(k) and k >= 1 and k % 2 == 1 for k in self.conv_kernels)
             and _is_int(self.conv_channels)
             and self.conv_channels >= 1
+            and isinstance(self.hidden, tuple)
             and self.hidden
             and all(_is_int(h) and h >= 1 for h in self.hidden)
         ):
