@@ -1469,7 +1469,7 @@ def salvage(
             if schema is None
             else _unusable(channel, schema, data)
         )
-        if why is None and schema.name not in bag.typestore().types:
+        if why is None and schema.name not in bag.typestore().types:  # Jazzy's: its own definition
             first = definitions.setdefault((channel.topic, schema.name), bytes(schema.data))
             if first != bytes(schema.data):
                 why = (
@@ -2070,10 +2070,12 @@ def _unusable(channel: Any, schema: Any, data: bytes) -> str | None:
             f"{channel.topic}: serialized as {channel.message_encoding!r}, not CDR, which lit "
             "replay does not read (the source keeps them)"
         )
-    try:
-        store = _store_for(schema.name, schema.encoding, bytes(schema.data))
-    except ValueError as error:
-        return f"{channel.topic}: {error}"
+    store = bag.typestore()  # most messages: no copy and hash of their definition
+    if schema.name not in store.types:
+        try:
+            store = _store_for(schema.name, schema.encoding, bytes(schema.data))
+        except ValueError as error:
+            return f"{channel.topic}: {error}"
     try:
         message = store.deserialize_cdr(data, schema.name)
         if schema.name == bag.STRING_TYPE:

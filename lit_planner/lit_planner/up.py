@@ -486,7 +486,7 @@ def run(args: argparse.Namespace) -> int:
     # "" is refused by _check, not replaced by the default id
     run_id = args.run_id if args.run_id is not None else time.strftime("up-%Y%m%d-%H%M%S")
     bag = None if args.no_record else (args.bag or default_bag_root() / run_id).absolute()
-    # The domain first: it needs no imports (_check's load torch, whose import runs ldconfig)
+    # The domain first: it needs no imports (_check's took seconds and once imported torch)
     problem = set_domain_id(args, DEFAULT_DOMAIN_ID) or _check(args, run_id, bag)
     if problem is not None:
         print(f"lit up: {problem}", file=sys.stderr)

@@ -28,6 +28,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <map>
+#include <optional>
 #include <algorithm>
 #include <atomic>
 #include <mutex>
@@ -211,6 +212,16 @@ namespace
         return "";
     }
 
+    /** \brief The finite number that all of \e text spells, if it spells one (strtod). */
+    std::optional<double> parseNumber(const std::string &text)
+    {
+        char *end = nullptr;
+        const double value = std::strtod(text.c_str(), &end);
+        if (end == text.c_str() || *end != '\0' || !std::isfinite(value))
+            return std::nullopt;
+        return value;
+    }
+
     /** \brief The longest time solve() takes, s (as lit_planner.planning.MAX_TIME). */
     constexpr double maxSolveTime = 1e9;
     /** \brief Planner parameters that solve() sets from its own arguments: not taken in its params. */
@@ -304,23 +315,14 @@ namespace
                 if (litstar && key == "batch_size" && litstar->getPolicyName() != "fixed")
                     throw py::value_error(rejected + ": batch_size is the fixed policy's B, and the '" +
                                           litstar->getPolicyName() + "' policy decides B itself");
-                if (!litstar && key == "rewire_factor")
-                {
-                    // OMPL's setters take any number (AIT* with -3 ran without a word); LIT*'s range for all.
-                    char *end = nullptr;
-                    const double factor = std::strtod(value.c_str(), &end);
-                    if (end == value.c_str() || *end != '\0' || !(std::isfinite(factor) && factor > 0.0 && factor <= 1e6))
-                        throw py::value_error(rejected + ": the rewire factor must be a number in (0, 1e6]");
-                }
-                if (!litstar && key == "samples_per_batch")
-                {
-                    // 0: AIT* failed an assertion and aborted the whole process; BIT* and ABIT* ran their budget
-                    // without a sample.
-                    char *end = nullptr;
-                    const double samples = std::strtod(value.c_str(), &end);
-                    if (end == value.c_str() || *end != '\0' || !(samples >= 1.0))
-                        throw py::value_error(rejected + ": a batch needs at least 1 sample");
-                }
+                const std::optional<double> given = parseNumber(value);
+                // OMPL's setters take any number (AIT* with -3 ran without a word); LIT*'s range for all.
+                if (!litstar && key == "rewire_factor" && !(given && *given > 0.0 && *given <= 1e6))
+                    throw py::value_error(rejected + ": the rewire factor must be a number in (0, 1e6]");
+                // 0: AIT* failed an assertion and aborted the whole process; BIT* and ABIT* ran their budget without
+                // a sample.
+                if (!litstar && key == "samples_per_batch" && !(given && *given >= 1.0))
+                    throw py::value_error(rejected + ": a batch needs at least 1 sample");
                 bool accepted = false;
                 if (litstar)
                     litstar->noteRefusedParameter("");
@@ -339,11 +341,8 @@ namespace
                 // An unsigned parameter takes "-3" as 4294967293, "1.5" as 1; a setter may clamp: a number must read
                 // back as the number given, or the planner would not run with it.
                 const std::string stored = planner->params()[key].getValue();
-                char *valueEnd = nullptr, *storedEnd = nullptr;
-                const double given = std::strtod(value.c_str(), &valueEnd);
-                const double kept = std::strtod(stored.c_str(), &storedEnd);
-                if (valueEnd != value.c_str() && *valueEnd == '\0' && storedEnd != stored.c_str() && *storedEnd == '\0' &&
-                    std::isfinite(given) && !(std::abs(kept - given) <= 1e-9 * std::max(1.0, std::abs(given))))
+                const std::optional<double> kept = parseNumber(stored);
+                if (given && kept && !(std::abs(*kept - *given) <= 1e-9 * std::max(1.0, std::abs(*given))))
                     throw py::value_error(rejected + ": it was stored as " + stored +
                                           ", not the value given (rounded, clamped to the parameter's range, or "
                                           "outside its type's)");
